@@ -1,0 +1,277 @@
+"""The ``outcast`` command line.
+
+Runtime commands (``shadow``, ``relight``, ``depth``, ``timelapse``) import only the runtime.
+Commands of the training side (``data``, ``train``, ``export``, ``eval``) are registered from their
+packages only when those import (they need torch / mitsuba, installed with ``.[dev]``).
+Errors exit with status 2 and one readable line on stderr, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import math
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from outcast_core.runtime.geometry import normalize_sun, sun_vector
+
+#: Optional command groups: (module, function adding sub-commands). Missing ones are skipped.
+OPTIONAL_COMMANDS: list[tuple[str, str]] = [
+    ("outcast_core.runtime.timelapse_cli", "register"),
+    ("outcast_core.data.cli", "register"),
+    ("outcast_core.train.cli", "register"),
+    ("outcast_core.export.cli", "register"),
+    ("outcast_core.eval.cli", "register"),
+]
+
+#: Working resolution for ``outcast shadow`` / ``depth`` unless ``--size`` says otherwise.
+DEFAULT_CLI_PRESET = "balanced"
+
+
+class CliError(Exception):
+    """A user-facing error: printed as one line, exit status 2."""
+
+
+def parse_azel(text: str) -> np.ndarray:
+    """``"AZ,EL"`` in degrees -> camera-space unit sun vector."""
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise ValueError(f"expected AZ,EL in degrees (e.g. 135,40), got {text!r}")
+    try:
+        az, el = (float(p) for p in parts)
+    except ValueError as exc:
+        raise ValueError(f"expected AZ,EL in degrees (e.g. 135,40), got {text!r}") from exc
+    if not (math.isfinite(az) and math.isfinite(el)) or not -90.0 <= el <= 90.0:
+        raise ValueError(f"expected a finite azimuth and an elevation in [-90, 90], got {text!r}")
+    return sun_vector(az, el)
+
+
+def parse_vector(text: str) -> np.ndarray:
+    """``"X,Y,Z"`` -> normalised camera-space sun vector."""
+    parts = text.split(",")
+    if len(parts) != 3:
+        raise ValueError(f"expected X,Y,Z (camera space, toward the sun), got {text!r}")
+    try:
+        v = [float(p) for p in parts]
+    except ValueError as exc:
+        raise ValueError(f"expected X,Y,Z (camera space, toward the sun), got {text!r}") from exc
+    return normalize_sun(v)
+
+
+def _sun_from_args(args: argparse.Namespace) -> np.ndarray:
+    if args.sun is not None:
+        return parse_azel(args.sun)
+    return parse_vector(args.sun_dir)
+
+
+def _load(path: str, max_pixels: int | None = None):  # -> LoadedImage
+    from outcast_core.runtime.imageio import read_image
+
+    return read_image(path, max_pixels=max_pixels)
+
+
+def _make_session(args: argparse.Namespace, *, shadow_mode: str, relight_mode: str = "auto"):
+    from outcast_core.runtime.session import RelightSession
+
+    thickness = getattr(args, "thickness", math.inf)
+    return RelightSession(
+        preset=args.preset, shadow_mode=shadow_mode, relight_mode=relight_mode,
+        thickness=thickness,
+    )
+
+
+def _set_image(session, loaded, args: argparse.Namespace) -> None:
+    depth = None
+    if getattr(args, "depth", None):
+        from outcast_core.runtime.imageio import read_depth
+
+        depth = read_depth(args.depth)
+    focal35 = None if args.fov is not None else loaded.exif.focal_35mm
+    session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth)
+
+
+def _say(args: argparse.Namespace, text: str) -> None:
+    if not getattr(args, "quiet", False):
+        print(text, file=sys.stderr)
+
+
+def cmd_shadow(args: argparse.Namespace) -> int:
+    from outcast_core.runtime.imageio import write_shadow_png
+    from outcast_core.runtime.session import PRESETS
+
+    w = _sun_from_args(args)
+    preset = PRESETS[args.preset]
+    loaded = _load(args.image, max_pixels=4 * preset.working_size**2)
+    session = _make_session(args, shadow_mode=args.mode)
+    if args.steps is not None and session.shadow_mode == "direct":
+        from outcast_core.runtime.session import Preset
+
+        session.preset = Preset(
+            "custom", preset.working_size, args.steps, 1.0 / args.steps, preset.preview_size,
+            preset.preview_steps,
+        )
+    _set_image(session, loaded, args)
+    t0 = time.perf_counter()
+    shadow = session.shadow(w)
+    write_shadow_png(args.output, shadow, force=args.force)
+    _say(args, f"wrote {args.output} ({shadow.shape[1]}x{shadow.shape[0]}, "
+               f"{session.shadow_mode} shadows, depth: {session.depth_source}, "
+               f"{time.perf_counter() - t0:.2f} s)")
+    return 0
+
+
+def cmd_relight(args: argparse.Namespace) -> int:
+    from outcast_core.runtime.imageio import write_image
+
+    w_from = parse_azel(args.from_sun)
+    w_to = parse_azel(args.to_sun)
+    loaded = _load(args.image)
+    session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
+    _set_image(session, loaded, args)
+    session.set_original_sun(w_from)
+    out = session.relight_full(w_to)
+    bit_depth = 16 if Path(args.output).suffix.lower() in {".tif", ".tiff"} else 8
+    write_image(args.output, out, bit_depth=bit_depth, force=args.force)
+    t = session.timings
+    _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows: "
+               f"{session.shadow_mode}, relighting: {session.relight_mode}, depth: "
+               f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
+         + ")")
+    return 0
+
+
+def cmd_depth(args: argparse.Namespace) -> int:
+    from outcast_core.runtime.imageio import write_depth
+    from outcast_core.runtime.models import ModelRegistry
+    from outcast_core.runtime.session import PRESETS, RelightSession
+
+    registry = ModelRegistry()
+    registry.load("depth")  # ModelError naming the file when the model is missing or corrupt
+    preset = PRESETS[args.preset]
+    loaded = _load(args.image, max_pixels=4 * preset.working_size**2)
+    session = RelightSession(registry=registry, preset=args.preset, shadow_mode="direct",
+                             relight_mode="physics")
+    session.set_image(loaded.image_srgb, fov_deg=args.fov)
+    depth = np.where(session.sky, np.inf, session.depth).astype(np.float32)
+    write_depth(args.output, depth, force=args.force)
+    _say(args, f"wrote {args.output} ({depth.shape[1]}x{depth.shape[0]}, sky = inf)")
+    return 0
+
+
+def _add_common(p: argparse.ArgumentParser, *, depth: bool = True) -> None:
+    if depth:
+        p.add_argument("--depth", help="depth map (.npy float32 H x W, 16-bit PNG or .exr) "
+                                       "to use instead of the depth model")
+    p.add_argument("--fov", type=float, default=None,
+                   help="horizontal field of view in degrees (default: EXIF, else 60)")
+    p.add_argument("--preset", choices=["fast", "balanced", "accurate"],
+                   default=DEFAULT_CLI_PRESET, help="speed/accuracy preset")
+    p.add_argument("-o", "--output", required=True, help="output file")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+
+
+def build_parser(
+    optional: Sequence[tuple[str, str]] = OPTIONAL_COMMANDS,
+) -> argparse.ArgumentParser:
+    """The ``outcast`` argument parser (optional command groups added when importable)."""
+    parser = argparse.ArgumentParser(
+        prog="outcast", description="Relight outdoor photographs with correct cast shadows."
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    p = sub.add_parser(
+        "shadow", help="write the shadow image (16-bit grey PNG at the working resolution)"
+    )
+    p.add_argument("image")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--sun", help="AZ,EL in degrees relative to the camera")
+    g.add_argument("--sun-dir", help="X,Y,Z camera-space vector toward the sun")
+    p.add_argument("--mode", choices=["auto", "direct", "learned"], default="auto",
+                   help="learned S network (default when installed) or Direct ray marching")
+    p.add_argument("--thickness", default=math.inf, type=_thickness,
+                   help="Direct occluder thickness relative to depth, or 'inf' (default)")
+    p.add_argument("--steps", type=_positive_int, default=None,
+                   help="Direct march steps across one image side (default: from the preset)")
+    _add_common(p)
+    p.set_defaults(func=cmd_shadow)
+
+    p = sub.add_parser("relight", help="relight a photo from its original sun to a new one")
+    p.add_argument("image")
+    p.add_argument("--from", dest="from_sun", required=True, metavar="AZ,EL",
+                   help="the photo's original sun")
+    p.add_argument("--to", dest="to_sun", required=True, metavar="AZ,EL", help="the new sun")
+    p.add_argument("--mode", choices=["auto", "physics", "learned"], default="auto",
+                   help="learned relighting (default when installed) or physics ratios")
+    p.add_argument("--shadows", choices=["auto", "direct", "learned"], default="auto",
+                   help="shadow method (default: learned when installed, else Direct)")
+    p.add_argument("--thickness", default=math.inf, type=_thickness, help=argparse.SUPPRESS)
+    _add_common(p)
+    p.set_defaults(func=cmd_relight)
+
+    p = sub.add_parser("depth", help="estimate depth with the depth model")
+    p.add_argument("image")
+    _add_common(p, depth=False)
+    p.set_defaults(func=cmd_depth)
+
+    for module, func in optional:
+        try:
+            mod = importlib.import_module(module)
+        except ImportError:
+            continue
+        register: Callable[[argparse._SubParsersAction], None] = getattr(mod, func)
+        register(sub)
+    return parser
+
+
+def _thickness(text: str) -> float:
+    from outcast_core.runtime.shadows import parse_thickness
+
+    try:
+        return parse_thickness(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from exc
+
+
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from exc
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return n
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``outcast``; returns the exit status."""
+    from outcast_core.runtime.models import ModelError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except (ValueError, ModelError, FileExistsError, FileNotFoundError, CliError) as exc:
+        print(f"outcast {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"outcast {args.command}: error: out of memory; try --preset fast or a smaller "
+              "image", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        print(f"outcast {args.command}: error: {exc.strerror or exc} "
+              f"({exc.filename or ''})", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"outcast {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

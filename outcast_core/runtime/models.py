@@ -1,0 +1,169 @@
+"""Shipped ONNX models: manifests, checksum-verified loading, padded inference.
+
+Each model is ``models/<name>.onnx`` with a manifest ``models/<name>.json`` (see
+``models/README.md``). Loading checks that both exist, that the manifest parses and that the
+file's sha256 matches; anything else raises :class:`ModelError` naming the file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: Where the shipped models live (``models/`` at the top of the source tree).
+DEFAULT_MODEL_DIR = Path(__file__).resolve().parents[2] / "models"
+#: The model names the runtime knows.
+KNOWN_MODELS = ("depth", "shadow", "refine", "relight", "shadow_2d", "relight_pix2pix")
+
+
+class ModelError(RuntimeError):
+    """A model file is missing, corrupt or does not match its manifest."""
+
+
+def model_dir() -> Path:
+    """The model folder: ``$OUTCAST_MODEL_DIR`` when set, else the shipped ``models/``."""
+    env = os.environ.get("OUTCAST_MODEL_DIR")
+    return Path(env) if env else DEFAULT_MODEL_DIR
+
+
+def sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+@dataclass
+class Model:
+    """A loaded ONNX model and its manifest; ``run`` pads spatial inputs and crops outputs."""
+
+    name: str
+    path: Path
+    manifest: dict[str, Any]
+    session: Any
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    @property
+    def pad_multiple(self) -> int:
+        return int(self.manifest.get("pad_multiple", 16))
+
+    @property
+    def input_names(self) -> list[str]:
+        return [i.name for i in self.session.get_inputs()]
+
+    def run(self, feeds: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Run with NCHW inputs of any size: pads H, W (edge replication) and crops outputs.
+
+        Args:
+            feeds: input name -> array. 4-D arrays are treated as NCHW images.
+
+        Returns:
+            output name -> float32 array cropped to the input size.
+        """
+        missing = set(self.input_names) - set(feeds)
+        if missing:
+            raise ValueError(
+                f"expected inputs {sorted(self.input_names)}, missing {sorted(missing)}"
+            )
+        m = self.pad_multiple
+        size = None
+        padded: dict[str, np.ndarray] = {}
+        for name in self.input_names:
+            x = np.ascontiguousarray(feeds[name], dtype=np.float32)
+            if x.ndim == 4:
+                h, w = x.shape[2:]
+                if size is None:
+                    size = (h, w)
+                elif size != (h, w):
+                    raise ValueError(f"expected all images of size {size}, got {name} {(h, w)}")
+                ph, pw = (-h) % m, (-w) % m
+                if ph or pw:
+                    x = np.pad(x, ((0, 0), (0, 0), (0, ph), (0, pw)), mode="edge")
+            padded[name] = x
+        with self._lock:
+            outs = self.session.run(None, padded)
+        names = [o.name for o in self.session.get_outputs()]
+        result = {}
+        for n, y in zip(names, outs, strict=True):
+            y = np.asarray(y, dtype=np.float32)
+            if y.ndim == 4 and size is not None:
+                y = y[:, :, : size[0], : size[1]]
+            result[n] = y
+        return result
+
+
+class ModelRegistry:
+    """Finds, verifies and lazily loads the shipped models (one ONNX session per model).
+
+    Args:
+        directory: model folder (default: :func:`model_dir`).
+        threads: intra-op threads for onnxruntime (default: all cores).
+    """
+
+    def __init__(self, directory: Path | str | None = None, threads: int | None = None) -> None:
+        self.directory = Path(directory) if directory is not None else model_dir()
+        self.threads = threads
+        self._loaded: dict[str, Model] = {}
+        self._lock = threading.Lock()
+
+    def manifest_path(self, name: str) -> Path:
+        return self.directory / f"{name}.json"
+
+    def available(self, name: str) -> bool:
+        """Whether a manifest for ``name`` is present (the file itself is verified on load)."""
+        return self.manifest_path(name).is_file()
+
+    def manifest(self, name: str) -> dict[str, Any]:
+        path = self.manifest_path(name)
+        if not path.is_file():
+            raise ModelError(
+                f"model '{name}' is not installed: {path} is missing "
+                "(run 'outcast export' or use a Direct / physics mode)"
+            )
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ModelError(f"model manifest {path} is unreadable: {exc}") from exc
+        for key in ("file", "sha256"):
+            if key not in data:
+                raise ModelError(f"model manifest {path} lacks the key '{key}'")
+        return data
+
+    def load(self, name: str) -> Model:
+        """Load (once) and return a verified model; :class:`ModelError` if missing or corrupt."""
+        with self._lock:
+            if name in self._loaded:
+                return self._loaded[name]
+            manifest = self.manifest(name)
+            onnx_path = self.directory / manifest["file"]
+            if not onnx_path.is_file():
+                raise ModelError(f"model file {onnx_path} is missing (listed in {name}.json)")
+            digest = sha256_file(onnx_path)
+            if digest != manifest["sha256"]:
+                raise ModelError(
+                    f"model file {onnx_path} is corrupt: sha256 {digest[:12]}... does not match "
+                    f"the manifest's {str(manifest['sha256'])[:12]}...; reinstall the models"
+                )
+            import onnxruntime as ort
+
+            opts = ort.SessionOptions()
+            if self.threads:
+                opts.intra_op_num_threads = self.threads
+            opts.log_severity_level = 3
+            try:
+                sess = ort.InferenceSession(
+                    str(onnx_path), sess_options=opts, providers=["CPUExecutionProvider"]
+                )
+            except Exception as exc:  # onnxruntime raises its own exception types
+                raise ModelError(f"model file {onnx_path} could not be loaded: {exc}") from exc
+            model = Model(name, onnx_path, manifest, sess)
+            self._loaded[name] = model
+            return model

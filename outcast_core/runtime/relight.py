@@ -1,0 +1,198 @@
+"""Physics relighting by shading ratios, and full-resolution detail transfer.
+
+Model: a pixel's linear radiance is ``C = rho * (a + k S)`` with albedo ``rho``, ambient (sky)
+irradiance ``a``, sun irradiance ``k`` (both per colour channel) and the shadow image ``S``
+(cosine-weighted sun visibility). Relighting keeps ``rho`` and swaps the shading::
+
+    C_n = C_o * (a + k S_n) / (a + k S_o) = C_o * (1 + r S_n) / (1 + r S_o),   r = k / a
+
+so only the per-channel ratio ``r`` is needed. It is estimated from the photo itself: the median
+radiance of surfaces the original shadow image calls lit (``S_o`` high), against the median of
+those it calls shadowed (``S_o`` near 0), assuming albedo does not correlate with shadowing over
+the whole photo. A warm sun and a blue sky make ``r`` larger in red than in blue, which is what
+makes relit shadows bluish. When the photo has too few lit or too few shadowed pixels to measure,
+``r`` falls back to a clear-day prior. The denominator is ``>= 1`` by construction; the sky is
+left as it is.
+
+Before the ratio is taken, ``S_o`` is snapped to the photo's own edges with a guided filter (the
+predicted shadow never lines up exactly with the photographed one; this is the ratio method's
+stand-in for the learned refinement network R).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from outcast_core.runtime.colour import linear_to_srgb, luminance, srgb_to_linear
+
+#: Clear-day sun/sky irradiance ratio per channel (R, G, B) when the photo cannot tell.
+PRIOR_RATIO = np.array([5.0, 4.0, 2.8], dtype=np.float32)
+RATIO_RANGE = (0.25, 40.0)
+#: Fewest lit / shadowed pixels (absolute, and as a fraction of the surface) to measure ``r``.
+_MIN_PIXELS = 16
+_MIN_FRACTION = 0.005
+
+
+@dataclass(frozen=True)
+class LightEstimate:
+    """Per-channel sun/ambient ratio ``r = k / a`` and whether it was measured or assumed."""
+
+    ratio: np.ndarray
+    measured: bool
+    lit_pixels: int
+    shadow_pixels: int
+
+
+def _check_pair(image: np.ndarray, shadow: np.ndarray, name: str) -> None:
+    if image.ndim != 3 or image.shape[-1] != 3:
+        raise ValueError(f"expected an H x W x 3 image, got shape {image.shape}")
+    if shadow.shape != image.shape[:2]:
+        raise ValueError(f"expected {name} of shape {image.shape[:2]}, got {shadow.shape}")
+
+
+def estimate_light(
+    radiance_lin: np.ndarray, shadow_old: np.ndarray, sky: np.ndarray | None = None
+) -> LightEstimate:
+    """Estimate ``r = k / a`` per channel from a photo and its original shadow image.
+
+    Args:
+        radiance_lin: ``H x W x 3`` linear RGB.
+        shadow_old: ``H x W`` original shadow image ``S_o`` in [0, 1].
+        sky: optional ``H x W`` bool sky mask (excluded).
+
+    Returns:
+        A :class:`LightEstimate`.
+    """
+    radiance_lin = np.asarray(radiance_lin, dtype=np.float32)
+    shadow_old = np.asarray(shadow_old, dtype=np.float32)
+    _check_pair(radiance_lin, shadow_old, "shadow_old")
+    surface = np.ones(shadow_old.shape, bool) if sky is None else ~np.asarray(sky, bool)
+    lum = luminance(radiance_lin)
+    # Ignore clipped and black pixels: they carry no ratio information.
+    usable = surface & (lum > 1e-3) & (radiance_lin.max(axis=-1) < 0.98)
+    lit = usable & (shadow_old > 0.3)
+    shd = usable & (shadow_old < 0.03)
+    n_lit, n_shd = int(lit.sum()), int(shd.sum())
+    need = max(_MIN_PIXELS, int(_MIN_FRACTION * surface.sum()))
+    if n_lit < need or n_shd < need:
+        return LightEstimate(PRIOR_RATIO.copy(), False, n_lit, n_shd)
+    s_lit = float(np.median(shadow_old[lit]))
+    m_lit = np.median(radiance_lin[lit], axis=0)
+    m_shd = np.maximum(np.median(radiance_lin[shd], axis=0), 1e-4)
+    ratio = (m_lit / m_shd - 1.0) / max(s_lit, 1e-3)
+    if not np.all(np.isfinite(ratio)) or np.any(ratio <= RATIO_RANGE[0]):
+        # Lit no brighter than shadowed: S_o does not describe this photo's light.
+        return LightEstimate(PRIOR_RATIO.copy(), False, n_lit, n_shd)
+    ratio = np.clip(ratio, *RATIO_RANGE).astype(np.float32)
+    return LightEstimate(ratio, True, n_lit, n_shd)
+
+
+def snap_shadow_to_photo(
+    shadow: np.ndarray, image_srgb: np.ndarray, radius: int | None = None, eps: float = 1e-3
+) -> np.ndarray:
+    """Guided-filter ``shadow`` with the photo's luminance as the guide (edges follow the photo)."""
+    h, w = shadow.shape
+    if radius is None:
+        radius = max(1, round(max(h, w) / 128))
+    guide = luminance(np.asarray(image_srgb, np.float32)).astype(np.float32)
+    out = cv2.ximgproc.guidedFilter(guide, shadow.astype(np.float32), radius, eps)
+    return np.clip(out, 0.0, 1.0).astype(np.float32)
+
+
+def shading_ratio(
+    shadow_old: np.ndarray, shadow_new: np.ndarray, ratio: np.ndarray
+) -> np.ndarray:
+    """``(1 + r S_n) / (1 + r S_o)`` per pixel and channel (``H x W x 3``)."""
+    r = np.asarray(ratio, np.float32).reshape(1, 1, 3)
+    so = np.clip(np.nan_to_num(shadow_old, nan=0.0), 0.0, 1.0)[..., None]
+    sn = np.clip(np.nan_to_num(shadow_new, nan=0.0), 0.0, 1.0)[..., None]
+    return ((1.0 + r * sn) / (1.0 + r * so)).astype(np.float32)
+
+
+def physics_relight(
+    image_srgb: np.ndarray,
+    shadow_old: np.ndarray,
+    shadow_new: np.ndarray,
+    sky: np.ndarray | None = None,
+    *,
+    light: LightEstimate | None = None,
+    snap: bool = True,
+) -> np.ndarray:
+    """Relight a photo from its original shadow image to a new one by shading ratios.
+
+    Args:
+        image_srgb: ``H x W x 3`` sRGB-encoded photo in [0, 1].
+        shadow_old: ``H x W`` shadow image under the original sun.
+        shadow_new: ``H x W`` shadow image under the new sun.
+        sky: optional ``H x W`` bool sky mask; the sky is left as it is.
+        light: a precomputed :class:`LightEstimate` (else estimated here).
+        snap: snap ``S_o`` to the photo's edges before taking the ratio.
+
+    Returns:
+        ``H x W x 3`` sRGB-encoded float32 in [0, 1].
+    """
+    image_srgb = np.asarray(image_srgb, np.float32)
+    shadow_old = np.asarray(shadow_old, np.float32)
+    shadow_new = np.asarray(shadow_new, np.float32)
+    _check_pair(image_srgb, shadow_old, "shadow_old")
+    _check_pair(image_srgb, shadow_new, "shadow_new")
+    lin = srgb_to_linear(image_srgb)
+    so = snap_shadow_to_photo(shadow_old, image_srgb) if snap else shadow_old
+    if light is None:
+        light = estimate_light(lin, so, sky)
+    out = lin * shading_ratio(so, shadow_new, light.ratio)
+    if sky is not None:
+        out = np.where(np.asarray(sky, bool)[..., None], lin, out)
+    return linear_to_srgb(out)
+
+
+def transfer_to_full_resolution(
+    full_srgb: np.ndarray,
+    work_before_srgb: np.ndarray,
+    work_after_srgb: np.ndarray,
+    *,
+    band_rows: int = 1024,
+) -> np.ndarray:
+    """Apply a working-resolution relighting to the full-resolution photo.
+
+    The per-pixel linear gain ``after / before`` is computed at working resolution, upsampled
+    (bilinear) and multiplied into the full-resolution photo, so the photo's own detail survives.
+    The full image is processed in bands of rows, so a 100-megapixel photo needs only its own
+    buffers plus a few bands of temporaries.
+
+    Args:
+        full_srgb: ``H x W x 3`` full-resolution photo (sRGB float32).
+        work_before_srgb: ``h x w x 3`` the photo at working resolution (sRGB).
+        work_after_srgb: ``h x w x 3`` its relit version (sRGB).
+        band_rows: rows processed at once.
+
+    Returns:
+        ``H x W x 3`` sRGB float32.
+    """
+    if work_before_srgb.shape != work_after_srgb.shape:
+        raise ValueError(
+            f"expected before/after of one shape, got {work_before_srgb.shape} and "
+            f"{work_after_srgb.shape}"
+        )
+    before = srgb_to_linear(work_before_srgb)
+    after = srgb_to_linear(work_after_srgb)
+    # Offset guards dark pixels: where the photo is black, the relit value itself comes through.
+    gain = (after + 1e-3) / (before + 1e-3)  # h x w x 3
+    h, w = full_srgb.shape[:2]
+    gh, gw = gain.shape[:2]
+    out = np.empty((h, w, 3), np.float32)
+    # Bilinear upsampling (pixel-centre aligned) done band by band with cv2.remap.
+    xs = ((np.arange(w, dtype=np.float32) + 0.5) * gw / w - 0.5).astype(np.float32)
+    for r0 in range(0, h, band_rows):
+        r1 = min(h, r0 + band_rows)
+        ys = ((np.arange(r0, r1, dtype=np.float32) + 0.5) * gh / h - 0.5).astype(np.float32)
+        map_x = np.broadcast_to(xs[None, :], (r1 - r0, w))
+        map_y = np.broadcast_to(ys[:, None], (r1 - r0, w))
+        g = cv2.remap(gain, np.ascontiguousarray(map_x), np.ascontiguousarray(map_y),
+                      interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        band = srgb_to_linear(full_srgb[r0:r1])
+        out[r0:r1] = linear_to_srgb((band + 1e-3) * g - 1e-3)
+    return out

@@ -1,0 +1,529 @@
+"""The relighting session: set the photo once, then query shadows and relit images many times.
+
+``set_image`` runs every light-independent stage once at the working resolution (depth, sky mask,
+normals, view directions, the ray sampler's per-pixel set-up). Moving a sun re-runs only what
+depends on it, and results are cached per sun direction, so going back to a sun the user has
+already seen costs nothing. The original sun's refined shadow and the light estimate are computed
+once per original sun.
+
+Modes: ``learned`` uses the shipped ONNX models (depth ``Z``, shadow ``S``, refine ``R``,
+relight ``L``); ``direct`` / ``physics`` are the non-learned screen-space shadows and
+shading-ratio relighting; ``auto`` picks learned where the model is installed.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+
+from outcast_core.runtime.colour import srgb_to_linear
+from outcast_core.runtime.geometry import (
+    DEFAULT_FOV_DEG,
+    Camera,
+    focal_from_35mm,
+    normalize_sun,
+    normals_from_depth,
+    view_directions,
+)
+from outcast_core.runtime.models import ModelError, ModelRegistry
+from outcast_core.runtime.raymarch import RaySampler
+from outcast_core.runtime.relight import (
+    LightEstimate,
+    estimate_light,
+    physics_relight,
+    snap_shadow_to_photo,
+    transfer_to_full_resolution,
+)
+from outcast_core.runtime.shadows import DirectStats, direct_shadow
+
+Progress = Callable[[str, float], None]
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A speed/accuracy setting.
+
+    Attributes:
+        name: preset name.
+        working_size: longer side of the working resolution in pixels.
+        steps: march steps of the learned S network.
+        direct_step: Direct mode's step (fraction of the longer side); it marches up to one
+            image side and stops early when no pixel can change.
+        preview_size: longer side used while the user drags a sun.
+        preview_steps: march steps while dragging.
+    """
+
+    name: str
+    working_size: int
+    steps: int
+    direct_step: float
+    preview_size: int
+    preview_steps: int
+
+
+PRESETS: dict[str, Preset] = {
+    "fast": Preset("fast", 256, 16, 1 / 128, 128, 8),
+    "balanced": Preset("balanced", 384, 32, 1 / 256, 192, 16),
+    "accurate": Preset("accurate", 512, 64, 1 / 512, 256, 32),
+}
+
+_CACHE_SIZE = 16
+
+
+def working_shape(height: int, width: int, longer_side: int) -> tuple[int, int]:
+    """Size at which a ``height x width`` image is processed (never upscaled)."""
+    if height < 1 or width < 1:
+        raise ValueError(f"expected a non-empty image, got {height}x{width}")
+    scale = min(1.0, longer_side / max(height, width))
+    return max(1, round(height * scale)), max(1, round(width * scale))
+
+
+def resize(image: np.ndarray, shape: tuple[int, int], *, nearest: bool = False) -> np.ndarray:
+    """Resize ``H x W [x C]`` to ``shape`` (area when shrinking, linear when enlarging)."""
+    h, w = shape
+    if image.shape[:2] == (h, w):
+        return image
+    if nearest:
+        interp = cv2.INTER_NEAREST
+    elif h < image.shape[0] or w < image.shape[1]:
+        interp = cv2.INTER_AREA
+    else:
+        interp = cv2.INTER_LINEAR
+    return cv2.resize(image, (w, h), interpolation=interp)
+
+
+def ground_plane_depth(camera: Camera, camera_height: float = 1.6) -> np.ndarray:
+    """A depth prior for when no depth model or depth file exists: a level ground plane.
+
+    Rows below the horizon get the depth of a ground plane ``camera_height`` below a level
+    camera; rows at or above the horizon get a far wall. It casts no shadows; it only keeps the
+    pipeline running (and is reported as such by :attr:`RelightSession.depth_source`).
+    """
+    v = np.arange(camera.height, dtype=np.float64) + 0.5
+    dv = (v - camera.cy) / camera.focal
+    far = 200.0
+    z = np.where(dv > 1e-3, camera_height / np.maximum(dv, 1e-3), far)
+    z = np.minimum(z, far)
+    return np.repeat(z[:, None], camera.width, axis=1).astype(np.float32)
+
+
+def _key(w: Any) -> tuple[float, float, float]:
+    v = normalize_sun(w)
+    return (round(float(v[0]), 6), round(float(v[1]), 6), round(float(v[2]), 6))
+
+
+class _LRU(OrderedDict):
+    def get_or(self, key: Any, make: Callable[[], Any]) -> Any:
+        if key in self:
+            self.move_to_end(key)
+            return self[key]
+        value = make()
+        self[key] = value
+        while len(self) > _CACHE_SIZE:
+            self.popitem(last=False)
+        return value
+
+
+class RelightSession:
+    """Set once, query many.
+
+    Args:
+        registry: where the ONNX models come from (default: the shipped ``models/``).
+        preset: one of :data:`PRESETS`.
+        mode: ``auto``, ``learned`` or ``classic`` (Direct shadows + physics relighting).
+        shadow_mode: overrides ``mode`` for shadows: ``auto``, ``learned`` or ``direct``.
+        relight_mode: overrides ``mode`` for relighting: ``auto``, ``learned`` or ``physics``.
+        thickness: Direct mode's occluder thickness (relative to depth; ``inf`` = solid).
+
+    Example:
+        >>> s = RelightSession(mode="classic", preset="fast")
+        >>> s.set_image(np.full((32, 48, 3), 0.5, np.float32), depth=np.ones((32, 48), np.float32))
+        >>> s.shadow((0.0, -0.7, -0.7)).shape
+        (32, 48)
+    """
+
+    def __init__(
+        self,
+        registry: ModelRegistry | None = None,
+        preset: str = "balanced",
+        mode: str = "auto",
+        *,
+        shadow_mode: str | None = None,
+        relight_mode: str | None = None,
+        thickness: float = math.inf,
+    ) -> None:
+        if mode not in {"auto", "learned", "classic"}:
+            raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
+        shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
+        relight_mode = relight_mode or {"classic": "physics"}.get(mode, mode)
+        if shadow_mode not in {"auto", "learned", "direct"}:
+            raise ValueError(f"expected shadow mode auto, learned or direct, got {shadow_mode!r}")
+        if relight_mode not in {"auto", "learned", "physics"}:
+            raise ValueError(
+                f"expected relight mode auto, learned or physics, got {relight_mode!r}"
+            )
+        self.registry = registry if registry is not None else ModelRegistry()
+        self.thickness = thickness
+        self._requested = (shadow_mode, relight_mode)
+        self.shadow_mode = self._resolve(shadow_mode, "shadow", "direct")
+        self.relight_mode = self._resolve(relight_mode, "relight", "physics")
+        self.preset = self._check_preset(preset)
+        self._lock = threading.RLock()
+        self.timings: dict[str, float] = {}
+        self.full_image_srgb: np.ndarray | None = None
+        self._given_depth: np.ndarray | None = None
+        self._focal_full: float | None = None
+        self.depth_source = "none"
+        self.original_sun: np.ndarray | None = None
+        self.original_shadow: np.ndarray | None = None
+        self._reset_working()
+
+    # ------------------------------------------------------------------ set-up
+    def _resolve(self, requested: str, model: str, classic: str) -> str:
+        if requested == "auto":
+            return "learned" if self.registry.available(model) else classic
+        if requested == "learned":
+            self.registry.load(model)  # raises ModelError naming the file
+        return requested
+
+    @staticmethod
+    def _check_preset(name: str) -> Preset:
+        if name not in PRESETS:
+            raise ValueError(f"expected a preset in {sorted(PRESETS)}, got {name!r}")
+        return PRESETS[name]
+
+    def _reset_working(self) -> None:
+        self.image_srgb: np.ndarray | None = None
+        self.camera: Camera | None = None
+        self.depth: np.ndarray | None = None
+        self.sky: np.ndarray | None = None
+        self.normals: np.ndarray | None = None
+        self.view_dirs: np.ndarray | None = None
+        self._sampler: RaySampler | None = None
+        self._preview: dict[str, Any] | None = None
+        self._shadow_cache = _LRU()
+        self._relight_cache = _LRU()
+        self._light: LightEstimate | None = None
+
+    def _time(self, stage: str, t0: float) -> None:
+        self.timings[stage] = time.perf_counter() - t0
+
+    def set_image(
+        self,
+        image_srgb: np.ndarray,
+        *,
+        fov_deg: float | None = None,
+        focal_35mm: float | None = None,
+        depth: np.ndarray | None = None,
+        progress: Progress | None = None,
+    ) -> None:
+        """Set the photo and run every light-independent stage once.
+
+        Args:
+            image_srgb: ``H x W x 3`` sRGB float32 in [0, 1] at full resolution.
+            fov_deg: horizontal field of view (default 60 deg, or from ``focal_35mm``).
+            focal_35mm: EXIF 35 mm equivalent focal length.
+            depth: optional ``h x w`` depth from elsewhere (any resolution with the photo's
+                aspect ratio; non-finite or <= 0 marks sky). Replaces the depth model.
+            progress: called with ``(stage, fraction)``.
+        """
+        img = np.asarray(image_srgb)
+        if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] < 1 or img.shape[1] < 1:
+            raise ValueError(f"expected an H x W x 3 image, got shape {img.shape}")
+        img = np.clip(np.nan_to_num(img.astype(np.float32), nan=0.0), 0.0, 1.0)
+        h, w = img.shape[:2]
+        if focal_35mm is not None and fov_deg is None:
+            focal = focal_from_35mm(w, h, focal_35mm)
+        else:
+            focal = Camera.from_fov(h, w, fov_deg or DEFAULT_FOV_DEG).focal
+        if depth is not None:
+            depth = np.asarray(depth, np.float32)
+            if depth.ndim != 2:
+                raise ValueError(f"expected depth of shape H x W, got shape {depth.shape}")
+            ar_img, ar_d = w / h, depth.shape[1] / depth.shape[0]
+            if abs(ar_img - ar_d) > 0.02 * ar_img + 1.0 / min(depth.shape):
+                raise ValueError(
+                    f"expected depth with the photo's aspect ratio {w}x{h}, got "
+                    f"{depth.shape[1]}x{depth.shape[0]}"
+                )
+        with self._lock:
+            self.full_image_srgb = img
+            self._focal_full = focal
+            self._given_depth = depth
+            self.original_sun = None
+            self.original_shadow = None
+            self._prepare(progress)
+
+    def set_preset(self, name: str, progress: Progress | None = None) -> None:
+        """Switch preset; light-independent stages re-run only if the working size changes."""
+        preset = self._check_preset(name)
+        with self._lock:
+            old = self.preset
+            self.preset = preset
+            if self.full_image_srgb is None:
+                return
+            if old.working_size != preset.working_size:
+                w_o = self.original_sun
+                self._prepare(progress)
+                if w_o is not None:
+                    self.set_original_sun(w_o)
+            else:
+                self._shadow_cache.clear()
+                self._relight_cache.clear()
+                self._preview = None
+
+    def _prepare(self, progress: Progress | None) -> None:
+        assert self.full_image_srgb is not None and self._focal_full is not None
+        report = progress or (lambda stage, frac: None)
+        full = self.full_image_srgb
+        h, w = working_shape(full.shape[0], full.shape[1], self.preset.working_size)
+        self._reset_working()
+        t0 = time.perf_counter()
+        self.image_srgb = resize(full, (h, w))
+        self.camera = Camera(h, w, self._focal_full * w / full.shape[1])
+        self._time("resize", t0)
+        report("depth", 0.1)
+        t0 = time.perf_counter()
+        depth, sky = self._estimate_depth()
+        self.depth, self.sky = depth, sky
+        self._time("depth", t0)
+        report("normals", 0.6)
+        t0 = time.perf_counter()
+        depth_sky = np.where(sky, np.inf, depth).astype(np.float32)
+        self.normals = normals_from_depth(depth_sky, self.camera)
+        self.view_dirs = view_directions(self.camera)
+        self._sampler = RaySampler(depth_sky, self.camera)
+        self._time("normals", t0)
+        self.original_sun = None
+        self.original_shadow = None
+        report("ready", 1.0)
+
+    def _estimate_depth(self) -> tuple[np.ndarray, np.ndarray]:
+        cam = self.camera
+        assert cam is not None and self.image_srgb is not None
+        if self._given_depth is not None:
+            d = self._given_depth
+            sky_src = ~(np.isfinite(d) & (d > 0))
+            d_fill = np.where(sky_src, 0.0, d).astype(np.float32)
+            depth = resize(d_fill, (cam.height, cam.width), nearest=True)
+            sky = resize(sky_src.astype(np.uint8), (cam.height, cam.width), nearest=True) > 0
+            self.depth_source = "given"
+            return np.where(sky, np.inf, depth).astype(np.float32), sky
+        if self.registry.available("depth"):
+            model = self.registry.load("depth")
+            x = self.image_srgb.transpose(2, 0, 1)[None]  # 1 x 3 x H x W
+            out = model.run({"image": x})
+            depth = out["depth"][0, 0]
+            sky = out["sky"][0, 0] > 0.5
+            self.depth_source = "model"
+            return np.maximum(depth, 1e-6).astype(np.float32), sky
+        self.depth_source = "ground-plane prior (no depth model installed)"
+        return ground_plane_depth(cam), np.zeros((cam.height, cam.width), bool)
+
+    def _require_image(self) -> None:
+        if self.image_srgb is None:
+            raise RuntimeError("set_image() must be called before asking for shadows or relighting")
+
+    # ------------------------------------------------------------------ preview buffers
+    def _preview_state(self) -> dict[str, Any]:
+        if self._preview is None:
+            assert self.image_srgb is not None and self.camera is not None
+            h, w = working_shape(self.camera.height, self.camera.width, self.preset.preview_size)
+            cam = self.camera.resized(h, w)
+            depth = resize(np.where(self.sky, np.inf, self.depth).astype(np.float32), (h, w),
+                           nearest=True)
+            self._preview = {
+                "camera": cam,
+                "image": resize(self.image_srgb, (h, w)),
+                "depth": depth,
+                "sky": resize(self.sky.astype(np.uint8), (h, w), nearest=True) > 0,
+                "normals": normals_from_depth(depth, cam),
+                "sampler": RaySampler(depth, cam),
+            }
+        return self._preview
+
+    # ------------------------------------------------------------------ shadows
+    def shadow(self, w: Any, *, preview: bool = False) -> np.ndarray:
+        """The shadow image for sun ``w`` at working resolution (``H x W`` float32 in [0, 1]).
+
+        ``preview=True`` computes it at the preset's preview size and fewer steps (for dragging)
+        and upsamples it.
+        """
+        key = (_key(w), preview, self.preset.name)
+        with self._lock:
+            self._require_image()
+            return self._shadow_cache.get_or(key, lambda: self._compute_shadow(w, preview))
+
+    def _compute_shadow(self, w: Any, preview: bool) -> np.ndarray:
+        t0 = time.perf_counter()
+        wv = normalize_sun(w)
+        assert self.camera is not None
+        if preview:
+            st = self._preview_state()
+            cam, image, depth, sky, normals, sampler = (
+                st["camera"], st["image"], st["depth"], st["sky"], st["normals"], st["sampler"]
+            )
+        else:
+            cam, image, sky, normals, sampler = (
+                self.camera, self.image_srgb, self.sky, self.normals, self._sampler
+            )
+            depth = np.where(self.sky, np.inf, self.depth).astype(np.float32)
+        if self.shadow_mode == "learned":
+            out = self._learned_shadow(image, depth, normals, cam, wv)
+        else:
+            step = self.preset.direct_step * (2.0 if preview else 1.0)
+            stats = DirectStats(0, 0, "")
+            out = direct_shadow(
+                depth, cam, wv, normals=normals, sky=sky, steps=int(math.ceil(1.0 / step)),
+                step=step, thickness=self.thickness, sampler=sampler, stats=stats,
+            )
+            self.last_direct_stats = stats
+        if out.shape != (self.camera.height, self.camera.width):
+            out = np.clip(resize(out, (self.camera.height, self.camera.width)), 0.0, 1.0)
+        self._time("shadow_preview" if preview else "shadow", t0)
+        return out.astype(np.float32)
+
+    def _learned_shadow(
+        self, image: np.ndarray, depth: np.ndarray, normals: np.ndarray, cam: Camera,
+        w: np.ndarray,
+    ) -> np.ndarray:
+        model = self.registry.load("shadow")
+        d = np.where(np.isfinite(depth), depth, 0.0).astype(np.float32)
+        out = model.run({
+            "image": image.transpose(2, 0, 1)[None],
+            "depth": d[None, None],
+            "normals": normals.transpose(2, 0, 1)[None],
+            "sun": w.astype(np.float32)[None],
+            "focal": np.array([[cam.focal]], np.float32),
+        })
+        return np.clip(out["shadow"][0, 0], 0.0, 1.0)
+
+    # ------------------------------------------------------------------ original sun
+    def set_original_sun(self, w: Any) -> np.ndarray:
+        """Fix the photo's original sun; computes the (refined) original shadow ``S_o``."""
+        wv = normalize_sun(w)
+        with self._lock:
+            self._require_image()
+            t0 = time.perf_counter()
+            s = self.shadow(wv)
+            if self.shadow_mode == "learned" and self.registry.available("refine"):
+                model = self.registry.load("refine")
+                out = model.run({
+                    "shadow": s[None, None],
+                    "image": self.image_srgb.transpose(2, 0, 1)[None],
+                    "sun": wv.astype(np.float32)[None],
+                })
+                s = np.clip(out["shadow"][0, 0], 0.0, 1.0)
+            else:
+                s = snap_shadow_to_photo(s, self.image_srgb)
+            self.original_sun = wv
+            self.original_shadow = s.astype(np.float32)
+            self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self.sky)
+            self._relight_cache.clear()
+            self._time("original_sun", t0)
+            return self.original_shadow
+
+    @property
+    def light_estimate(self) -> LightEstimate | None:
+        return self._light
+
+    # ------------------------------------------------------------------ relighting
+    def relight(self, w_new: Any, *, preview: bool = False) -> np.ndarray:
+        """The photo relit under ``w_new`` at working resolution (``H x W x 3`` sRGB)."""
+        key = (_key(w_new), preview, self.preset.name)
+        with self._lock:
+            self._require_image()
+            if self.original_sun is None or self.original_shadow is None:
+                raise RuntimeError("set_original_sun() must be called before relight()")
+            return self._relight_cache.get_or(key, lambda: self._compute_relight(w_new, preview))
+
+    def _compute_relight(self, w_new: Any, preview: bool) -> np.ndarray:
+        wv = normalize_sun(w_new)
+        s_new = self.shadow(wv, preview=preview)
+        t0 = time.perf_counter()
+        if self.relight_mode == "learned":
+            model = self.registry.load("relight")
+            out = model.run({
+                "image": self.image_srgb.transpose(2, 0, 1)[None],
+                "shadow_old": self.original_shadow[None, None],
+                "shadow_new": s_new[None, None],
+                "normals": self.normals.transpose(2, 0, 1)[None],
+                "sun_old": self.original_sun.astype(np.float32)[None],
+                "sun_new": wv.astype(np.float32)[None],
+                "view_dirs": self.view_dirs.transpose(2, 0, 1)[None],
+            })
+            img = np.clip(out["image"][0].transpose(1, 2, 0), 0.0, 1.0)
+        else:
+            img = physics_relight(
+                self.image_srgb, self.original_shadow, s_new, self.sky, light=self._light,
+                snap=False,
+            )
+        self._time("relight", t0)
+        return img.astype(np.float32)
+
+    def relight_full(self, w_new: Any) -> np.ndarray:
+        """The photo relit under ``w_new`` at its full input resolution (detail transfer)."""
+        relit = self.relight(w_new)
+        t0 = time.perf_counter()
+        with self._lock:
+            out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit)
+        self._time("full_resolution", t0)
+        return out
+
+    def buffers(self, w_new: Any) -> dict[str, np.ndarray]:
+        """Display-ready intermediate buffers for the paper-style figure.
+
+        Returns:
+            ``depth`` (``H x W`` in [0, 1], near = bright, sky 0), ``normals`` (``H x W x 3`` in
+            [0, 1]), ``original_shadow``, ``new_shadow`` (``H x W``), ``output`` (``H x W x 3``).
+        """
+        with self._lock:
+            self._require_image()
+            if self.original_shadow is None:
+                raise RuntimeError("set_original_sun() must be called before buffers()")
+            out = self.relight(w_new)
+            return {
+                "depth": depth_for_display(self.depth, self.sky),
+                "normals": normals_for_display(self.normals),
+                "original_shadow": self.original_shadow,
+                "new_shadow": self.shadow(w_new),
+                "output": out,
+            }
+
+
+def depth_for_display(depth: np.ndarray, sky: np.ndarray) -> np.ndarray:
+    """Inverse depth normalised to [0, 1] by robust percentiles (sky 0)."""
+    ok = ~sky & np.isfinite(depth) & (depth > 0)
+    out = np.zeros(depth.shape, np.float32)
+    if ok.any():
+        inv = 1.0 / depth[ok]
+        lo, hi = np.percentile(inv, [1, 99])
+        out[ok] = np.clip((inv - lo) / max(hi - lo, 1e-12), 0.0, 1.0)
+    return out
+
+
+def normals_for_display(normals: np.ndarray) -> np.ndarray:
+    """Normals mapped to [0, 1] colours (x right = red, y up = green, toward camera = blue)."""
+    n = normals * np.array([1.0, -1.0, -1.0], np.float32)
+    valid = np.any(normals != 0, axis=-1, keepdims=True)
+    return np.where(valid, n * 0.5 + 0.5, 0.0).astype(np.float32)
+
+
+__all__ = [
+    "PRESETS",
+    "ModelError",
+    "Preset",
+    "RelightSession",
+    "depth_for_display",
+    "ground_plane_depth",
+    "normals_for_display",
+    "working_shape",
+]

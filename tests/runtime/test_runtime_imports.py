@@ -1,0 +1,31 @@
+"""The runtime and the app never import torch (checked in a fresh interpreter)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+MODULES = [
+    "outcast_core.runtime.geometry",
+    "outcast_core.runtime.raymarch",
+    "outcast_core.runtime.shadows",
+    "outcast_core.runtime.relight",
+    "outcast_core.runtime.session",
+    "outcast_core.runtime.models",
+    "outcast_core.runtime.imageio",
+    "outcast_core.runtime.cli",
+]
+
+
+def test_runtime_imports_no_torch_and_no_qt() -> None:
+    code = (
+        "import sys\n"
+        f"for m in {MODULES!r}: __import__(m)\n"
+        "from outcast_core.runtime.cli import build_parser\n"
+        "build_parser([])\n"
+        "bad = sorted(m for m in sys.modules if m.split('.')[0] in "
+        "{'torch', 'PySide6', 'mitsuba', 'drjit'})\n"
+        "print(','.join(bad))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "", f"runtime imported: {out.stdout.strip()}"
