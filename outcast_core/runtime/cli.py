@@ -47,7 +47,9 @@ def parse_azel(text: str) -> np.ndarray:
     except ValueError as exc:
         raise ValueError(f"expected AZ,EL in degrees (e.g. 135,40), got {text!r}") from exc
     if not (math.isfinite(az) and math.isfinite(el)) or not -90.0 <= el <= 90.0:
-        raise ValueError(f"expected a finite azimuth and an elevation in [-90, 90], got {text!r}")
+        raise ValueError(
+            f"expected AZ,EL with a finite azimuth and an elevation in [-90, 90], got {text!r}"
+        )
     return sun_vector(az, el)
 
 
@@ -192,7 +194,8 @@ def build_parser(
     p.add_argument("image")
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--sun", help="AZ,EL in degrees relative to the camera")
-    g.add_argument("--sun-dir", help="X,Y,Z camera-space vector toward the sun")
+    g.add_argument("--sun-dir", help="X,Y,Z camera-space vector toward the sun "
+                                     "(write --sun-dir=-X,Y,Z when X is negative)")
     p.add_argument("--mode", choices=["auto", "direct", "learned"], default="auto",
                    help="learned S network (default when installed) or Direct ray marching")
     p.add_argument("--thickness", default=math.inf, type=_thickness,

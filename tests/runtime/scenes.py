@@ -27,7 +27,7 @@ def box_scene_depth(
                 tb = np.where(d != 0, hi / d, np.inf)
             tmin = np.minimum(ta, tb)
             tmax = np.maximum(ta, tb)
-            inside0 = (d == 0) & (lo <= 0) & (0 <= hi)
+            inside0 = (d == 0) & (lo <= 0) & (hi >= 0)
             tmin = np.where(d == 0, np.where(inside0, -np.inf, np.inf), tmin)
             tmax = np.where(d == 0, np.where(inside0, np.inf, -np.inf), tmax)
             t_near = np.maximum(t_near, tmin)

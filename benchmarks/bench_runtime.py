@@ -1,0 +1,134 @@
+"""Runtime benchmark: Direct shadows' speed/accuracy trade and what "set once, query many" saves.
+
+Run: ``python benchmarks/bench_runtime.py`` (about a minute on 2 cores).
+
+Everything is measured in this run and printed as ratios against a baseline measured in the same
+run, so the figures compare across machines. Accuracy is measured against an exact ray cast of an
+analytic scene (blocks on the ground seen from above), the same oracle the tests use.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from outcast_core.runtime.geometry import Camera, backproject  # noqa: E402
+from outcast_core.runtime.session import PRESETS, RelightSession  # noqa: E402
+from outcast_core.runtime.shadows import DirectStats, direct_visibility  # noqa: E402
+from tests.runtime.scenes import box_scene_depth, box_scene_visibility  # noqa: E402
+
+GROUND_Z = 60.0
+BOXES = [
+    (-9.0, -4.0, -7.0, -2.0, 3.0), (3.0, 7.0, 2.0, 6.0, 5.0), (-2.0, 1.0, 5.0, 8.0, 1.5),
+    (5.0, 9.0, -9.0, -5.0, 4.0), (-1.0, 0.0, -1.0, 0.0, 6.0),
+]
+SUNS = [(30, 70), (120, 40), (200, 25), (90, 15)]
+
+
+def best_of(fn, repeats: int) -> tuple[float, object]:
+    best, out = math.inf, None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def sun(az: float, el: float) -> np.ndarray:
+    a, e = math.radians(az), math.radians(el)
+    return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), -math.sin(e)])
+
+
+def direct_trade(size: int, repeats: int) -> None:
+    cam = Camera.from_fov(size, size, 30.0)
+    depth = box_scene_depth(size, size, cam.focal, GROUND_Z, BOXES)
+    pts = backproject(depth, cam)
+    gts = [~box_scene_visibility(pts, sun(*s), GROUND_Z, BOXES) for s in SUNS]
+    print(f"\nDirect shadows at {size}x{size}: step (fraction of the image side) vs. error")
+    print(f"{'step':>8} {'time/sun s':>11} {'x baseline':>11} {'mask error %':>13} "
+          f"{'steps marched (mean)':>21}")
+    rows = []
+    for denom in (64, 128, 256, 512):
+        step = 1.0 / denom
+        times, errs, marched = [], [], []
+        for s, gt in zip(SUNS, gts, strict=True):
+            st = DirectStats(0, 0, "")
+            t, vis = best_of(lambda s=s, st=st, n=denom, h=step: direct_visibility(
+                depth, cam, sun(*s), steps=n, step=h, stats=st), repeats)
+            times.append(t)
+            errs.append(float(((vis < 0.5) != gt).mean() * 100))
+            marched.append(st.steps_marched)
+        rows.append((denom, float(np.mean(times)), float(np.mean(errs)), float(np.mean(marched))))
+    base = rows[-1][1]
+    for denom, t, e, m in rows:
+        print(f"{'1/' + str(denom):>8} {t:11.4f} {t / base:11.2f} {e:13.2f} {m:21.1f}")
+
+
+def early_exit(size: int, repeats: int) -> None:
+    cam = Camera.from_fov(size, size, 30.0)
+    depth = box_scene_depth(size, size, cam.focal, GROUND_Z, BOXES)
+    print(f"\nEarly exit ('march no further than a scene needs') at {size}x{size}, step 1/256:")
+    print(f"{'sun az,el':>10} {'steps':>6} {'time s':>8} {'no-exit time s':>15} {'ratio':>6}")
+    for s in SUNS:
+        st = DirectStats(0, 0, "")
+        t_exit, _ = best_of(lambda s=s, st=st: direct_visibility(
+            depth, cam, sun(*s), steps=256, step=1 / 256, stats=st), repeats)
+        # Baseline: the same march forced to every step (a bias of -inf keeps all rays active).
+        t_full, _ = best_of(lambda s=s: _full_march(depth, cam, sun(*s)), repeats)
+        print(f"{str(s):>10} {st.steps_marched:6d} {t_exit:8.4f} {t_full:15.4f} "
+              f"{t_exit / t_full:6.2f}")
+
+
+def _full_march(depth: np.ndarray, cam: Camera, w: np.ndarray) -> np.ndarray:
+    from outcast_core.runtime.raymarch import RaySampler
+
+    sampler = RaySampler(depth, cam)
+    lit = np.ones(depth.shape, bool)
+    for st in sampler.iter_steps(w, 256, 1 / 256):
+        lit &= ~(st.valid & (st.ratio < 1 / 1.005))
+    return lit
+
+
+def session_reuse(repeats: int) -> None:
+    from outcast_core.runtime.imageio import read_image
+
+    sample = Path(__file__).resolve().parents[1] / "samples" / "exif_003_th_pool.jpg"
+    img = read_image(sample).image_srgb
+    print(f"\nSession on {sample.name} ({img.shape[1]}x{img.shape[0]}), classic mode:")
+    print(f"{'preset':>9} {'set_image s':>12} {'shadow s':>9} {'preview s':>10} "
+          f"{'relight s':>10} {'cached s':>9} {'full-res s':>11}")
+    for name in PRESETS:
+        s = RelightSession(mode="classic", preset=name)
+        t_set, _ = best_of(lambda s=s: s.set_image(img), 1)
+        t_sh = s.timings.get("shadow", 0.0)
+        s.set_original_sun((0.3, -0.8, -0.5))
+        t_sh = s.timings["shadow"]
+        t_prev, _ = best_of(lambda s=s: s._compute_shadow((0.5, -0.6, -0.6), True), repeats)
+        s.relight((-0.4, -0.5, -0.7))
+        t_rel = s.timings["relight"] + s.timings["shadow"]
+        t_cached, _ = best_of(lambda s=s: s.relight((-0.4, -0.5, -0.7)), repeats)
+        t_full, _ = best_of(lambda s=s: s.relight_full((-0.4, -0.5, -0.7)), 1)
+        print(f"{name:>9} {t_set:12.3f} {t_sh:9.3f} {t_prev:10.3f} {t_rel:10.3f} "
+              f"{t_cached:9.5f} {t_full:11.3f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--quick", action="store_true", help="smaller sizes, one repeat")
+    args = ap.parse_args()
+    rep = 1 if args.quick else args.repeats
+    direct_trade(128 if args.quick else 256, rep)
+    early_exit(128 if args.quick else 256, rep)
+    session_reuse(rep)
+
+
+if __name__ == "__main__":
+    main()
