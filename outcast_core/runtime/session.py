@@ -100,19 +100,27 @@ def resize(image: np.ndarray, shape: tuple[int, int], *, nearest: bool = False) 
     return cv2.resize(image, (w, h), interpolation=interp)
 
 
-def ground_plane_depth(camera: Camera, camera_height: float = 1.6) -> np.ndarray:
+def ground_plane_depth(
+    camera: Camera, camera_height: float = 1.6
+) -> tuple[np.ndarray, np.ndarray]:
     """A depth prior for when no depth model or depth file exists: a level ground plane.
 
     Rows below the horizon get the depth of a ground plane ``camera_height`` below a level
-    camera; rows at or above the horizon get a far wall. It casts no shadows; it only keeps the
-    pipeline running (and is reported as such by :attr:`RelightSession.depth_source`).
+    camera (capped at 200 m); rows at or above the horizon are treated as sky, so the relighting
+    leaves them alone. It casts no shadows; it only keeps the pipeline running (and is reported
+    as such by :attr:`RelightSession.depth_source`).
+
+    Returns:
+        ``(depth, sky)``, ``H x W`` float32 and bool.
     """
     v = np.arange(camera.height, dtype=np.float64) + 0.5
     dv = (v - camera.cy) / camera.focal
     far = 200.0
-    z = np.where(dv > 1e-3, camera_height / np.maximum(dv, 1e-3), far)
-    z = np.minimum(z, far)
-    return np.repeat(z[:, None], camera.width, axis=1).astype(np.float32)
+    z = np.minimum(camera_height / np.maximum(dv, 1e-6), far)
+    sky_rows = camera_height / np.maximum(dv, 1e-6) > far
+    depth = np.repeat(z[:, None], camera.width, axis=1).astype(np.float32)
+    sky = np.repeat(sky_rows[:, None], camera.width, axis=1)
+    return depth, sky
 
 
 def _key(w: Any) -> tuple[float, float, float]:
@@ -142,6 +150,9 @@ class RelightSession:
         shadow_mode: overrides ``mode`` for shadows: ``auto``, ``learned`` or ``direct``.
         relight_mode: overrides ``mode`` for relighting: ``auto``, ``learned`` or ``physics``.
         thickness: Direct mode's occluder thickness (relative to depth; ``inf`` = solid).
+        depth_mode: ``auto`` (a given depth, else the depth model when installed, else the
+            ground-plane prior), ``model`` (the depth model; :class:`ModelError` if missing) or
+            ``prior`` (never the model: for when it is broken).
 
     Example:
         >>> s = RelightSession(mode="classic", preset="fast")
@@ -159,7 +170,10 @@ class RelightSession:
         shadow_mode: str | None = None,
         relight_mode: str | None = None,
         thickness: float = math.inf,
+        depth_mode: str = "auto",
     ) -> None:
+        if depth_mode not in {"auto", "model", "prior"}:
+            raise ValueError(f"expected depth mode auto, model or prior, got {depth_mode!r}")
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
         shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
@@ -172,7 +186,10 @@ class RelightSession:
             )
         self.registry = registry if registry is not None else ModelRegistry()
         self.thickness = thickness
+        self.depth_mode = depth_mode
         self._requested = (shadow_mode, relight_mode)
+        if depth_mode == "model":
+            self.registry.load("depth")
         self.shadow_mode = self._resolve(shadow_mode, "shadow", "direct")
         self.relight_mode = self._resolve(relight_mode, "relight", "physics")
         self.preset = self._check_preset(preset)
@@ -317,7 +334,7 @@ class RelightSession:
             sky = resize(sky_src.astype(np.uint8), (cam.height, cam.width), nearest=True) > 0
             self.depth_source = "given"
             return np.where(sky, np.inf, depth).astype(np.float32), sky
-        if self.registry.available("depth"):
+        if self.depth_mode != "prior" and self.registry.available("depth"):
             model = self.registry.load("depth")
             x = self.image_srgb.transpose(2, 0, 1)[None]  # 1 x 3 x H x W
             out = model.run({"image": x})
@@ -325,8 +342,8 @@ class RelightSession:
             sky = out["sky"][0, 0] > 0.5
             self.depth_source = "model"
             return np.maximum(depth, 1e-6).astype(np.float32), sky
-        self.depth_source = "ground-plane prior (no depth model installed)"
-        return ground_plane_depth(cam), np.zeros((cam.height, cam.width), bool)
+        self.depth_source = "ground-plane prior (no depth model)"
+        return ground_plane_depth(cam)
 
     def _require_image(self) -> None:
         if self.image_srgb is None:

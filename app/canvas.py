@@ -1,0 +1,296 @@
+"""The image canvas: zoom and pan, a tinted shadow overlay, and a before/after split.
+
+Layers, painted in order (each a small overridable step):
+
+1. ``before``: the photo (full resolution when available).
+2. ``overlay``: step 1's predicted shadows, tinted, with an opacity.
+3. ``after``: step 2's relit image, drawn right of the split line (or everywhere without split).
+
+All layers are drawn into the same rectangle, whatever their own resolution, so a working-size
+relit image lines up with the full-size photo. Wheel zooms about the cursor, dragging pans,
+double-click fits the image to the window.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from PySide6.QtCore import QPointF, QRectF, QSize, Qt, Signal
+from PySide6.QtGui import (
+    QColor,
+    QFont,
+    QImage,
+    QMouseEvent,
+    QPainter,
+    QPaintEvent,
+    QPen,
+    QResizeEvent,
+    QWheelEvent,
+)
+from PySide6.QtWidgets import QSizePolicy, QWidget
+
+MIN_ZOOM = 0.02
+MAX_ZOOM = 16.0
+
+
+def qimage_from_array(array: np.ndarray) -> QImage:
+    """Wrap an ``H x W x 3`` (RGB) or ``H x W x 4`` (RGBA) uint8 array as a QImage (copied)."""
+    a = np.ascontiguousarray(array)
+    if a.dtype != np.uint8 or a.ndim != 3 or a.shape[2] not in (3, 4):
+        raise ValueError(f"expected H x W x 3|4 uint8, got {a.shape} {a.dtype}")
+    h, w, c = a.shape
+    fmt = QImage.Format.Format_RGB888 if c == 3 else QImage.Format.Format_RGBA8888
+    return QImage(a.data, w, h, c * w, fmt).copy()
+
+
+class ImageCanvas(QWidget):
+    """Zoomable, pannable view of the photo with overlay and before/after split.
+
+    Signals:
+        zoom_changed(zoom): the zoom factor (1.0 = one image pixel per screen pixel).
+        split_dragged(fraction): the user dragged the before/after line.
+    """
+
+    zoom_changed = Signal(float)
+    split_dragged = Signal(float)
+
+    def __init__(self, parent: QWidget | None = None):
+        super().__init__(parent)
+        self._before: QImage | None = None
+        self._after: QImage | None = None
+        self._overlay: QImage | None = None
+        self._overlay_opacity = 0.6
+        self._split: float | None = None
+        self._labels = ("Before", "After")
+        self._zoom = 1.0
+        self._offset = QPointF(0.0, 0.0)  # widget position of the image's top-left corner
+        self._fit = True
+        self._pan_from: QPointF | None = None
+        self._dragging_split = False
+        self._placeholder = "Open a photo (Ctrl+O) or drop one here"
+        self.overlay_updates = 0  # counted for tests and the benchmark
+        self.setMinimumSize(320, 240)
+        self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
+        self.setMouseTracking(False)
+        self.setAutoFillBackground(False)
+        self.setFocusPolicy(Qt.FocusPolicy.ClickFocus)
+        self.setAccessibleName("Image canvas")
+
+    # ------------------------------------------------------------------ content
+    def set_placeholder(self, text: str) -> None:
+        self._placeholder = text
+        self.update()
+
+    def set_image(self, image: QImage | None, fit: bool = True) -> None:
+        """Set the base photo; clears overlay and after-image."""
+        self._before = image
+        self._after = None
+        self._overlay = None
+        self._split = None
+        if fit:
+            self.fit()
+        self.update()
+
+    def image_size(self) -> QSize:
+        return QSize() if self._before is None else self._before.size()
+
+    def before(self) -> QImage | None:
+        return self._before
+
+    def after(self) -> QImage | None:
+        return self._after
+
+    def overlay(self) -> QImage | None:
+        return self._overlay
+
+    def set_after(self, image: QImage | None) -> None:
+        self._after = image
+        self.update()
+
+    def set_overlay(self, image: QImage | None) -> None:
+        self._overlay = image
+        self.overlay_updates += 1
+        self.update()
+
+    def overlay_opacity(self) -> float:
+        return self._overlay_opacity
+
+    def set_overlay_opacity(self, opacity: float) -> None:
+        self._overlay_opacity = float(min(1.0, max(0.0, opacity)))
+        self.update()
+
+    def set_split(self, fraction: float | None, labels: tuple[str, str] = ("Before", "After")):
+        """Before/after split at ``fraction`` of the width (None: the after-image everywhere)."""
+        self._split = None if fraction is None else float(min(1.0, max(0.0, fraction)))
+        self._labels = labels
+        self.update()
+
+    def split(self) -> float | None:
+        return self._split
+
+    # ------------------------------------------------------------------ view transform
+    def zoom(self) -> float:
+        return self._zoom
+
+    def fit(self) -> None:
+        """Fit the whole image in the widget."""
+        self._fit = True
+        if self._before is None or self._before.isNull():
+            return
+        iw, ih = self._before.width(), self._before.height()
+        margin = 8.0
+        z = min((self.width() - 2 * margin) / iw, (self.height() - 2 * margin) / ih)
+        self._zoom = float(min(MAX_ZOOM, max(MIN_ZOOM, z)))
+        self._offset = QPointF(
+            (self.width() - iw * self._zoom) / 2, (self.height() - ih * self._zoom) / 2
+        )
+        self.zoom_changed.emit(self._zoom)
+        self.update()
+
+    def set_zoom(self, zoom: float, anchor: QPointF | None = None) -> None:
+        """Zoom keeping the image point under ``anchor`` (widget coordinates) in place."""
+        if self._before is None:
+            return
+        zoom = float(min(MAX_ZOOM, max(MIN_ZOOM, zoom)))
+        if anchor is None:
+            anchor = QPointF(self.width() / 2.0, self.height() / 2.0)
+        img_pt = (anchor - self._offset) / self._zoom
+        self._zoom = zoom
+        self._offset = anchor - img_pt * zoom
+        self._fit = False
+        self.zoom_changed.emit(self._zoom)
+        self.update()
+
+    def image_rect(self) -> QRectF:
+        """Where the image lies in widget coordinates."""
+        if self._before is None:
+            return QRectF()
+        return QRectF(
+            self._offset.x(),
+            self._offset.y(),
+            self._before.width() * self._zoom,
+            self._before.height() * self._zoom,
+        )
+
+    def widget_to_image(self, pos: QPointF) -> QPointF:
+        return (pos - self._offset) / self._zoom
+
+    # ------------------------------------------------------------------ painting
+    def paintEvent(self, event: QPaintEvent) -> None:
+        p = QPainter(self)
+        p.fillRect(self.rect(), QColor(38, 38, 40))
+        if self._before is None:
+            self.paint_placeholder(p)
+            p.end()
+            return
+        p.setRenderHint(QPainter.RenderHint.SmoothPixmapTransform, self._zoom < 2.0)
+        rect = self.image_rect()
+        self.paint_before(p, rect)
+        self.paint_overlay(p, rect)
+        self.paint_after(p, rect)
+        p.end()
+
+    def paint_placeholder(self, p: QPainter) -> None:
+        p.setPen(QColor(170, 170, 170))
+        font = QFont(self.font())
+        font.setPointSizeF(font.pointSizeF() * 1.3)
+        p.setFont(font)
+        p.drawText(self.rect(), Qt.AlignmentFlag.AlignCenter, self._placeholder)
+
+    def paint_before(self, p: QPainter, rect: QRectF) -> None:
+        p.drawImage(rect, self._before)
+
+    def paint_overlay(self, p: QPainter, rect: QRectF) -> None:
+        if self._overlay is None or self._overlay_opacity <= 0.0:
+            return
+        p.save()
+        p.setOpacity(self._overlay_opacity)
+        p.drawImage(rect, self._overlay)
+        p.restore()
+
+    def paint_after(self, p: QPainter, rect: QRectF) -> None:
+        if self._after is None:
+            return
+        if self._split is None:
+            p.drawImage(rect, self._after)
+            return
+        x = rect.left() + rect.width() * self._split
+        right = QRectF(x, rect.top(), rect.right() - x, rect.height())
+        src_x = self._after.width() * self._split
+        src = QRectF(src_x, 0.0, self._after.width() - src_x, self._after.height())
+        p.drawImage(right, self._after, src)
+        p.setPen(QPen(QColor(255, 255, 255, 220), 2.0))
+        top, bottom = max(rect.top(), 0.0), min(rect.bottom(), float(self.height()))
+        p.drawLine(QPointF(x, top), QPointF(x, bottom))
+        self.paint_split_labels(p, x, top)
+
+    def paint_split_labels(self, p: QPainter, x: float, top: float) -> None:
+        font = QFont(self.font())
+        font.setBold(True)
+        p.setFont(font)
+        fm = p.fontMetrics()
+        for text, right_side in ((self._labels[0], False), (self._labels[1], True)):
+            w = fm.horizontalAdvance(text) + 12
+            h = fm.height() + 6
+            bx = x + 8 if right_side else x - 8 - w
+            box = QRectF(bx, top + 8, w, h)
+            p.setPen(Qt.PenStyle.NoPen)
+            p.setBrush(QColor(0, 0, 0, 140))
+            p.drawRoundedRect(box, 4, 4)
+            p.setPen(QColor(255, 255, 255))
+            p.drawText(box, Qt.AlignmentFlag.AlignCenter, text)
+
+    # ------------------------------------------------------------------ events
+    def resizeEvent(self, event: QResizeEvent) -> None:
+        if self._fit:
+            self.fit()
+        super().resizeEvent(event)
+
+    def wheelEvent(self, event: QWheelEvent) -> None:
+        steps = event.angleDelta().y() / 120.0
+        if steps and self._before is not None:
+            self.set_zoom(self._zoom * (1.25**steps), event.position())
+        event.accept()
+
+    def _split_x(self) -> float | None:
+        if self._split is None or self._after is None or self._before is None:
+            return None
+        rect = self.image_rect()
+        return rect.left() + rect.width() * self._split
+
+    def mousePressEvent(self, event: QMouseEvent) -> None:
+        x = self._split_x()
+        near_split = x is not None and abs(event.position().x() - x) <= 6.0
+        if event.button() == Qt.MouseButton.LeftButton and near_split:
+            self._dragging_split = True
+            self.setCursor(Qt.CursorShape.SplitHCursor)
+            event.accept()
+        elif event.button() in (Qt.MouseButton.LeftButton, Qt.MouseButton.MiddleButton):
+            self._pan_from = event.position()
+            self.setCursor(Qt.CursorShape.ClosedHandCursor)
+            event.accept()
+        else:
+            super().mousePressEvent(event)
+
+    def mouseMoveEvent(self, event: QMouseEvent) -> None:
+        if self._dragging_split:
+            rect = self.image_rect()
+            fraction = (event.position().x() - rect.left()) / max(rect.width(), 1e-9)
+            self.set_split(fraction, self._labels)
+            self.split_dragged.emit(self._split)
+            event.accept()
+        elif self._pan_from is not None:
+            self._offset += event.position() - self._pan_from
+            self._pan_from = event.position()
+            self._fit = False
+            self.update()
+            event.accept()
+
+    def mouseReleaseEvent(self, event: QMouseEvent) -> None:
+        self._pan_from = None
+        self._dragging_split = False
+        self.unsetCursor()
+        super().mouseReleaseEvent(event)
+
+    def mouseDoubleClickEvent(self, event: QMouseEvent) -> None:
+        self.fit()
+        event.accept()

@@ -1,0 +1,79 @@
+"""Turn exceptions into what a photographer needs: what happened and what to do (Qt-free)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from outcast_core.runtime.models import ModelError
+
+
+@dataclass(frozen=True)
+class UserMessage:
+    """A dialog's content."""
+
+    title: str
+    what: str
+    todo: str
+
+    def text(self) -> str:
+        return f"{self.what}\n\n{self.todo}"
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
+
+
+def message_for(exc: BaseException, action: str) -> UserMessage:
+    """Dialog content for an exception raised while doing ``action``.
+
+    Args:
+        exc: the exception.
+        action: one of ``"open"``, ``"export"``, ``"project"``, or anything else.
+
+    Returns:
+        A :class:`UserMessage`.
+    """
+    detail = _one_line(exc)
+    if isinstance(exc, ModelError):
+        return UserMessage(
+            "A model file is missing or damaged",
+            detail,
+            "OutCast carries on with its built-in Direct shadows and physics relighting. "
+            "To get the learned models back, reinstall OutCast or restore the models folder.",
+        )
+    if isinstance(exc, MemoryError):
+        return UserMessage(
+            "Not enough memory",
+            "The computer ran out of memory for this photo.",
+            "Choose the Fast quality preset or a smaller photo, then try again.",
+        )
+    if action == "open":
+        return UserMessage(
+            "Could not open the photo",
+            detail,
+            "Choose a JPEG, PNG, TIFF, WebP or HEIC photo. Your current work is unchanged.",
+        )
+    if action == "export":
+        if isinstance(exc, FileExistsError):
+            todo = "Nothing was overwritten. Choose another name, or confirm replacing the file."
+        elif isinstance(exc, PermissionError):
+            todo = "Nothing was written. Choose a folder you can write to."
+        else:
+            todo = (
+                "Nothing was written. Check that the folder exists, that you can write to it and "
+                "that the disk has free space, then try again."
+            )
+        return UserMessage("Export failed", detail, todo)
+    if action == "project":
+        return UserMessage(
+            "Could not open or save the project",
+            detail,
+            "Project files are the .outcast.json files OutCast writes next to the photo. "
+            "Your current work is unchanged.",
+        )
+    return UserMessage(
+        "Something went wrong",
+        detail,
+        "Your photo and settings are unchanged; try again, or choose the Fast preset.",
+    )

@@ -1,0 +1,857 @@
+"""The main window: open a photo, align its sun (step 1), relight it (step 2), export.
+
+Every call into the session runs in the worker thread (:class:`app.workers.TaskRunner`); job
+functions capture plain values and never touch widgets. Results come back as signals to slots of
+this window, in the GUI thread. Channels (one pending job each, latest wins):
+
+``load``, ``preset``, ``shadow`` (step-1 overlay), ``confirm``, ``relight`` (step-2 view),
+``export_still``, ``tl_preview``, ``tl_export``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PySide6.QtCore import QSettings, Qt, Slot
+from PySide6.QtGui import (
+    QAction,
+    QCloseEvent,
+    QColor,
+    QDragEnterEvent,
+    QDropEvent,
+    QFont,
+    QIcon,
+    QImage,
+    QKeySequence,
+    QPainter,
+)
+from PySide6.QtWidgets import (
+    QComboBox,
+    QFileDialog,
+    QLabel,
+    QMainWindow,
+    QMenu,
+    QMessageBox,
+    QProgressBar,
+    QScrollArea,
+    QSplitter,
+    QStackedWidget,
+)
+
+from app import display
+from app.canvas import ImageCanvas, qimage_from_array
+from app.errors import message_for
+from app.panels import VIEW_CHOICES, AlignPanel, RelightPanel
+from app.state import (
+    IMAGE_SUFFIXES,
+    PRESET_NAMES,
+    ProjectState,
+    RecentFiles,
+    StageTimings,
+    Step,
+    Sun,
+    TimelapseSettings,
+    is_project_file,
+    load_project,
+    project_path_for,
+    save_project,
+)
+from app.workers import JobContext, TaskRunner
+from outcast_core.runtime.geometry import cosine_term, sun_vector
+from outcast_core.runtime.models import ModelError
+
+APP_NAME = "OutCast"
+STAGE_WORDS = {
+    "load": "Opening photo",
+    "preset": "Changing quality",
+    "shadow": "Predicting shadows",
+    "confirm": "Refining the original shadows",
+    "relight": "Relighting",
+    "export_still": "Exporting still",
+    "tl_preview": "Rendering time-lapse frame",
+    "tl_export": "Exporting time-lapse",
+}
+ICON_PATH = Path(__file__).resolve().parent / "resources" / "outcast.svg"
+STILL_FILTERS = "PNG image (*.png);;JPEG image (*.jpg *.jpeg);;16-bit TIFF (*.tif *.tiff)"
+
+
+def _timings(session: Any) -> dict[str, float]:
+    return dict(getattr(session, "timings", {}) or {})
+
+
+class MainWindow(QMainWindow):
+    """OutCast's main window.
+
+    Args:
+        settings: where recent files live (default: the user's OutCast settings).
+        preset: initial quality preset.
+        session_mode: passed to ``RelightSession(mode=...)``.
+    """
+
+    def __init__(
+        self,
+        settings: QSettings | None = None,
+        preset: str = "balanced",
+        session_mode: str = "auto",
+    ):
+        super().__init__()
+        self.settings = settings if settings is not None else QSettings(APP_NAME, APP_NAME)
+        self.session: Any = None
+        self.loaded: Any = None  # LoadedImage of the current photo
+        self.image_path = ""
+        self.session_mode = session_mode
+        self.depth_mode = "auto"
+        self.preset = preset if preset in PRESET_NAMES else "balanced"
+        self.step = Step.EMPTY
+        self.original_sun: Sun | None = None
+        self.timelapse_settings = TimelapseSettings()
+        self.timings = StageTimings()
+        self.recent = RecentFiles([str(p) for p in (self.settings.value("recent", []) or [])])
+        self.last_error: str = ""
+        self.last_export: str = ""
+        self._pending_project: ProjectState | None = None
+        self._shown: dict[str, int] = {}
+        self._photo_qimage: QImage | None = None
+        self._timelapse_dialog: Any = None
+        self._last_load: tuple[str, ProjectState | None] | None = None
+        self._after_label = "Relit"
+
+        self.runner = TaskRunner(self)
+        self.runner.started.connect(self._on_job_started)
+        self.runner.progress.connect(self._on_job_progress)
+        self.runner.finished.connect(self._on_job_finished)
+        self.runner.failed.connect(self._on_job_failed)
+        self.runner.cancelled.connect(self._on_job_cancelled)
+        self.runner.idle.connect(self._on_idle)
+
+        self._build_ui()
+        self._set_step(Step.EMPTY)
+        self.setAcceptDrops(True)
+        self.resize(1280, 800)
+        self._update_title()
+
+    # ================================================================== UI
+    def _build_ui(self) -> None:
+        if ICON_PATH.is_file():
+            self.setWindowIcon(QIcon(str(ICON_PATH)))
+        self.canvas = ImageCanvas(self)
+        self.align_panel = AlignPanel(self)
+        self.relight_panel = RelightPanel(self)
+        self.steps = QStackedWidget(self)
+        self.steps.addWidget(self.align_panel)
+        self.steps.addWidget(self.relight_panel)
+        side = QScrollArea(self)
+        side.setWidget(self.steps)
+        side.setWidgetResizable(True)
+        side.setMinimumWidth(290)
+        side.setFrameShape(QScrollArea.Shape.NoFrame)
+        splitter = QSplitter(Qt.Orientation.Horizontal, self)
+        splitter.addWidget(self.canvas)
+        splitter.addWidget(side)
+        splitter.setStretchFactor(0, 1)
+        splitter.setStretchFactor(1, 0)
+        splitter.setSizes([960, 320])
+        self.setCentralWidget(splitter)
+
+        # Actions
+        self.act_open = QAction("&Open…", self, shortcut=QKeySequence.StandardKey.Open)
+        self.act_open.setToolTip("Open a photo or an OutCast project (Ctrl+O)")
+        self.act_open.triggered.connect(self.open_dialog)
+        self.act_save = QAction("&Save project", self, shortcut=QKeySequence.StandardKey.Save)
+        self.act_save.setToolTip("Save suns and settings next to the photo (Ctrl+S)")
+        self.act_save.triggered.connect(lambda: self.save_project())
+        self.act_save_as = QAction("Save project &as…", self)
+        self.act_save_as.triggered.connect(self.save_project_dialog)
+        self.act_export = QAction("&Export still…", self, shortcut=QKeySequence("Ctrl+E"))
+        self.act_export.triggered.connect(self.export_still_dialog)
+        self.act_timelapse = QAction("&Time-lapse…", self, shortcut=QKeySequence("Ctrl+T"))
+        self.act_timelapse.triggered.connect(self.open_timelapse)
+        self.act_quit = QAction("&Quit", self, shortcut=QKeySequence.StandardKey.Quit)
+        self.act_quit.triggered.connect(self.close)
+        self.act_fit = QAction("&Fit to window", self, shortcut=QKeySequence("Ctrl+0"))
+        self.act_fit.triggered.connect(self.canvas.fit)
+        self.act_actual = QAction("&Actual pixels", self, shortcut=QKeySequence("Ctrl+1"))
+        self.act_actual.triggered.connect(lambda: self.canvas.set_zoom(1.0))
+        self.act_zoom_in = QAction("Zoom &in", self, shortcut=QKeySequence.StandardKey.ZoomIn)
+        self.act_zoom_in.triggered.connect(lambda: self.canvas.set_zoom(self.canvas.zoom() * 1.25))
+        self.act_zoom_out = QAction("Zoom &out", self, shortcut=QKeySequence.StandardKey.ZoomOut)
+        self.act_zoom_out.triggered.connect(lambda: self.canvas.set_zoom(self.canvas.zoom() / 1.25))
+        self.act_confirm = QAction(
+            "&Confirm original sun", self, shortcut=QKeySequence("Ctrl+Return")
+        )
+        self.act_confirm.triggered.connect(self.confirm_original_sun)
+        self.act_about = QAction("&About OutCast", self)
+        self.act_about.triggered.connect(self._about)
+        self.act_keys = QAction("&Keyboard shortcuts", self, shortcut=QKeySequence("F1"))
+        self.act_keys.triggered.connect(self._shortcuts)
+
+        file_menu = self.menuBar().addMenu("&File")
+        file_menu.addAction(self.act_open)
+        self.recent_menu = QMenu("Open &recent", self)
+        file_menu.addMenu(self.recent_menu)
+        file_menu.addSeparator()
+        file_menu.addAction(self.act_save)
+        file_menu.addAction(self.act_save_as)
+        file_menu.addSeparator()
+        file_menu.addAction(self.act_export)
+        file_menu.addAction(self.act_timelapse)
+        file_menu.addSeparator()
+        file_menu.addAction(self.act_quit)
+        view_menu = self.menuBar().addMenu("&View")
+        for a in (self.act_fit, self.act_actual, self.act_zoom_in, self.act_zoom_out):
+            view_menu.addAction(a)
+        sun_menu = self.menuBar().addMenu("&Sun")
+        sun_menu.addAction(self.act_confirm)
+        help_menu = self.menuBar().addMenu("&Help")
+        help_menu.addAction(self.act_keys)
+        help_menu.addAction(self.act_about)
+        self._rebuild_recent_menu()
+
+        tb = self.addToolBar("Main")
+        tb.setObjectName("main-toolbar")
+        tb.setMovable(False)
+        tb.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+        tb.addAction(self.act_open)
+        tb.addAction(self.act_save)
+        tb.addSeparator()
+        tb.addWidget(QLabel(" Quality ", self))
+        self.preset_combo = QComboBox(self)
+        for name in PRESET_NAMES:
+            self.preset_combo.addItem(name.capitalize(), name)
+        self.preset_combo.setCurrentIndex(PRESET_NAMES.index(self.preset))
+        self.preset_combo.setToolTip(
+            "Fast: quick previews at low resolution. Accurate: finer shadows, slower."
+        )
+        self.preset_combo.currentIndexChanged.connect(
+            lambda _i: self.set_preset(str(self.preset_combo.currentData()))
+        )
+        tb.addWidget(self.preset_combo)
+        tb.addSeparator()
+        tb.addAction(self.act_fit)
+        tb.addAction(self.act_actual)
+        tb.addSeparator()
+        tb.addAction(self.act_export)
+        tb.addAction(self.act_timelapse)
+
+        # Status bar: running stage + progress on the left, stage timings and modes on the right.
+        self.stage_label = QLabel("Ready", self)
+        self.progress_bar = QProgressBar(self)
+        self.progress_bar.setMaximumWidth(180)
+        self.progress_bar.setRange(0, 100)
+        self.progress_bar.setTextVisible(False)
+        self.progress_bar.hide()
+        self.timings_label = QLabel("", self)
+        self.timings_label.setToolTip("How long each stage took, last run")
+        self.mode_label = QLabel("", self)
+        self.zoom_label = QLabel("", self)
+        self.zoom_label.setToolTip("Zoom (Ctrl+0 fits, Ctrl+1 shows actual pixels)")
+        self.canvas.zoom_changed.connect(lambda z: self.zoom_label.setText(f"{z * 100:.0f} %"))
+        sb = self.statusBar()
+        sb.addWidget(self.stage_label, 1)
+        sb.addWidget(self.progress_bar)
+        sb.addPermanentWidget(self.timings_label)
+        sb.addPermanentWidget(self.mode_label)
+        sb.addPermanentWidget(self.zoom_label)
+
+        # Wiring
+        ap, rp = self.align_panel, self.relight_panel
+        ap.sun_panel.sun_changed.connect(self._on_original_sun_changed)
+        ap.sun_panel.sun_committed.connect(lambda az, el: self.request_shadow(az, el, False))
+        ap.opacity_slider.valueChanged.connect(lambda v: self.canvas.set_overlay_opacity(v / 100.0))
+        ap.confirm_clicked.connect(self.confirm_original_sun)
+        ap.exif_clicked.connect(self.use_exif_sun)
+        rp.sun_panel.sun_changed.connect(self._on_target_sun_changed)
+        rp.sun_panel.sun_committed.connect(lambda az, el: self.request_relight(az, el, False))
+        rp.split_slider.valueChanged.connect(self._on_split_changed)
+        self.canvas.split_dragged.connect(lambda f: rp.split_slider.setValue(round(f * 100)))
+        rp.view_combo.currentIndexChanged.connect(self._on_view_changed)
+        rp.export_still_clicked.connect(self.export_still_dialog)
+        rp.timelapse_clicked.connect(self.open_timelapse)
+        rp.realign_clicked.connect(self.back_to_align)
+        self.canvas.set_overlay_opacity(ap.opacity_slider.value() / 100.0)
+
+    def _rebuild_recent_menu(self) -> None:
+        self.recent_menu.clear()
+        paths = self.recent.paths()
+        for p in paths:
+            act = self.recent_menu.addAction(os.path.basename(p))
+            act.setToolTip(p)
+            act.setData(p)
+            act.triggered.connect(lambda _c=False, path=p: self.open_path(path))
+        self.recent_menu.setEnabled(bool(paths))
+
+    def _set_step(self, step: Step) -> None:
+        self.step = step
+        has_photo = step is not Step.EMPTY
+        self.steps.setCurrentWidget(
+            self.relight_panel if step is Step.RELIGHT else self.align_panel
+        )
+        self.align_panel.setEnabled(has_photo)
+        for act in (self.act_save, self.act_save_as):
+            act.setEnabled(has_photo)
+        for act in (self.act_export, self.act_timelapse):
+            act.setEnabled(step is Step.RELIGHT)
+        self.act_confirm.setEnabled(step is Step.ALIGN)
+        if step is Step.RELIGHT:
+            self.canvas.set_overlay(None)
+            self._on_split_changed(self.relight_panel.split_slider.value())
+        else:
+            if self._photo_qimage is not None and self.canvas.before() is not self._photo_qimage:
+                self.canvas.set_image(self._photo_qimage, fit=False)
+            self.canvas.set_after(None)
+            self.canvas.set_split(None)
+
+    def _update_title(self) -> None:
+        name = os.path.basename(self.image_path) if self.image_path else ""
+        self.setWindowTitle(f"{name} — {APP_NAME}" if name else APP_NAME)
+
+    def _about(self) -> None:
+        QMessageBox.about(
+            self,
+            "About OutCast",
+            "<b>OutCast</b> relights outdoor photos with correct cast shadows.<br>"
+            "Based on Griffiths, Ritschel and Philip, <i>OutCast: Outdoor Single-image "
+            "Relighting with Cast Shadows</i>, Eurographics 2022.",
+        )
+
+    def _shortcuts(self) -> None:
+        QMessageBox.information(
+            self,
+            "Keyboard shortcuts",
+            "Sun dial (click it first): arrow keys move the sun 1°, Shift 10°, Ctrl 0.1°.\n"
+            "Ctrl+O open · Ctrl+S save project · Ctrl+Return confirm the sun · Ctrl+E export still"
+            " · Ctrl+T time-lapse\n"
+            "Canvas: mouse wheel zooms, drag pans, double-click or Ctrl+0 fits, Ctrl+1 actual "
+            "pixels.",
+        )
+
+    def show_error(self, exc: BaseException, action: str) -> None:
+        """Tell the user what happened and what to do; the app carries on."""
+        msg = message_for(exc, action)
+        self.last_error = f"{msg.title}: {msg.what}"
+        self.stage_label.setText(msg.title)
+        QMessageBox.critical(self, msg.title, f"{msg.title}.\n\n{msg.text()}")
+
+    # ================================================================== opening
+    def open_dialog(self) -> None:
+        patterns = " ".join(f"*{s}" for s in IMAGE_SUFFIXES)
+        path, _ = QFileDialog.getOpenFileName(
+            self,
+            "Open a photo or project",
+            os.path.dirname(self.image_path) if self.image_path else "",
+            f"Photos and projects ({patterns} *.outcast.json);;Photos ({patterns});;"
+            "OutCast projects (*.outcast.json)",
+        )
+        if path:
+            self.open_path(path)
+
+    def open_path(self, path: str) -> None:
+        """Open a photo or a project file (the load runs in the worker)."""
+        if is_project_file(path):
+            try:
+                state = load_project(path)
+            except (OSError, ValueError) as exc:
+                self.show_error(exc, "project")
+                return
+            self.recent.add(path)
+            self._save_recent()
+            self.open_image(state.image_path, project=state)
+        else:
+            self.open_image(path)
+
+    def open_image(self, path: str, project: ProjectState | None = None) -> None:
+        preset = project.preset if project is not None else self.preset
+        mode = self.session_mode
+        depth_mode = self.depth_mode
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            from outcast_core.runtime.imageio import read_image
+            from outcast_core.runtime.session import RelightSession
+
+            ctx.progress("reading", 0.02)
+            loaded = read_image(path)
+            session = RelightSession(preset=preset, mode=mode, depth_mode=depth_mode)
+            focal = loaded.exif.focal_35mm if loaded.exif else None
+            session.set_image(loaded.image_srgb, focal_35mm=focal or None, progress=ctx.progress)
+            photo = display.to_uint8_rgb(loaded.image_srgb)
+            return {"path": path, "loaded": loaded, "session": session, "photo": photo}
+
+        self._pending_project = project
+        self._last_load = (path, project)
+        self.runner.submit("load", job, f"Opening {os.path.basename(path)}")
+
+    def _on_loaded(self, result: dict[str, Any]) -> None:
+        project, self._pending_project = self._pending_project, None
+        old_path = self.image_path
+        self.session = result["session"]
+        self.loaded = result["loaded"]
+        self.image_path = os.path.abspath(result["path"])
+        if old_path != self.image_path and project is None:
+            self.timelapse_settings = TimelapseSettings()
+        if project is None:  # a project opened from the menu is already the recent entry
+            self.recent.add(self.image_path)
+            self._save_recent()
+        self._photo_qimage = qimage_from_array(result["photo"])
+        self.canvas.set_image(self._photo_qimage)
+        self.original_sun = None
+        cam = getattr(self.session, "camera", None)
+        if cam is not None:
+            vfov = math.degrees(2.0 * math.atan(cam.height / (2.0 * cam.focal)))
+            self.align_panel.sun_panel.set_fov(cam.fov_deg, vfov)
+            self.relight_panel.sun_panel.set_fov(cam.fov_deg, vfov)
+        self.mode_label.setText(self._mode_text())
+        self._update_title()
+        prior = "prior" in str(getattr(self.session, "depth_source", ""))
+        self.align_panel.show_notice(
+            "No depth model is installed, so OutCast assumes flat ground and cannot predict "
+            "this photo's cast shadows. Set the sun by eye or from the photo's EXIF."
+            if prior
+            else ""
+        )
+        self.align_panel.exif_button.setEnabled(self.exif_sun() is not None)
+        self._set_step(Step.ALIGN)
+        if project is not None:
+            self._apply_project(project)
+        else:
+            self.request_shadow(preview=False)
+        self.stage_label.setText(f"Opened {os.path.basename(self.image_path)}")
+
+    def _mode_text(self) -> str:
+        s = self.session
+        if s is None:
+            return ""
+        shadow = "learned shadows" if s.shadow_mode == "learned" else "Direct shadows"
+        relight = "learned relighting" if s.relight_mode == "learned" else "physics relighting"
+        depth = str(getattr(s, "depth_source", "?"))
+        self.mode_label.setToolTip(f"{shadow} · {relight} · depth: {depth}")
+        short = depth.split(" (")[0]
+        return f"{shadow} · {relight} · depth: {short}"
+
+    def exif_sun(self) -> tuple[float, float] | None:
+        """The photo's sun relative to the camera from EXIF GPS, time and compass heading."""
+        from outcast_core.runtime import timelapse as tl
+
+        exif = getattr(self.loaded, "exif", None)
+        when = getattr(exif, "capture_time", None)
+        lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
+        heading = getattr(exif, "heading_deg", None)
+        if when is None or lat is None or lon is None or heading is None:
+            return None
+        true_az, el = tl.true_sun_position(when, lat, lon)
+        if el <= 0:
+            return None
+        return tl.relative_azimuth(true_az, heading), el
+
+    def use_exif_sun(self) -> None:
+        sun = self.exif_sun()
+        if sun is None or self.step is not Step.ALIGN:
+            return
+        self.align_panel.sun_panel.set_sun(*sun)
+        self.request_shadow(*sun, preview=False)
+        magnetic = getattr(getattr(self.loaded, "exif", None), "heading_ref", None) == "M"
+        note = "; the heading is magnetic, so allow for the local declination" if magnetic else ""
+        self.stage_label.setText(
+            f"Sun from EXIF: azimuth {sun[0]:.1f}°, elevation {sun[1]:.1f}° "
+            f"(check it against the shadows{note})"
+        )
+
+    def _apply_project(self, project: ProjectState) -> None:
+        self.preset = project.preset  # the session was created with it
+        self.preset_combo.blockSignals(True)
+        self.preset_combo.setCurrentIndex(PRESET_NAMES.index(project.preset))
+        self.preset_combo.blockSignals(False)
+        self.timelapse_settings = project.timelapse
+        self.align_panel.opacity_slider.setValue(round(project.overlay_opacity * 100))
+        self.relight_panel.split_slider.setValue(round(project.split * 100))
+        self.relight_panel.set_view(project.buffer_view)
+        if project.original_sun is not None:
+            self.align_panel.sun_panel.set_sun(*project.original_sun.as_tuple())
+        if project.target_sun is not None:
+            self.relight_panel.sun_panel.set_sun(*project.target_sun.as_tuple())
+        if project.original_sun is not None:
+            self.confirm_original_sun(keep_target=project.target_sun is not None)
+        else:
+            self.request_shadow(preview=False)
+
+    def _save_recent(self) -> None:
+        self.settings.setValue("recent", self.recent.paths())
+        self._rebuild_recent_menu()
+
+    # ---- drag and drop
+    def dragEnterEvent(self, event: QDragEnterEvent) -> None:
+        urls = event.mimeData().urls() if event.mimeData().hasUrls() else []
+        if urls and urls[0].isLocalFile():
+            event.acceptProposedAction()
+        else:
+            event.ignore()
+
+    def dropEvent(self, event: QDropEvent) -> None:
+        urls = event.mimeData().urls()
+        if urls and urls[0].isLocalFile():
+            self.open_path(urls[0].toLocalFile())
+            event.acceptProposedAction()
+
+    # ================================================================== presets
+    def set_preset(self, name: str) -> None:
+        if name not in PRESET_NAMES or name == self.preset:
+            return
+        self.preset = name
+        idx = PRESET_NAMES.index(name)
+        if self.preset_combo.currentIndex() != idx:
+            self.preset_combo.blockSignals(True)
+            self.preset_combo.setCurrentIndex(idx)
+            self.preset_combo.blockSignals(False)
+        session = self.session
+        if session is None:
+            return
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            session.set_preset(name, progress=ctx.progress)
+            return {"timings": _timings(session)}
+
+        self.runner.submit("preset", job, f"Switching to {name}")
+        self._refresh_view()
+
+    def _refresh_view(self) -> None:
+        if self.step is Step.ALIGN:
+            self.request_shadow(preview=False)
+        elif self.step is Step.RELIGHT:
+            self.request_relight(preview=False)
+
+    # ================================================================== step 1
+    def _on_original_sun_changed(self, az: float, el: float, preview: bool) -> None:
+        if preview:
+            self.request_shadow(az, el, True)
+
+    def request_shadow(
+        self, az: float | None = None, el: float | None = None, preview: bool = False
+    ) -> int | None:
+        """Predict shadows for the original sun; a newer request replaces a waiting one."""
+        session = self.session
+        if session is None or self.step is not Step.ALIGN:
+            return None
+        if az is None or el is None:
+            az, el = self.align_panel.sun_panel.sun()
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            w = sun_vector(az, el)
+            shadow = session.shadow(w, preview=preview)
+            cos = cosine_term(session.normals, w) if session.normals is not None else None
+            if cos is not None and cos.shape != shadow.shape:
+                cos = None
+            rgba = display.shadow_overlay_rgba(shadow, session.sky, cos)
+            return {"sun": (az, el), "preview": preview, "overlay": rgba,
+                    "timings": _timings(session)}  # fmt: skip
+
+        return self.runner.submit("shadow", job, "Predicting shadows")
+
+    def _on_shadow(self, result: dict[str, Any]) -> None:
+        if self.step is Step.ALIGN:
+            self.canvas.set_overlay(qimage_from_array(result["overlay"]))
+
+    def confirm_original_sun(self, keep_target: bool = False) -> None:
+        """Fix the original sun and compute its refined shadow (step 1 -> step 2)."""
+        session = self.session
+        if session is None:
+            return
+        az, el = self.align_panel.sun_panel.sun()
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            ctx.progress("refining", 0.1)
+            session.set_original_sun(sun_vector(az, el))
+            return {"sun": (az, el), "keep_target": keep_target, "timings": _timings(session)}
+
+        self.runner.cancel("shadow")
+        self.runner.submit("confirm", job, "Refining the original shadows")
+
+    def _on_confirmed(self, result: dict[str, Any]) -> None:
+        az, el = result["sun"]
+        self.original_sun = Sun(az, el)
+        rp = self.relight_panel.sun_panel
+        rp.dial.set_reference((az, el))
+        if not result["keep_target"]:
+            rp.set_sun(az, el)
+        self._set_step(Step.RELIGHT)
+        self.request_relight(preview=False)
+
+    def back_to_align(self) -> None:
+        self._set_step(Step.ALIGN)
+        self.request_shadow(preview=False)
+
+    # ================================================================== step 2
+    def _on_target_sun_changed(self, az: float, el: float, preview: bool) -> None:
+        if preview:
+            self.request_relight(az, el, True)
+
+    def _on_view_changed(self, _index: int) -> None:
+        self.relight_panel.split_slider.setEnabled(self.relight_panel.view() == "output")
+        self.request_relight(preview=False)
+
+    def _on_split_changed(self, value: int) -> None:
+        self.relight_panel.split_slider.setEnabled(self.relight_panel.view() == "output")
+        if self.step is Step.RELIGHT and self.relight_panel.view() == "output":
+            self.canvas.set_split(value / 100.0, ("Original", self._after_label))
+
+    def request_relight(
+        self, az: float | None = None, el: float | None = None, preview: bool = False
+    ) -> int | None:
+        """Render the step-2 view for the target sun (relit photo or buffers)."""
+        session = self.session
+        if session is None or self.step is not Step.RELIGHT:
+            return None
+        if az is None or el is None:
+            az, el = self.relight_panel.sun_panel.sun()
+        view = self.relight_panel.view()
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            w = sun_vector(az, el)
+            if view == "output":
+                # While dragging: the working-size preview. On release: full resolution, so the
+                # relit side of the split is as sharp as the photo.
+                relit = session.relight(w, preview=True) if preview else session.relight_full(w)
+                img = display.to_uint8_rgb(relit)
+                return {"view": view, "image": img, "preview": preview,
+                        "timings": _timings(session)}  # fmt: skip
+            bufs = session.buffers(w)
+            tiles = {k: display.buffer_to_rgb(k, v, session.sky) for k, v in bufs.items()}
+            tiles["input"] = display.to_uint8_rgb(session.image_srgb)
+            return {"view": view, "tiles": tiles, "timings": _timings(session)}
+
+        return self.runner.submit("relight", job, "Relighting")
+
+    def _on_relit(self, result: dict[str, Any]) -> None:
+        if self.step is not Step.RELIGHT:
+            return
+        view = result["view"]
+        if view == "output":
+            if self.canvas.before() is not self._photo_qimage and self._photo_qimage is not None:
+                self.canvas.set_image(self._photo_qimage, fit=False)
+            self.canvas.set_after(qimage_from_array(result["image"]))
+            self._after_label = "Relit · preview" if result.get("preview") else "Relit"
+            self._on_split_changed(self.relight_panel.split_slider.value())
+            return
+        tiles = result["tiles"]
+        image = self._montage(tiles) if view == "all" else qimage_from_array(tiles[view])
+        same_size = self.canvas.before() is not None and self.canvas.before().size() == image.size()
+        self.canvas.set_image(image, fit=not same_size)
+
+    @staticmethod
+    def _montage(tiles: dict[str, np.ndarray]) -> QImage:
+        """The paper-figure grid: input, depth, normals / original shadow, new shadow, output."""
+        order = ["input", "depth", "normals", "original_shadow", "new_shadow", "output"]
+        first = tiles[order[0]]
+        h, w = first.shape[:2]
+        gap, label_h, cols = 6, 22, 3
+        rows = 2
+        out = QImage(
+            cols * w + (cols - 1) * gap, rows * (h + label_h) + gap, QImage.Format.Format_RGB888
+        )
+        out.fill(QColor(30, 30, 32))
+        p = QPainter(out)
+        font = QFont()
+        font.setPixelSize(14)
+        p.setFont(font)
+        for k, name in enumerate(order):
+            r, c = divmod(k, cols)
+            x, y = c * (w + gap), r * (h + label_h + gap)
+            p.setPen(QColor(235, 235, 235))
+            p.drawText(x + 2, y + label_h - 6, display.BUFFER_TITLES[name])
+            p.drawImage(x, y + label_h, qimage_from_array(tiles[name]))
+        p.end()
+        return out
+
+    # ================================================================== export still
+    def export_still_dialog(self) -> None:
+        if self.step is not Step.RELIGHT:
+            return
+        stem = Path(self.image_path).stem
+        az, el = self.relight_panel.sun_panel.sun()
+        suggestion = str(Path(self.image_path).with_name(f"{stem}_relit_az{az:.0f}_el{el:.0f}.png"))
+        # The file dialog asks before replacing an existing file, so a confirmed name may be
+        # overwritten; nothing is ever replaced without that question.
+        path, _ = QFileDialog.getSaveFileName(self, "Export relit photo", suggestion, STILL_FILTERS)
+        if path:
+            self.export_still(path, force=True)
+
+    def export_still(self, path: str, force: bool = False) -> int | None:
+        """Relight at full resolution and write PNG, JPEG or 16-bit TIFF (atomic)."""
+        session, loaded = self.session, self.loaded
+        if session is None or self.step is not Step.RELIGHT:
+            return None
+        az, el = self.relight_panel.sun_panel.sun()
+        if not force and os.path.exists(path):
+            self.show_error(FileExistsError(f"'{path}' already exists"), "export")
+            return None
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            from outcast_core.runtime.imageio import write_image
+
+            ctx.progress("relighting at full resolution", 0.1)
+            img = session.relight_full(sun_vector(az, el))
+            ctx.progress("writing", 0.8)
+            suffix = Path(path).suffix.lower()
+            sixteen = suffix in (".tif", ".tiff")
+            exif = None if sixteen else getattr(loaded, "exif_bytes", None)
+            write_image(
+                path, img, bit_depth=16 if sixteen else 8, force=force, quality=95, exif=exif
+            )
+            return {"path": path, "timings": _timings(session)}
+
+        return self.runner.submit("export_still", job, f"Exporting {os.path.basename(path)}")
+
+    # ================================================================== time-lapse
+    def open_timelapse(self) -> Any:
+        if self.step is not Step.RELIGHT:
+            return None
+        from app.timelapse_dialog import TimelapseDialog
+
+        if self._timelapse_dialog is None:
+            self._timelapse_dialog = TimelapseDialog(self)
+        self._timelapse_dialog.load_settings(self.timelapse_settings)
+        self._timelapse_dialog.show()
+        self._timelapse_dialog.raise_()
+        return self._timelapse_dialog
+
+    # ================================================================== projects
+    def project_state(self) -> ProjectState:
+        if self._timelapse_dialog is not None:
+            self.timelapse_settings = self._timelapse_dialog.settings()
+        return ProjectState(
+            image_path=self.image_path,
+            preset=self.preset,
+            depth_source=str(getattr(self.session, "depth_source", "")),
+            original_sun=self.original_sun,
+            target_sun=Sun(*self.relight_panel.sun_panel.sun()) if self.original_sun else None,
+            overlay_opacity=self.align_panel.opacity_slider.value() / 100.0,
+            split=self.relight_panel.split_slider.value() / 100.0,
+            buffer_view=self.relight_panel.view(),
+            timelapse=self.timelapse_settings,
+        )
+
+    def save_project(self, path: str | None = None) -> str | None:
+        if not self.image_path:
+            return None
+        target = path or str(project_path_for(self.image_path))
+        try:
+            save_project(self.project_state(), target)
+        except (OSError, ValueError) as exc:
+            self.show_error(exc, "project")
+            return None
+        self.recent.add(target)
+        self._save_recent()
+        self.stage_label.setText(f"Saved project {os.path.basename(target)}")
+        return target
+
+    def save_project_dialog(self) -> None:
+        if not self.image_path:
+            return
+        path, _ = QFileDialog.getSaveFileName(
+            self, "Save project", str(project_path_for(self.image_path)),
+            "OutCast projects (*.outcast.json)",
+        )  # fmt: skip
+        if path:
+            self.save_project(path)
+
+    # ================================================================== job plumbing
+    @Slot(int, str, str)
+    def _on_job_started(self, job_id: int, channel: str, description: str) -> None:
+        self.stage_label.setText(f"{description or STAGE_WORDS.get(channel, channel)}…")
+        if channel in ("load", "preset", "confirm", "export_still", "tl_export"):
+            self.progress_bar.setRange(0, 0 if channel == "confirm" else 100)
+            self.progress_bar.setValue(0)
+            self.progress_bar.show()
+
+    @Slot(int, str, str, float)
+    def _on_job_progress(self, job_id: int, channel: str, stage: str, fraction: float) -> None:
+        if channel in ("load", "preset", "export_still", "tl_export"):
+            self.progress_bar.setRange(0, 100)
+            self.progress_bar.setValue(round(100 * fraction))
+            base = STAGE_WORDS.get(channel, channel)
+            self.stage_label.setText(f"{base}: {stage} {100 * fraction:.0f} %")
+        if channel == "tl_export" and self._timelapse_dialog is not None:
+            self._timelapse_dialog.on_export_progress(fraction)
+
+    @Slot(int, str, object, float)
+    def _on_job_finished(self, job_id: int, channel: str, result: Any, seconds: float) -> None:
+        if isinstance(result, dict) and "timings" in result:
+            self.timings.update(result["timings"])
+            self.timings_label.setText(self.timings.summary(limit=4))
+            self.timings_label.setToolTip(
+                "Last run of each stage:\n" + self.timings.summary(limit=50).replace(" · ", "\n")
+            )
+        # Results of superseded requests still show while dragging, but never an older one
+        # after a newer one.
+        if job_id < self._shown.get(channel, 0):
+            return
+        self._shown[channel] = job_id
+        if channel == "load":
+            self._on_loaded(result)
+        elif channel == "shadow":
+            self._on_shadow(result)
+        elif channel == "confirm":
+            self._on_confirmed(result)
+        elif channel == "relight":
+            self._on_relit(result)
+        elif channel == "export_still":
+            self.last_export = result["path"]
+        elif channel in ("tl_preview", "tl_export") and self._timelapse_dialog is not None:
+            self._timelapse_dialog.on_job_finished(channel, result)
+        if not self.runner.busy():
+            if channel == "export_still":
+                text = f"Saved {os.path.basename(result['path'])} in {seconds:.1f} s"
+            elif channel == "tl_export":
+                text = f"Saved time-lapse {os.path.basename(str(result['path']))}"
+            else:
+                text = f"Ready · {STAGE_WORDS.get(channel, channel).lower()} took {seconds:.2f} s"
+            self.stage_label.setText(text)
+
+    @Slot(int, str, object)
+    def _on_job_failed(self, job_id: int, channel: str, exc: Any) -> None:
+        self.progress_bar.hide()
+        if channel == "load":
+            self._pending_project = None
+            path = self._last_load[0] if self._last_load else ""
+            if path and not os.path.exists(path):  # a recent file that has gone away
+                self.recent.remove(path)
+                self._save_recent()
+        if channel in ("tl_export", "tl_preview") and self._timelapse_dialog is not None:
+            self._timelapse_dialog.on_job_failed(channel, exc)
+        action = {"load": "open", "export_still": "export", "tl_export": "export"}.get(channel, "")
+        self.show_error(exc, action)
+        if isinstance(exc, ModelError) and self.session_mode != "classic":
+            if "depth" in str(exc):  # a broken depth model: use the ground-plane prior instead
+                self.depth_mode = "prior"
+            self._fall_back_to_classic(channel)
+
+    def _fall_back_to_classic(self, channel: str) -> None:
+        """A model is broken: carry on with Direct shadows + physics relighting."""
+        self.session_mode = "classic"
+        if channel == "load" and self._last_load is not None:
+            self.open_image(*self._last_load)
+        elif self.image_path:
+            self.open_image(self.image_path, project=self.project_state())
+
+    @Slot(int, str)
+    def _on_job_cancelled(self, job_id: int, channel: str) -> None:
+        if channel == "tl_export" and self._timelapse_dialog is not None:
+            self._timelapse_dialog.on_export_cancelled()
+        if channel in ("tl_export", "export_still", "load"):
+            self.progress_bar.hide()
+            self.stage_label.setText(f"{STAGE_WORDS.get(channel, channel)}: cancelled")
+
+    @Slot()
+    def _on_idle(self) -> None:
+        self.progress_bar.hide()
+
+    def closeEvent(self, event: QCloseEvent) -> None:
+        self.runner.shutdown()
+        if self._timelapse_dialog is not None:
+            self._timelapse_dialog.close()
+        super().closeEvent(event)
+
+
+__all__ = ["MainWindow", "VIEW_CHOICES"]

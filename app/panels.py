@@ -1,0 +1,157 @@
+"""The side panels of the two steps: align the original sun, then relight."""
+
+from __future__ import annotations
+
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QColor
+from PySide6.QtWidgets import (
+    QComboBox,
+    QFormLayout,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QSlider,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.qt_sun_dial import SunDialPanel
+
+VIEW_CHOICES = (
+    ("output", "Relit photo"),
+    ("depth", "Depth"),
+    ("normals", "Normals"),
+    ("original_shadow", "Original shadow"),
+    ("new_shadow", "New shadow"),
+    ("all", "All buffers"),
+)
+
+
+def _header(text: str, hint: str, parent: QWidget) -> tuple[QLabel, QLabel]:
+    title = QLabel(f"<span style='font-size:13pt; font-weight:600'>{text}</span>", parent)
+    body = QLabel(hint, parent)
+    body.setWordWrap(True)
+    return title, body
+
+
+def _percent_slider(value: int, parent: QWidget) -> QSlider:
+    s = QSlider(Qt.Orientation.Horizontal, parent)
+    s.setRange(0, 100)
+    s.setValue(value)
+    s.setSingleStep(5)
+    s.setPageStep(10)
+    return s
+
+
+class AlignPanel(QWidget):
+    """Step 1: drag the sun until the predicted shadows (tinted) match the photo's."""
+
+    confirm_clicked = Signal()
+    exif_clicked = Signal()
+
+    def __init__(self, parent: QWidget | None = None):
+        super().__init__(parent)
+        title, body = _header(
+            "Step 1 · Find the photo's sun",
+            "Drag the sun until the blue predicted shadows line up with the shadows in the "
+            "photo, then confirm.",
+            self,
+        )
+        self.notice = QLabel(self)
+        self.notice.setWordWrap(True)
+        self.notice.setStyleSheet(
+            "background: #fff4d6; color: #5a4300; border: 1px solid #e0c070; "
+            "border-radius: 4px; padding: 6px;"
+        )
+        self.notice.hide()
+        self.sun_panel = SunDialPanel("Original sun", QColor(255, 200, 40), self)
+        self.exif_button = QPushButton("Sun from photo's EXIF", self)
+        self.exif_button.setToolTip(
+            "Place the sun from the photo's GPS position, capture time and compass heading"
+        )
+        self.exif_button.setEnabled(False)
+        self.exif_button.clicked.connect(self.exif_clicked)
+        self.opacity_slider = _percent_slider(60, self)
+        self.opacity_slider.setToolTip("Opacity of the predicted-shadow overlay")
+        self.opacity_label = QLabel("60 %", self)
+        self.opacity_label.setMinimumWidth(40)
+        self.opacity_slider.valueChanged.connect(lambda v: self.opacity_label.setText(f"{v} %"))
+        self.confirm_button = QPushButton("Confirm sun  →", self)
+        self.confirm_button.setDefault(True)
+        self.confirm_button.setToolTip(
+            "Fix this as the photo's sun and refine its shadows (Ctrl+Return)"
+        )
+        self.confirm_button.clicked.connect(self.confirm_clicked)
+
+        row = QHBoxLayout()
+        row.addWidget(QLabel("Overlay", self))
+        row.addWidget(self.opacity_slider, 1)
+        row.addWidget(self.opacity_label)
+        layout = QVBoxLayout(self)
+        layout.addWidget(title)
+        layout.addWidget(body)
+        layout.addWidget(self.notice)
+        layout.addWidget(self.sun_panel)
+        layout.addWidget(self.exif_button)
+        layout.addLayout(row)
+        layout.addWidget(self.confirm_button)
+        layout.addStretch(1)
+
+    def show_notice(self, text: str) -> None:
+        """A warning above the dial (hidden when empty)."""
+        self.notice.setText(text)
+        self.notice.setVisible(bool(text))
+
+
+class RelightPanel(QWidget):
+    """Step 2: a target sun, before/after split, buffer views, exports."""
+
+    export_still_clicked = Signal()
+    timelapse_clicked = Signal()
+    realign_clicked = Signal()
+
+    def __init__(self, parent: QWidget | None = None):
+        super().__init__(parent)
+        title, body = _header(
+            "Step 2 · Relight",
+            "Drag the new sun. The faint sun marks the photo's original sun.",
+            self,
+        )
+        self.sun_panel = SunDialPanel("New sun", QColor(255, 140, 30), self)
+        self.view_combo = QComboBox(self)
+        for key, text in VIEW_CHOICES:
+            self.view_combo.addItem(text, key)
+        self.view_combo.setToolTip("What the canvas shows: the relit photo or its buffers")
+        self.split_slider = _percent_slider(50, self)
+        self.split_slider.setToolTip("Before/after split: left of the line is the original photo")
+        self.export_button = QPushButton("Export still…", self)
+        self.export_button.setToolTip("Save the relit photo at full resolution (Ctrl+E)")
+        self.timelapse_button = QPushButton("Time-lapse…", self)
+        self.realign_button = QPushButton("←  Re-align original sun", self)
+        self.realign_button.setFlat(True)
+        self.export_button.clicked.connect(self.export_still_clicked)
+        self.timelapse_button.clicked.connect(self.timelapse_clicked)
+        self.realign_button.clicked.connect(self.realign_clicked)
+
+        form = QFormLayout()
+        form.addRow("View", self.view_combo)
+        form.addRow("Before | after", self.split_slider)
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.export_button)
+        buttons.addWidget(self.timelapse_button)
+        layout = QVBoxLayout(self)
+        layout.addWidget(title)
+        layout.addWidget(body)
+        layout.addWidget(self.sun_panel)
+        layout.addLayout(form)
+        layout.addLayout(buttons)
+        layout.addWidget(self.realign_button, 0, Qt.AlignmentFlag.AlignLeft)
+        layout.addStretch(1)
+
+    def view(self) -> str:
+        return str(self.view_combo.currentData())
+
+    def set_view(self, key: str) -> None:
+        idx = self.view_combo.findData(key)
+        if idx >= 0:
+            self.view_combo.setCurrentIndex(idx)

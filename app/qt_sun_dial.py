@@ -1,0 +1,404 @@
+"""``QtSunDial``: the sky hemisphere seen from above with a draggable sun, and its panel.
+
+Maths lives in :mod:`app.sun_dial_math`; this module only paints and turns events into angles.
+Painting happens in small overridable steps (``paint_sky``, ``paint_grid``, ``paint_camera``,
+``paint_shadow_ruler``, ``paint_reference``, ``paint_sun``).
+
+Keyboard (dial focused): Left/Right turn the azimuth, Up/Down raise/lower the sun; 1 degree per
+press, 10 with Shift, 0.1 with Ctrl.
+"""
+
+from __future__ import annotations
+
+import math
+
+from PySide6.QtCore import QPointF, QRectF, QSize, Qt, Signal
+from PySide6.QtGui import (
+    QColor,
+    QFont,
+    QKeyEvent,
+    QMouseEvent,
+    QPainter,
+    QPainterPath,
+    QPaintEvent,
+    QPen,
+    QRadialGradient,
+)
+from PySide6.QtWidgets import (
+    QDoubleSpinBox,
+    QGridLayout,
+    QLabel,
+    QSizePolicy,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app import sun_dial_math as dm
+
+HANDLE_RADIUS = 9.0
+
+
+class QtSunDial(QWidget):
+    """Custom-painted sun dial.
+
+    Signals:
+        sun_changed(azimuth, elevation): the user moved the sun (drag, click or key).
+        drag_started(): a drag began.
+        drag_finished(azimuth, elevation): the mouse was released (time for a full-quality pass).
+        sun_committed(azimuth, elevation): a final position (release or keyboard nudge).
+    """
+
+    sun_changed = Signal(float, float)
+    drag_started = Signal()
+    drag_finished = Signal(float, float)
+    sun_committed = Signal(float, float)
+
+    def __init__(self, parent: QWidget | None = None, colour: QColor | None = None):
+        super().__init__(parent)
+        self._azimuth = 135.0
+        self._elevation = 45.0
+        self._fov = 60.0
+        self._vfov = 45.0
+        self._dragging = False
+        self._reference: tuple[float, float] | None = None
+        self.sun_colour = colour or QColor(255, 196, 40)
+        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
+        self.setMinimumSize(180, 180)
+        self.setMaximumHeight(300)
+        self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Preferred)
+        self.setToolTip(
+            "Drag the sun: around = azimuth, rim to centre = elevation.\n"
+            "Arrow keys nudge 1°, Shift 10°, Ctrl 0.1°."
+        )
+        self.setAccessibleName("Sun dial")
+
+    # ------------------------------------------------------------------ state
+    def azimuth(self) -> float:
+        return self._azimuth
+
+    def elevation(self) -> float:
+        return self._elevation
+
+    def sun(self) -> tuple[float, float]:
+        return self._azimuth, self._elevation
+
+    def is_dragging(self) -> bool:
+        return self._dragging
+
+    def set_sun(self, azimuth: float, elevation: float, emit: bool = False) -> None:
+        """Move the sun programmatically; emits ``sun_changed`` only when ``emit``."""
+        az, el = dm.wrap_azimuth(azimuth), dm.clamp_elevation(elevation)
+        if (az, el) == (self._azimuth, self._elevation):
+            return
+        self._azimuth, self._elevation = az, el
+        self.update()
+        if emit:
+            self.sun_changed.emit(az, el)
+
+    def set_fov(self, fov_deg: float, vfov_deg: float | None = None) -> None:
+        """The camera's horizontal (and vertical) field of view in degrees."""
+        dm.fov_wedge(fov_deg)  # validates
+        self._fov = float(fov_deg)
+        if vfov_deg is not None:
+            dm.fov_wedge(vfov_deg)
+            self._vfov = float(vfov_deg)
+        self.update()
+
+    def fov(self) -> tuple[float, float]:
+        return self._fov, self._vfov
+
+    def sun_in_view(self) -> bool:
+        """Whether the sun lies inside the photo's frame (it would be visible in the picture)."""
+        return dm.sun_in_view(self._azimuth, self._elevation, self._fov, self._vfov)
+
+    def set_reference(self, sun: tuple[float, float] | None) -> None:
+        """A second, faint sun (e.g. the original sun on the target dial)."""
+        self._reference = sun
+        self.update()
+
+    # ------------------------------------------------------------------ geometry
+    def dial_geometry(self) -> tuple[float, float, float]:
+        """``(cx, cy, radius)`` of the disc in widget pixels."""
+        margin = 22.0
+        radius = max(10.0, min(self.width(), self.height()) / 2.0 - margin)
+        return self.width() / 2.0, self.height() / 2.0, radius
+
+    def handle_position(self) -> QPointF:
+        cx, cy, r = self.dial_geometry()
+        return QPointF(*dm.sun_to_point(self._azimuth, self._elevation, cx, cy, r))
+
+    def sizeHint(self) -> QSize:
+        return QSize(260, 260)
+
+    def hasHeightForWidth(self) -> bool:
+        return True
+
+    def heightForWidth(self, width: int) -> int:
+        return width
+
+    # ------------------------------------------------------------------ painting
+    def paintEvent(self, event: QPaintEvent) -> None:
+        p = QPainter(self)
+        p.setRenderHint(QPainter.RenderHint.Antialiasing)
+        cx, cy, r = self.dial_geometry()
+        self.paint_sky(p, cx, cy, r)
+        self.paint_grid(p, cx, cy, r)
+        self.paint_camera(p, cx, cy, r)
+        self.paint_shadow_ruler(p, cx, cy, r)
+        self.paint_reference(p, cx, cy, r)
+        self.paint_sun(p, cx, cy, r)
+        p.end()
+
+    def paint_sky(self, p: QPainter, cx: float, cy: float, r: float) -> None:
+        grad = QRadialGradient(QPointF(cx, cy), r)
+        enabled = self.isEnabled()
+        grad.setColorAt(0.0, QColor(72, 124, 196) if enabled else QColor(90, 90, 96))
+        grad.setColorAt(1.0, QColor(168, 200, 232) if enabled else QColor(130, 130, 136))
+        p.setPen(QPen(QColor(40, 50, 70), 1.5))
+        p.setBrush(grad)
+        p.drawEllipse(QPointF(cx, cy), r, r)
+
+    def paint_grid(self, p: QPainter, cx: float, cy: float, r: float) -> None:
+        p.setBrush(Qt.BrushStyle.NoBrush)
+        p.setPen(QPen(QColor(255, 255, 255, 90), 1.0, Qt.PenStyle.DashLine))
+        for el in (30.0, 60.0):
+            rr = r * (90.0 - el) / 90.0
+            p.drawEllipse(QPointF(cx, cy), rr, rr)
+        p.setPen(QPen(QColor(255, 255, 255, 140), 1.0))
+        for az in range(0, 360, 30):
+            a = math.radians(az)
+            inner = r - (8.0 if az % 90 == 0 else 4.0)
+            p.drawLine(
+                QPointF(cx + inner * math.sin(a), cy - inner * math.cos(a)),
+                QPointF(cx + r * math.sin(a), cy - r * math.cos(a)),
+            )
+        font = QFont(self.font())
+        font.setPointSizeF(max(7.0, font.pointSizeF() * 0.85))
+        p.setFont(font)
+        p.setPen(self.palette().windowText().color())
+        labels = {0: "front", 90: "right", 180: "behind", 270: "left"}
+        for az, text in labels.items():
+            a = math.radians(az)
+            x, y = cx + (r + 11.0) * math.sin(a), cy - (r + 11.0) * math.cos(a)
+            box = QRectF(x - 30.0, y - 8.0, 60.0, 16.0)
+            if az == 90:
+                box.moveLeft(x - 8.0)
+                box.setWidth(40.0)
+                box.moveRight(min(box.right(), self.width() - 1.0))
+            elif az == 270:
+                box = QRectF(max(0.0, x - 32.0), y - 8.0, 40.0, 16.0)
+            p.drawText(box, Qt.AlignmentFlag.AlignCenter, text)
+        p.setPen(QColor(255, 255, 255, 170))
+        p.drawText(QRectF(cx + 2.0, cy - r * 2 / 3 - 14.0, 30.0, 14.0), "30°")
+        p.drawText(QRectF(cx + 2.0, cy - r / 3 - 14.0, 30.0, 14.0), "60°")
+
+    def paint_camera(self, p: QPainter, cx: float, cy: float, r: float) -> None:
+        """The camera at the centre and its horizontal field of view toward azimuth 0."""
+        left, right = dm.fov_wedge(self._fov)
+        path = QPainterPath(QPointF(cx, cy))
+        # Qt angles: degrees counter-clockwise from 3 o'clock; azimuth a sits at 90 - a.
+        path.arcTo(QRectF(cx - r, cy - r, 2 * r, 2 * r), 90.0 - left, -(right - left))
+        path.closeSubpath()
+        p.setPen(Qt.PenStyle.NoPen)
+        p.setBrush(QColor(255, 255, 255, 45))
+        p.drawPath(path)
+        # A small camera body pointing up.
+        p.setBrush(QColor(30, 34, 44))
+        p.drawRoundedRect(QRectF(cx - 7.0, cy - 3.0, 14.0, 10.0), 2.0, 2.0)
+        p.drawRect(QRectF(cx - 3.0, cy - 7.0, 6.0, 4.0))
+
+    def paint_shadow_ruler(self, p: QPainter, cx: float, cy: float, r: float) -> None:
+        """The shadow of a pole ``r/3`` tall at the centre: 1/tan(el) long, a tick per height."""
+        unit = r / 3.0
+        (x0, y0), (x1, y1), capped = dm.shadow_ruler(self._azimuth, self._elevation, cx, cy, unit)
+        # Keep the ruler inside the disc.
+        length = math.hypot(x1 - x0, y1 - y0)
+        if length > r:
+            x1, y1 = x0 + (x1 - x0) * r / length, y0 + (y1 - y0) * r / length
+            capped = True
+        pen = QPen(QColor(20, 20, 30, 200), 3.0, Qt.PenStyle.SolidLine, Qt.PenCapStyle.FlatCap)
+        p.setPen(pen)
+        p.drawLine(QPointF(x0, y0), QPointF(x1, y1))
+        # Ticks every object height along the shadow.
+        if length > 1e-6:
+            ux, uy = (
+                (x1 - x0) / math.hypot(x1 - x0, y1 - y0),
+                (y1 - y0) / math.hypot(x1 - x0, y1 - y0),
+            )
+            p.setPen(QPen(QColor(20, 20, 30, 200), 1.5))
+            k = 1
+            while k * unit <= math.hypot(x1 - x0, y1 - y0) + 1e-6:
+                tx, ty = x0 + ux * k * unit, y0 + uy * k * unit
+                p.drawLine(QPointF(tx - uy * 4, ty + ux * 4), QPointF(tx + uy * 4, ty - ux * 4))
+                k += 1
+            if capped:
+                p.drawText(QPointF(x1 + ux * 4 - 4, y1 + uy * 4 + 4), "…")
+
+    def paint_reference(self, p: QPainter, cx: float, cy: float, r: float) -> None:
+        if self._reference is None:
+            return
+        x, y = dm.sun_to_point(self._reference[0], self._reference[1], cx, cy, r)
+        p.setPen(QPen(QColor(255, 255, 255, 200), 1.5, Qt.PenStyle.DashLine))
+        p.setBrush(QColor(255, 230, 150, 90))
+        p.drawEllipse(QPointF(x, y), HANDLE_RADIUS - 2.0, HANDLE_RADIUS - 2.0)
+
+    def paint_sun(self, p: QPainter, cx: float, cy: float, r: float) -> None:
+        pos = self.handle_position()
+        p.setPen(QPen(QColor(255, 240, 180, 150), 2.0))
+        for k in range(8):  # rays
+            a = math.radians(k * 45.0)
+            p.drawLine(
+                QPointF(pos.x() + 11.0 * math.cos(a), pos.y() + 11.0 * math.sin(a)),
+                QPointF(pos.x() + 15.0 * math.cos(a), pos.y() + 15.0 * math.sin(a)),
+            )
+        edge = QColor(255, 255, 255) if self.hasFocus() else QColor(120, 80, 0)
+        p.setPen(QPen(edge, 2.0))
+        p.setBrush(self.sun_colour if self.isEnabled() else QColor(170, 170, 170))
+        p.drawEllipse(pos, HANDLE_RADIUS, HANDLE_RADIUS)
+
+    # ------------------------------------------------------------------ interaction
+    def _move_to(self, pos: QPointF) -> None:
+        cx, cy, r = self.dial_geometry()
+        az, el = dm.point_to_sun(pos.x(), pos.y(), cx, cy, r)
+        self.set_sun(az, el, emit=True)
+
+    def mousePressEvent(self, event: QMouseEvent) -> None:
+        if event.button() != Qt.MouseButton.LeftButton:
+            return super().mousePressEvent(event)
+        cx, cy, r = self.dial_geometry()
+        pos = event.position()
+        handle = self.handle_position()
+        on_handle = dm.hit_handle(pos.x(), pos.y(), handle.x(), handle.y(), HANDLE_RADIUS)
+        if not on_handle and math.hypot(pos.x() - cx, pos.y() - cy) > r + 6.0:
+            return super().mousePressEvent(event)
+        self._dragging = True
+        self.drag_started.emit()
+        if not on_handle:  # click on the sky: jump there
+            self._move_to(pos)
+        event.accept()
+
+    def mouseMoveEvent(self, event: QMouseEvent) -> None:
+        if self._dragging:
+            self._move_to(event.position())
+            event.accept()
+        else:
+            super().mouseMoveEvent(event)
+
+    def mouseReleaseEvent(self, event: QMouseEvent) -> None:
+        if self._dragging and event.button() == Qt.MouseButton.LeftButton:
+            self._move_to(event.position())
+            self._dragging = False
+            self.drag_finished.emit(self._azimuth, self._elevation)
+            self.sun_committed.emit(self._azimuth, self._elevation)
+            event.accept()
+        else:
+            super().mouseReleaseEvent(event)
+
+    def keyPressEvent(self, event: QKeyEvent) -> None:
+        mods = event.modifiers()
+        step = 1.0
+        if mods & Qt.KeyboardModifier.ShiftModifier:
+            step = 10.0
+        elif mods & Qt.KeyboardModifier.ControlModifier:
+            step = 0.1
+        deltas = {
+            Qt.Key.Key_Left: (-step, 0.0),
+            Qt.Key.Key_Right: (step, 0.0),
+            Qt.Key.Key_Up: (0.0, step),
+            Qt.Key.Key_Down: (0.0, -step),
+        }
+        d = deltas.get(Qt.Key(event.key()))
+        if d is None:
+            return super().keyPressEvent(event)
+        az, el = dm.nudge(self._azimuth, self._elevation, *d)
+        self.set_sun(az, el, emit=True)
+        self.sun_committed.emit(self._azimuth, self._elevation)
+        event.accept()
+
+
+class SunDialPanel(QWidget):
+    """A titled :class:`QtSunDial` with azimuth/elevation fields and the shadow-length read-out.
+
+    Signals:
+        sun_changed(azimuth, elevation, preview): every change; ``preview`` is True while dragging.
+        sun_committed(azimuth, elevation): a settled position (release, key, typed value).
+    """
+
+    sun_changed = Signal(float, float, bool)
+    sun_committed = Signal(float, float)
+
+    def __init__(self, title: str, colour: QColor | None = None, parent: QWidget | None = None):
+        super().__init__(parent)
+        self.dial = QtSunDial(self, colour)
+        self.title = QLabel(f"<b>{title}</b>", self)
+        self.azimuth_box = QDoubleSpinBox(self)
+        self.azimuth_box.setRange(0.0, 359.9)
+        self.azimuth_box.setWrapping(True)
+        self.azimuth_box.setDecimals(1)
+        self.azimuth_box.setSuffix("°")
+        self.azimuth_box.setToolTip("0° = sun straight ahead (backlit), 90° = right, 180° = behind")
+        self.elevation_box = QDoubleSpinBox(self)
+        self.elevation_box.setRange(0.0, 90.0)
+        self.elevation_box.setDecimals(1)
+        self.elevation_box.setSuffix("°")
+        self.elevation_box.setToolTip("0° = horizon, 90° = straight overhead")
+        for box in (self.azimuth_box, self.elevation_box):
+            box.setKeyboardTracking(False)
+            box.setAccelerated(True)
+        self.shadow_label = QLabel(self)
+        self.shadow_label.setToolTip("Length of the shadow of an upright pole on flat ground")
+
+        grid = QGridLayout()
+        grid.addWidget(QLabel("Azimuth", self), 0, 0)
+        grid.addWidget(self.azimuth_box, 0, 1)
+        grid.addWidget(QLabel("Elevation", self), 1, 0)
+        grid.addWidget(self.elevation_box, 1, 1)
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.title)
+        layout.addWidget(self.dial, 1)
+        layout.addLayout(grid)
+        layout.addWidget(self.shadow_label)
+
+        self.dial.sun_changed.connect(self._on_dial_changed)
+        self.dial.sun_committed.connect(self._on_dial_committed)
+        self.azimuth_box.valueChanged.connect(self._on_box_changed)
+        self.elevation_box.valueChanged.connect(self._on_box_changed)
+        self._sync_fields()
+
+    def sun(self) -> tuple[float, float]:
+        return self.dial.sun()
+
+    def set_sun(self, azimuth: float, elevation: float) -> None:
+        """Set without emitting signals."""
+        self.dial.set_sun(azimuth, elevation)
+        self._sync_fields()
+
+    def set_fov(self, fov_deg: float, vfov_deg: float | None = None) -> None:
+        self.dial.set_fov(fov_deg, vfov_deg)
+        self._sync_fields()
+
+    def _sync_fields(self) -> None:
+        az, el = self.dial.sun()
+        for box, value in ((self.azimuth_box, az), (self.elevation_box, el)):
+            box.blockSignals(True)
+            box.setValue(round(value, 1) % 360.0 if box is self.azimuth_box else value)
+            box.blockSignals(False)
+        ratio = dm.shadow_length_ratio(el)
+        length = "very long" if ratio > dm.MAX_SHADOW_RATIO else f"{ratio:.2f} × height"
+        in_frame = " · in the frame" if self.dial.sun_in_view() else ""
+        self.shadow_label.setText(f"Shadow: {length} · {dm.describe_sun(az, el)}{in_frame}")
+
+    def _on_dial_changed(self, az: float, el: float) -> None:
+        self._sync_fields()
+        self.sun_changed.emit(az, el, self.dial.is_dragging())
+
+    def _on_dial_committed(self, az: float, el: float) -> None:
+        self.sun_committed.emit(az, el)
+
+    def _on_box_changed(self, _value: float) -> None:
+        az, el = self.azimuth_box.value(), self.elevation_box.value()
+        self.dial.set_sun(az, el)
+        self._sync_fields()
+        self.sun_changed.emit(*self.dial.sun(), False)
+        self.sun_committed.emit(*self.dial.sun())

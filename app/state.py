@@ -1,0 +1,282 @@
+"""Qt-free state of the app: steps, suns, time-lapse settings, project files, recent files, timings.
+
+Project files are JSON next to the photo (``photo.jpg`` -> ``photo.outcast.json``). They hold the
+image path (relative to the project file when possible), the depth source, the original and
+target suns, the preset, view settings and the time-lapse settings.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import math
+import os
+import tempfile
+from dataclasses import asdict, dataclass, field
+from enum import Enum
+from pathlib import Path
+from typing import Any
+
+PROJECT_SUFFIX = ".outcast.json"
+PROJECT_VERSION = 1
+PRESET_NAMES = ("fast", "balanced", "accurate")
+BUFFER_VIEWS = ("output", "depth", "normals", "original_shadow", "new_shadow", "all")
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".heic", ".heif", ".webp", ".bmp")
+
+
+class Step(Enum):
+    """Where the user is in the workflow."""
+
+    EMPTY = "empty"  # no photo
+    ALIGN = "align"  # step 1: find the original sun
+    RELIGHT = "relight"  # step 2: choose a new sun
+
+
+@dataclass
+class Sun:
+    """A sun relative to the camera, in degrees."""
+
+    azimuth: float
+    elevation: float
+
+    def __post_init__(self) -> None:
+        for name in ("azimuth", "elevation"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise ValueError(f"expected a finite sun {name}, got {v!r}")
+        if not -90.0 <= self.elevation <= 90.0:
+            raise ValueError(f"expected an elevation in [-90, 90], got {self.elevation}")
+        self.azimuth = float(self.azimuth) % 360.0
+        self.elevation = float(self.elevation)
+
+    def as_tuple(self) -> tuple[float, float]:
+        return self.azimuth, self.elevation
+
+    @classmethod
+    def from_any(cls, value: Any) -> Sun | None:
+        """From ``None``, a ``{"azimuth", "elevation"}`` dict or an ``(az, el)`` pair."""
+        if value is None:
+            return None
+        if isinstance(value, dict):
+            try:
+                return cls(value["azimuth"], value["elevation"])
+            except KeyError as exc:
+                raise ValueError(f"expected a sun with azimuth and elevation, got {value}") from exc
+        if isinstance(value, list | tuple) and len(value) == 2:
+            return cls(value[0], value[1])
+        raise ValueError(f"expected a sun as {{azimuth, elevation}}, got {value!r}")
+
+
+@dataclass
+class TimelapseSettings:
+    """What the time-lapse dialog shows; stored in the project file."""
+
+    kind: str = "sweep"  # "sweep" | "sun"
+    sweep_from: Sun = field(default_factory=lambda: Sun(80.0, 15.0))
+    sweep_to: Sun = field(default_factory=lambda: Sun(280.0, 50.0))
+    way: str = "shorter"  # "shorter" | "longer": which way around the azimuth goes
+    frames: int = 48
+    easing: str = "ease-in-out"
+    date: str = ""  # ISO date; empty: the photo's capture date or today
+    latitude: float | None = None
+    longitude: float | None = None
+    heading: float | None = None
+    start: str = ""  # HH:MM local; empty: sunrise
+    end: str = ""  # HH:MM local; empty: sunset
+    utc_offset: float | None = None
+    fps: float = 12.0
+    format: str = "mp4"
+    full_resolution: bool = False
+
+    def validate(self) -> TimelapseSettings:
+        if self.kind not in ("sweep", "sun"):
+            raise ValueError(f"expected a time-lapse kind 'sweep' or 'sun', got {self.kind!r}")
+        if self.way not in ("shorter", "longer"):
+            raise ValueError(f"expected way 'shorter' or 'longer', got {self.way!r}")
+        if isinstance(self.frames, bool) or not isinstance(self.frames, int) or self.frames < 2:
+            raise ValueError(f"expected at least 2 frames, got {self.frames!r}")
+        if not (isinstance(self.fps, int | float) and self.fps > 0):
+            raise ValueError(f"expected fps > 0, got {self.fps!r}")
+        if self.format not in ("mp4", "gif", "webp", "png"):
+            raise ValueError(f"expected a format mp4/gif/webp/png, got {self.format!r}")
+        if self.date:
+            dt.date.fromisoformat(self.date)
+        for name in ("start", "end"):
+            if getattr(self, name):
+                dt.time.fromisoformat(getattr(self, name))
+        return self
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["sweep_from"] = asdict(self.sweep_from)
+        d["sweep_to"] = asdict(self.sweep_to)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> TimelapseSettings:
+        if not isinstance(d, dict):
+            raise ValueError(f"expected time-lapse settings as an object, got {type(d).__name__}")
+        known = {k: v for k, v in d.items() if k in cls.__dataclass_fields__}
+        for key in ("sweep_from", "sweep_to"):
+            if key in known:
+                known[key] = Sun.from_any(known[key])
+        return cls(**known).validate()
+
+
+@dataclass
+class ProjectState:
+    """Everything needed to reopen a session."""
+
+    image_path: str = ""
+    preset: str = "balanced"
+    depth_source: str = ""  # e.g. "model:depth v1" or "direct"; informative
+    original_sun: Sun | None = None
+    target_sun: Sun | None = None
+    overlay_opacity: float = 0.6
+    split: float = 0.5
+    buffer_view: str = "output"
+    timelapse: TimelapseSettings = field(default_factory=TimelapseSettings)
+
+    @property
+    def step(self) -> Step:
+        if not self.image_path:
+            return Step.EMPTY
+        return Step.RELIGHT if self.original_sun is not None else Step.ALIGN
+
+    def to_dict(self, relative_to: Path | None = None) -> dict[str, Any]:
+        image = self.image_path
+        if relative_to is not None and image:
+            try:
+                image = os.path.relpath(image, relative_to)
+            except ValueError:  # another drive on Windows
+                image = os.path.abspath(image)
+        return {
+            "outcast_project": PROJECT_VERSION,
+            "image": image,
+            "image_absolute": os.path.abspath(self.image_path) if self.image_path else "",
+            "preset": self.preset,
+            "depth_source": self.depth_source,
+            "original_sun": asdict(self.original_sun) if self.original_sun else None,
+            "target_sun": asdict(self.target_sun) if self.target_sun else None,
+            "overlay_opacity": self.overlay_opacity,
+            "split": self.split,
+            "buffer_view": self.buffer_view,
+            "timelapse": self.timelapse.to_dict(),
+        }
+
+    @classmethod
+    def from_dict(cls, d: Any, base: Path | None = None) -> ProjectState:
+        if not isinstance(d, dict) or "outcast_project" not in d:
+            raise ValueError("expected an OutCast project (a JSON object with 'outcast_project')")
+        if d["outcast_project"] != PROJECT_VERSION:
+            raise ValueError(
+                f"expected project version {PROJECT_VERSION}, got {d['outcast_project']!r}"
+            )
+        image = str(d.get("image") or "")
+        if image and base is not None and not os.path.isabs(image):
+            image = str((base / image).resolve())
+        if image and not os.path.exists(image) and d.get("image_absolute"):
+            image = str(d["image_absolute"])
+        preset = d.get("preset", "balanced")
+        if preset not in PRESET_NAMES:
+            raise ValueError(f"expected a preset in {PRESET_NAMES}, got {preset!r}")
+        view = d.get("buffer_view", "output")
+        if view not in BUFFER_VIEWS:
+            raise ValueError(f"expected a buffer view in {BUFFER_VIEWS}, got {view!r}")
+        return cls(
+            image_path=image,
+            preset=preset,
+            depth_source=str(d.get("depth_source", "")),
+            original_sun=Sun.from_any(d.get("original_sun")),
+            target_sun=Sun.from_any(d.get("target_sun")),
+            overlay_opacity=_fraction(d.get("overlay_opacity", 0.6), "overlay_opacity"),
+            split=_fraction(d.get("split", 0.5), "split"),
+            buffer_view=view,
+            timelapse=TimelapseSettings.from_dict(d.get("timelapse", {})),
+        )
+
+
+def _fraction(v: Any, name: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1.0:
+        raise ValueError(f"expected {name} in [0, 1], got {v!r}")
+    return float(v)
+
+
+def project_path_for(image_path: str | os.PathLike[str]) -> Path:
+    """The project file next to a photo: ``dir/photo.jpg`` -> ``dir/photo.outcast.json``."""
+    p = Path(image_path)
+    return p.with_name(p.stem + PROJECT_SUFFIX)
+
+
+def is_project_file(path: str | os.PathLike[str]) -> bool:
+    return str(path).lower().endswith(PROJECT_SUFFIX)
+
+
+def save_project(state: ProjectState, path: str | os.PathLike[str]) -> Path:
+    """Write a project file atomically (temp file, then rename)."""
+    path = Path(path)
+    data = state.to_dict(relative_to=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            json.dump(data, f, indent=2)
+            f.write("\n")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def load_project(path: str | os.PathLike[str]) -> ProjectState:
+    """Read a project file; ``ValueError`` when it is not a valid OutCast project."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"expected a JSON project file, got invalid JSON: {exc}") from exc
+    return ProjectState.from_dict(data, base=path.parent)
+
+
+class RecentFiles:
+    """Most-recent-first list of paths without duplicates."""
+
+    def __init__(self, paths: list[str] | None = None, limit: int = 8):
+        self.limit = limit
+        self._paths: list[str] = []
+        for p in reversed(paths or []):
+            self.add(p)
+
+    def add(self, path: str) -> None:
+        path = os.path.abspath(path)
+        if path in self._paths:
+            self._paths.remove(path)
+        self._paths.insert(0, path)
+        del self._paths[self.limit :]
+
+    def remove(self, path: str) -> None:
+        path = os.path.abspath(path)
+        if path in self._paths:
+            self._paths.remove(path)
+
+    def paths(self) -> list[str]:
+        return list(self._paths)
+
+
+@dataclass
+class StageTimings:
+    """Seconds per stage of the last run, in the order stages were first seen."""
+
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    def update(self, timings: dict[str, float]) -> None:
+        for k, v in timings.items():
+            if isinstance(v, int | float) and math.isfinite(v):
+                self.seconds[k] = float(v)
+
+    def summary(self, limit: int = 6) -> str:
+        """``"depth 0.41 s · shadow 0.05 s"``; milliseconds under 0.1 s."""
+        parts = []
+        for k, v in list(self.seconds.items())[-limit:]:
+            parts.append(f"{k} {v * 1000:.0f} ms" if v < 0.1 else f"{k} {v:.2f} s")
+        return " · ".join(parts)

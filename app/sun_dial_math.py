@@ -1,0 +1,175 @@
+"""Pure maths of the sun dial (no Qt): the sky hemisphere seen from above.
+
+The dial is a disc: its centre is the zenith, its rim the horizon, and up on screen is the
+camera's view direction (azimuth 0). Azimuth runs clockwise (90 = right of the camera), and the
+elevation falls linearly from 90 at the centre to 0 at the rim:
+
+    r = R * (90 - el) / 90,   x = cx + r sin(az),   y = cy - r cos(az)
+
+Screen coordinates have y down, as in Qt.
+"""
+
+from __future__ import annotations
+
+import math
+
+MIN_ELEVATION = 0.0
+MAX_ELEVATION = 90.0
+#: Shadow length (in object heights) above which the ruler stops growing.
+MAX_SHADOW_RATIO = 10.0
+
+
+def wrap_azimuth(azimuth: float) -> float:
+    """Azimuth in degrees wrapped to [0, 360).
+
+    Example:
+        >>> wrap_azimuth(-90.0), wrap_azimuth(725.0)
+        (270.0, 5.0)
+    """
+    if not math.isfinite(azimuth):
+        raise ValueError(f"expected a finite azimuth, got {azimuth}")
+    a = azimuth % 360.0
+    return 0.0 if a >= 360.0 else a
+
+
+def clamp_elevation(elevation: float) -> float:
+    """Elevation clamped to the dial's range [0, 90]."""
+    if not math.isfinite(elevation):
+        raise ValueError(f"expected a finite elevation, got {elevation}")
+    return min(MAX_ELEVATION, max(MIN_ELEVATION, elevation))
+
+
+def sun_to_point(
+    azimuth: float, elevation: float, cx: float, cy: float, radius: float
+) -> tuple[float, float]:
+    """Screen point of a sun on a dial centred at ``(cx, cy)`` with rim ``radius``.
+
+    Args:
+        azimuth: degrees, 0 = up (view direction), 90 = right.
+        elevation: degrees, clamped to [0, 90]; 90 is the centre.
+        cx: dial centre x (pixels).
+        cy: dial centre y (pixels, y down).
+        radius: rim radius in pixels (> 0).
+
+    Returns:
+        ``(x, y)`` in pixels.
+
+    Example:
+        >>> [round(v, 6) for v in sun_to_point(90.0, 0.0, 100.0, 100.0, 50.0)]
+        [150.0, 100.0]
+    """
+    if not radius > 0:
+        raise ValueError(f"expected a dial radius > 0, got {radius}")
+    r = radius * (MAX_ELEVATION - clamp_elevation(elevation)) / MAX_ELEVATION
+    a = math.radians(wrap_azimuth(azimuth))
+    return cx + r * math.sin(a), cy - r * math.cos(a)
+
+
+def point_to_sun(x: float, y: float, cx: float, cy: float, radius: float) -> tuple[float, float]:
+    """Sun ``(azimuth, elevation)`` under a screen point; points beyond the rim snap to it.
+
+    At the exact centre the azimuth is undefined and returned as 0.
+
+    Example:
+        >>> point_to_sun(100.0, 75.0, 100.0, 100.0, 50.0)
+        (0.0, 45.0)
+    """
+    if not radius > 0:
+        raise ValueError(f"expected a dial radius > 0, got {radius}")
+    dx, dy = x - cx, y - cy
+    r = math.hypot(dx, dy)
+    az = 0.0 if r < 1e-9 else wrap_azimuth(math.degrees(math.atan2(dx, -dy)))
+    el = MAX_ELEVATION * (1.0 - min(r / radius, 1.0))
+    return az, el
+
+
+def nudge(
+    azimuth: float, elevation: float, d_azimuth: float = 0.0, d_elevation: float = 0.0
+) -> tuple[float, float]:
+    """Move a sun by a keyboard step: azimuth wraps, elevation clamps to [0, 90]."""
+    return wrap_azimuth(azimuth + d_azimuth), clamp_elevation(elevation + d_elevation)
+
+
+def shadow_length_ratio(elevation: float) -> float:
+    """Length of the shadow of a vertical object on flat ground, in object heights: 1/tan(el).
+
+    Returns ``inf`` at or below the horizon.
+
+    Example:
+        >>> round(shadow_length_ratio(45.0), 6)
+        1.0
+    """
+    if not math.isfinite(elevation):
+        raise ValueError(f"expected a finite elevation, got {elevation}")
+    if elevation <= 0.0:
+        return math.inf
+    if elevation >= 90.0:
+        return 0.0
+    return 1.0 / math.tan(math.radians(elevation))
+
+
+def shadow_ruler(
+    azimuth: float, elevation: float, cx: float, cy: float, unit: float
+) -> tuple[tuple[float, float], tuple[float, float], bool]:
+    """Segment showing the shadow cast by a vertical pole standing at the dial centre.
+
+    The shadow points away from the sun (azimuth + 180); its length is ``unit`` pixels per object
+    height, capped at :data:`MAX_SHADOW_RATIO` heights.
+
+    Args:
+        azimuth: sun azimuth in degrees.
+        elevation: sun elevation in degrees.
+        cx: pole foot x.
+        cy: pole foot y.
+        unit: pixels per object height.
+
+    Returns:
+        ``(start, end, capped)``: the segment's end points and whether the length was capped.
+    """
+    ratio = shadow_length_ratio(elevation)
+    capped = ratio > MAX_SHADOW_RATIO
+    length = unit * min(ratio, MAX_SHADOW_RATIO)
+    a = math.radians(wrap_azimuth(azimuth) + 180.0)
+    return (cx, cy), (cx + length * math.sin(a), cy - length * math.cos(a)), capped
+
+
+def fov_wedge(fov_deg: float) -> tuple[float, float]:
+    """Azimuth range ``(left, right)`` in degrees covered by the camera's horizontal view.
+
+    Example:
+        >>> fov_wedge(60.0)
+        (-30.0, 30.0)
+    """
+    if not (math.isfinite(fov_deg) and 0.0 < fov_deg < 180.0):
+        raise ValueError(f"expected a field of view in (0, 180) degrees, got {fov_deg}")
+    return -fov_deg / 2.0, fov_deg / 2.0
+
+
+def sun_in_view(azimuth: float, elevation: float, hfov_deg: float, vfov_deg: float) -> bool:
+    """Whether a sun lies inside a level camera's frame (approximate: per-axis angles)."""
+    a = (wrap_azimuth(azimuth) + 180.0) % 360.0 - 180.0  # -180 .. 180, 0 = ahead
+    return abs(a) <= hfov_deg / 2.0 and 0.0 <= elevation <= vfov_deg / 2.0
+
+
+def hit_handle(
+    x: float, y: float, hx: float, hy: float, handle_radius: float, slack: float = 4.0
+) -> bool:
+    """Whether a press at ``(x, y)`` grabs the handle drawn at ``(hx, hy)``."""
+    return math.hypot(x - hx, y - hy) <= handle_radius + slack
+
+
+def describe_sun(azimuth: float, elevation: float) -> str:
+    """A short words-only description for photographers, e.g. ``"high, front-right"``."""
+    a = wrap_azimuth(azimuth)
+    sides = ["front", "front-right", "right", "back-right", "behind", "back-left", "left",
+             "front-left"]  # fmt: skip
+    side = sides[int(((a + 22.5) % 360.0) // 45.0)]
+    if elevation >= 60.0:
+        height = "high"
+    elif elevation >= 25.0:
+        height = "mid"
+    elif elevation >= 8.0:
+        height = "low"
+    else:
+        height = "at the horizon"
+    return f"{height}, {side}"

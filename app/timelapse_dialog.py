@@ -1,0 +1,546 @@
+"""The time-lapse dialog: a sun path (sweep or the real sun), a scrubber, and export.
+
+The dialog builds :class:`~outcast_core.runtime.timelapse.SunSample` lists with the runtime's
+time-lapse module (the same code as ``outcast timelapse``) and sends previews and the export to
+the main window's worker: ``tl_preview`` (latest wins) and ``tl_export`` (progress + cancel).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from PySide6.QtCore import QDate, Qt, QTime
+from PySide6.QtGui import QCloseEvent, QPixmap
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QDateEdit,
+    QDialog,
+    QDoubleSpinBox,
+    QFileDialog,
+    QFormLayout,
+    QGridLayout,
+    QHBoxLayout,
+    QLabel,
+    QProgressBar,
+    QPushButton,
+    QSizePolicy,
+    QSlider,
+    QSpinBox,
+    QStackedWidget,
+    QTimeEdit,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app import display
+from app.canvas import qimage_from_array
+from app.state import Sun, TimelapseSettings
+from app.workers import JobContext
+from outcast_core.runtime import timelapse as tl
+
+if TYPE_CHECKING:
+    from app.main_window import MainWindow
+
+FORMAT_CHOICES = (
+    ("mp4", "MP4 video (H.264)", "MP4 video (*.mp4)"),
+    ("gif", "Animated GIF", "GIF animation (*.gif)"),
+    ("webp", "Animated WebP", "WebP animation (*.webp)"),
+    ("png", "PNG sequence (folder)", "Folder name (*)"),
+)
+
+
+def samples_for(settings: TimelapseSettings) -> list[tl.SunSample]:
+    """The sun path described by the settings (Qt-free; raises ValueError with what is missing)."""
+    settings.validate()
+    if settings.kind == "sweep":
+        a0, a1 = settings.sweep_from.azimuth, settings.sweep_to.azimuth
+        d = (a1 - a0) % 360.0  # clockwise distance A -> B
+        shorter = d if d <= 180.0 else d - 360.0
+        longer = shorter - 360.0 if shorter > 0 else shorter + 360.0
+        if d == 0.0:
+            longer = 0.0
+        d = shorter if settings.way == "shorter" else longer
+        return tl.sweep_path(
+            (a0, settings.sweep_from.elevation),
+            (a0 + d, settings.sweep_to.elevation),
+            settings.frames,
+            settings.easing,
+        )
+    if settings.latitude is None or settings.longitude is None:
+        raise ValueError("expected a latitude and longitude for the real sun path")
+    if settings.heading is None:
+        raise ValueError("expected the camera heading for the real sun path")
+    day = dt.date.fromisoformat(settings.date) if settings.date else dt.date.today()
+    start = dt.time.fromisoformat(settings.start) if settings.start else None
+    end = dt.time.fromisoformat(settings.end) if settings.end else None
+    return tl.real_sun_path(
+        day,
+        settings.latitude,
+        settings.longitude,
+        settings.heading,
+        settings.frames,
+        start,
+        end,
+        settings.utc_offset,
+    )
+
+
+def _angle_box(lo: float, hi: float, value: float, wrap: bool = False) -> QDoubleSpinBox:
+    b = QDoubleSpinBox()
+    b.setRange(lo, hi)
+    b.setDecimals(1)
+    b.setSuffix("°")
+    b.setWrapping(wrap)
+    b.setValue(value)
+    b.setKeyboardTracking(False)
+    return b
+
+
+class TimelapseDialog(QDialog):
+    """Non-modal dialog owned by the main window."""
+
+    def __init__(self, main: MainWindow):
+        super().__init__(main)
+        self.main = main
+        self.setWindowTitle("Time-lapse")
+        self.setModal(False)
+        self._samples: list[tl.SunSample] = []
+        self._ready = False  # no reactions to widget changes until load_settings() ran
+        self._exporting = False
+        self.last_export: str = ""
+        self.last_result: str = ""
+
+        # ---- path kind
+        self.kind_combo = QComboBox(self)
+        self.kind_combo.addItem("Sweep from A to B", "sweep")
+        self.kind_combo.addItem("Real sun path of a day", "sun")
+        self.pages = QStackedWidget(self)
+
+        sweep = QWidget(self)
+        self.from_az = _angle_box(0.0, 359.9, 90.0, wrap=True)
+        self.from_el = _angle_box(0.0, 90.0, 15.0)
+        self.to_az = _angle_box(0.0, 359.9, 270.0, wrap=True)
+        self.to_el = _angle_box(0.0, 90.0, 15.0)
+        self.easing_combo = QComboBox(self)
+        for e in tl.EASINGS:
+            self.easing_combo.addItem(e.replace("-", " "), e)
+        self.way_combo = QComboBox(self)
+        self.way_combo.addItem("the shorter way around", "shorter")
+        self.way_combo.addItem("the longer way around", "longer")
+        self.way_combo.setToolTip("Which way the azimuth turns from A to B")
+        g = QGridLayout(sweep)
+        g.addWidget(QLabel(""), 0, 0)
+        g.addWidget(QLabel("Azimuth"), 0, 1)
+        g.addWidget(QLabel("Elevation"), 0, 2)
+        g.addWidget(QLabel("From (A)"), 1, 0)
+        g.addWidget(self.from_az, 1, 1)
+        g.addWidget(self.from_el, 1, 2)
+        g.addWidget(QLabel("To (B)"), 2, 0)
+        g.addWidget(self.to_az, 2, 1)
+        g.addWidget(self.to_el, 2, 2)
+        g.addWidget(QLabel("Easing"), 3, 0)
+        g.addWidget(self.easing_combo, 3, 1, 1, 2)
+        g.addWidget(QLabel("Go"), 4, 0)
+        g.addWidget(self.way_combo, 4, 1, 1, 2)
+
+        sun = QWidget(self)
+        self.date_edit = QDateEdit(self)
+        self.date_edit.setCalendarPopup(True)
+        self.date_edit.setDisplayFormat("yyyy-MM-dd")
+        self.lat_box = QDoubleSpinBox(self)
+        self.lat_box.setRange(-90.0, 90.0)
+        self.lat_box.setDecimals(5)
+        self.lon_box = QDoubleSpinBox(self)
+        self.lon_box.setRange(-180.0, 180.0)
+        self.lon_box.setDecimals(5)
+        self.heading_box = _angle_box(0.0, 359.9, 180.0, wrap=True)
+        self.heading_box.setToolTip("Compass direction the camera faces (0 = north, 90 = east)")
+        self.solve_button = QPushButton("From photo", self)
+        self.solve_button.setToolTip(
+            "Solve the heading from the aligned sun and the photo's capture time and GPS"
+        )
+        self.solve_button.clicked.connect(self.solve_heading)
+        self.daylight_check = QCheckBox("Sunrise to sunset", self)
+        self.daylight_check.setChecked(True)
+        self.start_edit = QTimeEdit(QTime(7, 0), self)
+        self.end_edit = QTimeEdit(QTime(19, 0), self)
+        for t in (self.start_edit, self.end_edit):
+            t.setDisplayFormat("HH:mm")
+        self.daylight_check.toggled.connect(self._on_daylight_toggled)
+        self.offset_box = QDoubleSpinBox(self)
+        self.offset_box.setRange(-14.0, 14.0)
+        self.offset_box.setSingleStep(0.25)
+        self.offset_box.setDecimals(2)
+        self.offset_box.setPrefix("UTC ")
+        self.offset_box.setSuffix(" h")
+        self.place_hint = QLabel("", self)
+        self.place_hint.setWordWrap(True)
+        f = QFormLayout(sun)
+        f.addRow("Date", self.date_edit)
+        f.addRow("Latitude", self.lat_box)
+        f.addRow("Longitude", self.lon_box)
+        heading_row = QHBoxLayout()
+        heading_row.addWidget(self.heading_box, 1)
+        heading_row.addWidget(self.solve_button)
+        f.addRow("Camera heading", heading_row)
+        f.addRow("", self.daylight_check)
+        times = QHBoxLayout()
+        times.addWidget(self.start_edit)
+        times.addWidget(QLabel("to"))
+        times.addWidget(self.end_edit)
+        f.addRow("Time", times)
+        f.addRow("Local time", self.offset_box)
+        f.addRow(self.place_hint)
+        self.pages.addWidget(sweep)
+        self.pages.addWidget(sun)
+        self.kind_combo.currentIndexChanged.connect(self.pages.setCurrentIndex)
+
+        # ---- output
+        self.frames_box = QSpinBox(self)
+        self.frames_box.setRange(2, 2000)
+        self.frames_box.setValue(48)
+        self.fps_box = QDoubleSpinBox(self)
+        self.fps_box.setRange(1.0, 60.0)
+        self.fps_box.setValue(12.0)
+        self.format_combo = QComboBox(self)
+        for key, text, _ in FORMAT_CHOICES:
+            self.format_combo.addItem(text, key)
+        self.full_res_check = QCheckBox("Full resolution (slow)", self)
+        self.full_res_check.setToolTip(
+            "Render every frame at the photo's full size instead of the working size"
+        )
+        out_form = QFormLayout()
+        out_form.addRow("Frames", self.frames_box)
+        out_form.addRow("Frames per second", self.fps_box)
+        out_form.addRow("Format", self.format_combo)
+        out_form.addRow("", self.full_res_check)
+
+        # ---- preview + scrubber
+        self.preview = QLabel("Preview", self)
+        self.preview.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        self.preview.setMinimumSize(360, 240)
+        self.preview.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
+        self.preview.setStyleSheet("background: #262628; color: #aaa;")
+        self.scrubber = QSlider(Qt.Orientation.Horizontal, self)
+        self.scrubber.setRange(0, 47)
+        self.scrubber.valueChanged.connect(self._on_scrub)
+        self.caption = QLabel("", self)
+        self._preview_pixmap: QPixmap | None = None
+
+        # ---- export row
+        self.progress = QProgressBar(self)
+        self.progress.setRange(0, 100)
+        self.progress.setValue(0)
+        self.status = QLabel("", self)
+        self.status.setWordWrap(True)
+        self.export_button = QPushButton("Export…", self)
+        self.export_button.clicked.connect(self.export_dialog)
+        self.cancel_button = QPushButton("Cancel export", self)
+        self.cancel_button.setEnabled(False)
+        self.cancel_button.clicked.connect(self.cancel_export)
+        close_button = QPushButton("Close", self)
+        close_button.clicked.connect(self.close)
+
+        left = QVBoxLayout()
+        left.addWidget(QLabel("<b>Sun path</b>"))
+        left.addWidget(self.kind_combo)
+        left.addWidget(self.pages)
+        left.addWidget(QLabel("<b>Output</b>"))
+        left.addLayout(out_form)
+        left.addStretch(1)
+        right = QVBoxLayout()
+        right.addWidget(self.preview, 1)
+        right.addWidget(self.scrubber)
+        right.addWidget(self.caption)
+        top = QHBoxLayout()
+        top.addLayout(left, 0)
+        top.addLayout(right, 1)
+        bottom = QHBoxLayout()
+        bottom.addWidget(self.progress, 1)
+        bottom.addWidget(self.export_button)
+        bottom.addWidget(self.cancel_button)
+        bottom.addWidget(close_button)
+        layout = QVBoxLayout(self)
+        layout.addLayout(top, 1)
+        layout.addWidget(self.status)
+        layout.addLayout(bottom)
+        self.resize(900, 560)
+
+        for w in (self.from_az, self.from_el, self.to_az, self.to_el, self.lat_box, self.lon_box,
+                  self.heading_box, self.offset_box, self.fps_box):  # fmt: skip
+            w.valueChanged.connect(self._settings_changed)
+        self.frames_box.valueChanged.connect(self._settings_changed)
+        for c in (self.easing_combo, self.kind_combo, self.way_combo):
+            c.currentIndexChanged.connect(self._settings_changed)
+        self.date_edit.dateChanged.connect(self._settings_changed)
+        self.start_edit.timeChanged.connect(self._settings_changed)
+        self.end_edit.timeChanged.connect(self._settings_changed)
+        self._on_daylight_toggled(True)
+
+    # ------------------------------------------------------------------ settings <-> widgets
+    def load_settings(self, s: TimelapseSettings) -> None:
+        """Show ``s``, filling place, date and heading from the photo's EXIF where unset."""
+        exif = getattr(self.main.loaded, "exif", None)
+        widgets = [self.kind_combo, self.from_az, self.from_el, self.to_az, self.to_el,
+                   self.easing_combo, self.frames_box, self.date_edit, self.lat_box,
+                   self.lon_box, self.heading_box, self.start_edit, self.end_edit,
+                   self.offset_box, self.fps_box, self.format_combo, self.daylight_check,
+                   self.way_combo]  # fmt: skip
+        for w in widgets:
+            w.blockSignals(True)
+        try:
+            self.kind_combo.setCurrentIndex(0 if s.kind == "sweep" else 1)
+            self.pages.setCurrentIndex(self.kind_combo.currentIndex())
+            self.from_az.setValue(s.sweep_from.azimuth)
+            self.from_el.setValue(s.sweep_from.elevation)
+            self.to_az.setValue(s.sweep_to.azimuth)
+            self.to_el.setValue(s.sweep_to.elevation)
+            self.way_combo.setCurrentIndex(max(0, self.way_combo.findData(s.way)))
+            self.easing_combo.setCurrentIndex(max(0, self.easing_combo.findData(s.easing)))
+            self.frames_box.setValue(s.frames)
+            self.fps_box.setValue(s.fps)
+            self.format_combo.setCurrentIndex(max(0, self.format_combo.findData(s.format)))
+            self.full_res_check.setChecked(s.full_resolution)
+            lat = s.latitude if s.latitude is not None else getattr(exif, "latitude", None)
+            lon = s.longitude if s.longitude is not None else getattr(exif, "longitude", None)
+            self.lat_box.setValue(lat or 0.0)
+            self.lon_box.setValue(lon or 0.0)
+            when = getattr(exif, "capture_time", None)
+            if s.date:
+                day = dt.date.fromisoformat(s.date)
+            else:
+                day = when.date() if when is not None else dt.date.today()
+            self.date_edit.setDate(QDate(day.year, day.month, day.day))
+            offset = s.utc_offset
+            if offset is None and getattr(exif, "tz_offset", None) is not None:
+                offset = exif.tz_offset.total_seconds() / 3600.0
+            if offset is None:
+                offset = tl.default_utc_offset(lon or 0.0)
+            self.offset_box.setValue(offset)
+            self.daylight_check.setChecked(not (s.start and s.end))
+            if s.start:
+                self.start_edit.setTime(QTime.fromString(s.start, "HH:mm"))
+            if s.end:
+                self.end_edit.setTime(QTime.fromString(s.end, "HH:mm"))
+            heading = s.heading
+            if heading is None:
+                heading = self._solved_heading()
+            if heading is None and getattr(exif, "heading_deg", None) is not None:
+                heading = exif.heading_deg
+            self.heading_box.setValue(heading if heading is not None else 180.0)
+        finally:
+            for w in widgets:
+                w.blockSignals(False)
+        self._ready = True
+        self._on_daylight_toggled(self.daylight_check.isChecked())
+        gps = lat is not None and lon is not None
+        self.place_hint.setText(
+            "Place and date from the photo's EXIF." if gps else
+            "The photo has no GPS position: enter the place."
+        )  # fmt: skip
+        self.solve_button.setEnabled(self._solved_heading() is not None)
+        self._settings_changed()
+
+    def settings(self) -> TimelapseSettings:
+        """The settings the widgets show."""
+        d = self.date_edit.date()
+        daylight = self.daylight_check.isChecked()
+        return TimelapseSettings(
+            kind=str(self.kind_combo.currentData()),
+            sweep_from=Sun(self.from_az.value(), self.from_el.value()),
+            sweep_to=Sun(self.to_az.value(), self.to_el.value()),
+            way=str(self.way_combo.currentData()),
+            frames=self.frames_box.value(),
+            easing=str(self.easing_combo.currentData()),
+            date=dt.date(d.year(), d.month(), d.day()).isoformat(),
+            latitude=self.lat_box.value(),
+            longitude=self.lon_box.value(),
+            heading=self.heading_box.value(),
+            start="" if daylight else self.start_edit.time().toString("HH:mm"),
+            end="" if daylight else self.end_edit.time().toString("HH:mm"),
+            utc_offset=self.offset_box.value(),
+            fps=self.fps_box.value(),
+            format=str(self.format_combo.currentData()),
+            full_resolution=self.full_res_check.isChecked(),
+        )
+
+    def samples(self) -> list[tl.SunSample]:
+        """The current sun path (ValueError when the settings are incomplete)."""
+        return samples_for(self.settings())
+
+    def _on_daylight_toggled(self, checked: bool) -> None:
+        self.start_edit.setEnabled(not checked)
+        self.end_edit.setEnabled(not checked)
+        self._settings_changed()
+
+    def _settings_changed(self, *_args: Any) -> None:
+        if not self._ready:
+            return
+        try:
+            self._samples = self.samples()
+        except ValueError as exc:
+            self._samples = []
+            self.status.setText(f"⚠ {exc}")
+            self.export_button.setEnabled(False)
+            return
+        self.status.setText("")
+        first, last = self._samples[0].time, self._samples[-1].time
+        if self.daylight_check.isChecked() and first is not None and last is not None:
+            for edit, t in ((self.start_edit, first), (self.end_edit, last)):
+                edit.blockSignals(True)
+                edit.setTime(QTime(t.hour, t.minute))
+                edit.blockSignals(False)
+        self.export_button.setEnabled(not self._exporting)
+        self.scrubber.blockSignals(True)
+        self.scrubber.setRange(0, len(self._samples) - 1)
+        self.scrubber.blockSignals(False)
+        self.main.timelapse_settings = self.settings()
+        self._on_scrub(self.scrubber.value())
+
+    # ------------------------------------------------------------------ heading
+    def _solved_heading(self) -> float | None:
+        exif = getattr(self.main.loaded, "exif", None)
+        when = getattr(exif, "capture_time", None)
+        lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
+        if when is None or lat is None or lon is None or self.main.original_sun is None:
+            return None
+        offset = None
+        if when.tzinfo is None:
+            offset = self.offset_box.value()
+        return tl.solve_heading(when, lat, lon, self.main.original_sun.azimuth, offset)
+
+    def solve_heading(self) -> float | None:
+        heading = self._solved_heading()
+        if heading is not None:
+            self.heading_box.setValue(round(heading, 1))
+            self.status.setText(
+                f"Heading {heading:.1f}° solved from the aligned sun and the photo's time and GPS."
+            )
+        return heading
+
+    # ------------------------------------------------------------------ preview
+    def _on_scrub(self, index: int) -> None:
+        if not self._samples:
+            return
+        index = max(0, min(index, len(self._samples) - 1))
+        s = self._samples[index]
+        when = f" · {s.time:%H:%M}" if s.time is not None else ""
+        below = " (below the horizon: shown at the horizon)" if s.elevation < 0 else ""
+        self.caption.setText(
+            f"Frame {index + 1}/{len(self._samples)}{when} · azimuth {s.azimuth:.1f}°, "
+            f"elevation {s.elevation:.1f}°{below}"
+        )
+        session = self.main.session
+        if session is None or session.original_sun is None:
+            return
+        w = tl.sun_vectors([s])[0]
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            return {"index": index, "image": display.to_uint8_rgb(session.relight(w, preview=True))}
+
+        self.main.runner.submit("tl_preview", job, "Rendering time-lapse frame")
+
+    def _show_preview(self) -> None:
+        if self._preview_pixmap is None:
+            return
+        self.preview.setPixmap(
+            self._preview_pixmap.scaled(
+                self.preview.size(),
+                Qt.AspectRatioMode.KeepAspectRatio,
+                Qt.TransformationMode.SmoothTransformation,
+            )
+        )
+
+    def resizeEvent(self, event: Any) -> None:
+        super().resizeEvent(event)
+        self._show_preview()
+
+    # ------------------------------------------------------------------ export
+    def export_dialog(self) -> None:
+        fmt = str(self.format_combo.currentData())
+        filt = next(f for k, _, f in FORMAT_CHOICES if k == fmt)
+        stem = Path(self.main.image_path).stem or "timelapse"
+        ext = "" if fmt == "png" else f".{fmt}"
+        suggestion = str(Path(self.main.image_path).with_name(f"{stem}_timelapse{ext}"))
+        path, _ = QFileDialog.getSaveFileName(self, "Export time-lapse", suggestion, filt)
+        if not path:
+            return
+        if fmt != "png" and not path.lower().endswith(ext):
+            path += ext
+        # The save dialog has asked before replacing an existing file.
+        self.export(path, force=True)
+
+    def export(self, path: str, force: bool = False) -> int | None:
+        """Render the path's frames and write them; progress and cancel in this dialog."""
+        session = self.main.session
+        if session is None or session.original_sun is None or self._exporting:
+            return None
+        try:
+            samples = self.samples()
+        except ValueError as exc:
+            self.main.show_error(exc, "export")
+            return None
+        fmt = str(self.format_combo.currentData())
+        fps = self.fps_box.value()
+        full = self.full_res_check.isChecked()
+        if not force and os.path.exists(path):
+            self.main.show_error(FileExistsError(f"'{path}' already exists"), "export")
+            return None
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            out = tl.render_timelapse(
+                session, samples, path, fps=fps, full_resolution=full, fmt=fmt, force=force,
+                progress=ctx.progress, cancel=ctx.cancel_event,
+            )  # fmt: skip
+            return {"path": str(out), "frames": len(samples), "timings": dict(session.timings)}
+
+        self._set_exporting(True)
+        self.progress.setValue(0)
+        self.status.setText(f"Exporting {len(samples)} frames to {os.path.basename(path)}…")
+        return self.main.runner.submit("tl_export", job, f"Exporting {os.path.basename(path)}")
+
+    def cancel_export(self) -> None:
+        if self._exporting:
+            self.status.setText("Cancelling…")
+            self.main.runner.cancel("tl_export")
+
+    def _set_exporting(self, on: bool) -> None:
+        self._exporting = on
+        self.export_button.setEnabled(not on and bool(self._samples))
+        self.cancel_button.setEnabled(on)
+
+    # ---- called by the main window (GUI thread)
+    def on_export_progress(self, fraction: float) -> None:
+        self.progress.setValue(round(100 * fraction))
+
+    def on_job_finished(self, channel: str, result: dict[str, Any]) -> None:
+        if channel == "tl_preview":
+            if result["index"] == self.scrubber.value():
+                self._preview_pixmap = QPixmap.fromImage(qimage_from_array(result["image"]))
+                self._show_preview()
+            return
+        self._set_exporting(False)
+        self.progress.setValue(100)
+        self.last_export = result["path"]
+        self.last_result = "finished"
+        self.status.setText(f"Saved {result['frames']} frames to {result['path']}")
+
+    def on_export_cancelled(self) -> None:
+        self._set_exporting(False)
+        self.progress.setValue(0)
+        self.last_result = "cancelled"
+        self.status.setText("Export cancelled; nothing was written.")
+
+    def on_job_failed(self, channel: str, exc: BaseException) -> None:
+        if channel == "tl_export":
+            self._set_exporting(False)
+            self.last_result = "failed"
+            self.status.setText(f"Export failed: {exc}")
+
+    def closeEvent(self, event: QCloseEvent) -> None:
+        self.main.timelapse_settings = self.settings()
+        super().closeEvent(event)

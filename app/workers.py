@@ -1,0 +1,275 @@
+"""Background work: one worker thread that owns every call into the relighting session.
+
+* :class:`JobQueue` (Qt-free): one pending job per *channel*; submitting to a channel replaces the
+  job waiting there, so while the user drags only the latest request counts.
+* :class:`JobContext`: handed to each job: ``progress(stage, fraction)`` and cancellation.
+* :class:`TaskRunner` (a QObject living in the GUI thread): starts the thread, takes submissions,
+  and re-emits results, failures and progress as signals in the GUI thread.
+
+The worker thread emits signals of the :class:`_WorkerThread` object; they are connected to *slots
+of the TaskRunner* (a GUI-thread QObject), so Qt queues them into the GUI thread. (A cross-thread
+signal connected to a plain function would run in the worker thread.)
+
+The session is documented as safe to call from one worker thread at a time, which this design
+guarantees: there is exactly one worker thread and jobs run one after another.
+"""
+
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from PySide6.QtCore import QObject, QThread, Signal, Slot
+
+
+class JobCancelledError(RuntimeError):
+    """Raised inside a job (by :meth:`JobContext.check`) when it was cancelled."""
+
+
+@dataclass
+class Job:
+    """A unit of work: ``fn(context) -> result``."""
+
+    channel: str
+    fn: Callable[[JobContext], Any]
+    description: str = ""
+    id: int = 0
+    cancel_event: threading.Event = field(default_factory=threading.Event)
+
+
+class JobContext:
+    """What a running job sees: progress reporting and cancellation."""
+
+    def __init__(self, job: Job, report: Callable[[int, str, str, float], None]):
+        self.job = job
+        self._report = report
+
+    @property
+    def cancel_event(self) -> threading.Event:
+        return self.job.cancel_event
+
+    def cancelled(self) -> bool:
+        return self.job.cancel_event.is_set()
+
+    def check(self) -> None:
+        """Raise :class:`JobCancelledError` when the job was cancelled."""
+        if self.cancelled():
+            raise JobCancelledError(f"{self.job.description or self.job.channel} cancelled")
+
+    def progress(self, stage: str, fraction: float) -> None:
+        """Report progress (thread-safe); also a cancellation point."""
+        self._report(self.job.id, self.job.channel, str(stage), float(fraction))
+        self.check()
+
+
+class JobQueue:
+    """Thread-safe queue with one pending job per channel (latest wins), FIFO across channels."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._pending: OrderedDict[str, Job] = OrderedDict()
+        self._running: Job | None = None
+        self._closed = False
+        self._ids = itertools.count(1)
+
+    def put(self, job: Job) -> tuple[int, Job | None]:
+        """Queue ``job``; returns its id and the pending job it replaced (if any)."""
+        with self._cond:
+            if self._closed:
+                raise RuntimeError("the worker has been shut down")
+            job.id = next(self._ids)
+            replaced = self._pending.pop(job.channel, None)
+            self._pending[job.channel] = job
+            self._cond.notify()
+            return job.id, replaced
+
+    def take(self, timeout: float | None = None) -> Job | None:
+        """Wait for the next job; ``None`` when closed (or on timeout)."""
+        with self._cond:
+            end = None if timeout is None else time.monotonic() + timeout
+            while not self._pending and not self._closed:
+                left = None if end is None else end - time.monotonic()
+                if left is not None and left <= 0:
+                    return None
+                self._cond.wait(left)
+            if self._closed:
+                return None
+            _, job = self._pending.popitem(last=False)
+            self._running = job
+            return job
+
+    def done(self, job: Job) -> None:
+        with self._cond:
+            if self._running is job:
+                self._running = None
+            self._cond.notify_all()
+
+    def cancel(self, channel: str) -> list[Job]:
+        """Cancel the pending and the running job of a channel; returns the dropped pending ones."""
+        with self._cond:
+            dropped = []
+            job = self._pending.pop(channel, None)
+            if job is not None:
+                job.cancel_event.set()
+                dropped.append(job)
+            if self._running is not None and self._running.channel == channel:
+                self._running.cancel_event.set()
+            return dropped
+
+    def busy(self) -> bool:
+        with self._cond:
+            return self._running is not None or bool(self._pending)
+
+    def running_channel(self) -> str | None:
+        with self._cond:
+            return None if self._running is None else self._running.channel
+
+    def close(self) -> None:
+        with self._cond:
+            self._closed = True
+            for job in self._pending.values():
+                job.cancel_event.set()
+            self._pending.clear()
+            if self._running is not None:
+                self._running.cancel_event.set()
+            self._cond.notify_all()
+
+
+class _WorkerThread(QThread):
+    """Runs jobs from a :class:`JobQueue` one after another."""
+
+    job_started = Signal(int, str, str)  # id, channel, description
+    job_progress = Signal(int, str, str, float)  # id, channel, stage, fraction
+    job_finished = Signal(int, str, object, float)  # id, channel, result, seconds
+    job_failed = Signal(int, str, object)  # id, channel, exception
+    job_cancelled = Signal(int, str)
+
+    def __init__(self, queue: JobQueue) -> None:
+        super().__init__()
+        self.queue = queue
+
+    def run(self) -> None:
+        while True:
+            job = self.queue.take()
+            if job is None:
+                return
+            self.job_started.emit(job.id, job.channel, job.description)
+            ctx = JobContext(job, self.job_progress.emit)
+            t0 = time.perf_counter()
+            outcome: tuple[str, Any] = ("finished", None)
+            try:
+                if job.cancel_event.is_set():
+                    raise JobCancelledError(job.description)
+                outcome = ("finished", job.fn(ctx))
+            except JobCancelledError:
+                outcome = ("cancelled", None)
+            except Exception as exc:  # noqa: BLE001 - every failure goes to the GUI as a dialog
+                outcome = ("cancelled", None) if job.cancel_event.is_set() else ("failed", exc)
+            seconds = time.perf_counter() - t0
+            self.queue.done(job)
+            kind, value = outcome
+            if kind == "finished":
+                self.job_finished.emit(job.id, job.channel, value, seconds)
+            elif kind == "failed":
+                self.job_failed.emit(job.id, job.channel, value)
+            else:
+                self.job_cancelled.emit(job.id, job.channel)
+
+
+class TaskRunner(QObject):
+    """GUI-thread front end of the worker thread.
+
+    Signals (all delivered in the GUI thread):
+        started(id, channel, description)
+        progress(id, channel, stage, fraction)
+        finished(id, channel, result, seconds)
+        failed(id, channel, exception)
+        cancelled(id, channel)
+        idle(): nothing is running or pending.
+    """
+
+    started = Signal(int, str, str)
+    progress = Signal(int, str, str, float)
+    finished = Signal(int, str, object, float)
+    failed = Signal(int, str, object)
+    cancelled = Signal(int, str)
+    idle = Signal()
+
+    def __init__(self, parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self.queue = JobQueue()
+        self._latest: dict[str, int] = {}
+        # Jobs whose outcome has not reached the GUI thread yet (GUI-thread state only).
+        self._outstanding: set[int] = set()
+        self._thread = _WorkerThread(self.queue)
+        self._thread.job_started.connect(self._on_started)
+        self._thread.job_progress.connect(self._on_progress)
+        self._thread.job_finished.connect(self._on_finished)
+        self._thread.job_failed.connect(self._on_failed)
+        self._thread.job_cancelled.connect(self._on_cancelled)
+        self._thread.start()
+
+    def submit(self, channel: str, fn: Callable[[JobContext], Any], description: str = "") -> int:
+        """Queue ``fn(context)`` on ``channel``; a job still waiting on that channel is dropped."""
+        job_id, replaced = self.queue.put(Job(channel, fn, description))
+        if replaced is not None:
+            self._outstanding.discard(replaced.id)
+        self._outstanding.add(job_id)
+        self._latest[channel] = job_id
+        return job_id
+
+    def latest(self, channel: str) -> int | None:
+        """Id of the newest job submitted on a channel."""
+        return self._latest.get(channel)
+
+    def is_latest(self, job_id: int, channel: str) -> bool:
+        return self._latest.get(channel) == job_id
+
+    def cancel(self, channel: str) -> None:
+        for job in self.queue.cancel(channel):
+            self._outstanding.discard(job.id)
+        self._maybe_idle()
+
+    def busy(self) -> bool:
+        """Whether a job is waiting, running, or its outcome has not reached the GUI yet."""
+        return bool(self._outstanding)
+
+    def shutdown(self, timeout_ms: int = 10000) -> None:
+        """Cancel everything and stop the thread."""
+        self.queue.close()
+        self._thread.wait(timeout_ms)
+
+    @Slot(int, str, str)
+    def _on_started(self, job_id: int, channel: str, description: str) -> None:
+        self.started.emit(job_id, channel, description)
+
+    @Slot(int, str, str, float)
+    def _on_progress(self, job_id: int, channel: str, stage: str, fraction: float) -> None:
+        self.progress.emit(job_id, channel, stage, fraction)
+
+    @Slot(int, str, object, float)
+    def _on_finished(self, job_id: int, channel: str, result: Any, seconds: float) -> None:
+        self._outstanding.discard(job_id)
+        self.finished.emit(job_id, channel, result, seconds)
+        self._maybe_idle()
+
+    @Slot(int, str, object)
+    def _on_failed(self, job_id: int, channel: str, exc: Any) -> None:
+        self._outstanding.discard(job_id)
+        self.failed.emit(job_id, channel, exc)
+        self._maybe_idle()
+
+    @Slot(int, str)
+    def _on_cancelled(self, job_id: int, channel: str) -> None:
+        self._outstanding.discard(job_id)
+        self.cancelled.emit(job_id, channel)
+        self._maybe_idle()
+
+    def _maybe_idle(self) -> None:
+        if not self._outstanding:
+            self.idle.emit()

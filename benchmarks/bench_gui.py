@@ -1,0 +1,155 @@
+"""Benchmark the GUI: overlay update rate while dragging the sun, and the time of each stage.
+
+Usage:
+    QT_QPA_PLATFORM=offscreen python benchmarks/bench_gui.py [PHOTO] [--presets fast,balanced]
+        [--seconds 4] [--hz 60]
+
+For each preset it opens the photo in the real main window, drags the original sun's handle with
+simulated mouse events at ``--hz`` for ``--seconds`` (a slow circle: azimuth sweeps 180 degrees,
+elevation 20-60), and counts how many overlays reached the canvas. It then confirms, relights,
+exports a still and a short time-lapse, and prints the session's stage timings and the wall time
+of each GUI step. All figures are measured on this machine at run time; nothing is hard-coded.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def run_preset(app, photo: str, preset: str, seconds: float, hz: float, tmp: Path) -> dict:
+    from PySide6.QtCore import QPoint, QSettings, Qt
+    from PySide6.QtTest import QTest
+
+    from app import sun_dial_math as dm
+    from app.main_window import MainWindow
+
+    settings = QSettings(str(tmp / "settings.ini"), QSettings.Format.IniFormat)
+    win = MainWindow(settings=settings, preset=preset)
+    win.resize(1280, 800)
+    win.show()
+    res: dict = {"preset": preset}
+
+    def settle(timeout: float = 300.0) -> None:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            app.processEvents()
+            if not win.runner.busy():
+                app.processEvents()
+                if not win.runner.busy():
+                    return
+            time.sleep(0.002)
+        raise TimeoutError("worker did not finish")
+
+    def timed(label: str, fn) -> None:
+        t0 = time.perf_counter()
+        fn()
+        settle()
+        res[label] = time.perf_counter() - t0
+
+    timed("open photo (read + depth + normals + first overlay)", lambda: win.open_path(photo))
+    res["session stages after open"] = dict(win.session.timings)
+
+    dial = win.align_panel.sun_panel.dial
+
+    def point(az: float, el: float) -> QPoint:
+        cx, cy, r = dial.dial_geometry()
+        x, y = dm.sun_to_point(az, el, cx, cy, r)
+        return QPoint(round(x), round(y))
+
+    # Drag: count overlays that reach the canvas while the mouse moves.
+    dial.set_sun(90.0, 40.0)
+    QTest.mousePress(dial, Qt.MouseButton.LeftButton, pos=point(90.0, 40.0))
+    n0 = win.canvas.overlay_updates
+    arrivals = []
+    win.runner.finished.connect(
+        lambda _i, ch, r, s: arrivals.append(time.perf_counter()) if ch == "shadow" else None
+    )
+    moves = int(seconds * hz)
+    t_start = time.perf_counter()
+    for k in range(moves):
+        t = k / max(1, moves - 1)
+        az = 90.0 + 180.0 * t
+        el = 40.0 + 20.0 * math.sin(2 * math.pi * t)
+        QTest.mouseMove(dial, point(az, el))
+        app.processEvents()
+        next_tick = t_start + (k + 1) / hz
+        while time.perf_counter() < next_tick:
+            app.processEvents()
+            time.sleep(0.001)
+    t_drag = time.perf_counter() - t_start
+    during = win.canvas.overlay_updates - n0
+    t_rel = time.perf_counter()
+    QTest.mouseRelease(dial, Qt.MouseButton.LeftButton, pos=point(270.0, 40.0))
+    settle()
+    res["drag seconds"] = t_drag
+    res["mouse moves"] = moves
+    res["overlay updates during drag"] = during
+    res["overlay updates per second while dragging"] = during / t_drag
+    gaps = [b - a for a, b in zip(arrivals, arrivals[1:], strict=False) if a < t_rel]
+    if gaps:
+        res["median seconds between overlays while dragging"] = statistics.median(gaps)
+    res["release -> full-quality overlay (s)"] = time.perf_counter() - t_rel
+    res["session stages after drag"] = dict(win.session.timings)
+
+    timed("confirm original sun (refine + light estimate)", win.confirm_original_sun)
+    win.relight_panel.sun_panel.set_sun(200.0, 25.0)
+    timed("relight preview (working size)", lambda: win.request_relight(preview=True))
+    timed("relight full pass (full resolution)", lambda: win.request_relight(preview=False))
+    timed("export still PNG (full resolution)",
+          lambda: win.export_still(str(tmp / f"still_{preset}.png"), force=True))  # fmt: skip
+    dialog = win.open_timelapse()
+    s = dialog.settings()
+    s.kind, s.frames, s.format = "sweep", 12, "mp4"
+    dialog.load_settings(s)
+    settle()
+    timed("time-lapse 12 frames MP4 (working size)",
+          lambda: dialog.export(str(tmp / f"tl_{preset}.mp4"), force=True))  # fmt: skip
+    res["session stages at end"] = dict(win.session.timings)
+    h, w = win.session.image_srgb.shape[:2]
+    res["working size"] = f"{w}x{h}"
+    dialog.close()
+    win.close()
+    return res
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("photo", nargs="?", default=str(ROOT / "samples" / "exif_003_th_pool.jpg"))
+    p.add_argument("--presets", default="fast,balanced")
+    p.add_argument("--seconds", type=float, default=4.0)
+    p.add_argument("--hz", type=float, default=60.0)
+    args = p.parse_args(argv)
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from PySide6.QtWidgets import QApplication
+
+    app = QApplication.instance() or QApplication([])
+    print(
+        f"photo: {args.photo}  cpu cores: {os.cpu_count()}  drag: {args.seconds} s at {args.hz} Hz"
+    )
+    with tempfile.TemporaryDirectory() as d:
+        for preset in args.presets.split(","):
+            res = run_preset(app, args.photo, preset.strip(), args.seconds, args.hz, Path(d))
+            print(f"\n== preset {res.pop('preset')} (working size {res.pop('working size')})")
+            for k, v in res.items():
+                if isinstance(v, dict):
+                    stages = ", ".join(f"{s} {t * 1000:.0f} ms" for s, t in v.items())
+                    print(f"  {k}: {stages}")
+                elif isinstance(v, float):
+                    print(f"  {k}: {v:.3f}")
+                else:
+                    print(f"  {k}: {v}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,174 @@
+"""``outcast timelapse``: relight a photo along a sun path from the command line.
+
+The lead's ``outcast_core.runtime.cli`` calls :func:`register` with its sub-parser set; the
+handler is :func:`run_timelapse_command` (set as ``args.func``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import sys
+from pathlib import Path
+from typing import Any
+
+from outcast_core.runtime.geometry import sun_vector
+from outcast_core.runtime.timelapse import (
+    DEFAULT_FPS,
+    EASINGS,
+    SunSample,
+    real_sun_path,
+    render_timelapse,
+    solve_heading,
+    sweep_path,
+)
+
+# --------------------------------------------------------------------------------------------
+
+
+def _pair(text: str) -> tuple[float, float]:
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"expected AZ,EL, got {text!r}")
+    try:
+        return float(parts[0]), float(parts[1])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected AZ,EL as numbers, got {text!r}") from None
+
+
+def _sweep(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"expected AZ1,EL1:AZ2,EL2, got {text!r}")
+    return _pair(parts[0]), _pair(parts[1])
+
+
+def _date(text: str) -> dt.date:
+    try:
+        return dt.date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, got {text!r}") from None
+
+
+def _hhmm(text: str) -> dt.time:
+    try:
+        return dt.time.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected HH:MM, got {text!r}") from None
+
+
+def register(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``outcast timelapse`` to an argparse sub-parser set; the handler is ``args.func(args)``.
+
+    Args:
+        subparsers: the object returned by ``ArgumentParser.add_subparsers()``.
+
+    Returns:
+        The ``timelapse`` parser.
+    """
+    p = subparsers.add_parser(
+        "timelapse",
+        help="relight a photo along a sun path and write a video",
+        description=(
+            "Relight IMAGE along a sun sweep or the real sun path of a day and write MP4, GIF, "
+            "WebP or a PNG folder. Angles are relative to the camera: azimuth 0 = straight ahead, "
+            "90 = right; elevation 0 = horizon."
+        ),
+    )
+    p.add_argument("image", metavar="IMAGE", help="the photo")
+    p.add_argument(
+        "--from",
+        dest="from_sun",
+        type=_pair,
+        required=True,
+        metavar="AZ,EL",
+        help="the photo's original sun (aligned in the app)",
+    )
+    p.add_argument("--sweep", type=_sweep, metavar="AZ1,EL1:AZ2,EL2", help="sweep the sun A -> B")
+    p.add_argument("--frames", type=int, default=None, help="frame count (sweep: required)")
+    p.add_argument("--easing", choices=EASINGS, default="ease-in-out")
+    p.add_argument("--date", type=_date, metavar="YYYY-MM-DD", help="real sun path of this day")
+    p.add_argument("--lat", type=float, help="latitude (default: EXIF GPS)")
+    p.add_argument("--lon", type=float, help="longitude (default: EXIF GPS)")
+    p.add_argument(
+        "--heading",
+        type=float,
+        help="camera compass heading, deg from true north (default: solved from EXIF time + GPS)",
+    )
+    p.add_argument("--start", type=_hhmm, metavar="HH:MM", help="local start time (sunrise)")
+    p.add_argument("--end", type=_hhmm, metavar="HH:MM", help="local end time (sunset)")
+    p.add_argument(
+        "--utc-offset",
+        type=float,
+        default=None,
+        help="local time's offset from UTC in hours (default: from longitude)",
+    )
+    p.add_argument(
+        "-o", "--output", required=True, metavar="OUT", help="OUT.mp4, .gif, .webp or a folder"
+    )
+    p.add_argument("--fps", type=float, default=DEFAULT_FPS)
+    p.add_argument("--full-res", action="store_true", help="render at the photo's full resolution")
+    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+    p.add_argument("--preset", choices=("fast", "balanced", "accurate"), default="balanced")
+    p.set_defaults(func=run_timelapse_command)
+    return p
+
+
+def _samples_from_args(args: argparse.Namespace, exif: Any) -> list[SunSample]:
+    if (args.sweep is None) == (args.date is None):
+        raise ValueError("expected exactly one of --sweep or --date")
+    if args.sweep is not None:
+        if args.frames is None:
+            raise ValueError("expected --frames N with --sweep")
+        return sweep_path(args.sweep[0], args.sweep[1], args.frames, args.easing)
+    lat = args.lat if args.lat is not None else getattr(exif, "latitude", None)
+    lon = args.lon if args.lon is not None else getattr(exif, "longitude", None)
+    if lat is None or lon is None:
+        raise ValueError("expected --lat and --lon (the photo has no GPS position)")
+    heading = args.heading
+    if heading is None:
+        when = getattr(exif, "capture_time", None)
+        if when is None:
+            raise ValueError("expected --heading (the photo has no capture time to solve it from)")
+        heading = solve_heading(when, lat, lon, args.from_sun[0], args.utc_offset)
+        print(
+            f"camera heading solved from the photo's time and GPS: {heading:.1f} deg",
+            file=sys.stderr,
+        )
+    frames = 48 if args.frames is None else args.frames
+    return real_sun_path(
+        args.date, lat, lon, heading, frames, args.start, args.end, args.utc_offset
+    )
+
+
+def run_timelapse_command(args: argparse.Namespace) -> int:
+    """Handler of ``outcast timelapse``; returns the process exit code."""
+    from outcast_core.runtime.imageio import read_image
+    from outcast_core.runtime.session import RelightSession
+
+    out_path = Path(args.output)
+    if out_path.exists() and not args.force:  # fail before the slow part
+        raise FileExistsError(f"{out_path} already exists; choose another name or use --force")
+    loaded = read_image(args.image)
+    exif = getattr(loaded, "exif", None)
+    samples = _samples_from_args(args, exif)
+    session = RelightSession(preset=args.preset)
+
+    def report(stage: str, fraction: float) -> None:
+        print(f"\r{stage}: {100.0 * fraction:5.1f} %", end="", file=sys.stderr, flush=True)
+
+    session.set_image(
+        loaded.image_srgb, focal_35mm=getattr(exif, "focal_35mm", None), progress=report
+    )
+    session.set_original_sun(sun_vector(*args.from_sun))
+    out = render_timelapse(
+        session,
+        samples,
+        args.output,
+        fps=args.fps,
+        full_resolution=args.full_res,
+        force=args.force,
+        progress=report,
+    )
+    print(f"\nwrote {len(samples)} frames to {out}", file=sys.stderr)
+    return 0

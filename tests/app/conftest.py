@@ -1,0 +1,81 @@
+"""Fixtures for the GUI tests: offscreen Qt, small photos, a main window with private settings."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from PIL import Image  # noqa: E402
+
+
+def make_photo(path, width: int = 128, height: int = 96) -> str:
+    """A small outdoor-ish JPEG: sky gradient on top, warm ground, a dark shadow band."""
+    rng = np.random.default_rng(0)
+    y = np.linspace(0.0, 1.0, height)[:, None, None]
+    sky = np.concatenate([0.45 + 0.3 * y, 0.6 + 0.25 * y, 0.95 + 0 * y], axis=-1)
+    ground = np.concatenate([0.65 + 0 * y, 0.55 + 0 * y, 0.45 + 0 * y], axis=-1)
+    img = np.where(y < 0.45, sky, ground) * np.ones((1, width, 1))
+    img[int(0.65 * height) : int(0.75 * height), width // 4 : width // 2] *= 0.45
+    img += rng.normal(0, 0.01, img.shape)
+    arr = (np.clip(img, 0, 1) * 255).astype(np.uint8)
+    Image.fromarray(arr).save(path, quality=92)
+    return str(path)
+
+
+@pytest.fixture
+def photo(tmp_path):
+    return make_photo(tmp_path / "scene.jpg")
+
+
+@pytest.fixture
+def settings(tmp_path):
+    from PySide6.QtCore import QSettings
+
+    return QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat)
+
+
+@pytest.fixture
+def errors(monkeypatch):
+    """Record error dialogs instead of showing them (a modal box would block the test)."""
+    from PySide6.QtWidgets import QMessageBox
+
+    seen: list[tuple[str, str]] = []
+
+    def fake_critical(parent, title, text, *args, **kwargs):
+        seen.append((title, text))
+        return QMessageBox.StandardButton.Ok
+
+    monkeypatch.setattr(QMessageBox, "critical", staticmethod(fake_critical))
+    return seen
+
+
+@pytest.fixture
+def window(qtbot, settings, errors):
+    from app.main_window import MainWindow
+
+    w = MainWindow(settings=settings, preset="fast")
+    qtbot.addWidget(w)
+    w.resize(900, 600)
+    w.show()
+    yield w
+    w.runner.shutdown()
+
+
+@pytest.fixture
+def settle(qtbot, window):
+    """``settle()`` waits until the worker is idle and every result has reached the GUI."""
+    from PySide6.QtWidgets import QApplication
+
+    def _settle(timeout: int = 30000) -> None:
+        def done() -> bool:
+            if window.runner.busy():
+                return False
+            QApplication.processEvents()  # deliver queued results (they may submit more work)
+            return not window.runner.busy()
+
+        qtbot.waitUntil(done, timeout=timeout)
+
+    return _settle

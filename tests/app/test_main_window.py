@@ -1,0 +1,398 @@
+"""The whole app, offscreen: load, align with a dragged sun, confirm, relight, export, errors."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+
+import av
+import cv2
+import numpy as np
+import pytest
+from PIL import Image
+from PySide6.QtCore import QMimeData, QPoint, QPointF, Qt, QUrl
+from PySide6.QtGui import QDropEvent, QImage
+
+from app import sun_dial_math as dm
+from app.state import Step, project_path_for
+from outcast_core.runtime.session import ground_plane_depth as _plain_ground
+
+
+def _bytes(img: QImage) -> bytes:
+    return bytes(img.constBits())
+
+
+def _dial_point(dial, az, el) -> QPoint:
+    cx, cy, r = dial.dial_geometry()
+    x, y = dm.sun_to_point(az, el, cx, cy, r)
+    return QPoint(round(x), round(y))
+
+
+def _drag(qtbot, dial, path):
+    """Press on the handle, move through ``path`` [(az, el), ...], release at the last point."""
+    qtbot.mousePress(dial, Qt.MouseButton.LeftButton, pos=_dial_point(dial, *dial.sun()))
+    for az, el in path:
+        qtbot.mouseMove(dial, _dial_point(dial, az, el))
+        qtbot.wait(5)
+    qtbot.mouseRelease(dial, Qt.MouseButton.LeftButton, pos=_dial_point(dial, *path[-1]))
+
+
+def _results(window, channel):
+    got = []
+    window.runner.finished.connect(
+        lambda job_id, ch, result, s: got.append(result) if ch == channel else None
+    )
+    return got
+
+
+def _load(window, photo, settle):
+    window.open_path(photo)
+    settle()
+    assert window.step is Step.ALIGN
+
+
+def _confirm(window, settle):
+    window.confirm_original_sun()
+    settle()
+    assert window.step is Step.RELIGHT
+
+
+def test_load_photo(window, photo, settle, errors):
+    _load(window, photo, settle)
+    assert errors == []
+    assert window.canvas.before().size().toTuple() == (128, 96)
+    assert window.canvas.overlay() is not None
+    assert "scene.jpg" in window.windowTitle()
+    assert window.recent.paths()[0] == os.path.abspath(photo)
+    assert "shadow" in window.timings_label.text() and "depth" in window.timings_label.text()
+    assert window.mode_label.text()
+
+
+def _ground_with_a_box(camera):
+    """Ground plane 1.6 m below a level camera with a 2 m box 6 m ahead (stands in for depth)."""
+    import numpy as np
+
+    depth, sky = _plain_ground(camera)
+    v = np.arange(camera.height) + 0.5
+    y = (v - camera.cy) / camera.focal * 6.0  # camera-space y of each row at z = 6 m
+    rows = (y > -0.4) & (y < 1.6)
+    cols = slice(int(camera.width * 0.4), int(camera.width * 0.6))
+    box = np.zeros(depth.shape, bool)
+    box[rows, cols] = True
+    depth = np.where(box & (depth > 6.0), 6.0, depth).astype(np.float32)
+    return depth, sky & ~box
+
+
+def test_drag_sun_updates_overlay_live(qtbot, window, photo, settle, monkeypatch):
+    import outcast_core.runtime.session as session_module
+
+    monkeypatch.setattr(session_module, "ground_plane_depth", _ground_with_a_box)
+    _load(window, photo, settle)
+    dial = window.align_panel.sun_panel.dial
+    dial.set_sun(160.0, 40.0)
+    window.request_shadow(preview=False)
+    settle()
+    first = _bytes(window.canvas.overlay())
+    updates0 = window.canvas.overlay_updates
+    shadows = _results(window, "shadow")
+    _drag(qtbot, dial, [(120.0, 35.0), (60.0, 30.0), (20.0, 25.0), (0.0, 20.0)])
+    settle()
+    assert window.canvas.overlay_updates > updates0
+    assert any(r["preview"] for r in shadows)  # cheap previews while dragging
+    last = shadows[-1]
+    assert not last["preview"]  # full pass on release, and it is the latest sun
+    assert last["sun"] == pytest.approx(dial.sun())
+    assert dial.sun() == pytest.approx((0.0, 20.0), abs=1.5)
+    assert _bytes(window.canvas.overlay()) != first  # the sun went from behind to in front
+    window.align_panel.opacity_slider.setValue(25)
+    assert window.canvas.overlay_opacity() == pytest.approx(0.25)
+
+
+def test_confirm_and_relight(qtbot, window, photo, settle):
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    assert window.original_sun is not None
+    assert window.act_export.isEnabled() and not window.act_confirm.isEnabled()
+    assert window.canvas.overlay() is None
+    after0 = _bytes(window.canvas.after())
+    assert window.canvas.after().size().toTuple() == (128, 96)
+    assert window.canvas.split() == pytest.approx(0.5)
+    relit = _results(window, "relight")
+    _drag(qtbot, window.relight_panel.sun_panel.dial, [(30.0, 40.0), (350.0, 10.0)])
+    settle()
+    assert relit and _bytes(window.canvas.after()) != after0
+    window.relight_panel.split_slider.setValue(80)
+    assert window.canvas.split() == pytest.approx(0.8)
+
+
+def test_buffers_view_and_back(window, photo, settle):
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    window.relight_panel.set_view("all")
+    settle()
+    grid = window.canvas.before().size()
+    assert grid.width() > 3 * 128 and grid.height() > 2 * 96  # 3 x 2 tiles with titles
+    assert not window.relight_panel.split_slider.isEnabled()
+    window.relight_panel.set_view("depth")
+    settle()
+    assert window.canvas.before().size().toTuple() == (128, 96)
+    window.relight_panel.set_view("output")
+    settle()
+    assert window.canvas.after() is not None and window.canvas.split() is not None
+    assert window.relight_panel.split_slider.isEnabled()
+
+
+@pytest.mark.parametrize("name, mode, dtype", [("out.png", "RGB", np.uint8),
+                                               ("out.jpg", "RGB", np.uint8),
+                                               ("out.tif", None, np.uint16)])  # fmt: skip
+def test_export_still(window, photo, settle, errors, tmp_path, name, mode, dtype):
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    path = str(tmp_path / name)
+    window.export_still(path)
+    settle()
+    assert errors == [] and window.last_export == path
+    arr = cv2.imread(path, cv2.IMREAD_UNCHANGED)
+    assert arr.shape == (96, 128, 3) and arr.dtype == dtype
+    if mode:
+        with Image.open(path) as im:
+            assert im.mode == mode
+    stamp = os.stat(path).st_mtime_ns
+    window.export_still(path)  # never overwrite silently
+    settle()
+    assert errors and errors[-1][0] == "Export failed"
+    assert os.stat(path).st_mtime_ns == stamp
+
+
+def _timelapse(window, frames, fmt="mp4"):
+    dialog = window.open_timelapse()
+    s = dialog.settings()
+    s.kind, s.frames, s.format = "sweep", frames, fmt
+    dialog.load_settings(s)
+    return dialog
+
+
+def test_timelapse_export_decodes(qtbot, window, photo, settle, errors, tmp_path):
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    dialog = _timelapse(window, 5)
+    dialog.scrubber.setValue(3)
+    settle()
+    assert dialog.preview.pixmap() is not None and not dialog.preview.pixmap().isNull()
+    assert dialog.caption.text().startswith("Frame 4/5")
+    out = tmp_path / "clip.mp4"
+    dialog.export(str(out))
+    settle()
+    assert errors == [] and dialog.last_result == "finished"
+    with av.open(str(out)) as c:
+        frames = [f.to_ndarray(format="rgb24") for f in c.decode(video=0)]
+    assert len(frames) == 5
+    assert frames[0].shape == (96, 128, 3)
+    assert dialog.progress.value() == 100
+
+
+def test_timelapse_cancel_leaves_no_file(qtbot, window, photo, settle, tmp_path, monkeypatch):
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    session = window.session
+    real = session.relight
+
+    def slow_relight(w, preview=False):
+        time.sleep(0.03)
+        return real(w, preview=preview)
+
+    monkeypatch.setattr(session, "relight", slow_relight)
+    dialog = _timelapse(window, 40)
+    settle()
+    out = tmp_path / "clip.mp4"
+    before = set(os.listdir(tmp_path))
+    seen = []
+
+    def on_progress(job_id, channel, stage, fraction):
+        if channel == "tl_export":
+            seen.append(fraction)
+            if len(seen) == 3:
+                dialog.cancel_export()
+
+    window.runner.progress.connect(on_progress)
+    dialog.export(str(out))
+    settle()
+    assert dialog.last_result == "cancelled"
+    assert 0 < seen[-1] < 1.0  # stopped midway
+    assert not out.exists()
+    assert set(os.listdir(tmp_path)) == before  # no temp file either
+    assert dialog.export_button.isEnabled() and not dialog.cancel_button.isEnabled()
+
+
+def test_corrupt_file_shows_error_and_app_survives(qtbot, window, photo, settle, errors, tmp_path):
+    _load(window, photo, settle)
+    bad = tmp_path / "broken.jpg"
+    bad.write_bytes(b"\xff\xd8\xff\xe0" + b"not really a jpeg" * 10)
+    window.open_path(str(bad))
+    settle()
+    assert len(errors) == 1 and errors[0][0] == "Could not open the photo"
+    assert "broken.jpg" in errors[0][1]
+    assert window.isVisible() and window.image_path == os.path.abspath(photo)
+    assert window.step is Step.ALIGN and window.session is not None
+    _confirm(window, settle)  # still works
+    assert window.canvas.after() is not None
+
+
+def test_broken_model_shows_error_and_falls_back(window, photo, settle, errors, tmp_path,
+                                                 monkeypatch):  # fmt: skip
+    models = tmp_path / "models"
+    models.mkdir()
+    (models / "shadow.onnx").write_bytes(b"garbage")
+    (models / "shadow.json").write_text(json.dumps({"file": "shadow.onnx", "sha256": "0" * 64}))
+    monkeypatch.setenv("OUTCAST_MODEL_DIR", str(models))
+    window.open_path(photo)
+    settle()
+    assert errors and errors[0][0] == "A model file is missing or damaged"
+    assert "shadow.onnx" in errors[0][1]
+    assert window.session_mode == "classic" and window.session.shadow_mode == "direct"
+    assert window.step is Step.ALIGN and window.canvas.overlay() is not None
+
+
+def test_project_save_and_reopen(qtbot, window, photo, settle, settings):
+    from app.main_window import MainWindow
+
+    _load(window, photo, settle)
+    window.align_panel.sun_panel.set_sun(100.0, 35.0)
+    _confirm(window, settle)
+    window.relight_panel.sun_panel.set_sun(220.0, 25.0)
+    dialog = _timelapse(window, 7, "webp")
+    dialog.close()
+    window.set_preset("balanced")
+    settle()
+    assert window.session.preset.name == "balanced"
+    saved = window.save_project()
+    assert saved == str(project_path_for(photo))
+    other = MainWindow(settings=settings, preset="fast")
+    qtbot.addWidget(other)
+    try:
+        other.open_path(saved)
+        qtbot.waitUntil(
+            lambda: other.step is Step.RELIGHT and not other.runner.busy(), timeout=30000
+        )
+        assert other.original_sun.as_tuple() == pytest.approx((100.0, 35.0))
+        assert other.relight_panel.sun_panel.sun() == pytest.approx((220.0, 25.0))
+        assert other.preset == "balanced" and other.session.preset.name == "balanced"
+        assert other.recent.paths()[0] == saved
+        tls = other.timelapse_settings
+        assert (tls.kind, tls.frames, tls.format) == ("sweep", 7, "webp")
+    finally:
+        other.runner.shutdown()
+
+
+def test_drop_opens_photo(window, photo, settle):
+    mime = QMimeData()
+    mime.setUrls([QUrl.fromLocalFile(photo)])
+    event = QDropEvent(QPointF(10, 10), Qt.DropAction.CopyAction, mime,
+                       Qt.MouseButton.LeftButton, Qt.KeyboardModifier.NoModifier)  # fmt: skip
+    window.dropEvent(event)
+    settle()
+    assert window.step is Step.ALIGN and window.image_path == os.path.abspath(photo)
+
+
+def test_canvas_zoom_and_pan(qtbot, window, photo, settle):
+    _load(window, photo, settle)
+    c = window.canvas
+    fit = c.zoom()
+    window.act_actual.trigger()
+    assert c.zoom() == 1.0
+    r0 = c.image_rect()
+    qtbot.mousePress(c, Qt.MouseButton.LeftButton, pos=QPoint(100, 100))
+    qtbot.mouseMove(c, QPoint(140, 120))
+    qtbot.mouseRelease(c, Qt.MouseButton.LeftButton, pos=QPoint(140, 120))
+    assert c.image_rect().topLeft() - r0.topLeft() == QPointF(40, 20)
+    window.act_fit.trigger()
+    assert c.zoom() == pytest.approx(fit)
+
+
+def test_command_line_and_no_torch():
+    from app.main import build_parser
+
+    args = build_parser().parse_args(["photo.jpg", "--preset", "fast"])
+    assert args.path == "photo.jpg" and args.preset == "fast"
+    code = (
+        "import sys, app.main_window, app.timelapse_dialog, outcast_core.runtime.timelapse;"
+        "sys.exit(1 if 'torch' in sys.modules else 0)"
+    )
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    assert subprocess.run([sys.executable, "-c", code], cwd=root, env=env).returncode == 0
+
+
+def test_exif_sun_and_timelapse_prefill(window, settle):
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    window.open_path(os.path.join(root, "samples", "exif_003_th_pool.jpg"))
+    settle()
+    assert window.align_panel.exif_button.isEnabled()
+    window.align_panel.exif_button.click()
+    settle()
+    az, el = window.align_panel.sun_panel.sun()
+    # samples/README.md: sun azimuth 76.6 (true), elevation 66.6, camera heading 163.7 (true).
+    assert (az - (76.6 - 163.7)) % 360.0 == pytest.approx(0.0, abs=1.0)
+    assert el == pytest.approx(66.6, abs=0.5)
+    _confirm(window, settle)
+    dialog = window.open_timelapse()
+    s = dialog.settings()
+    assert (s.latitude, s.longitude) == pytest.approx((7.8314, 98.2967), abs=1e-3)
+    assert s.date == "2019-08-21" and s.utc_offset == pytest.approx(7.0)
+    assert dialog.solve_heading() == pytest.approx(163.7, abs=0.2)
+    s.kind, s.frames = "sun", 6
+    dialog.load_settings(s)
+    times = [x.time.hour for x in dialog.samples()]
+    assert times[0] in (5, 6) and times[-1] in (18, 19)  # sunrise to sunset, local time
+    assert dialog.start_edit.time().hour() in (5, 6)
+
+
+def test_missing_recent_file_is_dropped(window, photo, settle, errors, tmp_path):
+    gone = tmp_path / "gone.jpg"
+    window.recent.add(str(gone))
+    window.open_path(str(gone))
+    settle()
+    assert errors and errors[0][0] == "Could not open the photo"
+    assert str(gone) not in window.recent.paths()
+
+
+def test_ui_stays_responsive_during_slow_work(qtbot, window, photo, settle, monkeypatch):
+    from PySide6.QtCore import QTimer
+
+    _load(window, photo, settle)
+    real = window.session.shadow
+
+    def slow_shadow(w, preview=False):
+        time.sleep(0.6)
+        return real(w, preview=preview)
+
+    monkeypatch.setattr(window.session, "shadow", slow_shadow)
+    ticks = []
+    timer = QTimer()
+    timer.timeout.connect(lambda: ticks.append(time.perf_counter()))
+    timer.start(20)
+    t0 = time.perf_counter()
+    window.request_shadow(10.0, 30.0, preview=False)
+    settle()
+    timer.stop()
+    assert time.perf_counter() - t0 >= 0.6
+    assert len(ticks) >= 15  # the event loop kept running while the worker computed
+    assert max(b - a for a, b in zip(ticks, ticks[1:], strict=False)) < 0.3
+
+
+def test_drag_split_line_on_canvas(qtbot, window, photo, settle):
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    c = window.canvas
+    rect = c.image_rect()
+    x = round(rect.left() + rect.width() * 0.5)
+    y = round(rect.center().y())
+    qtbot.mousePress(c, Qt.MouseButton.LeftButton, pos=QPoint(x, y))
+    qtbot.mouseMove(c, QPoint(round(rect.left() + rect.width() * 0.25), y))
+    qtbot.mouseRelease(c, Qt.MouseButton.LeftButton, pos=QPoint(x, y))
+    assert window.relight_panel.split_slider.value() == pytest.approx(25, abs=1)
+    assert c.split() == pytest.approx(0.25, abs=0.01)
+    assert c.image_rect() == rect  # the drag moved the split, not the image
