@@ -259,6 +259,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        output = getattr(args, "output", None)
+        if isinstance(output, str) and output:
+            # Users name an output folder that may not exist yet (out/relit.jpg): make it.
+            Path(output).expanduser().parent.mkdir(parents=True, exist_ok=True)
         return int(args.func(args) or 0)
     except (ValueError, ModelError, FileExistsError, FileNotFoundError, CliError) as exc:
         print(f"outcast {args.command}: error: {exc}", file=sys.stderr)

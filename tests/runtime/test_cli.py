@@ -108,3 +108,10 @@ def test_console_script_runs_in_a_fresh_process(photo: Path, tmp_path: Path) -> 
                        capture_output=True, text=True)
     assert r.returncode == 0 and "relight" in r.stdout
     json.dumps(r.stdout)  # plain text
+
+
+def test_output_folder_is_created(photo: Path, tmp_path: Path) -> None:
+    out = tmp_path / "new" / "deeper" / "relit.png"
+    assert main(["relight", str(photo), "--from", "120,40", "--to", "250,30", "-o", str(out),
+                 "-q"]) == 0
+    assert out.is_file()
