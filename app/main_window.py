@@ -105,6 +105,7 @@ class MainWindow(QMainWindow):
         self.image_path = ""
         self.session_mode = session_mode
         self.depth_mode = "auto"
+        self.depth_path = ""
         self.preset = preset if preset in PRESET_NAMES else "balanced"
         self.step = Step.EMPTY
         self.original_sun: Sun | None = None
@@ -168,6 +169,12 @@ class MainWindow(QMainWindow):
         self.act_save_as.triggered.connect(self.save_project_dialog)
         self.act_export = QAction("&Export still…", self, shortcut=QKeySequence("Ctrl+E"))
         self.act_export.triggered.connect(self.export_still_dialog)
+        self.act_depth = QAction("Load &depth map…", self)
+        self.act_depth.setToolTip(
+            "Use a depth map from elsewhere (a phone's depth, another estimator): .npy, 16-bit "
+            "PNG or .exr"
+        )
+        self.act_depth.triggered.connect(self.load_depth_dialog)
         self.act_timelapse = QAction("&Time-lapse…", self, shortcut=QKeySequence("Ctrl+T"))
         self.act_timelapse.triggered.connect(self.open_timelapse)
         self.act_quit = QAction("&Quit", self, shortcut=QKeySequence.StandardKey.Quit)
@@ -193,6 +200,7 @@ class MainWindow(QMainWindow):
         file_menu.addAction(self.act_open)
         self.recent_menu = QMenu("Open &recent", self)
         file_menu.addMenu(self.recent_menu)
+        file_menu.addAction(self.act_depth)
         file_menu.addSeparator()
         file_menu.addAction(self.act_save)
         file_menu.addAction(self.act_save_as)
@@ -291,7 +299,7 @@ class MainWindow(QMainWindow):
             self.relight_panel if step is Step.RELIGHT else self.align_panel
         )
         self.align_panel.setEnabled(has_photo)
-        for act in (self.act_save, self.act_save_as):
+        for act in (self.act_save, self.act_save_as, self.act_depth):
             act.setEnabled(has_photo)
         for act in (self.act_export, self.act_timelapse):
             act.setEnabled(step is Step.RELIGHT)
@@ -367,18 +375,22 @@ class MainWindow(QMainWindow):
         preset = project.preset if project is not None else self.preset
         mode = self.session_mode
         depth_mode = self.depth_mode
+        depth_path = project.depth_path if project is not None else ""
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            from outcast_core.runtime.imageio import read_image
+            from outcast_core.runtime.imageio import read_depth, read_image
             from outcast_core.runtime.session import RelightSession
 
             ctx.progress("reading", 0.02)
             loaded = read_image(path)
+            depth = read_depth(depth_path) if depth_path else None
             session = RelightSession(preset=preset, mode=mode, depth_mode=depth_mode)
             focal = loaded.exif.focal_35mm if loaded.exif else None
-            session.set_image(loaded.image_srgb, focal_35mm=focal or None, progress=ctx.progress)
+            session.set_image(loaded.image_srgb, focal_35mm=focal or None, depth=depth,
+                              progress=ctx.progress)
             photo = display.to_uint8_rgb(loaded.image_srgb)
-            return {"path": path, "loaded": loaded, "session": session, "photo": photo}
+            return {"path": path, "loaded": loaded, "session": session, "photo": photo,
+                    "depth_path": depth_path}
 
         self._pending_project = project
         self._last_load = (path, project)
@@ -389,6 +401,7 @@ class MainWindow(QMainWindow):
         old_path = self.image_path
         self.session = result["session"]
         self.loaded = result["loaded"]
+        self.depth_path = result.get("depth_path", "")
         self.image_path = os.path.abspath(result["path"])
         if old_path != self.image_path and project is None:
             self.timelapse_settings = TimelapseSettings()
@@ -408,7 +421,8 @@ class MainWindow(QMainWindow):
         prior = "prior" in str(getattr(self.session, "depth_source", ""))
         self.align_panel.show_notice(
             "No depth model is installed, so OutCast assumes flat ground and cannot predict "
-            "this photo's cast shadows. Set the sun by eye or from the photo's EXIF."
+            "this photo's cast shadows. Load a depth map (File \u25b8 Load depth map\u2026), "
+            "or set the sun by eye or from the photo's EXIF."
             if prior
             else ""
         )
@@ -716,6 +730,23 @@ class MainWindow(QMainWindow):
         self._timelapse_dialog.raise_()
         return self._timelapse_dialog
 
+    def load_depth_dialog(self) -> None:
+        """Pick a depth map for the open photo and re-run the light-independent stages."""
+        if not self.image_path:
+            return
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Load depth map", os.path.dirname(self.image_path),
+            "Depth maps (*.npy *.png *.exr);;All files (*)",
+        )
+        if path:
+            self.load_depth(path)
+
+    def load_depth(self, path: str) -> None:
+        """Use ``path`` as the photo's depth (suns and settings are kept)."""
+        state = self.project_state()
+        state.depth_path = os.path.abspath(path)
+        self.open_image(self.image_path, project=state)
+
     # ================================================================== projects
     def project_state(self) -> ProjectState:
         if self._timelapse_dialog is not None:
@@ -724,6 +755,7 @@ class MainWindow(QMainWindow):
             image_path=self.image_path,
             preset=self.preset,
             depth_source=str(getattr(self.session, "depth_source", "")),
+            depth_path=self.depth_path,
             original_sun=self.original_sun,
             target_sun=Sun(*self.relight_panel.sun_panel.sun()) if self.original_sun else None,
             overlay_opacity=self.align_panel.opacity_slider.value() / 100.0,

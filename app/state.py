@@ -130,6 +130,7 @@ class ProjectState:
     image_path: str = ""
     preset: str = "balanced"
     depth_source: str = ""  # e.g. "model:depth v1" or "direct"; informative
+    depth_path: str = ""  # a depth map from elsewhere (phone, another estimator), if loaded
     original_sun: Sun | None = None
     target_sun: Sun | None = None
     overlay_opacity: float = 0.6
@@ -156,6 +157,7 @@ class ProjectState:
             "image_absolute": os.path.abspath(self.image_path) if self.image_path else "",
             "preset": self.preset,
             "depth_source": self.depth_source,
+            "depth_path": _relative(self.depth_path, relative_to),
             "original_sun": asdict(self.original_sun) if self.original_sun else None,
             "target_sun": asdict(self.target_sun) if self.target_sun else None,
             "overlay_opacity": self.overlay_opacity,
@@ -187,6 +189,7 @@ class ProjectState:
             image_path=image,
             preset=preset,
             depth_source=str(d.get("depth_source", "")),
+            depth_path=_absolute(str(d.get("depth_path") or ""), base),
             original_sun=Sun.from_any(d.get("original_sun")),
             target_sun=Sun.from_any(d.get("target_sun")),
             overlay_opacity=_fraction(d.get("overlay_opacity", 0.6), "overlay_opacity"),
@@ -194,6 +197,21 @@ class ProjectState:
             buffer_view=view,
             timelapse=TimelapseSettings.from_dict(d.get("timelapse", {})),
         )
+
+
+def _relative(path: str, base: Path | None) -> str:
+    if not path or base is None:
+        return path
+    try:
+        return os.path.relpath(path, base)
+    except ValueError:  # another drive on Windows
+        return os.path.abspath(path)
+
+
+def _absolute(path: str, base: Path | None) -> str:
+    if path and base is not None and not os.path.isabs(path):
+        return str((base / path).resolve())
+    return path
 
 
 def _fraction(v: Any, name: str) -> float:

@@ -396,3 +396,44 @@ def test_drag_split_line_on_canvas(qtbot, window, photo, settle):
     assert window.relight_panel.split_slider.value() == pytest.approx(25, abs=1)
     assert c.split() == pytest.approx(0.25, abs=0.01)
     assert c.image_rect() == rect  # the drag moved the split, not the image
+
+
+def test_depth_map_from_elsewhere_is_used_and_saved(qtbot, window, photo, settle, settings,
+                                                     tmp_path):
+    from app.main_window import MainWindow
+    from outcast_core.runtime.geometry import Camera
+    from outcast_core.runtime.imageio import write_depth
+
+    _load(window, photo, settle)
+    assert "prior" in window.session.depth_source
+    depth, sky = _ground_with_a_box(Camera.from_fov(96, 128, 60.0))
+    depth_file = tmp_path / "phone_depth.npy"
+    write_depth(depth_file, np.where(sky, np.inf, depth).astype(np.float32))
+    window.align_panel.sun_panel.set_sun(100.0, 35.0)
+    window.load_depth(str(depth_file))
+    settle()
+    assert window.session.depth_source == "given"
+    assert window.align_panel.sun_panel.sun() == pytest.approx((100.0, 35.0))  # sun kept
+    assert np.isclose(window.session.depth[~window.session.sky].min(), depth[~sky].min())
+    saved = window.save_project()
+    other = MainWindow(settings=settings, preset="fast")
+    qtbot.addWidget(other)
+    try:
+        other.open_path(saved)
+        qtbot.waitUntil(lambda: other.step is Step.ALIGN and not other.runner.busy(),
+                        timeout=30000)
+        assert other.session.depth_source == "given"
+        assert other.depth_path == str(depth_file)
+    finally:
+        other.runner.shutdown()
+
+
+def test_bad_depth_map_shows_an_error_and_keeps_the_photo(window, photo, settle, errors,
+                                                          tmp_path):
+    _load(window, photo, settle)
+    bad = tmp_path / "depth.npy"
+    bad.write_bytes(b"not a numpy file")
+    window.load_depth(str(bad))
+    settle()
+    assert errors and window.step is Step.ALIGN
+    assert "prior" in window.session.depth_source
