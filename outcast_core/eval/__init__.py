@@ -1,0 +1,1 @@
+"""Evaluation on held-out synthetic scenes: the paper's Table 1 and S's speed/accuracy trade."""

@@ -1,0 +1,323 @@
+"""The paper's Table 1 on held-out synthetic views, and S's speed/accuracy sweep.
+
+Table 1 (relighting DSSIM and MSE, shadow MSE, onnxruntime time per image) compares:
+
+* ``Pix2Pix-like``: ``relight_pix2pix.onnx`` (no shadow inputs);
+* ``2D``: ``shadow_2d.onnx`` shadows fed to our ``R`` and ``L``;
+* ``Direct``: the runtime's Direct shadows (:func:`outcast_core.runtime.shadows.direct_shadow`)
+  fed to our ``R`` and ``L``;
+* ``Physics``: the runtime's non-learned relighting (shading ratios) on Direct shadows, and on
+  our ``S`` shadows;
+* ``Ours``: ``shadow.onnx`` + ``refine.onnx`` + ``relight.onnx``;
+* ``Input``: the unchanged photo (what every method must beat).
+
+Every pair ``(i, j)``, ``i != j``, of a view is one test image: the photo under sun ``i`` is
+relit to sun ``j`` and compared with the render under sun ``j``; both are tone-mapped with the
+view's exposure (no augmentation). Geometry inputs are the ground-truth depth (sky = no surface)
+and normals computed from it as the runtime does; ``Z`` is not part of this table. Shadow MSE is
+``S(C_i, w_j)`` against the ground-truth shadow image ``j`` over the whole frame.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from outcast_core.eval.metrics import dssim, mse
+from outcast_core.eval.onnx_models import TimedModel
+from outcast_core.runtime.geometry import Camera, normals_from_depth, view_directions
+from outcast_core.runtime.relight import physics_relight
+from outcast_core.runtime.shadows import direct_shadow
+from outcast_core.train.data import Prepared, auto_exposure, load_prepared, tonemap
+
+
+@dataclass
+class TestView:
+    """One held-out view ready for the networks (batch-1 NCHW float32 arrays)."""
+
+    prep: Prepared
+    images: list[np.ndarray]  # K x (H x W x 3) sRGB
+    sky: np.ndarray
+
+    @property
+    def camera(self) -> Camera:
+        return self.prep.camera
+
+    def chw(self, k: int) -> np.ndarray:
+        return np.moveaxis(self.images[k], -1, 0)[None]
+
+    def depth_in(self) -> np.ndarray:
+        d = np.where(self.sky, 0.0, self.prep.depth)
+        return d[None, None].astype(np.float32)
+
+    def normals_in(self) -> np.ndarray:
+        return np.moveaxis(self.prep.normals, -1, 0)[None].astype(np.float32)
+
+    def psi_in(self) -> np.ndarray:
+        return np.moveaxis(view_directions(self.camera), -1, 0)[None].astype(np.float32)
+
+    def focal_in(self) -> np.ndarray:
+        return np.array([[self.prep.focal]], np.float32)
+
+    def sun_in(self, k: int) -> np.ndarray:
+        return self.prep.sun[k][None].astype(np.float32)
+
+
+def load_test_views(data: str | Path, size: int = 128, max_views: int = 0) -> list[TestView]:
+    out = []
+    for p in load_prepared(data, size, max_views):
+        e = p.exposure if p.exposure > 0 else auto_exposure(p.rgb[0])
+        imgs = [tonemap(p.rgb[k], e) for k in range(p.rgb.shape[0])]
+        out.append(TestView(p, imgs, ~np.isfinite(p.depth)))
+    return out
+
+
+def pairs(view: TestView) -> Iterator[tuple[int, int]]:
+    k = view.prep.rgb.shape[0]
+    for i in range(k):
+        for j in range(k):
+            if i != j:
+                yield i, j
+
+
+def _load(models: Path, name: str, threads: int) -> TimedModel | None:
+    p = models / f"{name}.onnx"
+    return TimedModel(p, threads) if p.is_file() else None
+
+
+def _hw(a: np.ndarray) -> np.ndarray:
+    return np.moveaxis(a[0], 0, -1) if a.shape[1] == 3 else a[0, 0]
+
+
+def evaluate_table(
+    data: str | Path, models: str | Path = "models", max_views: int = 0, threads: int = 2,
+    sheet_pairs: int = 6,
+) -> dict[str, Any]:
+    """Run every available method on every test pair; returns per-method means and a sheet.
+
+    Returns:
+        ``{"rows": {method: {"dssim", "mse", "shadow_mse", "time_s", "n"}}, "missing": [...],
+        "views": n, "pairs": n, "sheet": list of image rows}``.
+    """
+    models = Path(models)
+    m = {n: _load(models, n, threads)
+         for n in ("shadow", "shadow_2d", "refine", "relight", "relight_pix2pix")}
+    missing = sorted(n for n, v in m.items() if v is None)
+    views = load_test_views(data, max_views=max_views)
+    acc: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    sheet: list[list[np.ndarray]] = []
+    n_pairs = 0
+    for view in views:
+        depth, normals, psi, focal = view.depth_in(), view.normals_in(), view.psi_in(), \
+            view.focal_in()
+        k = view.prep.rgb.shape[0]
+        direct, t_direct = [], []
+        for s in range(k):
+            t = time.perf_counter()
+            direct.append(direct_shadow(view.prep.depth, view.camera, view.prep.sun[s],
+                                        normals=view.prep.normals, sky=view.sky))
+            t_direct.append(time.perf_counter() - t)
+        for i, j in pairs(view):
+            n_pairs += 1
+            c_o, c_o_in = view.images[i], view.chw(i)
+            gt, gt_s = view.images[j], view.prep.shadow[j]
+            w_o, w_n = view.sun_in(i), view.sun_in(j)
+            shadows: dict[str, tuple[np.ndarray, np.ndarray, float]] = {
+                "Direct": (direct[i], direct[j], t_direct[i] + t_direct[j]),
+            }
+            for label, name in (("Ours", "shadow"), ("2D", "shadow_2d")):
+                net = m[name]
+                if net is None:
+                    continue
+                (so,), t1 = net.run(image=c_o_in, depth=depth, normals=normals, sun=w_o,
+                                    focal=focal)
+                (sn,), t2 = net.run(image=c_o_in, depth=depth, normals=normals, sun=w_n,
+                                    focal=focal)
+                shadows[label] = (so[0, 0], sn[0, 0], t1 + t2)
+            row = {"Input": c_o}
+            acc["Input"]["dssim"].append(dssim(c_o, gt))
+            acc["Input"]["mse"].append(mse(c_o, gt))
+            acc["Input"]["time_s"].append(0.0)
+            for label, (so, sn, ts) in shadows.items():
+                acc[label]["shadow_mse"].append(mse(sn, gt_s))
+                if m["refine"] is not None and m["relight"] is not None:
+                    (so_r,), t_r = m["refine"].run(shadow=so[None, None], image=c_o_in, sun=w_o)
+                    (c_n,), t_l = m["relight"].run(
+                        image=c_o_in, shadow_old=so_r, shadow_new=sn[None, None],
+                        normals=normals, sun_old=w_o, sun_new=w_n, view_dirs=psi,
+                    )
+                    out = _hw(c_n)
+                    acc[label]["dssim"].append(dssim(out, gt))
+                    acc[label]["mse"].append(mse(out, gt))
+                    acc[label]["time_s"].append(ts + t_r + t_l)
+                    row[label] = out
+                elif label != "Direct":
+                    acc[label]["time_s"].append(ts)
+                if label in ("Direct", "Ours"):
+                    t = time.perf_counter()
+                    phys = physics_relight(c_o, so, sn, view.sky)
+                    tp = time.perf_counter() - t
+                    key = f"Physics ({label} shadows)"
+                    acc[key]["dssim"].append(dssim(phys, gt))
+                    acc[key]["mse"].append(mse(phys, gt))
+                    acc[key]["time_s"].append(ts + tp)
+                    row[key] = phys
+            if m["relight_pix2pix"] is not None:
+                (c_n,), t_p = m["relight_pix2pix"].run(
+                    image=c_o_in, normals=normals, sun_old=w_o, sun_new=w_n, view_dirs=psi
+                )
+                out = _hw(c_n)
+                acc["Pix2Pix-like"]["dssim"].append(dssim(out, gt))
+                acc["Pix2Pix-like"]["mse"].append(mse(out, gt))
+                acc["Pix2Pix-like"]["time_s"].append(t_p)
+                row["Pix2Pix-like"] = out
+            if len(sheet) < sheet_pairs:
+                row["Target"] = gt
+                row["S_n ground truth"] = gt_s
+                for label, (_, sn, _) in shadows.items():
+                    row[f"S_n {label}"] = sn
+                sheet.append(row)
+    rows = {
+        method: {k: float(np.mean(v)) for k, v in d.items()} | {"n": len(next(iter(d.values())))}
+        for method, d in acc.items()
+    }
+    return {"rows": rows, "missing": missing, "views": len(views), "pairs": n_pairs,
+            "sheet": sheet}
+
+
+def save_sheet(rows: list[dict[str, np.ndarray]], path: str | Path, tile: int = 128) -> Path:
+    """A PNG contact sheet: one test pair per row, one method per column, labelled."""
+    if not rows:
+        raise ValueError("expected at least one sheet row, got none")
+    cols = list(rows[0])
+    for r in rows[1:]:
+        cols += [c for c in r if c not in cols]
+    head = 18
+    canvas = np.full((head + tile * len(rows), tile * len(cols), 3), 255, np.uint8)
+    for c, name in enumerate(cols):
+        cv2.putText(canvas, name[:22], (c * tile + 2, 13), cv2.FONT_HERSHEY_SIMPLEX, 0.33,
+                    (0, 0, 0), 1, cv2.LINE_AA)
+        for r, row in enumerate(rows):
+            if name not in row:
+                continue
+            img = np.asarray(row[name], np.float32)
+            if img.ndim == 2:
+                img = np.repeat(img[..., None], 3, axis=2)
+            img = cv2.resize(img, (tile, tile), interpolation=cv2.INTER_AREA)
+            y = head + r * tile
+            canvas[y : y + tile, c * tile : (c + 1) * tile] = np.clip(img * 255 + 0.5, 0, 255)
+    path = Path(path)
+    cv2.imwrite(str(path), cv2.cvtColor(canvas, cv2.COLOR_RGB2BGR))
+    return path
+
+
+def _resize_inputs(view: TestView, k: int, size: int) -> dict[str, np.ndarray]:
+    h0, w0 = view.prep.depth.shape
+    h, w = (size, round(w0 * size / h0)) if h0 >= w0 else (round(h0 * size / w0), size)
+    interp = cv2.INTER_AREA if size < max(h0, w0) else cv2.INTER_LINEAR
+    img = cv2.resize(view.images[k], (w, h), interpolation=interp)
+    depth = cv2.resize(view.prep.depth, (w, h), interpolation=cv2.INTER_NEAREST)
+    cam = view.camera.resized(h, w)
+    normals = normals_from_depth(depth, cam)
+    depth = np.where(np.isfinite(depth), depth, 0.0)
+    return {"image": np.moveaxis(img, -1, 0)[None], "depth": depth[None, None],
+            "normals": np.moveaxis(normals, -1, 0)[None], "focal": np.array([[cam.focal]])}
+
+
+def speed_accuracy(
+    data: str | Path, checkpoint: str | Path, steps: tuple[int, ...] = (8, 16, 32, 64),
+    sizes: tuple[int, ...] = (96, 128, 192, 256), max_views: int = 12, threads: int = 2,
+    workdir: str | Path | None = None,
+) -> list[dict[str, Any]]:
+    """Shadow MSE (at the data's resolution) and onnxruntime latency of ``S`` per (z, size).
+
+    The trained weights are re-exported with each march length ``z`` (the march step is kept,
+    so ``z`` sets the reach); inputs are resized to each working size and the output resized back
+    to the ground truth's size before the MSE.
+    """
+    import tempfile
+
+    import torch
+
+    from outcast_core.export.onnx_export import export_onnx
+    from outcast_core.train.trainer import load_checkpoint_nets
+
+    nets, _ = load_checkpoint_nets(checkpoint)
+    net = nets["shadow"]
+    views = load_test_views(data, max_views=max_views)
+    results = []
+    tmp = Path(workdir) if workdir else Path(tempfile.mkdtemp(prefix="outcast_sweep_"))
+    for z in steps:
+        net.steps = int(z)
+        path = tmp / f"shadow_z{z}.onnx"
+        with torch.no_grad():
+            export_onnx(net, "shadow", path, [(64, 64), (48, 80)])
+        model = TimedModel(path, threads)
+        for size in sizes:
+            errs, times = [], []
+            for view in views:
+                h0, w0 = view.prep.depth.shape
+                for i, j in pairs(view):
+                    inp = _resize_inputs(view, i, size)
+                    (out,), t = model.run(sun=view.sun_in(j), **inp)
+                    s = cv2.resize(out[0, 0], (w0, h0), interpolation=cv2.INTER_AREA
+                                   if size > max(h0, w0) else cv2.INTER_LINEAR)
+                    errs.append(mse(s, view.prep.shadow[j]))
+                    times.append(t)
+            results.append({"steps": int(z), "size": int(size), "shadow_mse": float(np.mean(errs)),
+                            "latency_ms": float(np.median(times) * 1000), "n": len(errs)})
+    return results
+
+
+def plot_speed_accuracy(results: list[dict[str, Any]], path: str | Path) -> Path:
+    """A PNG plot (OpenCV drawing): latency (x, log) against shadow MSE (y), one line per size."""
+    w, h, m = 640, 420, 60
+    img = np.full((h, w, 3), 255, np.uint8)
+    xs = np.log10([r["latency_ms"] for r in results])
+    ys = np.array([r["shadow_mse"] for r in results])
+    x0, x1 = xs.min() - 0.05, xs.max() + 0.05
+    y0, y1 = ys.min() * 0.95, ys.max() * 1.05
+
+    def px(x: float, y: float) -> tuple[int, int]:
+        return (int(m + (x - x0) / (x1 - x0) * (w - 2 * m)),
+                int(h - m - (y - y0) / (y1 - y0) * (h - 2 * m)))
+
+    cv2.rectangle(img, (m, m), (w - m, h - m), (0, 0, 0), 1)
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    cv2.putText(img, "S: shadow MSE vs onnxruntime latency (labels: march steps z)", (m, 25),
+                font, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(img, "latency per frame, ms (log)", (w // 2 - 90, h - 15), font, 0.45, (0, 0, 0),
+                1, cv2.LINE_AA)
+    cv2.putText(img, f"{y1:.4f}", (2, m + 5), font, 0.35, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(img, f"{y0:.4f}", (2, h - m), font, 0.35, (0, 0, 0), 1, cv2.LINE_AA)
+    for t in range(int(np.floor(x0)), int(np.ceil(x1)) + 1):
+        for sub in (1, 2, 5):
+            v = np.log10(sub) + t
+            if x0 <= v <= x1:
+                x, _ = px(v, y0)
+                cv2.line(img, (x, h - m), (x, h - m + 4), (0, 0, 0), 1)
+                cv2.putText(img, f"{10 ** v:g}", (x - 8, h - m + 16), font, 0.35, (0, 0, 0), 1)
+    colours = [(200, 60, 40), (40, 150, 40), (40, 60, 220), (150, 40, 160), (0, 140, 200)]
+    sizes = sorted({r["size"] for r in results})
+    for n, size in enumerate(sizes):
+        pts = [r for r in results if r["size"] == size]
+        pts.sort(key=lambda r: r["steps"])
+        col = colours[n % len(colours)]
+        coords = [px(np.log10(r["latency_ms"]), r["shadow_mse"]) for r in pts]
+        for a, b in zip(coords[:-1], coords[1:], strict=True):
+            cv2.line(img, a, b, col, 2, cv2.LINE_AA)
+        for r, c in zip(pts, coords, strict=True):
+            cv2.circle(img, c, 4, col, -1)
+            cv2.putText(img, str(r["steps"]), (c[0] + 5, c[1] - 5), font, 0.35, col, 1)
+        cv2.putText(img, f"{size} px", (w - m - 60, m + 18 + 16 * n), font, 0.45, col, 1,
+                    cv2.LINE_AA)
+    path = Path(path)
+    cv2.imwrite(str(path), img)
+    return path

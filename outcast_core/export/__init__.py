@@ -1,0 +1,1 @@
+"""ONNX export of the trained networks into ``models/`` with a checked manifest."""

@@ -1,0 +1,67 @@
+"""Model cards: ``models/README.md`` rendered from the manifests (no hand-typed numbers)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+PURPOSE = {
+    "shadow": "S: learned ray-marching cast shadows (the paper's key network)",
+    "shadow_2d": "the paper's '2D' ablation of S (a U-Net, no ray marching)",
+    "refine": "R: refines the original-sun shadow S(C, w_o) using the photo",
+    "relight": "L: relights the photo from (C_o, S_o, S_n, N, w_o, w_n, Psi)",
+    "relight_pix2pix": "the paper's 'Pix2Pix-like' ablation of L (no shadow inputs)",
+    "depth": "Z: monocular depth (scale-free) + sky mask",
+}
+
+
+def _card(man: dict[str, Any]) -> list[str]:
+    tr = man.get("training", {})
+    cfg = tr.get("config", {})
+    ins = ", ".join(f"`{i['name']}` {i['shape']}" for i in man["inputs"])
+    outs = ", ".join(f"`{o['name']}` {o['shape']}" for o in man["outputs"])
+    lines = [
+        f"## `{man['file']}` — {PURPOSE.get(man['name'], man['name'])}",
+        "",
+        f"- Inputs: {ins}",
+        f"- Outputs: {outs}",
+        f"- Colour space: {man['colour_space']}; pad multiple: {man['pad_multiple']}; "
+        f"parameters: {man['parameters']:,}; ONNX opset {man.get('opset')}; onnxruntime vs "
+        f"torch max abs diff at export: {man.get('onnx_parity_max_abs_diff')}",
+    ]
+    if "march_steps" in man:
+        lines.append(
+            f"- March: z = {man['march_steps']} steps of {man['march_step']} (fraction of the "
+            f"longer side); volume built at scale {man['volume_scale']}"
+        )
+    if tr:
+        lines += [
+            f"- Trained: `outcast train outcast_core/train/configs/{cfg.get('stage', '?')}.toml` "
+            f"(run `{cfg.get('run')}`), {tr.get('steps')} steps of batch {cfg.get('batch')} at "
+            f"{cfg.get('size')} px, lr {cfg.get('lr')}, seed {cfg.get('seed')}, "
+            f"{tr.get('wall_time_s')} s wall time on this shared 2-core CPU",
+            f"- Data: `{tr.get('data_set')}` (data seed {tr.get('data_seed')}, "
+            f"{tr.get('views')} views)",
+            f"- Final training losses (moving average): {json.dumps(tr.get('loss', {}))}",
+        ]
+    mets = man.get("metrics") or {}
+    if mets:
+        lines.append(f"- Held-out metrics (see EVAL.md): {json.dumps(mets)}")
+    else:
+        lines.append("- Held-out metrics: not measured")
+    lines += [f"- sha256: `{man['sha256']}`", ""]
+    return lines
+
+
+def render_cards(models: str | Path, preamble: str = "") -> str:
+    """The README text for every manifest in ``models``."""
+    models = Path(models)
+    mans = [json.loads(p.read_text()) for p in sorted(models.glob("*.json"))]
+    mans = [m for m in mans if "sha256" in m and "inputs" in m]
+    out = ["# Shipped models", ""]
+    if preamble:
+        out += [preamble.strip(), ""]
+    for m in mans:
+        out += _card(m)
+    return "\n".join(out)

@@ -1,0 +1,129 @@
+"""Run configuration: one JSON or TOML file per training run.
+
+A config names the run (checkpoints go to ``~/.cache/outcast/runs/<run>/``), the stage
+(``shadow``, ``shadow_2d``, ``relight``, ``relight_pix2pix``, ``depth``), the data and every
+hyper-parameter. Unknown keys are an error so a typo never silently trains the default.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from dataclasses import asdict, dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+STAGES = ("shadow", "shadow_2d", "relight", "relight_pix2pix", "depth")
+
+
+@dataclass
+class TrainConfig:
+    """Every setting of one training run (see ``configs/*.toml`` in this package for examples).
+
+    Attributes:
+        run: run name (checkpoint folder).
+        stage: what is trained (one of :data:`STAGES`). ``relight`` trains ``R``, ``L`` and the
+            critic ``A`` jointly on top of a frozen ``S`` (``shadow_checkpoint``);
+            ``relight_pix2pix`` trains the ablation with the same critic.
+        data: training data folder (views written by ``outcast data make``).
+        size: working resolution (longer side, pixels) the views are resized to.
+        batch: images per step.
+        steps: total optimiser steps of the generator(s).
+        lr: Adam learning rate for generator(s) and critic.
+        seed: seed of torch, numpy and the sampler.
+        net: keyword arguments of the trained network (e.g. ``steps``, ``volume_scale``).
+        weights: loss weights (paper: shadow 10, refine 2, relight 10, adversarial 0.1).
+        d_every: generator steps per critic step (paper: 5).
+        gt_depth_prob: probability that ``S`` sees ground-truth depth rather than ``Z``'s
+            estimate (paper: 0.8; 1.0 when no ``depth_checkpoint`` is given).
+        depth_checkpoint: trained ``Z`` checkpoint used for estimated depth, or empty.
+        shadow_checkpoint: trained ``S`` checkpoint (required by ``relight``).
+        sun_noise_deg: std of the angular noise added to the original sun (user alignment).
+        exposure_stops: range of the random exposure (both images of a pair alike).
+        saturation: range of the random saturation factor.
+        gamma: range of the random gamma.
+        flip: random horizontal flips (sun and normals mirrored).
+        threads: torch intra-op threads.
+        checkpoint_every: steps between checkpoints.
+        time_limit_s: stop (with a checkpoint) after this much wall time in this process; 0 = none.
+        max_views: use at most this many views of the data folder (0 = all).
+        reload_every: every this many steps, add views that appeared in the data folder since
+            the start (training while the data set is still being generated); 0 = never.
+    """
+
+    run: str
+    stage: str
+    data: str
+    size: int = 128
+    batch: int = 4
+    steps: int = 10000
+    lr: float = 1e-4
+    seed: int = 0
+    net: dict[str, Any] = field(default_factory=dict)
+    weights: dict[str, float] = field(
+        default_factory=lambda: {"shadow": 10.0, "refine": 2.0, "relight": 10.0, "adv": 0.1}
+    )
+    d_every: int = 5
+    gt_depth_prob: float = 0.8
+    depth_checkpoint: str = ""
+    shadow_checkpoint: str = ""
+    sun_noise_deg: float = 3.0
+    exposure_stops: float = 1.0
+    saturation: tuple[float, float] = (0.8, 1.2)
+    gamma: tuple[float, float] = (0.9, 1.1)
+    flip: bool = True
+    threads: int = 2
+    checkpoint_every: int = 250
+    time_limit_s: float = 0.0
+    max_views: int = 0
+    reload_every: int = 0
+
+    def __post_init__(self) -> None:
+        if self.stage not in STAGES:
+            raise ValueError(f"expected a stage in {STAGES}, got {self.stage!r}")
+        if self.size < 16 or self.batch < 1 or self.steps < 1:
+            raise ValueError(
+                f"expected size >= 16, batch >= 1, steps >= 1, got {self.size}, {self.batch}, "
+                f"{self.steps}"
+            )
+        if not 0.0 <= self.gt_depth_prob <= 1.0:
+            raise ValueError(f"expected gt_depth_prob in [0, 1], got {self.gt_depth_prob}")
+        if self.stage == "relight" and not self.shadow_checkpoint:
+            raise ValueError("expected a shadow_checkpoint for the relight stage, got none")
+        self.data = str(Path(self.data).expanduser())
+        for key in ("depth_checkpoint", "shadow_checkpoint"):
+            value = getattr(self, key)
+            if value:
+                setattr(self, key, str(Path(value).expanduser()))
+        self.saturation = tuple(self.saturation)  # type: ignore[assignment]
+        self.gamma = tuple(self.gamma)  # type: ignore[assignment]
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["saturation"] = list(self.saturation)
+        d["gamma"] = list(self.gamma)
+        return d
+
+
+def load_config(path: str | Path, overrides: dict[str, Any] | None = None) -> TrainConfig:
+    """Read a ``.json`` or ``.toml`` config; ``overrides`` replace top-level keys."""
+    path = Path(path)
+    if path.suffix == ".toml":
+        data = tomllib.loads(path.read_text())
+    elif path.suffix == ".json":
+        data = json.loads(path.read_text())
+    else:
+        raise ValueError(f"expected a .toml or .json config, got {path.name}")
+    data.update(overrides or {})
+    known = {f.name for f in fields(TrainConfig)}
+    unknown = sorted(set(data) - known)
+    if unknown:
+        raise ValueError(f"expected config keys from {sorted(known)}, got unknown {unknown}")
+    return TrainConfig(**data)
+
+
+def run_dir(run: str) -> Path:
+    """Checkpoint folder of a run: ``~/.cache/outcast/runs/<run>/`` (never in git)."""
+    if not run or "/" in run or run.startswith("."):
+        raise ValueError(f"expected a plain run name, got {run!r}")
+    return Path.home() / ".cache" / "outcast" / "runs" / run

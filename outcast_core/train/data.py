@@ -1,0 +1,288 @@
+"""Training pairs from the synthetic views: resizing, tone-mapping augmentation, batches.
+
+A view (``outcast_core.data.load_view``) holds one scene seen by one camera under ``K`` suns:
+``rgb`` (``K x H x W x 3`` linear HDR), ``shadow`` (``K x H x W``), ``depth`` (``H x W``, sky
+``+inf``), ``normals``, ``sky``, ``sun`` (``K x 3``) and ``fov_deg``. A training pair picks an
+original sun ``i`` and a new sun ``j`` of one view. Both images are tone-mapped to sRGB with the
+*same* random exposure, saturation and gamma (the exposure keyed to the original image), so the
+networks learn the change of light, not a change of camera settings.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from outcast_core.runtime.colour import luminance, tonemap_aces
+from outcast_core.runtime.geometry import (
+    Camera,
+    focal_from_fov,
+    normals_from_depth,
+    valid_depth,
+    view_directions,
+)
+
+#: Middle grey the auto exposure maps the original image's mean log luminance to.
+KEY = 0.18
+
+
+@dataclass
+class Prepared:
+    """One view at the training resolution (all float32).
+
+    Attributes:
+        rgb: ``K x H x W x 3`` linear radiance.
+        shadow: ``K x H x W`` ground-truth shadow images.
+        depth: ``H x W`` z depth, ``+inf`` on sky.
+        normals: ``H x W x 3`` normals from the (resized) depth, as the runtime computes them.
+        sun: ``K x 3`` unit sun directions.
+        focal: focal length in pixels at this resolution.
+        exposure: the view's exposure (``rgb * exposure`` tone-maps to a plausible photo), or 0
+            when the view has none (auto exposure is used then).
+        normals_true: ``H x W x 3`` the renderer's normals (the cosine of the ground-truth
+            shadow images), when the view has them.
+    """
+
+    rgb: np.ndarray
+    shadow: np.ndarray
+    depth: np.ndarray
+    normals: np.ndarray
+    sun: np.ndarray
+    focal: float
+    exposure: float = 0.0
+    normals_true: np.ndarray | None = None
+
+    @property
+    def camera(self) -> Camera:
+        return Camera(self.depth.shape[0], self.depth.shape[1], self.focal)
+
+
+def _block(x: np.ndarray, n: int, reduce: Callable[..., np.ndarray]) -> np.ndarray:
+    """Reduce ``n x n`` blocks of the two leading spatial axes at ``axes (a, a + 1)``."""
+    h, w = x.shape[:2]
+    y = x[: h - h % n, : w - w % n]
+    y = y.reshape(h // n, n, w // n, n, *x.shape[2:])
+    return reduce(reduce(y, axis=3), axis=1)
+
+
+def resize_view(view: dict[str, Any], size: int) -> Prepared:
+    """Shrink a view so that its longer side is ``size`` (integer factors only).
+
+    Radiance and shadows are block-averaged; depth keeps each block's nearest surface (the max
+    of disparity, as the S network's half-resolution volume does), so a block is sky only when
+    all of it is sky. Normals are recomputed from the resized depth with the runtime's
+    ``normals_from_depth``. The field of view is kept.
+    """
+    rgb = np.asarray(view["rgb"], np.float32)
+    if rgb.ndim != 4 or rgb.shape[-1] != 3:
+        raise ValueError(f"expected rgb of shape K x H x W x 3, got {rgb.shape}")
+    h, w = rgb.shape[1:3]
+    longer = max(h, w)
+    n = longer // size
+    if n < 1 or longer % size or h % n or w % n:
+        raise ValueError(f"expected a view size that {size} divides, got {h} x {w}")
+    depth = np.asarray(view["depth"], np.float32)
+    shadow = np.asarray(view["shadow"], np.float32)
+    if n > 1:
+        rgb = _block(np.moveaxis(rgb, 0, 2), n, np.mean)  # h x w x K x 3
+        rgb = np.moveaxis(rgb, 2, 0)
+        shadow = np.moveaxis(_block(np.moveaxis(shadow, 0, 2), n, np.mean), 2, 0)
+        ok = valid_depth(depth)
+        disp = np.where(ok, 1.0 / np.where(ok, depth, 1.0), 0.0)
+        disp = _block(disp, n, np.max)
+        depth = np.where(disp > 0, 1.0 / np.where(disp > 0, disp, 1.0), np.inf)
+    normals_true = view.get("normals")
+    if normals_true is not None:
+        normals_true = np.asarray(normals_true, np.float32)
+        if n > 1:
+            normals_true = _block(normals_true, n, np.mean)
+            norm = np.linalg.norm(normals_true, axis=-1, keepdims=True)
+            normals_true = np.where(norm > 1e-6, normals_true / np.maximum(norm, 1e-6), 0.0)
+        normals_true = normals_true.astype(np.float32)
+    depth = depth.astype(np.float32)
+    focal = focal_from_fov(depth.shape[1], float(view["fov_deg"]))
+    cam = Camera(depth.shape[0], depth.shape[1], focal)
+    sun = np.asarray(view["sun"], np.float32)
+    sun = sun / np.linalg.norm(sun, axis=1, keepdims=True)
+    return Prepared(
+        np.ascontiguousarray(rgb, dtype=np.float32), np.ascontiguousarray(shadow, np.float32),
+        depth, normals_from_depth(depth, cam), sun.astype(np.float32), focal,
+        float(view.get("exposure", 0.0) or 0.0), normals_true,
+    )
+
+
+def auto_exposure(radiance_lin: np.ndarray) -> float:
+    """Exposure that maps the geometric mean luminance of ``radiance_lin`` to :data:`KEY`."""
+    lum = luminance(radiance_lin)
+    logmean = float(np.mean(np.log(np.maximum(lum, 1e-6))))
+    return KEY / math.exp(logmean)
+
+
+def tonemap(
+    radiance_lin: np.ndarray, exposure: float, saturation: float = 1.0, gamma: float = 1.0
+) -> np.ndarray:
+    """Linear HDR -> sRGB [0, 1]: exposure, saturation about the luminance, ACES, then gamma."""
+    x = np.asarray(radiance_lin, np.float32) * exposure
+    if saturation != 1.0:
+        lum = luminance(x)[..., None]
+        x = np.maximum(lum + saturation * (x - lum), 0.0)
+    out = tonemap_aces(x)
+    if gamma != 1.0:
+        out = np.power(out, gamma)
+    return out.astype(np.float32)
+
+
+def tonemap_pair(
+    original_lin: np.ndarray, new_lin: np.ndarray, rng: np.random.Generator | None,
+    exposure_stops: float = 1.0, saturation: tuple[float, float] = (0.8, 1.2),
+    gamma: tuple[float, float] = (0.9, 1.1), base_exposure: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Tone-map both images of a pair identically (random settings when ``rng`` is given).
+
+    The base exposure is the view's own (``base_exposure > 0``: the data set's choice, the same
+    for every sun of a view) or else the auto exposure of the original image.
+    """
+    e = base_exposure if base_exposure > 0 else auto_exposure(original_lin)
+    s = g = 1.0
+    if rng is not None:
+        e *= 2.0 ** rng.uniform(-exposure_stops, exposure_stops)
+        s = rng.uniform(*saturation)
+        g = rng.uniform(*gamma)
+    return tonemap(original_lin, e, s, g), tonemap(new_lin, e, s, g)
+
+
+def perturb_sun(sun: np.ndarray, noise_deg: float, rng: np.random.Generator) -> np.ndarray:
+    """Rotate ``sun`` (``3``) by a random angle with std ``noise_deg`` about a random axis."""
+    if noise_deg <= 0:
+        return sun
+    v = np.asarray(sun, np.float64) + rng.normal(size=3) * math.radians(noise_deg)
+    return (v / np.linalg.norm(v)).astype(np.float32)
+
+
+def visibility_target(
+    shadow: np.ndarray, normals_true: np.ndarray | None, sun: np.ndarray
+) -> np.ndarray:
+    """Sun visibility in [0, 1] behind a ground-truth shadow image (``shadow / cos_true``).
+
+    The network's cosine comes from normals derived from depth, which differ from the
+    renderer's at edges; training on ``cos_net * visibility`` keeps every target reachable (a
+    target above the network's cosine pushes a sigmoid into saturation for good). Where the
+    true cosine is ~0 the visibility is undefined and set to 0. Without true normals, a shadow
+    image > 0 counts as visible.
+    """
+    if normals_true is None:
+        return (shadow > 1e-3).astype(np.float32)
+    cos = np.clip(normals_true @ np.asarray(sun, np.float32), 0.0, 1.0)
+    vis = np.where(cos > 1e-3, shadow / np.maximum(cos, 1e-3), 0.0)
+    return np.clip(vis, 0.0, 1.0).astype(np.float32)
+
+
+def find_views(root: str | Path) -> list[Path]:
+    """The view files of a data folder, sorted (``outcast_core.data.list_views`` if it exists)."""
+    root = Path(root)
+    if not root.is_dir():
+        raise ValueError(f"expected a data folder, got {root}")
+    from outcast_core import data as data_pkg
+
+    lister = getattr(data_pkg, "list_views", None)
+    if lister is not None:
+        return [Path(p) for p in lister(root)]
+    return sorted(p for p in root.rglob("*.npz"))
+
+
+def load_prepared(
+    root: str | Path, size: int, max_views: int = 0,
+    loader: Callable[[Path], dict[str, Any]] | None = None, skip: set[Path] | None = None,
+    allow_empty: bool = False,
+) -> list[Prepared]:
+    """Load and resize every view of ``root`` (at most ``max_views`` when > 0).
+
+    ``skip`` holds paths already loaded (they are left out, and the new ones are added to it).
+    """
+    if loader is None:
+        from outcast_core.data import load_view as loader  # type: ignore[no-redef]
+    paths = find_views(root)
+    if max_views > 0:
+        paths = paths[:max_views]
+    if skip is not None:
+        paths = [p for p in paths if p not in skip]
+        skip.update(paths)
+    if not paths and not allow_empty:
+        raise ValueError(f"expected views in {root}, got none")
+    return [resize_view(loader(p), size) for p in paths]
+
+
+class PairSampler:
+    """Draws augmented training pairs from prepared views, reproducibly from a seed.
+
+    Args:
+        views: prepared views.
+        rng: the generator (its state goes into checkpoints).
+        exposure_stops, saturation, gamma: tone-map augmentation ranges.
+        flip: random horizontal flips.
+        sun_noise_deg: noise on the original sun (``sun_old_noisy``).
+    """
+
+    def __init__(
+        self, views: list[Prepared], rng: np.random.Generator, exposure_stops: float = 1.0,
+        saturation: tuple[float, float] = (0.8, 1.2), gamma: tuple[float, float] = (0.9, 1.1),
+        flip: bool = True, sun_noise_deg: float = 3.0,
+    ) -> None:
+        if not views:
+            raise ValueError("expected at least one view, got none")
+        self.views = views
+        self.rng = rng
+        self.aug = {"exposure_stops": exposure_stops, "saturation": saturation, "gamma": gamma}
+        self.flip = flip
+        self.sun_noise_deg = sun_noise_deg
+
+    def sample(self) -> dict[str, np.ndarray]:
+        """One pair as ``C x H x W`` / vector float32 arrays (keys as in :meth:`batch`)."""
+        v = self.views[int(self.rng.integers(len(self.views)))]
+        k = v.rgb.shape[0]
+        i, j = (int(x) for x in self.rng.integers(k, size=2))
+        c_o, c_n = tonemap_pair(v.rgb[i], v.rgb[j], self.rng, **self.aug,
+                                base_exposure=v.exposure)
+        depth, normals = v.depth, v.normals
+        sun_o, sun_n = v.sun[i].copy(), v.sun[j].copy()
+        s_o, s_n = v.shadow[i], v.shadow[j]
+        vis_n = visibility_target(s_n, v.normals_true, v.sun[j])
+        psi = view_directions(v.camera)
+        if self.flip and self.rng.random() < 0.5:
+            c_o, c_n, s_o, s_n, depth, vis_n = (
+                a[:, ::-1] for a in (c_o, c_n, s_o, s_n, depth, vis_n)
+            )
+            normals = normals[:, ::-1] * np.array([-1, 1, 1], np.float32)
+            psi = psi[:, ::-1] * np.array([-1, 1, 1], np.float32)
+            sun_o[0], sun_n[0] = -sun_o[0], -sun_n[0]
+        sun_o_noisy = perturb_sun(sun_o, self.sun_noise_deg, self.rng)
+
+        def chw(a: np.ndarray) -> np.ndarray:
+            a = np.ascontiguousarray(a, dtype=np.float32)
+            return a[None] if a.ndim == 2 else np.ascontiguousarray(np.moveaxis(a, -1, 0))
+
+        return {
+            "image": chw(c_o), "target": chw(c_n), "shadow_old": chw(s_o),
+            "shadow_new": chw(s_n), "visibility_new": chw(vis_n), "depth": chw(depth),
+            "normals": chw(normals),
+            "view_dirs": chw(psi), "sun_old": sun_o, "sun_old_noisy": sun_o_noisy,
+            "sun_new": sun_n, "focal": np.array([v.focal], np.float32),
+        }
+
+    def batch(self, n: int) -> dict[str, np.ndarray]:
+        """``n`` pairs stacked: images ``B x C x H x W``, suns ``B x 3``, focal ``B x 1``.
+
+        Views of different sizes cannot share a batch; the pairs are drawn until ``n`` of the
+        first one's size are found.
+        """
+        items = [self.sample()]
+        while len(items) < n:
+            s = self.sample()
+            if s["image"].shape == items[0]["image"].shape:
+                items.append(s)
+        return {key: np.stack([it[key] for it in items]) for key in items[0]}

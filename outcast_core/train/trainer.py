@@ -1,0 +1,349 @@
+"""The trainer: one loop for every stage, seeded, resumable, with a progress bar of losses.
+
+Stages (``TrainConfig.stage``):
+
+* ``shadow`` / ``shadow_2d``: ``S`` (or the 2D ablation) alone, ``f = w_shadow * f_S``; ``S``
+  sees ground-truth depth with probability ``gt_depth_prob`` and ``Z``'s estimate otherwise
+  (only when a ``depth_checkpoint`` is given; without one every step uses ground truth).
+* ``relight``: ``R``, ``L`` and the critic ``A`` jointly on a frozen ``S`` (no gradient from
+  ``R`` into ``S``, as in the paper): ``f = w_refine f_R + w_relight f_L + w_adv f_A``, one
+  critic step per ``d_every`` generator steps. The original sun fed to ``S``/``R``/``L`` carries
+  noise (``sun_noise_deg``); old shadows and normals use ``Z``'s depth when one is given.
+* ``relight_pix2pix``: the ablation, ``L`` without shadow inputs, same critic (conditioned on
+  ``C_o`` and an empty shadow channel).
+* ``depth``: ``Z`` with the scale-invariant log loss plus binary cross-entropy on the sky mask.
+
+``f_S``, ``f_R``, ``f_L`` are ``L1 + DSSIM`` (:func:`outcast_core.train.losses.structural_loss`),
+our stand-in for the paper's E-LPIPS. Checkpoints (``last.pt``: networks, optimisers, RNG states,
+step, wall time) live in ``~/.cache/outcast/runs/<run>/``; a rerun with the same config resumes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import random
+import signal
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+import torch.nn.functional as F  # noqa: N812  (the universal torch idiom)
+from torch import nn
+
+from outcast_core.nets import build
+from outcast_core.nets.depth import scale_invariant_log_loss
+from outcast_core.nets.geometry_torch import normals_from_depth
+from outcast_core.train.config import TrainConfig, run_dir
+from outcast_core.train.data import PairSampler, Prepared, load_prepared
+from outcast_core.train.losses import lsgan_d_loss, lsgan_g_loss, structural_loss
+
+#: Networks trained by each stage (``critic`` included where there is a GAN term).
+STAGE_NETS: dict[str, tuple[str, ...]] = {
+    "shadow": ("shadow",),
+    "shadow_2d": ("shadow_2d",),
+    "relight": ("refine", "relight", "critic"),
+    "relight_pix2pix": ("relight_pix2pix", "critic"),
+    "depth": ("depth",),
+}
+
+
+def seed_everything(seed: int) -> None:
+    random.seed(seed)
+    np.random.seed(seed % (2**32))
+    torch.manual_seed(seed)
+
+
+def load_checkpoint_nets(path: str | Path) -> tuple[dict[str, nn.Module], dict[str, Any]]:
+    """Rebuild the networks of a checkpoint (eval mode) and return them with its record."""
+    ckpt = torch.load(Path(path), map_location="cpu", weights_only=False)
+    nets: dict[str, nn.Module] = {}
+    for kind, state in ckpt["nets"].items():
+        net = build(kind, **ckpt["net_kwargs"].get(kind, {}))
+        net.load_state_dict(state)
+        nets[kind] = net.eval()
+    return nets, ckpt
+
+
+class Trainer:
+    """Runs one :class:`TrainConfig` to completion (or to its time limit), resuming if possible.
+
+    Args:
+        cfg: the run's configuration.
+        views: prepared views (loaded from ``cfg.data`` when omitted; tests pass tiny ones).
+        progress: show a tqdm bar.
+    """
+
+    def __init__(
+        self, cfg: TrainConfig, views: list[Prepared] | None = None, progress: bool = True,
+        command: str = "",
+    ) -> None:
+        self.cfg = cfg
+        self.command = command
+        self.progress = progress
+        torch.set_num_threads(max(1, cfg.threads))
+        seed_everything(cfg.seed)
+        self.dir = run_dir(cfg.run)
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self._loaded: set[Path] = set()
+        self._reload = views is None and cfg.reload_every > 0
+        if views is None:
+            views = load_prepared(cfg.data, cfg.size, cfg.max_views, skip=self._loaded)
+        self.sampler = PairSampler(
+            views, np.random.default_rng(cfg.seed), cfg.exposure_stops, cfg.saturation,
+            cfg.gamma, cfg.flip, cfg.sun_noise_deg,
+        )
+        self.net_kwargs: dict[str, dict[str, Any]] = {}
+        self.nets: dict[str, nn.Module] = {}
+        for kind in STAGE_NETS[cfg.stage]:
+            kw = dict(cfg.net) if kind == STAGE_NETS[cfg.stage][0] else {}
+            self.net_kwargs[kind] = kw
+            self.nets[kind] = build(kind, **kw).train()
+        gen = [p for k, n in self.nets.items() if k != "critic" for p in n.parameters()]
+        betas = (0.5, 0.999) if "critic" in self.nets else (0.9, 0.999)  # GAN: pix2pix's beta1
+        self.opt_g = torch.optim.Adam(gen, lr=cfg.lr, betas=betas)
+        self.opt_d = (
+            torch.optim.Adam(self.nets["critic"].parameters(), lr=cfg.lr, betas=(0.5, 0.999))
+            if "critic" in self.nets else None
+        )
+        self.depth_net = None
+        if cfg.depth_checkpoint:
+            self.depth_net = load_checkpoint_nets(cfg.depth_checkpoint)[0]["depth"]
+        self.shadow_net = None
+        if cfg.shadow_checkpoint:
+            nets, _ = load_checkpoint_nets(cfg.shadow_checkpoint)
+            self.shadow_net = nets.get("shadow") or nets.get("shadow_2d")
+            if self.shadow_net is None:
+                raise ValueError(f"expected a shadow network in {cfg.shadow_checkpoint}, got none")
+            for p in self.shadow_net.parameters():
+                p.requires_grad_(False)
+        self.step = 0
+        self.lr_history: list[tuple[int, float]] = []
+        self.wall_time_s = 0.0
+        self.history: list[dict[str, float]] = []
+        self._stop = False
+        self._resume()
+        if not self.lr_history or self.lr_history[-1][1] != cfg.lr:
+            self.lr_history.append((self.step, cfg.lr))
+
+    # -- checkpoints -------------------------------------------------------------------------
+    @property
+    def checkpoint_path(self) -> Path:
+        return self.dir / "last.pt"
+
+    def _resume(self) -> None:
+        if not self.checkpoint_path.exists():
+            return
+        ckpt = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
+        if ckpt["config"]["stage"] != self.cfg.stage:
+            raise ValueError(
+                f"expected a checkpoint of stage {self.cfg.stage}, got {ckpt['config']['stage']}"
+            )
+        for k, net in self.nets.items():
+            net.load_state_dict(ckpt["nets"][k])
+        self.opt_g.load_state_dict(ckpt["opt_g"])
+        if self.opt_d is not None:
+            self.opt_d.load_state_dict(ckpt["opt_d"])
+        # The config's learning rate wins over the saved one, so a run can be resumed with a
+        # lower rate (a manual step decay; recorded in the checkpoint's lr_history).
+        for opt in (self.opt_g, self.opt_d):
+            for group in opt.param_groups if opt is not None else ():
+                group["lr"] = self.cfg.lr
+        self.lr_history = ckpt.get("lr_history") or [(0, float(ckpt["config"]["lr"]))]
+        self.sampler.rng.bit_generator.state = ckpt["numpy_rng"]
+        torch.set_rng_state(ckpt["torch_rng"])
+        self.step = int(ckpt["step"])
+        self.wall_time_s = float(ckpt["wall_time_s"])
+        self.history = ckpt.get("history", [])
+
+    def save(self) -> Path:
+        """Write ``last.pt`` atomically."""
+        ckpt = {
+            "config": self.cfg.to_dict(),
+            "stage": self.cfg.stage,
+            "nets": {k: n.state_dict() for k, n in self.nets.items()},
+            "net_kwargs": self.net_kwargs,
+            "opt_g": self.opt_g.state_dict(),
+            "opt_d": self.opt_d.state_dict() if self.opt_d is not None else None,
+            "numpy_rng": self.sampler.rng.bit_generator.state,
+            "torch_rng": torch.get_rng_state(),
+            "step": self.step,
+            "wall_time_s": self.wall_time_s,
+            "history": self.history,
+            "views": len(self.sampler.views),
+            "command": self.command,
+            "lr_history": self.lr_history,
+        }
+        tmp = self.checkpoint_path.with_suffix(".tmp")
+        torch.save(ckpt, tmp)
+        tmp.replace(self.checkpoint_path)
+        return self.checkpoint_path
+
+    # -- one step ----------------------------------------------------------------------------
+    def _tensors(self) -> dict[str, torch.Tensor]:
+        b = self.sampler.batch(self.cfg.batch)
+        return {k: torch.from_numpy(v) for k, v in b.items()}
+
+    def _estimated_geometry(
+        self, t: dict[str, torch.Tensor]
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """``Z``'s depth (sky -> 0) and the normals from it, or the ground truth without ``Z``."""
+        if self.depth_net is None:
+            return t["depth"], t["normals"]
+        with torch.no_grad():
+            depth, sky = self.depth_net(t["image"])
+            depth = torch.where(sky > 0.5, torch.zeros_like(depth), depth)
+            return depth, normals_from_depth(depth, t["focal"])
+
+    def _step_shadow(self, t: dict[str, torch.Tensor]) -> dict[str, float]:
+        net = self.nets[STAGE_NETS[self.cfg.stage][0]]
+        depth, normals = t["depth"], t["normals"]
+        if self.depth_net is not None and self.sampler.rng.random() >= self.cfg.gt_depth_prob:
+            depth, normals = self._estimated_geometry(t)
+        logit, cos = net.logits(t["image"], depth, normals, t["sun_new"], t["focal"])
+        pred = torch.sigmoid(logit) * cos
+        vis = t["visibility_new"]
+        # The target is reachable: the network's own cosine times the true visibility.
+        f_s = structural_loss(pred, cos * vis)
+        # Cross-entropy on visibility where the surface faces the sun: a gradient that does not
+        # vanish when the sigmoid saturates on the wrong side.
+        wgt = (cos > 0.02).to(logit.dtype)
+        bce = (F.binary_cross_entropy_with_logits(logit, vis, reduction="none") * wgt).sum() \
+            / wgt.sum().clamp_min(1.0)
+        loss = self.cfg.weights["shadow"] * (f_s + 0.1 * bce)
+        self.opt_g.zero_grad(set_to_none=True)
+        loss.backward()
+        self.opt_g.step()
+        mse = F.mse_loss(pred, t["shadow_new"])
+        return {"loss": loss.item(), "f_S": f_s.item(), "bce": bce.item(), "mse": mse.item()}
+
+    def _critic_step(self, real: torch.Tensor, fake: torch.Tensor, t: dict[str, torch.Tensor],
+                     s_n: torch.Tensor) -> float:
+        if self.opt_d is None:
+            raise RuntimeError("this stage has no critic")
+        critic = self.nets["critic"]
+        d_loss = lsgan_d_loss(critic(real, t["image"], s_n), critic(fake.detach(), t["image"], s_n))
+        self.opt_d.zero_grad(set_to_none=True)
+        d_loss.backward()
+        self.opt_d.step()
+        return d_loss.item()
+
+    def _step_relight(self, t: dict[str, torch.Tensor]) -> dict[str, float]:
+        w = self.cfg.weights
+        critic = self.nets["critic"]
+        sun_o = t["sun_old_noisy"]
+        depth_o, normals_o = self._estimated_geometry(t)
+        logs: dict[str, float] = {}
+        if self.cfg.stage == "relight":
+            if self.shadow_net is None:
+                raise RuntimeError("the relight stage needs a shadow_checkpoint")
+            with torch.no_grad():  # no gradient from R into S
+                s_o_raw = self.shadow_net(t["image"], depth_o, normals_o, sun_o, t["focal"])
+                s_n = self.shadow_net(t["image"], depth_o, normals_o, t["sun_new"], t["focal"])
+            s_o = self.nets["refine"](s_o_raw, t["image"], sun_o)
+            c_n = self.nets["relight"](
+                t["image"], s_o, s_n, normals_o, sun_o, t["sun_new"], t["view_dirs"]
+            )
+            f_r = structural_loss(s_o, t["shadow_old"])
+            logs["f_R"] = f_r.item()
+            loss_r = w["refine"] * f_r
+        else:
+            s_n = torch.zeros_like(t["shadow_new"])
+            c_n = self.nets["relight_pix2pix"](
+                t["image"], normals_o, sun_o, t["sun_new"], t["view_dirs"]
+            )
+            loss_r = torch.zeros(())
+        f_l = structural_loss(c_n, t["target"])
+        for p in critic.parameters():
+            p.requires_grad_(False)
+        f_a = lsgan_g_loss(critic(c_n, t["image"], s_n))
+        for p in critic.parameters():
+            p.requires_grad_(True)
+        loss = loss_r + w["relight"] * f_l + w["adv"] * f_a
+        self.opt_g.zero_grad(set_to_none=True)
+        loss.backward()
+        self.opt_g.step()
+        logs.update({"loss": loss.item(), "f_L": f_l.item(), "f_A": f_a.item(),
+                     "mse": F.mse_loss(c_n, t["target"]).item()})
+        if self.step % max(1, self.cfg.d_every) == 0:
+            logs["f_D"] = self._critic_step(t["target"], c_n, t, s_n)
+        return logs
+
+    def _step_depth(self, t: dict[str, torch.Tensor]) -> dict[str, float]:
+        depth, sky = self.nets["depth"](t["image"])
+        valid = torch.isfinite(t["depth"]) & (t["depth"] > 0)
+        f_z = scale_invariant_log_loss(depth, t["depth"], valid)
+        f_sky = F.binary_cross_entropy(sky.clamp(1e-6, 1 - 1e-6), (~valid).to(sky.dtype))
+        loss = f_z + f_sky
+        self.opt_g.zero_grad(set_to_none=True)
+        loss.backward()
+        self.opt_g.step()
+        return {"loss": loss.item(), "silog": f_z.item(), "sky_bce": f_sky.item()}
+
+    def train_step(self) -> dict[str, float]:
+        """Draw one batch and take one optimiser step; returns the step's losses."""
+        t = self._tensors()
+        if self.cfg.stage in ("shadow", "shadow_2d"):
+            return self._step_shadow(t)
+        if self.cfg.stage == "depth":
+            return self._step_depth(t)
+        return self._step_relight(t)
+
+    # -- the loop ----------------------------------------------------------------------------
+    def fit(self) -> dict[str, Any]:
+        """Train until ``cfg.steps`` (or the time limit / SIGTERM); checkpoint on the way out."""
+        from tqdm import tqdm
+
+        old = signal.getsignal(signal.SIGTERM)
+
+        def _on_term(signum: int, frame: Any) -> None:
+            self._stop = True
+
+        try:
+            signal.signal(signal.SIGTERM, _on_term)
+        except ValueError:  # not the main thread
+            old = None
+        start = time.monotonic()
+        base_wall = self.wall_time_s
+        bar = tqdm(total=self.cfg.steps, initial=self.step, disable=not self.progress,
+                   dynamic_ncols=True, mininterval=5.0)
+        ema: dict[str, float] = {}
+        log = open(self.dir / "log.jsonl", "a")  # noqa: SIM115
+        try:
+            while self.step < self.cfg.steps and not self._stop:
+                for net in self.nets.values():
+                    net.train()
+                logs = self.train_step()
+                self.step += 1
+                self.wall_time_s = base_wall + time.monotonic() - start
+                for k, v in logs.items():
+                    ema[k] = v if k not in ema else 0.98 * ema[k] + 0.02 * v
+                if not all(math.isfinite(v) for v in logs.values()):
+                    raise RuntimeError(f"non-finite loss at step {self.step}: {logs}")
+                bar.update(1)
+                if self.step % 25 == 0:
+                    bar.set_postfix({k: f"{v:.4f}" for k, v in ema.items()})
+                    rec = {"step": self.step, "wall_time_s": round(self.wall_time_s, 1), **ema}
+                    self.history.append(rec)
+                    log.write(json.dumps(rec) + "\n")
+                    log.flush()
+                if self.step % self.cfg.checkpoint_every == 0:
+                    self.save()
+                if self._reload and self.step % self.cfg.reload_every == 0:
+                    self.sampler.views += load_prepared(
+                        self.cfg.data, self.cfg.size, self.cfg.max_views, skip=self._loaded,
+                        allow_empty=True,
+                    )
+                limit = self.cfg.time_limit_s
+                if limit and time.monotonic() - start >= limit:
+                    break
+        finally:
+            bar.close()
+            log.close()
+            self.save()
+            if old is not None:
+                signal.signal(signal.SIGTERM, old)
+        return {"step": self.step, "wall_time_s": self.wall_time_s, "losses": ema,
+                "checkpoint": str(self.checkpoint_path)}

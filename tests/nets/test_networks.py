@@ -1,0 +1,124 @@
+"""Shapes, ranges and the built-in guarantees of every network."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+import torch.nn.functional as F  # noqa: N812
+
+from outcast_core.nets import NETWORKS, build
+from outcast_core.nets.blocks import count_parameters
+from outcast_core.nets.depth import scale_invariant_log_loss
+
+
+def _shadow_inputs(b: int, h: int, w: int, seed: int = 0) -> tuple[torch.Tensor, ...]:
+    g = torch.Generator().manual_seed(seed)
+    image = torch.rand(b, 3, h, w, generator=g)
+    depth = 1.0 + 3.0 * torch.rand(b, 1, h, w, generator=g)
+    depth[:, :, : h // 4] = float("inf")
+    normals = F.normalize(torch.randn(b, 3, h, w, generator=g), dim=1)
+    normals[:, :, : h // 4] = 0.0
+    sun = F.normalize(torch.tensor([[0.3, -0.8, 0.4]]).repeat(b, 1), dim=1)
+    focal = torch.full((b, 1), float(w))
+    return image, depth, normals, sun, focal
+
+
+@pytest.mark.parametrize("kind", ["shadow", "shadow_2d"])
+@pytest.mark.parametrize("steps", [8, 12])
+def test_shadow_nets_give_cosine_weighted_visibility(kind: str, steps: int) -> None:
+    kw = {"steps": steps} if kind == "shadow" else {}
+    net = build(kind, **kw).eval()
+    image, depth, normals, sun, focal = _shadow_inputs(2, 32, 48)
+    with torch.no_grad():
+        out = net(image, depth, normals, sun, focal)
+    assert out.shape == (2, 1, 32, 48)
+    cos = (normals * sun[:, :, None, None]).sum(1, keepdim=True).clamp(0, 1)
+    assert torch.all(out >= 0) and torch.all(out <= cos + 1e-6)
+    assert torch.all(out[:, :, :8] == 0)  # sky: zero normals, zero shadow image
+
+
+def test_shadow_net_full_resolution_volume_and_gradients() -> None:
+    net = build("shadow", steps=8, volume_scale=1.0)
+    assert net.pad_multiple == 8
+    image, depth, normals, sun, focal = _shadow_inputs(1, 16, 24)
+    net(image, depth, normals, sun, focal).mean().backward()
+    grads = [p.grad for p in net.enc3d.parameters()]
+    assert all(gr is not None and torch.isfinite(gr).all() for gr in grads)
+    assert any(float(gr.abs().sum()) > 0 for gr in grads)  # the 3D path is used
+
+
+def test_shadow_net_depends_on_sun_direction() -> None:
+    torch.manual_seed(0)
+    net = build("shadow", steps=8).eval()
+    image, depth, normals, _, focal = _shadow_inputs(1, 32, 32)
+    normals = torch.zeros_like(normals)
+    normals[:, 1] = -1.0  # all facing up: the cosine term is the same for both suns below
+    a = torch.tensor([[0.6, -0.8, 0.0]])
+    b = torch.tensor([[-0.6, -0.8, 0.0]])
+    with torch.no_grad():
+        sa = net(image, depth, normals, a, focal)
+        sb = net(image, depth, normals, b, focal)
+    assert float((sa - sb).abs().max()) > 1e-4
+
+
+def test_shadow_net_rejects_bad_sizes_and_shapes() -> None:
+    net = build("shadow", steps=4)
+    image, depth, normals, sun, focal = _shadow_inputs(1, 24, 24)  # 24 is not a multiple of 16
+    with pytest.raises(ValueError, match="divisible by 16"):
+        net(image, depth, normals, sun, focal)
+    image, depth, normals, sun, focal = _shadow_inputs(1, 32, 32)
+    with pytest.raises(ValueError, match="normals"):
+        net(image, depth, normals[:, :2], sun, focal)
+    with pytest.raises(ValueError, match="volume_scale"):
+        build("shadow", volume_scale=0.3)
+
+
+def test_refine_and_relight_start_as_identity() -> None:
+    image = torch.rand(2, 3, 16, 16) * 0.9 + 0.05
+    shadow = torch.rand(2, 1, 16, 16) * 0.9 + 0.05
+    sun = F.normalize(torch.randn(2, 3), dim=1)
+    normals = F.normalize(torch.randn(2, 3, 16, 16), dim=1)
+    with torch.no_grad():
+        r = build("refine")(shadow, image, sun)
+        relit = build("relight")(image, shadow, shadow, normals, sun, sun, normals)
+        p2p = build("relight_pix2pix")(image, normals, sun, sun, normals)
+    torch.testing.assert_close(r, shadow, atol=1e-5, rtol=0)
+    torch.testing.assert_close(relit, image, atol=1e-5, rtol=0)
+    torch.testing.assert_close(p2p, image, atol=1e-5, rtol=0)
+    with pytest.raises(ValueError, match="sun_new"):
+        build("relight")(image, shadow, shadow, normals, sun, sun[:, :2], normals)
+
+
+def test_critic_receptive_field_and_shape() -> None:
+    critic = build("critic")
+    x = torch.zeros(1, 3, 128, 128, requires_grad=True)
+    out = critic(x, torch.zeros(1, 3, 128, 128), torch.zeros(1, 1, 128, 128))
+    assert out.shape == (1, 1, 14, 14)
+    out[0, 0, 7, 7].backward()
+    rows = torch.nonzero(x.grad.abs().sum(dim=(0, 1, 3)) > 0)
+    extent = int(rows.max() - rows.min() + 1)
+    assert 60 <= extent <= 70
+
+
+def test_depth_net_is_scale_free_and_loss_is_scale_invariant() -> None:
+    net = build("depth").eval()
+    with torch.no_grad():
+        depth, sky = net(torch.rand(1, 3, 32, 32))
+    assert depth.shape == sky.shape == (1, 1, 32, 32)
+    assert torch.all(depth > 0) and torch.all((sky >= 0) & (sky <= 1))
+    t = 1.0 + torch.rand(1, 1, 8, 8)
+    mask = torch.ones_like(t, dtype=torch.bool)
+    assert float(scale_invariant_log_loss(3.7 * t, t, mask)) < 1e-10
+    assert float(scale_invariant_log_loss(t**2, t, mask)) > 1e-4
+
+
+def test_parameter_budgets() -> None:
+    counts = {k: count_parameters(build(k)) for k in NETWORKS}
+    assert 150_000 < counts["shadow"] < 350_000
+    assert 350_000 < counts["relight"] < 700_000
+    assert 700_000 < counts["depth"] < 1_300_000
+
+
+def test_unknown_kind_raises() -> None:
+    with pytest.raises(ValueError, match="network kind"):
+        build("nope")

@@ -1,0 +1,133 @@
+"""Configs, the pair sampler and the trainer (every stage, resume, checkpoints)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from outcast_core.train.config import TrainConfig, load_config, run_dir
+from outcast_core.train.data import PairSampler, resize_view, tonemap_pair
+from outcast_core.train.trainer import Trainer
+from tests.train.conftest import make_view
+
+
+def _cfg(stage: str, **kw) -> TrainConfig:
+    base = {"run": f"t_{stage}", "stage": stage, "data": "unused", "size": 32, "batch": 2,
+            "steps": 3, "lr": 1e-3, "checkpoint_every": 2, "threads": 1}
+    if stage in ("shadow",):
+        base["net"] = {"steps": 4}
+    base.update(kw)
+    return TrainConfig(**base)
+
+
+def test_config_files_and_errors(tmp_path) -> None:
+    (tmp_path / "a.toml").write_text('run = "r"\nstage = "shadow"\ndata = "d"\nbatch = 3\n'
+                                     "[net]\nsteps = 16\n")
+    cfg = load_config(tmp_path / "a.toml", {"steps": 7})
+    assert (cfg.batch, cfg.steps, cfg.net) == (3, 7, {"steps": 16})
+    (tmp_path / "b.json").write_text(json.dumps({"run": "r", "stage": "shadow", "data": "d",
+                                                 "bacth": 3}))
+    with pytest.raises(ValueError, match="unknown"):
+        load_config(tmp_path / "b.json")
+    with pytest.raises(ValueError, match="stage"):
+        TrainConfig(run="r", stage="nope", data="d")
+    with pytest.raises(ValueError, match="shadow_checkpoint"):
+        TrainConfig(run="r", stage="relight", data="d")
+    assert run_dir("abc").parts[-3:] == ("outcast", "runs", "abc")
+
+
+def test_resize_keeps_nearest_surface_and_fov(fake_views) -> None:
+    p = resize_view(fake_views[0], 16)
+    assert p.rgb.shape == (3, 16, 16, 3) and p.depth.shape == (16, 16)
+    assert np.isclose(p.focal, 16 / (2 * np.tan(np.radians(30))))
+    d = fake_views[0]["depth"]
+    block = d[:2, :2]
+    assert p.depth[0, 0] == (np.min(block) if np.isfinite(block).any() else np.inf)
+    with pytest.raises(ValueError, match="divides"):
+        resize_view(fake_views[0], 12)
+
+
+def test_pairs_share_tone_mapping() -> None:
+    rng = np.random.default_rng(0)
+    x = np.random.default_rng(1).random((8, 8, 3)).astype(np.float32)
+    a, b = tonemap_pair(x, x, rng)
+    np.testing.assert_array_equal(a, b)
+    c, _ = tonemap_pair(x, x, np.random.default_rng(5))
+    assert np.abs(a - c).max() > 1e-3  # the settings are random
+
+
+def test_sampler_flip_mirrors_geometry(fake_views) -> None:
+    views = [resize_view(v, 32) for v in fake_views]
+    s = PairSampler(views, np.random.default_rng(0), flip=True, sun_noise_deg=0.0)
+    seen_flip = False
+    for _ in range(20):
+        b = s.sample()
+        v = next(v for v in views if np.allclose(np.abs(b["sun_new"]), np.abs(v.sun).max(0))
+                 or any(np.allclose(np.abs(b["sun_new"]), np.abs(x)) for x in v.sun))
+        flipped = not any(np.allclose(b["sun_new"], x) for x in v.sun)
+        if flipped:
+            seen_flip = True
+            np.testing.assert_array_equal(b["depth"][0], v.depth[:, ::-1])
+            np.testing.assert_allclose(b["normals"][0], -v.normals[:, ::-1, 0])
+        np.testing.assert_array_equal(b["sun_old"], b["sun_old_noisy"])
+    assert seen_flip
+
+
+@pytest.mark.parametrize("stage", ["shadow", "shadow_2d", "relight_pix2pix", "depth"])
+def test_each_stage_trains_and_resumes(stage: str, fake_views) -> None:
+    views = [resize_view(v, 32) for v in fake_views]
+    tr = Trainer(_cfg(stage), views, progress=False)
+    out = tr.fit()
+    assert out["step"] == 3 and all(np.isfinite(v) for v in out["losses"].values())
+    ckpt = torch.load(tr.checkpoint_path, weights_only=False)
+    assert ckpt["step"] == 3
+    again = Trainer(_cfg(stage, steps=5), views, progress=False)
+    assert again.step == 3
+    for k, net in again.nets.items():
+        for a, b in zip(net.state_dict().values(), tr.nets[k].state_dict().values(), strict=True):
+            torch.testing.assert_close(a, b)
+    assert again.fit()["step"] == 5
+
+
+def test_relight_stage_uses_frozen_shadow_net(fake_views) -> None:
+    views = [resize_view(v, 32) for v in fake_views]
+    s = Trainer(_cfg("shadow", steps=1), views, progress=False)
+    s.fit()
+    before = {k: v.clone() for k, v in s.nets["shadow"].state_dict().items()}
+    tr = Trainer(_cfg("relight", shadow_checkpoint=str(s.checkpoint_path), d_every=1), views,
+                 progress=False)
+    logs = tr.train_step()
+    assert {"f_R", "f_L", "f_A", "f_D"} <= set(logs)
+    for k, v in tr.shadow_net.state_dict().items():
+        torch.testing.assert_close(v, before[k])
+
+
+def test_same_seed_same_first_losses(fake_views) -> None:
+    views = [resize_view(v, 32) for v in fake_views]
+    a = Trainer(_cfg("shadow", run="a"), views, progress=False).train_step()
+    b = Trainer(_cfg("shadow", run="b"), views, progress=False).train_step()
+    assert a == b
+
+
+def test_overfitting_one_scene_reduces_the_loss(fake_views) -> None:
+    views = [resize_view(make_view(0, suns=1), 32)]
+    tr = Trainer(_cfg("shadow_2d", steps=30, flip=False, exposure_stops=0.0, batch=2), views,
+                 progress=False)
+    first = tr.train_step()["f_S"]
+    for _ in range(30):
+        last = tr.train_step()["f_S"]
+    assert last < 0.8 * first
+
+
+def test_resume_with_a_lower_learning_rate(fake_views) -> None:
+    views = [resize_view(v, 32) for v in fake_views]
+    Trainer(_cfg("shadow_2d", run="lr", steps=2), views, progress=False).fit()
+    tr = Trainer(_cfg("shadow_2d", run="lr", steps=3, lr=1e-4), views, progress=False)
+    assert tr.step == 2
+    assert all(g["lr"] == 1e-4 for g in tr.opt_g.param_groups)
+    tr.fit()
+    ckpt = torch.load(tr.checkpoint_path, weights_only=False)
+    assert [tuple(x) for x in ckpt["lr_history"]] == [(0, 1e-3), (2, 1e-4)]
