@@ -421,7 +421,7 @@ class RelightSession:
             "sun": w.astype(np.float32)[None],
             "focal": np.array([[cam.focal]], np.float32),
         })
-        return np.clip(out["shadow"][0, 0], 0.0, 1.0)
+        return np.clip(_first(out)[0, 0], 0.0, 1.0)
 
     # ------------------------------------------------------------------ original sun
     def set_original_sun(self, w: Any) -> np.ndarray:
@@ -438,7 +438,7 @@ class RelightSession:
                     "image": self.image_srgb.transpose(2, 0, 1)[None],
                     "sun": wv.astype(np.float32)[None],
                 })
-                s = np.clip(out["shadow"][0, 0], 0.0, 1.0)
+                s = np.clip(_first(out)[0, 0], 0.0, 1.0)
             else:
                 s = snap_shadow_to_photo(s, self.image_srgb)
             self.original_sun = wv
@@ -477,7 +477,7 @@ class RelightSession:
                 "sun_new": wv.astype(np.float32)[None],
                 "view_dirs": self.view_dirs.transpose(2, 0, 1)[None],
             })
-            img = np.clip(out["image"][0].transpose(1, 2, 0), 0.0, 1.0)
+            img = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
         else:
             img = physics_relight(
                 self.image_srgb, self.original_shadow, s_new, self.sky, light=self._light,
@@ -514,6 +514,12 @@ class RelightSession:
                 "new_shadow": self.shadow(w_new),
                 "output": out,
             }
+
+
+def _first(outputs: dict[str, np.ndarray]) -> np.ndarray:
+    """A single-output model's result (ONNX output names may not repeat input names, so the
+    refine and relight models call theirs ``shadow_out`` / ``image_out``)."""
+    return next(iter(outputs.values()))
 
 
 def depth_for_display(depth: np.ndarray, sky: np.ndarray) -> np.ndarray:
