@@ -1,0 +1,57 @@
+"""The shipped ONNX models load with their checksums and run through the session (no torch)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from outcast_core.runtime.models import DEFAULT_MODEL_DIR, ModelError, ModelRegistry
+from outcast_core.runtime.session import RelightSession
+from tests.runtime.scenes import box_scene_depth
+
+SHIPPED = sorted(p.stem for p in DEFAULT_MODEL_DIR.glob("*.json"))
+
+
+def test_the_shadow_model_ships() -> None:
+    assert "shadow" in SHIPPED
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_each_model_loads_and_matches_its_manifest(name: str) -> None:
+    model = ModelRegistry().load(name)
+    assert [i["name"] for i in model.manifest["inputs"]] == model.input_names
+    assert model.manifest.get("metrics"), f"{name} ships without measured metrics"
+    assert model.manifest.get("training"), f"{name} ships without its training record"
+
+
+def test_learned_session_end_to_end() -> None:
+    h, w = 60, 80  # not a multiple of the pad size on purpose
+    depth = box_scene_depth(h, w, 150.0, 60.0, [(-4.0, 0.0, -3.0, 1.0, 4.0)])
+    rng = np.random.default_rng(0)
+    image = np.clip(0.5 + 0.1 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    s = RelightSession(mode="learned", preset="fast")
+    assert s.shadow_mode == "learned"
+    s.set_image(image, depth=depth, fov_deg=30.0)
+    shadow = s.shadow((-0.5, -0.3, -0.8))
+    assert shadow.shape == (h, w) and np.isfinite(shadow).all()
+    assert shadow.min() >= 0 and shadow.max() <= 1
+    s.set_original_sun((-0.5, -0.3, -0.8))
+    out = s.relight((0.5, 0.3, -0.8))
+    assert out.shape == (h, w, 3) and np.isfinite(out).all()
+    assert out.min() >= 0 and out.max() <= 1
+
+
+def test_corrupt_model_file_is_named(tmp_path: Path) -> None:
+    for f in DEFAULT_MODEL_DIR.glob("shadow.*"):
+        shutil.copy(f, tmp_path / f.name)
+    data = bytearray((tmp_path / "shadow.onnx").read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    (tmp_path / "shadow.onnx").write_bytes(bytes(data))
+    with pytest.raises(ModelError, match=r"shadow\.onnx.*corrupt"):
+        ModelRegistry(tmp_path).load("shadow")
+    (tmp_path / "shadow.onnx").unlink()
+    with pytest.raises(ModelError, match=r"shadow\.onnx.*missing"):
+        ModelRegistry(tmp_path).load("shadow")
