@@ -66,7 +66,7 @@ class ImageCanvas(QWidget):
         self._fit = True
         self._pan_from: QPointF | None = None
         self._dragging_split = False
-        self._placeholder = "Open a photo (Ctrl+O) or drop one here"
+        self._empty_text = "Open a photo (Ctrl+O) or drop one here"
         self.overlay_updates = 0  # counted for tests and the benchmark
         self.setMinimumSize(320, 240)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
@@ -76,8 +76,8 @@ class ImageCanvas(QWidget):
         self.setAccessibleName("Image canvas")
 
     # ------------------------------------------------------------------ content
-    def set_placeholder(self, text: str) -> None:
-        self._placeholder = text
+    def set_empty_text(self, text: str) -> None:
+        self._empty_text = text
         self.update()
 
     def set_image(self, image: QImage | None, fit: bool = True) -> None:
@@ -179,7 +179,7 @@ class ImageCanvas(QWidget):
         p = QPainter(self)
         p.fillRect(self.rect(), QColor(38, 38, 40))
         if self._before is None:
-            self.paint_placeholder(p)
+            self.paint_empty_state(p)
             p.end()
             return
         p.setRenderHint(QPainter.RenderHint.SmoothPixmapTransform, self._zoom < 2.0)
@@ -189,12 +189,12 @@ class ImageCanvas(QWidget):
         self.paint_after(p, rect)
         p.end()
 
-    def paint_placeholder(self, p: QPainter) -> None:
+    def paint_empty_state(self, p: QPainter) -> None:
         p.setPen(QColor(170, 170, 170))
         font = QFont(self.font())
         font.setPointSizeF(font.pointSizeF() * 1.3)
         p.setFont(font)
-        p.drawText(self.rect(), Qt.AlignmentFlag.AlignCenter, self._placeholder)
+        p.drawText(self.rect(), Qt.AlignmentFlag.AlignCenter, self._empty_text)
 
     def paint_before(self, p: QPainter, rect: QRectF) -> None:
         p.drawImage(rect, self._before)
