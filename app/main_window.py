@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,7 @@ from PySide6.QtGui import (
     QPainter,
 )
 from PySide6.QtWidgets import (
+    QApplication,
     QComboBox,
     QFileDialog,
     QLabel,
@@ -887,3 +889,21 @@ class MainWindow(QMainWindow):
 
 
 __all__ = ["MainWindow", "VIEW_CHOICES"]
+
+
+def process_until_idle(window: MainWindow, timeout: float = 120.0, poll: float = 0.002) -> None:
+    """Run the event loop until ``window``'s worker is idle and its results are delivered.
+
+    For scripts and benchmarks that drive the window without a running event loop (the
+    screenshot script, ``benchmarks/bench_gui.py``); raises ``TimeoutError`` after ``timeout`` s.
+    """
+    app = QApplication.instance()
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        app.processEvents()
+        if not window.runner.busy():
+            app.processEvents()  # deliver results queued by the job that just finished
+            if not window.runner.busy():
+                return
+        time.sleep(poll)
+    raise TimeoutError("the worker did not finish")

@@ -31,7 +31,7 @@ def run_preset(app, photo: str, preset: str, seconds: float, hz: float, tmp: Pat
     from PySide6.QtTest import QTest
 
     from app import sun_dial_math as dm
-    from app.main_window import MainWindow
+    from app.main_window import MainWindow, process_until_idle
 
     settings = QSettings(str(tmp / "settings.ini"), QSettings.Format.IniFormat)
     win = MainWindow(settings=settings, preset=preset)
@@ -40,15 +40,7 @@ def run_preset(app, photo: str, preset: str, seconds: float, hz: float, tmp: Pat
     res: dict = {"preset": preset}
 
     def settle(timeout: float = 300.0) -> None:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            app.processEvents()
-            if not win.runner.busy():
-                app.processEvents()
-                if not win.runner.busy():
-                    return
-            time.sleep(0.002)
-        raise TimeoutError("worker did not finish")
+        process_until_idle(win, timeout)
 
     def timed(label: str, fn) -> None:
         t0 = time.perf_counter()

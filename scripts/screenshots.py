@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from app import sun_dial_math as dm
     from app.errors import message_for
-    from app.main_window import MainWindow
+    from app.main_window import MainWindow, process_until_idle
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -54,15 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     win.show()
 
     def settle(timeout: float = 120.0) -> None:
-        end = time.monotonic() + timeout
-        while time.monotonic() < end:
-            app.processEvents()
-            if not win.runner.busy():
-                app.processEvents()
-                if not win.runner.busy():
-                    return
-            time.sleep(0.01)
-        raise TimeoutError("the worker did not finish")
+        process_until_idle(win, timeout)
 
     def shot(widget, name: str) -> None:
         app.processEvents()

@@ -10,7 +10,6 @@ parameter count, training record, metrics and the creation date.
 from __future__ import annotations
 
 import datetime as dt
-import hashlib
 import json
 import math
 import warnings
@@ -24,6 +23,7 @@ import torch
 from torch import nn
 
 from outcast_core.nets.blocks import count_parameters
+from outcast_core.runtime.models import sha256_file
 
 OPSET = 17
 PARITY_TOL = 1e-4
@@ -93,14 +93,6 @@ def sample_inputs(kind: str, height: int, width: int, seed: int = 0) -> dict[str
         else:
             out[name] = rng.random((1, ch, height, width)).astype(np.float32)
     return out
-
-
-def sha256_of(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _torch_outputs(net: nn.Module, inputs: dict[str, np.ndarray]) -> list[np.ndarray]:
@@ -212,7 +204,7 @@ def write_manifest(
         "name": name,
         "version": MANIFEST_VERSION,
         "file": onnx_path.name,
-        "sha256": sha256_of(onnx_path),
+        "sha256": sha256_file(onnx_path),
         "inputs": ins,
         "outputs": outs,
         "colour_space": "srgb",

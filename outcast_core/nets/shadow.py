@@ -15,6 +15,7 @@ plain U-Net on RGB, cosine, sun direction and normalised disparity.
 from __future__ import annotations
 
 import math
+from abc import ABC, abstractmethod
 
 import torch
 import torch.nn.functional as F  # noqa: N812  (the universal torch idiom)
@@ -45,7 +46,38 @@ def _check_inputs(
         raise ValueError(f"expected H and W divisible by {multiple}, got {h} x {w}")
 
 
-class ShadowNet(nn.Module):
+class _CastShadowNet(nn.Module, ABC):
+    """Shared front and back of the shadow networks: input checks, the cosine term, and
+    ``S = sigmoid(logit) * cos``. Subclasses implement :meth:`visibility_logit`."""
+
+    pad_multiple = 8
+
+    def forward(
+        self, image: torch.Tensor, depth: torch.Tensor, normals: torch.Tensor,
+        sun: torch.Tensor, focal: torch.Tensor,
+    ) -> torch.Tensor:
+        logit, cos = self.logits(image, depth, normals, sun, focal)
+        return torch.sigmoid(logit) * cos
+
+    def logits(
+        self, image: torch.Tensor, depth: torch.Tensor, normals: torch.Tensor,
+        sun: torch.Tensor, focal: torch.Tensor,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Visibility logits and the cosine term (``S = sigmoid(logit) * cos``), for training."""
+        _check_inputs(image, depth, normals, sun, focal, self.pad_multiple)
+        sun = sun / torch.linalg.vector_norm(sun, dim=1, keepdim=True)
+        cos = cosine_term(normals, sun)  # B x 1 x H x W
+        return self.visibility_logit(image, depth, sun, focal, cos), cos
+
+    @abstractmethod
+    def visibility_logit(
+        self, image: torch.Tensor, depth: torch.Tensor, sun: torch.Tensor, focal: torch.Tensor,
+        cos: torch.Tensor,
+    ) -> torch.Tensor:
+        """``B x 1 x H x W`` visibility logits (``sun`` already unit length)."""
+
+
+class ShadowNet(_CastShadowNet):
     """``S``: cast shadows from one image, its depth and normals, for any sun direction.
 
     Args:
@@ -102,21 +134,10 @@ class ShadowNet(nn.Module):
         )
         self.head = nn.Conv2d(widths2d[0], 1, 1)
 
-    def forward(
-        self, image: torch.Tensor, depth: torch.Tensor, normals: torch.Tensor,
-        sun: torch.Tensor, focal: torch.Tensor,
+    def visibility_logit(
+        self, image: torch.Tensor, depth: torch.Tensor, sun: torch.Tensor, focal: torch.Tensor,
+        cos: torch.Tensor,
     ) -> torch.Tensor:
-        logit, cos = self.logits(image, depth, normals, sun, focal)
-        return torch.sigmoid(logit) * cos
-
-    def logits(
-        self, image: torch.Tensor, depth: torch.Tensor, normals: torch.Tensor,
-        sun: torch.Tensor, focal: torch.Tensor,
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Visibility logits and the cosine term (``S = sigmoid(logit) * cos``), for training."""
-        _check_inputs(image, depth, normals, sun, focal, self.pad_multiple)
-        sun = sun / torch.linalg.vector_norm(sun, dim=1, keepdim=True)
-        cos = cosine_term(normals, sun)  # B x 1 x H x W
         feats = []
         x = torch.cat([image, cos], dim=1)  # B x 4 x H x W
         for blk in self.enc2d:
@@ -136,10 +157,10 @@ class ShadowNet(nn.Module):
         x = feats[3]
         for i, blk in zip(range(2, -1, -1), self.dec, strict=True):
             x = blk(torch.cat([up2(x), feats[i]], dim=1))
-        return self.head(x), cos
+        return self.head(x)
 
 
-class Shadow2DNet(nn.Module):
+class Shadow2DNet(_CastShadowNet):
     """``S2D``: the paper's 2D ablation (a U-Net; no ray marching). Same inputs as ``S``.
 
     Channels: RGB, ``max(0, N.w)``, the sun direction (3 constant maps), the disparity
@@ -154,21 +175,10 @@ class Shadow2DNet(nn.Module):
         self.unet = UNet(9, 1, widths)
         self.pad_multiple = 2 ** (len(widths) - 1)
 
-    def forward(
-        self, image: torch.Tensor, depth: torch.Tensor, normals: torch.Tensor,
-        sun: torch.Tensor, focal: torch.Tensor,
+    def visibility_logit(
+        self, image: torch.Tensor, depth: torch.Tensor, sun: torch.Tensor, focal: torch.Tensor,
+        cos: torch.Tensor,
     ) -> torch.Tensor:
-        logit, cos = self.logits(image, depth, normals, sun, focal)
-        return torch.sigmoid(logit) * cos
-
-    def logits(
-        self, image: torch.Tensor, depth: torch.Tensor, normals: torch.Tensor,
-        sun: torch.Tensor, focal: torch.Tensor,
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Visibility logits and the cosine term (``S = sigmoid(logit) * cos``), for training."""
-        _check_inputs(image, depth, normals, sun, focal, self.pad_multiple)
-        sun = sun / torch.linalg.vector_norm(sun, dim=1, keepdim=True)
-        cos = cosine_term(normals, sun)
         disp = disparity(depth)
         ok = (disp > 0).to(disp.dtype)
         count = ok.sum(dim=(2, 3), keepdim=True).clamp_min(1)
@@ -177,4 +187,4 @@ class Shadow2DNet(nn.Module):
         rel_focal = broadcast_vector(focal, image) / image_size(image)[0]
         x = torch.cat([image, cos, broadcast_vector(sun, image), disp, rel_focal], dim=1)
         # x: B x 9 x H x W
-        return self.unet(x), cos
+        return self.unet(x)

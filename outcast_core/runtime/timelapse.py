@@ -25,6 +25,7 @@ import math
 import os
 import shutil
 import tempfile
+from abc import ABC, abstractmethod
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -354,7 +355,7 @@ def _commit_file(tmp: Path, final: Path, force: bool) -> None:
     tmp.unlink(missing_ok=True)
 
 
-class FrameWriter:
+class FrameWriter(ABC):
     """Base writer: collects frames into a temp name, :meth:`commit` moves it into place.
 
     Args:
@@ -383,11 +384,13 @@ class FrameWriter:
         os.close(fd)
         return Path(name)
 
-    def write(self, frame: np.ndarray) -> None:  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abstractmethod
+    def write(self, frame: np.ndarray) -> None:
+        """Append one ``H x W x 3`` sRGB frame (float in [0, 1] or uint8)."""
 
-    def commit(self) -> Path:  # pragma: no cover - overridden
-        raise NotImplementedError
+    @abstractmethod
+    def commit(self) -> Path:
+        """Finish and move the output into place; returns the final path."""
 
     def abort(self) -> None:
         """Drop everything written so far."""

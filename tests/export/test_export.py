@@ -15,10 +15,10 @@ from outcast_core.export.onnx_export import (
     check_parity,
     export_onnx,
     sample_inputs,
-    sha256_of,
     write_manifest,
 )
 from outcast_core.nets import build
+from outcast_core.runtime.models import sha256_file
 
 
 @pytest.mark.parametrize("kind", sorted(SPECS))
@@ -36,7 +36,7 @@ def test_export_parity_and_manifest(kind: str, tmp_path) -> None:
     assert [i.name for i in sess.get_inputs()] == [n for n, _ in SPECS[kind].inputs]
     assert [o.name for o in sess.get_outputs()] == [n for n, _ in SPECS[kind].outputs]
     man = json.loads(write_manifest(net, kind, path, {"steps": 0}, {"x": 1.0}).read_text())
-    assert man["sha256"] == sha256_of(path)
+    assert man["sha256"] == sha256_file(path)
     assert man["file"] == path.name and man["colour_space"] == "srgb"
     assert man["pad_multiple"] == m
     if kind == "shadow":
