@@ -105,7 +105,7 @@ def load_view(path: str | Path) -> dict[str, Any]:
     """Load one view folder (or its ``view.npz``).
 
     Args:
-        path: a ``view_XXXXXX`` folder.
+        path: a ``view_<6-digit index>`` folder.
 
     Returns:
         Dict with ``rgb`` (K x H x W x 3 float32 linear radiance), ``shadow`` (K x H x W float32,
