@@ -420,14 +420,23 @@ class MainWindow(QMainWindow):
             self.relight_panel.sun_panel.set_fov(cam.fov_deg, vfov)
         self.mode_label.setText(self._mode_text())
         self._update_title()
-        prior = "prior" in str(getattr(self.session, "depth_source", ""))
-        self.align_panel.show_notice(
-            "No depth model is installed, so OutCast assumes flat ground and cannot predict "
-            "this photo's cast shadows. Load a depth map (File \u25b8 Load depth map\u2026), "
-            "or set the sun by eye or from the photo's EXIF."
-            if prior
-            else ""
-        )
+        source = str(getattr(self.session, "depth_source", ""))
+        if "prior" in source:
+            notice = (
+                "No depth model is installed, so OutCast assumes flat ground and cannot predict "
+                "this photo's cast shadows. Load a depth map (File \u25b8 Load depth map\u2026), "
+                "or set the sun by eye or from the photo's EXIF."
+            )
+        elif source == "model":
+            notice = (
+                "Depth comes from OutCast's small depth network, trained on synthetic scenes "
+                "only: on real photos it is rough, and so are the predicted shadows. For "
+                "accurate shadows load a depth map from your phone or another estimator "
+                "(File \u25b8 Load depth map\u2026)."
+            )
+        else:
+            notice = ""
+        self.align_panel.show_notice(notice)
         self.align_panel.exif_button.setEnabled(self.exif_sun() is not None)
         self._set_step(Step.ALIGN)
         if project is not None:

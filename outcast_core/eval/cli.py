@@ -19,7 +19,7 @@ PAPER = {  # Table 1 of the paper (their data), for orientation only
     "Ours": (".154", ".0399", ".175"),
 }
 ORDER = ["Input", "Pix2Pix-like", "2D", "Direct", "Physics (Direct shadows)",
-         "Physics (Ours shadows)", "Ours"]
+         "Physics (Ours shadows)", "Ours", "Ours (Z depth)"]
 
 
 def register(subparsers: Any) -> argparse.ArgumentParser:
@@ -35,6 +35,9 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--sweep-checkpoint", default="",
                    help="S checkpoint (file or run name) for the steps x resolution sweep")
     p.add_argument("--sweep-views", type=int, default=12, help="views used by the sweep")
+    p.add_argument("--samples", default="",
+                   help="JSON of sample photos and suns (e.g. samples/suns.json): relight them "
+                   "with the shipped models into samples_sheet.png")
     p.add_argument("--threads", type=int, default=2, help="onnxruntime threads")
     p.add_argument("--out", default="", help="report file (default: MODELS/EVAL.md)")
     p.add_argument("--no-manifest-update", action="store_true",
@@ -62,6 +65,16 @@ def render_table(res: dict[str, Any]) -> str:
             f"| {method} | {_fmt(r.get('dssim'))} | {_fmt(r.get('mse'))} | "
             f"{_fmt(r.get('shadow_mse'))} | {_fmt(r.get('time_s'), 3)} | {paper} |"
         )
+    return "\n".join(lines)
+
+
+def render_depth(depth: dict[str, Any]) -> str:
+    lines = ["| Depth source | silog | AbsRel | delta < 1.25 | sky IoU | Time / image (s) |",
+             "|---|---|---|---|---|---|"]
+    for src, r in depth.items():
+        lines.append(f"| {src} | {_fmt(r['silog'])} | {_fmt(r['abs_rel'])} | "
+                     f"{_fmt(r['delta1'], 3)} | {_fmt(r['sky_iou'], 3)} | "
+                     f"{_fmt(r['time_s'], 3)} |")
     return "\n".join(lines)
 
 
@@ -104,8 +117,9 @@ def run_eval(args: argparse.Namespace) -> int:
         f"Test data: `{args.data}` (data set record: {json.dumps(rec, sort_keys=True)}), "
         f"{res['views']} views, {res['pairs']} relighting pairs (every ordered pair of "
         "different suns of a view). Geometry inputs: ground-truth depth (sky = no surface) and "
-        "normals from it, as the runtime computes them; the depth network is not part of this "
-        "table. Relighting metrics are on sRGB [0, 1] images tone-mapped with the view's "
+        "normals from it, as the runtime computes them, except `Ours (Z depth)`, which runs the "
+        "photo-only pipeline of the app: Z's depth and sky of the input photo, normals from "
+        "them. Relighting metrics are on sRGB [0, 1] images tone-mapped with the view's "
         "exposure; DSSIM = (1 - SSIM) / 2 with an 11x11 Gaussian window.",
         "",
         "## Table 1",
@@ -116,6 +130,13 @@ def run_eval(args: argparse.Namespace) -> int:
         "runtime's non-learned shading-ratio relighting; `Input` is the unchanged photo. "
         "Paper numbers are from their data set and are listed for orientation only.",
     ]
+    if res.get("depth"):
+        md += ["", "## Z: depth and sky", "",
+               "Per photo of the same views; depth errors on the ground truth's non-sky pixels "
+               "after scaling the prediction by the median ratio (Z has no metric scale); silog = "
+               "std of the log error (scale-free); sky IoU against the ground truth's sky. The "
+               "ground-plane prior is what the app uses when no depth model is installed.", "",
+               render_depth(res["depth"])]
     if res["missing"]:
         md += ["", "Not evaluated (model not shipped / not trained): "
                + ", ".join(f"`{n}.onnx`" for n in res["missing"]) + "."]
@@ -135,9 +156,25 @@ def run_eval(args: argparse.Namespace) -> int:
         ]
     else:
         md += ["", "## S: speed / accuracy", "", "Not run (no `--sweep-checkpoint` given)."]
+    if args.samples:
+        from outcast_core.eval.samples import relight_samples, save_samples_sheet
+
+        rows, records = relight_samples(args.samples, models)
+        png = save_samples_sheet(rows, out.parent / "samples_sheet.png")
+        md += ["", "## Sample photographs", "",
+               f"`{png.name}`: the photos of `{args.samples}` relit by the app's photo-only "
+               "pipeline (learned mode, balanced preset, Z's depth). Columns: input, Z depth "
+               "(near = bright), refined old shadow, then per new sun its S_n and the relit "
+               "photo. Suns (azimuth, elevation relative to the camera):", ""]
+        md += [f"- `{r['file']}`: original {r['from']}, sun 1..n = {r['to']}; depth: "
+               f"{r['depth_source']}, shadows: {r['shadows']}, relighting: {r['relight']}, "
+               f"{r['seconds']} s" for r in records]
     out.write_text("\n".join(md) + "\n")
     if not args.no_manifest_update:
+        from outcast_core.export.cards import update_readme
+
         _update_manifests(models, res)
+        update_readme(models)
     print(out)
     return 0
 
@@ -151,6 +188,8 @@ def _argv_of(args: argparse.Namespace) -> list[str]:
     if args.sweep_checkpoint:
         parts += ["--sweep-checkpoint", args.sweep_checkpoint, "--sweep-views",
                   str(args.sweep_views)]
+    if args.samples:
+        parts += ["--samples", args.samples]
     return parts
 
 
@@ -166,6 +205,14 @@ def _update_manifests(models: Path, res: dict[str, Any]) -> None:
         "refine": ("Ours", ("dssim", "mse")),
         "relight_pix2pix": ("Pix2Pix-like", ("dssim", "mse", "time_s")),
     }
+    depth = res.get("depth", {}).get("Z")
+    if depth and (models / "depth.json").is_file():
+        vals = {f"heldout_{k}": round(depth[k], 5)
+                for k in ("silog", "abs_rel", "delta1", "sky_iou", "time_s")}
+        if "Ours (Z depth)" in rows:
+            vals |= {f"heldout_pipeline_{k}": round(rows["Ours (Z depth)"][k], 5)
+                     for k in ("dssim", "mse", "shadow_mse") if k in rows["Ours (Z depth)"]}
+        update_metrics(models / "depth.json", vals | where)
     for name, (row, keys) in pick.items():
         man = models / f"{name}.json"
         if man.is_file() and row in rows:

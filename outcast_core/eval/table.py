@@ -14,8 +14,14 @@ Table 1 (relighting DSSIM and MSE, shadow MSE, onnxruntime time per image) compa
 Every pair ``(i, j)``, ``i != j``, of a view is one test image: the photo under sun ``i`` is
 relit to sun ``j`` and compared with the render under sun ``j``; both are tone-mapped with the
 view's exposure (no augmentation). Geometry inputs are the ground-truth depth (sky = no surface)
-and normals computed from it as the runtime does; ``Z`` is not part of this table. Shadow MSE is
-``S(C_i, w_j)`` against the ground-truth shadow image ``j`` over the whole frame.
+and normals computed from it as the runtime does, except in ``Ours (Z depth)``: the whole
+photo-only pipeline, where ``Z``'s depth and sky of the photo replace them (what the app does on a
+photo without a depth map). Shadow MSE is ``S(C_i, w_j)`` against the ground-truth shadow image
+``j`` over the whole frame.
+
+When ``depth.onnx`` is present, ``Z`` is also scored on its own (:func:`evaluate_table`'s
+``depth`` entry): scale-free depth errors and sky IoU against the ground truth, next to the
+runtime's ground-plane prior (what the app falls back to without ``Z``).
 """
 
 from __future__ import annotations
@@ -30,10 +36,11 @@ from typing import Any
 import cv2
 import numpy as np
 
-from outcast_core.eval.metrics import dssim, mse
+from outcast_core.eval.metrics import depth_errors, dssim, iou, mse
 from outcast_core.eval.onnx_models import TimedModel
 from outcast_core.runtime.geometry import Camera, normals_from_depth, view_directions
 from outcast_core.runtime.relight import physics_relight
+from outcast_core.runtime.session import ground_plane_depth
 from outcast_core.runtime.shadows import direct_shadow
 from outcast_core.train.data import Prepared, auto_exposure, load_prepared, tonemap
 
@@ -104,14 +111,16 @@ def evaluate_table(
 
     Returns:
         ``{"rows": {method: {"dssim", "mse", "shadow_mse", "time_s", "n"}}, "missing": [...],
-        "views": n, "pairs": n, "sheet": list of image rows}``.
+        "views": n, "pairs": n, "sheet": list of image rows, "depth": {source: {"silog",
+        "abs_rel", "delta1", "sky_iou", "time_s", "n"}}}`` (``depth`` empty without ``Z``).
     """
     models = Path(models)
     m = {n: _load(models, n, threads)
-         for n in ("shadow", "shadow_2d", "refine", "relight", "relight_pix2pix")}
+         for n in ("depth", "shadow", "shadow_2d", "refine", "relight", "relight_pix2pix")}
     missing = sorted(n for n, v in m.items() if v is None)
     views = load_test_views(data, max_views=max_views)
     acc: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    dacc: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     sheet: list[list[np.ndarray]] = []
     n_pairs = 0
     for view in views:
@@ -124,6 +133,7 @@ def evaluate_table(
             direct.append(direct_shadow(view.prep.depth, view.camera, view.prep.sun[s],
                                         normals=view.prep.normals, sky=view.sky))
             t_direct.append(time.perf_counter() - t)
+        z_geo = _depth_from_z(m["depth"], view, dacc) if m["depth"] is not None else None
         for i, j in pairs(view):
             n_pairs += 1
             c_o, c_o_in = view.images[i], view.chw(i)
@@ -141,6 +151,13 @@ def evaluate_table(
                 (sn,), t2 = net.run(image=c_o_in, depth=depth, normals=normals, sun=w_n,
                                     focal=focal)
                 shadows[label] = (so[0, 0], sn[0, 0], t1 + t2)
+            if z_geo is not None and m["shadow"] is not None:
+                zd, zn, tz = z_geo[i]
+                (so,), t1 = m["shadow"].run(image=c_o_in, depth=zd, normals=zn, sun=w_o,
+                                            focal=focal)
+                (sn,), t2 = m["shadow"].run(image=c_o_in, depth=zd, normals=zn, sun=w_n,
+                                            focal=focal)
+                shadows["Ours (Z depth)"] = (so[0, 0], sn[0, 0], tz + t1 + t2)
             row = {"Input": c_o}
             acc["Input"]["dssim"].append(dssim(c_o, gt))
             acc["Input"]["mse"].append(mse(c_o, gt))
@@ -148,10 +165,11 @@ def evaluate_table(
             for label, (so, sn, ts) in shadows.items():
                 acc[label]["shadow_mse"].append(mse(sn, gt_s))
                 if m["refine"] is not None and m["relight"] is not None:
+                    nrm = z_geo[i][1] if label == "Ours (Z depth)" and z_geo else normals
                     (so_r,), t_r = m["refine"].run(shadow=so[None, None], image=c_o_in, sun=w_o)
                     (c_n,), t_l = m["relight"].run(
                         image=c_o_in, shadow_old=so_r, shadow_new=sn[None, None],
-                        normals=normals, sun_old=w_o, sun_new=w_n, view_dirs=psi,
+                        normals=nrm, sun_old=w_o, sun_new=w_n, view_dirs=psi,
                     )
                     out = _hw(c_n)
                     acc[label]["dssim"].append(dssim(out, gt))
@@ -188,31 +206,68 @@ def evaluate_table(
         method: {k: float(np.mean(v)) for k, v in d.items()} | {"n": len(next(iter(d.values())))}
         for method, d in acc.items()
     }
+    depth_rows = {
+        src: {k: float(np.nanmean(v)) for k, v in d.items()} | {"n": len(d["silog"])}
+        for src, d in dacc.items()
+    }
     return {"rows": rows, "missing": missing, "views": len(views), "pairs": n_pairs,
-            "sheet": sheet}
+            "sheet": sheet, "depth": depth_rows}
+
+
+def _depth_from_z(
+    model: TimedModel, view: TestView, dacc: dict[str, dict[str, list[float]]]
+) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """``Z`` on each photo of ``view``: network inputs (depth with sky 0, normals) and time;
+    scores ``Z`` and the ground-plane prior into ``dacc``."""
+    gt, gt_sky = view.prep.depth, view.sky
+    out = []
+    for s in range(view.prep.rgb.shape[0]):
+        (d, sky), t = model.run(image=view.chw(s))
+        depth, sky = np.maximum(d[0, 0], 1e-6), sky[0, 0] > 0.5
+        scores = depth_errors(depth, gt, ~gt_sky) | {"sky_iou": iou(sky, gt_sky), "time_s": t}
+        for k, v in scores.items():
+            dacc["Z"][k].append(v)
+        normals = normals_from_depth(np.where(sky, np.inf, depth).astype(np.float32), view.camera)
+        out.append((np.where(sky, 0.0, depth)[None, None].astype(np.float32),
+                    np.moveaxis(normals, -1, 0)[None].astype(np.float32), t))
+    t = time.perf_counter()
+    prior, prior_sky = ground_plane_depth(view.camera)
+    t = time.perf_counter() - t
+    scores = depth_errors(prior, gt, ~gt_sky) | {"sky_iou": iou(prior_sky, gt_sky), "time_s": t}
+    for k, v in scores.items():
+        dacc["Ground-plane prior"][k].append(v)
+    return out
 
 
 def save_sheet(rows: list[dict[str, np.ndarray]], path: str | Path, tile: int = 128) -> Path:
-    """A PNG contact sheet: one test pair per row, one method per column, labelled."""
+    """A PNG contact sheet: one test pair (or photo) per row, one method per column, labelled.
+
+    Tiles are ``tile`` wide; each row is as tall as its first image's aspect ratio asks, so
+    photos are not squashed.
+    """
     if not rows:
         raise ValueError("expected at least one sheet row, got none")
     cols = list(rows[0])
     for r in rows[1:]:
         cols += [c for c in r if c not in cols]
     head = 18
-    canvas = np.full((head + tile * len(rows), tile * len(cols), 3), 255, np.uint8)
+    heights = []
+    for row in rows:
+        h0, w0 = np.asarray(next(iter(row.values()))).shape[:2]
+        heights.append(max(8, round(tile * h0 / w0)))
+    canvas = np.full((head + sum(heights), tile * len(cols), 3), 255, np.uint8)
     for c, name in enumerate(cols):
         cv2.putText(canvas, name[:22], (c * tile + 2, 13), cv2.FONT_HERSHEY_SIMPLEX, 0.33,
                     (0, 0, 0), 1, cv2.LINE_AA)
-        for r, row in enumerate(rows):
-            if name not in row:
-                continue
-            img = np.asarray(row[name], np.float32)
-            if img.ndim == 2:
-                img = np.repeat(img[..., None], 3, axis=2)
-            img = cv2.resize(img, (tile, tile), interpolation=cv2.INTER_AREA)
-            y = head + r * tile
-            canvas[y : y + tile, c * tile : (c + 1) * tile] = np.clip(img * 255 + 0.5, 0, 255)
+        y = head
+        for row, th in zip(rows, heights, strict=True):
+            if name in row:
+                img = np.asarray(row[name], np.float32)
+                if img.ndim == 2:
+                    img = np.repeat(img[..., None], 3, axis=2)
+                img = cv2.resize(img, (tile, th), interpolation=cv2.INTER_AREA)
+                canvas[y : y + th, c * tile : (c + 1) * tile] = np.clip(img * 255 + 0.5, 0, 255)
+            y += th
     path = Path(path)
     cv2.imwrite(str(path), cv2.cvtColor(canvas, cv2.COLOR_RGB2BGR))
     return path

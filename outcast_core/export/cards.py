@@ -65,3 +65,16 @@ def render_cards(models: str | Path, preamble: str = "") -> str:
     for m in mans:
         out += _card(m)
     return "\n".join(out)
+
+
+def update_readme(models: str | Path) -> Path:
+    """Re-render ``models/README.md`` from the manifests, keeping its hand-written preamble
+    (everything between the title and the first card)."""
+    path = Path(models) / "README.md"
+    preamble = ""
+    if path.is_file():
+        text = path.read_text()
+        body = text.split("\n", 1)[1] if text.startswith("# ") else text
+        preamble = body.split("\n## `", 1)[0]
+    path.write_text(render_cards(models, preamble).rstrip() + "\n")
+    return path

@@ -16,7 +16,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p = subparsers.add_parser(
         "export", help="export a training run's networks to ONNX with manifests",
         description="Export every network of a checkpoint (except the critic) to "
-        "OUT/<name>.onnx, check it against torch with onnxruntime and write OUT/<name>.json.",
+        "OUT/<name>.onnx, check it against torch with onnxruntime, write OUT/<name>.json and "
+        "re-render the model cards OUT/README.md from the manifests.",
     )
     p.add_argument("checkpoint", help="a checkpoint file, or a run name (~/.cache/outcast/runs/)")
     p.add_argument("--out", default="models", help="output folder (default: models)")
@@ -26,8 +27,10 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def run_export(args: argparse.Namespace) -> int:
+    from outcast_core.export.cards import update_readme
     from outcast_core.export.checkpoint import export_checkpoint
 
     written = export_checkpoint(args.checkpoint, Path(args.out), data_seed=args.data_seed)
+    written.append(update_readme(args.out))  # the model cards follow the manifests
     print(json.dumps([str(p) for p in written], indent=2))
     return 0

@@ -29,7 +29,9 @@ class TrainConfig:
         size: working resolution (longer side, pixels) the views are resized to.
         batch: images per step.
         steps: total optimiser steps of the generator(s).
-        lr: Adam learning rate for generator(s) and critic.
+        lr: Adam learning rate for generator(s) and critic (at step 0).
+        lr_final: when > 0, the rate follows a cosine from ``lr`` at step 0 to ``lr_final`` at
+            ``steps`` (recomputed from the step, so resuming keeps the schedule); 0 = constant.
         seed: seed of torch, numpy and the sampler.
         net: keyword arguments of the trained network (e.g. ``steps``, ``volume_scale``).
         weights: loss weights (paper: shadow 10, refine 2, relight 10, adversarial 0.1).
@@ -58,6 +60,7 @@ class TrainConfig:
     batch: int = 4
     steps: int = 10000
     lr: float = 1e-4
+    lr_final: float = 0.0
     seed: int = 0
     net: dict[str, Any] = field(default_factory=dict)
     weights: dict[str, float] = field(
@@ -86,6 +89,8 @@ class TrainConfig:
                 f"expected size >= 16, batch >= 1, steps >= 1, got {self.size}, {self.batch}, "
                 f"{self.steps}"
             )
+        if not 0.0 <= self.lr_final <= self.lr:
+            raise ValueError(f"expected 0 <= lr_final <= lr, got {self.lr_final} (lr {self.lr})")
         if not 0.0 <= self.gt_depth_prob <= 1.0:
             raise ValueError(f"expected gt_depth_prob in [0, 1], got {self.gt_depth_prob}")
         if self.stage == "relight" and not self.shadow_checkpoint:

@@ -125,7 +125,7 @@ class Trainer:
         self.history: list[dict[str, float]] = []
         self._stop = False
         self._resume()
-        if not self.lr_history or self.lr_history[-1][1] != cfg.lr:
+        if not self.lr_history or (not cfg.lr_final and self.lr_history[-1][1] != cfg.lr):
             self.lr_history.append((self.step, cfg.lr))
 
     # -- checkpoints -------------------------------------------------------------------------
@@ -152,6 +152,11 @@ class Trainer:
             for group in opt.param_groups if opt is not None else ():
                 group["lr"] = self.cfg.lr
         self.lr_history = ckpt.get("lr_history") or [(0, float(ckpt["config"]["lr"]))]
+        old = ckpt["config"]
+        if (old.get("lr_final", 0.0), old["steps"]) != (self.cfg.lr_final, self.cfg.steps) \
+                and self.cfg.lr_final:
+            # A schedule set or changed on resume: record where it took over.
+            self.lr_history.append((int(ckpt["step"]), self.lr_at(int(ckpt["step"]))))
         self.sampler.rng.bit_generator.state = ckpt["numpy_rng"]
         torch.set_rng_state(ckpt["torch_rng"])
         self.step = int(ckpt["step"])
@@ -282,8 +287,21 @@ class Trainer:
         self.opt_g.step()
         return {"loss": loss.item(), "silog": f_z.item(), "sky_bce": f_sky.item()}
 
+    def lr_at(self, step: int) -> float:
+        """The learning rate of optimiser step ``step`` (constant, or cosine to ``lr_final``)."""
+        cfg = self.cfg
+        if not cfg.lr_final:
+            return cfg.lr
+        t = min(step / cfg.steps, 1.0)
+        return cfg.lr_final + 0.5 * (cfg.lr - cfg.lr_final) * (1.0 + math.cos(math.pi * t))
+
     def train_step(self) -> dict[str, float]:
         """Draw one batch and take one optimiser step; returns the step's losses."""
+        if self.cfg.lr_final:
+            lr = self.lr_at(self.step)
+            for opt in (self.opt_g, self.opt_d):
+                for group in opt.param_groups if opt is not None else ():
+                    group["lr"] = lr
         t = self._tensors()
         if self.cfg.stage in ("shadow", "shadow_2d"):
             return self._step_shadow(t)

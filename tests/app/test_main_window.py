@@ -405,7 +405,8 @@ def test_depth_map_from_elsewhere_is_used_and_saved(qtbot, window, photo, settle
     from outcast_core.runtime.imageio import write_depth
 
     _load(window, photo, settle)
-    assert "prior" in window.session.depth_source
+    assert window.session.depth_source != "given"  # the depth model, or the prior without one
+    assert "depth map" in window.align_panel.notice.text()  # both are rough: say so
     depth, sky = _ground_with_a_box(Camera.from_fov(96, 128, 60.0))
     depth_file = tmp_path / "phone_depth.npy"
     write_depth(depth_file, np.where(sky, np.inf, depth).astype(np.float32))
@@ -413,6 +414,7 @@ def test_depth_map_from_elsewhere_is_used_and_saved(qtbot, window, photo, settle
     window.load_depth(str(depth_file))
     settle()
     assert window.session.depth_source == "given"
+    assert window.align_panel.notice.text() == ""
     assert window.align_panel.sun_panel.sun() == pytest.approx((100.0, 35.0))  # sun kept
     assert np.isclose(window.session.depth[~window.session.sky].min(), depth[~sky].min())
     saved = window.save_project()
@@ -431,9 +433,10 @@ def test_depth_map_from_elsewhere_is_used_and_saved(qtbot, window, photo, settle
 def test_bad_depth_map_shows_an_error_and_keeps_the_photo(window, photo, settle, errors,
                                                           tmp_path):
     _load(window, photo, settle)
+    before = window.session.depth_source
     bad = tmp_path / "depth.npy"
     bad.write_bytes(b"not a numpy file")
     window.load_depth(str(bad))
     settle()
     assert errors and window.step is Step.ALIGN
-    assert "prior" in window.session.depth_source
+    assert window.session.depth_source == before != "given"

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import torch
 
-from outcast_core.eval.cli import render_sweep, render_table
-from outcast_core.eval.metrics import dssim, mse
+from outcast_core.eval.cli import render_depth, render_sweep, render_table
+from outcast_core.eval.metrics import depth_errors, dssim, iou, mse
 from outcast_core.eval.table import plot_speed_accuracy, save_sheet
-from outcast_core.export.cards import render_cards
+from outcast_core.export.cards import render_cards, update_readme
 from outcast_core.export.onnx_export import export_onnx, write_manifest
 from outcast_core.nets import build
 
@@ -24,6 +24,28 @@ def test_metrics() -> None:
         mse(a, a[:8])
 
 
+def test_depth_errors_are_scale_free() -> None:
+    rng = np.random.default_rng(1)
+    gt = rng.uniform(1.0, 50.0, (16, 24))
+    valid = np.ones_like(gt, bool)
+    valid[:4] = False
+    exact = depth_errors(3.7 * gt, gt, valid)  # any global scale is not an error
+    assert exact["silog"] < 1e-9 and exact["abs_rel"] < 1e-9 and exact["delta1"] == 1.0
+    noisy = gt * np.exp(rng.normal(0, 0.3, gt.shape))
+    err = depth_errors(noisy, gt, valid)
+    assert 0.25 < err["silog"] < 0.35 and 0.1 < err["abs_rel"] < 0.4 and err["delta1"] < 0.8
+    bad = noisy.copy()
+    bad[:4] = 1e9  # invalid pixels are not scored
+    assert depth_errors(bad, gt, valid) == err
+    assert np.isnan(depth_errors(gt, gt, np.zeros_like(valid))["silog"])
+    a = np.zeros((4, 4), bool)
+    b = a.copy()
+    a[:2], b[1:3] = True, True
+    assert iou(a, b) == pytest.approx(1 / 3) and iou(a & False, b & False) == 1.0
+    text = render_depth({"Z": exact | {"sky_iou": 0.9, "time_s": 0.01}})
+    assert "| Z | 0.0000 |" in text
+
+
 def test_cards_render_from_manifests(tmp_path) -> None:
     torch.manual_seed(0)
     net = build("refine")
@@ -35,6 +57,9 @@ def test_cards_render_from_manifests(tmp_path) -> None:
     text = render_cards(tmp_path, "preamble")
     assert "`refine.onnx`" in text and "12 steps" in text and "heldout_dssim" in text
     assert "preamble" in text
+    (tmp_path / "README.md").write_text(text.replace("12 steps", "99 steps"))  # stale card
+    fresh = update_readme(tmp_path).read_text()
+    assert "12 steps" in fresh and "99 steps" not in fresh and fresh.count("preamble") == 1
 
 
 def test_tables_and_pictures(tmp_path) -> None:

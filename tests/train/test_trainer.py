@@ -131,3 +131,25 @@ def test_resume_with_a_lower_learning_rate(fake_views) -> None:
     tr.fit()
     ckpt = torch.load(tr.checkpoint_path, weights_only=False)
     assert [tuple(x) for x in ckpt["lr_history"]] == [(0, 1e-3), (2, 1e-4)]
+
+
+def test_cosine_schedule_survives_a_resume(fake_views) -> None:
+    views = [resize_view(v, 32) for v in fake_views]
+    cfg = _cfg("shadow_2d", run="cos", steps=4, lr=1e-3, lr_final=1e-4)
+    tr = Trainer(cfg, views, progress=False)
+    assert [tr.lr_at(s) for s in (0, 2, 4, 9)] == pytest.approx([1e-3, 5.5e-4, 1e-4, 1e-4])
+    tr.cfg.time_limit_s = 1e-9  # stop after one step
+    tr.fit()
+    tr = Trainer(_cfg("shadow_2d", run="cos", steps=4, lr=1e-3, lr_final=1e-4), views,
+                 progress=False)
+    assert tr.step == 1
+    tr.train_step()
+    assert all(g["lr"] == pytest.approx(tr.lr_at(1)) for g in tr.opt_g.param_groups)
+    ckpt = torch.load(tr.checkpoint_path, weights_only=False)
+    assert [tuple(x) for x in ckpt["lr_history"]] == [(0, 1e-3)]  # the schedule is the config
+    Trainer(_cfg("shadow_2d", run="cos2", steps=1, lr=1e-3), views, progress=False).fit()
+    tr = Trainer(_cfg("shadow_2d", run="cos2", steps=3, lr=1e-3, lr_final=1e-4), views,
+                 progress=False)
+    assert [tuple(x) for x in tr.lr_history] == [(0, 1e-3), (1, pytest.approx(tr.lr_at(1)))]
+    with pytest.raises(ValueError, match="lr_final"):
+        _cfg("shadow_2d", lr=1e-4, lr_final=1e-3)
