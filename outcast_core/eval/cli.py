@@ -141,7 +141,8 @@ def run_eval(args: argparse.Namespace) -> int:
         md += ["", "Not evaluated (model not shipped / not trained): "
                + ", ".join(f"`{n}.onnx`" for n in res["missing"]) + "."]
     if sheet is not None:
-        md += ["", f"Side-by-side sheet of the first test pairs: `{sheet.name}`."]
+        md += ["", "Side-by-side sheet, one pair from each of the first test views: "
+               f"`{sheet.name}`."]
     if args.sweep_checkpoint:
         ckpt = resolve_checkpoint(args.sweep_checkpoint)
         sweep = speed_accuracy(args.data, ckpt, max_views=args.sweep_views,

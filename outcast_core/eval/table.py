@@ -123,7 +123,7 @@ def evaluate_table(
     dacc: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     sheet: list[list[np.ndarray]] = []
     n_pairs = 0
-    for view in views:
+    for v_idx, view in enumerate(views):
         depth, normals, psi, focal = view.depth_in(), view.normals_in(), view.psi_in(), \
             view.focal_in()
         k = view.prep.rgb.shape[0]
@@ -134,7 +134,9 @@ def evaluate_table(
                                         normals=view.prep.normals, sky=view.sky))
             t_direct.append(time.perf_counter() - t)
         z_geo = _depth_from_z(m["depth"], view, dacc) if m["depth"] is not None else None
-        for i, j in pairs(view):
+        view_pairs = list(pairs(view))
+        show = view_pairs[v_idx % len(view_pairs)]  # the sheet: one pair of each of the first views
+        for i, j in view_pairs:
             n_pairs += 1
             c_o, c_o_in = view.images[i], view.chw(i)
             gt, gt_s = view.images[j], view.prep.shadow[j]
@@ -196,7 +198,7 @@ def evaluate_table(
                 acc["Pix2Pix-like"]["mse"].append(mse(out, gt))
                 acc["Pix2Pix-like"]["time_s"].append(t_p)
                 row["Pix2Pix-like"] = out
-            if len(sheet) < sheet_pairs:
+            if len(sheet) < sheet_pairs and (i, j) == show:
                 row["Target"] = gt
                 row["S_n ground truth"] = gt_s
                 for label, (_, sn, _) in shadows.items():

@@ -48,7 +48,12 @@ def training_record(ckpt: dict[str, Any], data_seed: int | None) -> dict[str, An
         "wall_time_s": round(float(ckpt["wall_time_s"]), 1),
         "lr_schedule": ckpt.get("lr_history", []),
         "loss": {k: round(v, 5) for k, v in hist[-1].items() if k not in ("step", "wall_time_s")},
-        "loss_replacing_elpips": "L1 + (1 - SSIM) / 2 (E-LPIPS backbones cannot be downloaded)",
+        "loss_replacing_elpips": (
+            "none needed: Z is trained with a scale-invariant log loss and sky cross-entropy"
+            if cfg["stage"] == "depth"
+            else "L1 + (1 - SSIM) / 2 (E-LPIPS backbones cannot be downloaded)"
+        ),
+        "data_record": rec,
         "command": ckpt.get("command") or f"outcast train <config of run {cfg['run']}>",
     }
 

@@ -223,8 +223,11 @@ def normals_from_depth(depth: np.ndarray, camera: Camera) -> np.ndarray:
     depth = _check_depth(depth)
     valid = valid_depth(depth)
     # Scale invariance: normals do not depend on the depth scale; normalising keeps 1e6 ranges sane.
+    # Clamped to 1e+-12 of the median (like the sampler's disparity), so float32 never overflows.
     scale = float(np.median(depth[valid])) if valid.any() else 1.0
-    d = np.where(valid, depth / scale, np.nan)
+    with np.errstate(invalid="ignore"):  # inf / nan pixels are masked out below
+        rel = np.clip(depth.astype(np.float64) / scale, 1e-12, 1e12)
+    d = np.where(valid, rel, np.nan)
     # Invalid pixels take their nearest valid neighbour's depth for the stencil only.
     d_filled = _fill_invalid(d, valid)
     pts = backproject(d_filled.astype(np.float32), camera).astype(np.float64)  # H x W x 3
