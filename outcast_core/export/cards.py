@@ -39,8 +39,11 @@ def _card(man: dict[str, Any]) -> list[str]:
         lines += [
             f"- Trained: `outcast train outcast_core/train/configs/{cfg.get('stage', '?')}.toml` "
             f"(run `{cfg.get('run')}`), {tr.get('steps')} steps of batch {cfg.get('batch')} at "
-            f"{cfg.get('size')} px, lr {cfg.get('lr')}, seed {cfg.get('seed')}, "
-            f"{tr.get('wall_time_s')} s wall time on this shared 2-core CPU",
+            f"{cfg.get('size')} px, lr {cfg.get('lr')}"
+            f"{' cosine to ' + str(cfg['lr_final']) if cfg.get('lr_final') else ''}, "
+            f"seed {cfg.get('seed')}, "
+            f"{tr.get('wall_time_s')} s wall time on this 2-core CPU "
+            f"({cfg.get('threads')} torch thread(s); {_minutes(tr.get('wall_time_s'))})",
             f"- Data: `{tr.get('data_set')}` (data seed {tr.get('data_seed')}, "
             f"{tr.get('views')} views)",
             f"- Final training losses (moving average): {json.dumps(tr.get('loss', {}))}",
@@ -52,6 +55,10 @@ def _card(man: dict[str, Any]) -> list[str]:
         lines.append("- Held-out metrics: not measured")
     lines += [f"- sha256: `{man['sha256']}`", ""]
     return lines
+
+
+def _minutes(seconds: Any) -> str:
+    return f"{float(seconds) / 60:.0f} min" if isinstance(seconds, (int, float)) else "?"
 
 
 def render_cards(models: str | Path, preamble: str = "") -> str:
