@@ -73,3 +73,27 @@ def test_tables_and_pictures(tmp_path) -> None:
     png = plot_speed_accuracy(sweep, tmp_path / "p.png")
     sheet = save_sheet([{"a": np.zeros((8, 8, 3)), "b": np.ones((8, 8))}], tmp_path / "s.png")
     assert png.stat().st_size > 1000 and sheet.stat().st_size > 100
+
+
+def test_sample_photos_are_relit_into_a_sheet(tmp_path) -> None:
+    import json
+
+    from PIL import Image
+
+    from outcast_core.eval.samples import relight_samples, save_samples_sheet
+
+    rng = np.random.default_rng(0)
+    Image.fromarray(rng.integers(0, 255, (48, 64, 3), dtype=np.uint8)).save(tmp_path / "a.jpg")
+    spec = tmp_path / "suns.json"
+    spec.write_text(json.dumps({"_about": "x", "a.jpg": {"from": [90, 40],
+                                                         "to": [[270, 30], [0, 20]]}}))
+    rows, records = relight_samples(spec)
+    assert list(rows[0]) == ["Input", "Z depth", "S_o (refined)", "S_n 270,30", "Relit 270,30",
+                             "S_n 0,20", "Relit 0,20"]
+    assert records[0]["file"] == "a.jpg" and records[0]["relight"] == "learned"
+    png = save_samples_sheet(rows, tmp_path / "s.png", tile=32)
+    h, w = np.asarray(Image.open(png)).shape[:2]
+    assert (h, w) == (18 + 24, 7 * 32)  # rows keep the photo's 4:3 aspect
+    spec.write_text(json.dumps({"_about": "nothing"}))
+    with pytest.raises(ValueError, match="at least one photo"):
+        relight_samples(spec)
