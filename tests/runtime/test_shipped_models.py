@@ -55,3 +55,18 @@ def test_corrupt_model_file_is_named(tmp_path: Path) -> None:
     (tmp_path / "shadow.onnx").unlink()
     with pytest.raises(ModelError, match=r"shadow\.onnx.*missing"):
         ModelRegistry(tmp_path).load("shadow")
+
+
+def test_learned_shadows_do_not_depend_on_depth_units() -> None:
+    """Depth in any unit gives the same shadows, down to values whose inverse overflows float32."""
+    h, w = 48, 64
+    depth = box_scene_depth(h, w, 120.0, 60.0, [(-4.0, 0.0, -3.0, 1.0, 4.0)])
+    image = np.full((h, w, 3), 0.5, np.float32)
+    sun = (-0.5, -0.3, -0.8)
+    out = []
+    for scale in (1.0, 1e-40):  # 1e-40 m: denormal in float32, 1 / depth is inf
+        s = RelightSession(mode="learned", preset="fast")
+        s.set_image(image, depth=(depth * scale).astype(np.float32), fov_deg=50.0)
+        out.append(s.shadow(sun))
+    assert np.all(np.isfinite(out[1]))
+    np.testing.assert_allclose(out[0], out[1], atol=1e-4)
