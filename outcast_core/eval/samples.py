@@ -30,7 +30,7 @@ def relight_samples(
     """
     from outcast_core.runtime.imageio import read_image
     from outcast_core.runtime.models import ModelRegistry
-    from outcast_core.runtime.session import RelightSession
+    from outcast_core.runtime.session import RelightSession, depth_for_display
 
     spec = Path(spec)
     entries = {k: v for k, v in json.loads(spec.read_text()).items() if not k.startswith("_")}
@@ -41,10 +41,12 @@ def relight_samples(
         loaded = read_image(spec.parent / name, max_pixels=4_000_000)
         session = RelightSession(ModelRegistry(models), preset=preset, mode="learned")
         session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
-        session.set_original_sun(sun_vector(*entry["from"]))
-        buf = session.buffers(sun_vector(*entry["from"]))
-        row: dict[str, np.ndarray] = {"Input": session.image_srgb, "Z depth": buf["depth"],
-                                      "S_o (refined)": buf["original_shadow"]}
+        s_o = session.set_original_sun(sun_vector(*entry["from"]))
+        row: dict[str, np.ndarray] = {
+            "Input": session.image_srgb,
+            "Z depth": depth_for_display(session.depth, session.sky),
+            "S_o (refined)": s_o,
+        }
         for az, el in entry["to"]:
             w = sun_vector(az, el)
             row[f"S_n {az:g},{el:g}"] = session.shadow(w)

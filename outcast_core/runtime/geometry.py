@@ -128,6 +128,31 @@ def valid_depth(depth: np.ndarray) -> np.ndarray:
     return np.isfinite(depth) & (depth > 0)
 
 
+#: Range of :func:`relative_depth` for a valid surface: 1e12 times nearer or farther than the
+#: median is already at every limit (ray ratios are capped), and products of two such values
+#: stay finite in float32.
+RELATIVE_DEPTH_RANGE = (1e-12, 1e12)
+
+
+def relative_depth(depth: np.ndarray) -> np.ndarray:
+    """Depth divided by its median surface depth, clamped to :data:`RELATIVE_DEPTH_RANGE`.
+
+    Every consumer of depth here is scale-invariant (normals, the sampler's ratios, the shadow
+    networks), so this is the one place that turns depth in any unit or range, down to values
+    near the float32 limits, into well-conditioned numbers.
+
+    Returns:
+        ``H x W`` float64; NaN where there is no surface (see :func:`valid_depth`).
+    """
+    depth = np.asarray(depth)
+    valid = valid_depth(depth)
+    out = np.full(depth.shape, np.nan)
+    if valid.any():
+        d = depth[valid].astype(np.float64)
+        out[valid] = np.clip(d / np.median(d), *RELATIVE_DEPTH_RANGE)
+    return out
+
+
 def _check_depth(depth: np.ndarray) -> np.ndarray:
     depth = np.asarray(depth)
     if depth.ndim != 2:
@@ -222,12 +247,8 @@ def normals_from_depth(depth: np.ndarray, camera: Camera) -> np.ndarray:
     """
     depth = _check_depth(depth)
     valid = valid_depth(depth)
-    # Scale invariance: normals do not depend on the depth scale; normalising keeps 1e6 ranges sane.
-    # Clamped to 1e+-12 of the median (like the sampler's disparity), so float32 never overflows.
-    scale = float(np.median(depth[valid])) if valid.any() else 1.0
-    with np.errstate(invalid="ignore"):  # inf / nan pixels are masked out below
-        rel = np.clip(depth.astype(np.float64) / scale, 1e-12, 1e12)
-    d = np.where(valid, rel, np.nan)
+    # Scale invariance: normals do not depend on the depth scale; normalising keeps any range sane.
+    d = relative_depth(depth)
     # Invalid pixels take their nearest valid neighbour's depth for the stencil only.
     d_filled = _fill_invalid(d, valid)
     pts = backproject(d_filled.astype(np.float32), camera).astype(np.float64)  # H x W x 3

@@ -40,7 +40,13 @@ from typing import Any
 
 import numpy as np
 
-from outcast_core.runtime.geometry import Camera, normalize_sun, pixel_centres, valid_depth
+from outcast_core.runtime.geometry import (
+    Camera,
+    normalize_sun,
+    pixel_centres,
+    relative_depth,
+    valid_depth,
+)
 
 #: Ratio value given to invalid samples and the clip ceiling for valid ones ("far in front").
 MAX_RATIO = 4.0
@@ -97,24 +103,18 @@ def march_coordinates(
     return qu, qv, factor, dir_ok
 
 
-DISPARITY_RANGE = (1e-12, 1e12)  # normalised disparity of a valid surface (see disparity())
-
-
 def disparity(depth: np.ndarray) -> np.ndarray:
-    """Inverse depth normalised by the median valid depth; 0 where there is no surface.
+    """Inverse of :func:`~outcast_core.runtime.geometry.relative_depth`; 0 where there is no
+    surface.
 
     Ratios are scale-invariant, so the normalisation changes nothing but keeps float32 sane for
-    depth maps with a dynamic range of 1e6 or values near the float limits. Normalised values are
-    clamped to ``[1e-12, 1e12]``: a surface 1e12 times nearer or farther than the median is
-    already at the limit (ratios are capped at ``MAX_RATIO``), and products of two such values
-    stay finite in float32.
+    depth maps with a dynamic range of 1e6 or values near the float limits (the clamp of
+    ``relative_depth`` keeps products of two disparities finite).
     """
-    valid = valid_depth(depth)
-    out = np.zeros(depth.shape, dtype=np.float32)
-    if valid.any():
-        d = depth[valid].astype(np.float64)
-        scale = float(np.median(d))
-        out[valid] = np.clip(scale / d, DISPARITY_RANGE[0], DISPARITY_RANGE[1]).astype(np.float32)
+    rel = relative_depth(depth)
+    valid = np.isfinite(rel)
+    out = np.zeros(rel.shape, dtype=np.float32)
+    out[valid] = (1.0 / rel[valid]).astype(np.float32)
     return out
 
 

@@ -31,10 +31,11 @@ from outcast_core.runtime.geometry import (
     focal_from_35mm,
     normalize_sun,
     normals_from_depth,
+    relative_depth,
     view_directions,
 )
 from outcast_core.runtime.models import ModelError, ModelRegistry
-from outcast_core.runtime.raymarch import DISPARITY_RANGE, RaySampler
+from outcast_core.runtime.raymarch import RaySampler
 from outcast_core.runtime.relight import (
     LightEstimate,
     estimate_light,
@@ -413,7 +414,9 @@ class RelightSession:
         w: np.ndarray,
     ) -> np.ndarray:
         model = self.registry.load("shadow")
-        d = _relative_depth(depth)
+        # S and 2D only use depth ratios, so relative depth changes nothing for them but keeps
+        # a depth map in any unit or range finite inside the float32 graph.
+        d = np.nan_to_num(relative_depth(depth), nan=0.0).astype(np.float32)
         out = model.run({
             "image": image.transpose(2, 0, 1)[None],
             "depth": d[None, None],
@@ -520,19 +523,6 @@ def _first(outputs: dict[str, np.ndarray]) -> np.ndarray:
     """A single-output model's result (ONNX output names may not repeat input names, so the
     refine and relight models call theirs ``shadow_out`` / ``image_out``)."""
     return next(iter(outputs.values()))
-
-
-def _relative_depth(depth: np.ndarray) -> np.ndarray:
-    """Depth divided by its median surface depth and clamped like the sampler's disparity; 0
-    where there is no surface. The shadow networks only use depth ratios (S) or depth normalised
-    by its mean (2D), so this changes nothing for them but keeps any depth map, whatever its
-    units or range, finite inside the float32 graph."""
-    valid = np.isfinite(depth) & (depth > 0)
-    out = np.zeros(depth.shape, np.float32)
-    if valid.any():
-        d = depth[valid].astype(np.float64)
-        out[valid] = np.clip(d / np.median(d), *DISPARITY_RANGE)
-    return out
 
 
 def depth_for_display(depth: np.ndarray, sky: np.ndarray) -> np.ndarray:
