@@ -118,7 +118,8 @@ def run_eval(args: argparse.Namespace) -> int:
         f"{res['views']} views, {res['pairs']} relighting pairs (every ordered pair of "
         "different suns of a view). Geometry inputs: ground-truth depth (sky = no surface) and "
         "normals from it, as the runtime computes them, except `Ours (Z depth)`, which runs the "
-        "photo-only pipeline of the app: Z's depth and sky of the input photo, normals from "
+        "photo-only pipeline of the app: Z's depth and sky of the input photo (the sky united "
+        "with the classical sky prior of `runtime/depth_post.py`, as the app does), normals from "
         "them. Relighting metrics are on sRGB [0, 1] images tone-mapped with the view's "
         "exposure; DSSIM = (1 - SSIM) / 2 with an 11x11 Gaussian window.",
         "",
@@ -135,7 +136,13 @@ def run_eval(args: argparse.Namespace) -> int:
                "Per photo of the same views; depth errors on the ground truth's non-sky pixels "
                "after scaling the prediction by the median ratio (Z has no metric scale); silog = "
                "std of the log error (scale-free); sky IoU against the ground truth's sky. The "
-               "ground-plane prior is what the app uses when no depth model is installed.", "",
+               "ground-plane prior is what the app uses when no depth model is installed. "
+               "`Z + post-processing (app)` is what the app uses: Z's sky combined with the "
+               "classical sky prior and Z's depth smoothed by a guided filter "
+               "(`runtime/depth_post.py`). Both are for real photos (clouds Z takes for surfaces, "
+               "photo texture read as relief); this row shows what they cost or gain on "
+               "synthetic views. Its depth errors leave out the pixels it calls sky.",
+               "",
                render_depth(res["depth"])]
     if res["missing"]:
         md += ["", "Not evaluated (model not shipped / not trained): "

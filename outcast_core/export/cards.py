@@ -37,13 +37,16 @@ def _card(man: dict[str, Any]) -> list[str]:
         )
     if tr:
         lines += [
-            f"- Trained: `outcast train outcast_core/train/configs/{cfg.get('stage', '?')}.toml` "
+            f"- Trained: `{tr.get('command') or 'outcast train'}` "
             f"(run `{cfg.get('run')}`), {tr.get('steps')} steps of batch {cfg.get('batch')} at "
             f"{cfg.get('size')} px, lr {cfg.get('lr')}"
             f"{' cosine to ' + str(cfg['lr_final']) if cfg.get('lr_final') else ''}, "
             f"seed {cfg.get('seed')}, "
             f"{tr.get('wall_time_s')} s wall time on this 2-core CPU "
             f"({cfg.get('threads')} torch thread(s); {_minutes(tr.get('wall_time_s'))})",
+            *([f"- Continues run `{br['run']}` (`{br['command']}`) from its step {br['step']} "
+               f"({_minutes(br['wall_time_s'])} of the wall time above); steps and wall time "
+               "count both runs"] if (br := tr.get("branched_from")) else []),
             f"- Data: `{tr.get('data_set')}` (data seed {tr.get('data_seed')}, "
             f"{tr.get('views')} views)",
             f"- Final training losses (moving average): {json.dumps(tr.get('loss', {}))}",

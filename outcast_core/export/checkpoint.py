@@ -55,7 +55,15 @@ def training_record(ckpt: dict[str, Any], data_seed: int | None) -> dict[str, An
         ),
         "data_record": rec,
         "command": ckpt.get("command") or f"outcast train <config of run {cfg['run']}>",
+        "branched_from": _branch(ckpt.get("branched_from")),
     }
+
+
+def _branch(rec: dict[str, Any] | None) -> dict[str, Any] | None:
+    """Where a ``resume_from`` run branched off: run, step, wall time and that run's command."""
+    if not rec:
+        return None
+    return {k: rec.get(k) for k in ("run", "step", "wall_time_s", "command")}
 
 
 def export_checkpoint(

@@ -25,6 +25,7 @@ import cv2
 import numpy as np
 
 from outcast_core.runtime.colour import srgb_to_linear
+from outcast_core.runtime.depth_post import postprocess_z
 from outcast_core.runtime.geometry import (
     DEFAULT_FOV_DEG,
     Camera,
@@ -339,10 +340,10 @@ class RelightSession:
             model = self.registry.load("depth")
             x = self.image_srgb.transpose(2, 0, 1)[None]  # 1 x 3 x H x W
             out = model.run({"image": x})
-            depth = out["depth"][0, 0]
-            sky = out["sky"][0, 0] > 0.5
+            # Sky prior and edge-aware smoothing for real photos (runtime.depth_post).
+            depth, sky = postprocess_z(out["depth"][0, 0], out["sky"][0, 0], self.image_srgb)
             self.depth_source = "model"
-            return np.maximum(depth, 1e-6).astype(np.float32), sky
+            return depth, sky
         self.depth_source = "ground-plane prior (no depth model)"
         return ground_plane_depth(cam)
 

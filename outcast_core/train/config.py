@@ -34,13 +34,23 @@ class TrainConfig:
             ``steps`` (recomputed from the step, so resuming keeps the schedule); 0 = constant.
         seed: seed of torch, numpy and the sampler.
         net: keyword arguments of the trained network (e.g. ``steps``, ``volume_scale``).
-        weights: loss weights (paper: shadow 10, refine 2, relight 10, adversarial 0.1).
+        weights: loss weights (paper: shadow 10, refine 2, relight 10, adversarial 0.1; ours adds
+            ``change``, default 0: an L1 term of ``L`` on the pixels whose sun visibility differs
+            between the two suns, so ``L`` cannot score well by learning only the global light).
         d_every: generator steps per critic step (paper: 5).
         gt_depth_prob: probability that ``S`` sees ground-truth depth rather than ``Z``'s
             estimate (paper: 0.8; 1.0 when no ``depth_checkpoint`` is given).
         depth_checkpoint: trained ``Z`` checkpoint used for estimated depth, or empty.
         shadow_checkpoint: trained ``S`` checkpoint (required by ``relight``).
+        new_shadow_gt_depth_prob: ``relight`` stage: probability that the new shadow ``S_n`` fed
+            to ``L`` comes from ground-truth depth rather than ``Z``'s (old shadows and normals
+            always use ``Z``'s, as in the paper); 0 = always ``Z``'s.
+        resume_from: when this run has no checkpoint yet, continue the named run's checkpoint
+            (networks, optimisers, step, wall time) under this config, e.g. to train longer
+            with a changed loss; the checkpoint records where it branched.
         sun_noise_deg: std of the angular noise added to the original sun (user alignment).
+        cloud_prob: probability of painting random clouds into the sky of a training pair (the
+            synthetic skies are cloudless; see :func:`outcast_core.train.data.add_clouds`).
         exposure_stops: range of the random exposure (both images of a pair alike).
         saturation: range of the random saturation factor.
         gamma: range of the random gamma.
@@ -70,7 +80,10 @@ class TrainConfig:
     gt_depth_prob: float = 0.8
     depth_checkpoint: str = ""
     shadow_checkpoint: str = ""
+    new_shadow_gt_depth_prob: float = 0.0
+    resume_from: str = ""
     sun_noise_deg: float = 3.0
+    cloud_prob: float = 0.0
     exposure_stops: float = 1.0
     saturation: tuple[float, float] = (0.8, 1.2)
     gamma: tuple[float, float] = (0.9, 1.1)
@@ -91,8 +104,11 @@ class TrainConfig:
             )
         if not 0.0 <= self.lr_final <= self.lr:
             raise ValueError(f"expected 0 <= lr_final <= lr, got {self.lr_final} (lr {self.lr})")
-        if not 0.0 <= self.gt_depth_prob <= 1.0:
-            raise ValueError(f"expected gt_depth_prob in [0, 1], got {self.gt_depth_prob}")
+        for key in ("gt_depth_prob", "new_shadow_gt_depth_prob", "cloud_prob"):
+            if not 0.0 <= getattr(self, key) <= 1.0:
+                raise ValueError(f"expected {key} in [0, 1], got {getattr(self, key)}")
+        if self.resume_from == self.run:
+            raise ValueError(f"expected resume_from to name another run, got {self.run!r}")
         if self.stage == "relight" and not self.shadow_checkpoint:
             raise ValueError("expected a shadow_checkpoint for the relight stage, got none")
         self.data = str(Path(self.data).expanduser())

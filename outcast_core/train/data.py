@@ -164,6 +164,54 @@ def perturb_sun(sun: np.ndarray, noise_deg: float, rng: np.random.Generator) -> 
     return (v / np.linalg.norm(v)).astype(np.float32)
 
 
+def _fractal_noise(h: int, w: int, rng: np.random.Generator, octaves: int = 5) -> np.ndarray:
+    """Value noise in [0, 1]: random grids of doubling resolution, bilinearly upsampled, summed
+    with halving amplitude."""
+    import cv2
+
+    out = np.zeros((h, w), np.float32)
+    amp, total = 1.0, 0.0
+    for o in range(octaves):
+        cells = 2 ** (o + 1)
+        gh, gw = max(2, cells * h // max(h, w) + 1), max(2, cells * w // max(h, w) + 1)
+        grid = rng.random((gh, gw)).astype(np.float32)
+        out += amp * cv2.resize(grid, (w, h), interpolation=cv2.INTER_CUBIC)
+        total += amp
+        amp *= 0.5
+    return np.clip(out / total, 0.0, 1.0)
+
+
+def add_clouds(
+    images: tuple[np.ndarray, ...], sky: np.ndarray, rng: np.random.Generator
+) -> tuple[np.ndarray, ...]:
+    """Paint one random cloud layer into the sky of every image of a pair (clouds do not move).
+
+    The synthetic data's skies are cloudless, so a depth network trained on them reads real
+    clouds as near surfaces; this augmentation (``TrainConfig.cloud_prob``) shows it clouds that
+    are still sky. Coverage, softness, brightness and grey shading are random; the cloud layer is
+    white to mid-grey, darker on its underside (lower rows), and is blended only into ``sky``.
+
+    Args:
+        images: sRGB ``H x W x 3`` float32 images of one view.
+        sky: ``H x W`` bool, no surface.
+        rng: the sampler's generator.
+    """
+    if not sky.any():
+        return images
+    h, w = sky.shape
+    n = _fractal_noise(h, w, rng)
+    coverage = rng.uniform(0.2, 0.8)
+    soft = rng.uniform(0.03, 0.15)
+    thresh = np.quantile(n, 1.0 - coverage)
+    alpha = np.clip((n - thresh) / soft, 0.0, 1.0) * rng.uniform(0.6, 1.0)
+    alpha = np.where(sky, alpha, 0.0)[..., None].astype(np.float32)
+    bright = rng.uniform(0.65, 1.0)
+    shade = 1.0 - rng.uniform(0.0, 0.35) * _fractal_noise(h, w, rng, octaves=3)
+    cloud = (bright * shade)[..., None] * np.array([1.0, 1.0, rng.uniform(1.0, 1.06)], np.float32)
+    return tuple((img * (1.0 - alpha) + np.clip(cloud, 0, 1) * alpha).astype(np.float32)
+                 for img in images)
+
+
 def visibility_target(
     shadow: np.ndarray, normals_true: np.ndarray | None, sun: np.ndarray
 ) -> np.ndarray:
@@ -226,12 +274,13 @@ class PairSampler:
         exposure_stops, saturation, gamma: tone-map augmentation ranges.
         flip: random horizontal flips.
         sun_noise_deg: noise on the original sun (``sun_old_noisy``).
+        cloud_prob: probability of painting clouds into the sky of a pair (:func:`add_clouds`).
     """
 
     def __init__(
         self, views: list[Prepared], rng: np.random.Generator, exposure_stops: float = 1.0,
         saturation: tuple[float, float] = (0.8, 1.2), gamma: tuple[float, float] = (0.9, 1.1),
-        flip: bool = True, sun_noise_deg: float = 3.0,
+        flip: bool = True, sun_noise_deg: float = 3.0, cloud_prob: float = 0.0,
     ) -> None:
         if not views:
             raise ValueError("expected at least one view, got none")
@@ -240,6 +289,7 @@ class PairSampler:
         self.aug = {"exposure_stops": exposure_stops, "saturation": saturation, "gamma": gamma}
         self.flip = flip
         self.sun_noise_deg = sun_noise_deg
+        self.cloud_prob = cloud_prob
 
     def sample(self) -> dict[str, np.ndarray]:
         """One pair as ``C x H x W`` / vector float32 arrays (keys as in :meth:`batch`)."""
@@ -249,13 +299,16 @@ class PairSampler:
         c_o, c_n = tonemap_pair(v.rgb[i], v.rgb[j], self.rng, **self.aug,
                                 base_exposure=v.exposure)
         depth, normals = v.depth, v.normals
+        if self.cloud_prob > 0 and self.rng.random() < self.cloud_prob:
+            c_o, c_n = add_clouds((c_o, c_n), ~(np.isfinite(depth) & (depth > 0)), self.rng)
         sun_o, sun_n = v.sun[i].copy(), v.sun[j].copy()
         s_o, s_n = v.shadow[i], v.shadow[j]
+        vis_o = visibility_target(s_o, v.normals_true, v.sun[i])
         vis_n = visibility_target(s_n, v.normals_true, v.sun[j])
         psi = view_directions(v.camera)
         if self.flip and self.rng.random() < 0.5:
-            c_o, c_n, s_o, s_n, depth, vis_n = (
-                a[:, ::-1] for a in (c_o, c_n, s_o, s_n, depth, vis_n)
+            c_o, c_n, s_o, s_n, depth, vis_o, vis_n = (
+                a[:, ::-1] for a in (c_o, c_n, s_o, s_n, depth, vis_o, vis_n)
             )
             normals = normals[:, ::-1] * np.array([-1, 1, 1], np.float32)
             psi = psi[:, ::-1] * np.array([-1, 1, 1], np.float32)
@@ -268,8 +321,8 @@ class PairSampler:
 
         return {
             "image": chw(c_o), "target": chw(c_n), "shadow_old": chw(s_o),
-            "shadow_new": chw(s_n), "visibility_new": chw(vis_n), "depth": chw(depth),
-            "normals": chw(normals),
+            "shadow_new": chw(s_n), "visibility_old": chw(vis_o), "visibility_new": chw(vis_n),
+            "depth": chw(depth), "normals": chw(normals),
             "view_dirs": chw(psi), "sun_old": sun_o, "sun_old_noisy": sun_o_noisy,
             "sun_new": sun_n, "focal": np.array([v.focal], np.float32),
         }

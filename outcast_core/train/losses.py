@@ -58,6 +58,28 @@ def structural_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return (pred - target).abs().mean() + dssim(pred, target).mean()
 
 
+def change_loss(
+    pred: torch.Tensor, target: torch.Tensor, vis_old: torch.Tensor, vis_new: torch.Tensor,
+) -> torch.Tensor:
+    """L1 of ``pred`` against ``target`` on the pixels whose sun visibility changed.
+
+    The weight is ``|vis_old - vis_new|`` dilated by one pixel (so shadow edges count), and the
+    mean is over the weighted pixels of the batch, so a small moved shadow weighs as much as a
+    large one. Where no visibility changed the term is 0. Whole-image losses are dominated by the
+    global change of light; this one is paid only where a shadow appears or disappears.
+
+    Shape:
+        pred, target ``(B, C, H, W)``; vis_old, vis_new ``(B, 1, H, W)`` -> scalar.
+    """
+    if vis_old.shape != vis_new.shape or vis_old.shape[1] != 1:
+        raise ValueError(
+            f"expected two B x 1 x H x W visibility maps, got {vis_old.shape}, {vis_new.shape}"
+        )
+    wgt = F.max_pool2d((vis_old - vis_new).abs(), 3, stride=1, padding=1)
+    err = ((pred - target).abs() * wgt).sum() / pred.shape[1]
+    return err / wgt.sum().clamp_min(1.0)
+
+
 def lsgan_d_loss(real: torch.Tensor, fake: torch.Tensor) -> torch.Tensor:
     """Least-squares critic loss: real -> 1, fake -> 0."""
     return 0.5 * (((real - 1.0) ** 2).mean() + (fake**2).mean())

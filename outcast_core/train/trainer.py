@@ -8,14 +8,19 @@ Stages (``TrainConfig.stage``):
 * ``relight``: ``R``, ``L`` and the critic ``A`` jointly on a frozen ``S`` (no gradient from
   ``R`` into ``S``, as in the paper): ``f = w_refine f_R + w_relight f_L + w_adv f_A``, one
   critic step per ``d_every`` generator steps. The original sun fed to ``S``/``R``/``L`` carries
-  noise (``sun_noise_deg``); old shadows and normals use ``Z``'s depth when one is given.
+  noise (``sun_noise_deg``); old shadows and normals use ``Z``'s depth when one is given, the new
+  shadow ground-truth depth with probability ``new_shadow_gt_depth_prob``. With a ``change``
+  weight, ``L`` also pays :func:`~outcast_core.train.losses.change_loss` on the pixels whose
+  sun visibility differs between the two suns.
 * ``relight_pix2pix``: the ablation, ``L`` without shadow inputs, same critic (conditioned on
   ``C_o`` and an empty shadow channel).
 * ``depth``: ``Z`` with the scale-invariant log loss plus binary cross-entropy on the sky mask.
 
 ``f_S``, ``f_R``, ``f_L`` are ``L1 + DSSIM`` (:func:`outcast_core.train.losses.structural_loss`),
 our stand-in for the paper's E-LPIPS. Checkpoints (``last.pt``: networks, optimisers, RNG states,
-step, wall time) live in ``~/.cache/outcast/runs/<run>/``; a rerun with the same config resumes.
+step, wall time) live in ``~/.cache/outcast/runs/<run>/``; a rerun with the same config resumes,
+and a new run with ``resume_from`` continues another run's checkpoint (recorded as
+``branched_from``).
 """
 
 from __future__ import annotations
@@ -38,7 +43,7 @@ from outcast_core.nets.depth import scale_invariant_log_loss
 from outcast_core.nets.geometry_torch import normals_from_depth
 from outcast_core.train.config import TrainConfig, run_dir
 from outcast_core.train.data import PairSampler, Prepared, load_prepared
-from outcast_core.train.losses import lsgan_d_loss, lsgan_g_loss, structural_loss
+from outcast_core.train.losses import change_loss, lsgan_d_loss, lsgan_g_loss, structural_loss
 
 #: Networks trained by each stage (``critic`` included where there is a GAN term).
 STAGE_NETS: dict[str, tuple[str, ...]] = {
@@ -93,7 +98,7 @@ class Trainer:
             views = load_prepared(cfg.data, cfg.size, cfg.max_views, skip=self._loaded)
         self.sampler = PairSampler(
             views, np.random.default_rng(cfg.seed), cfg.exposure_stops, cfg.saturation,
-            cfg.gamma, cfg.flip, cfg.sun_noise_deg,
+            cfg.gamma, cfg.flip, cfg.sun_noise_deg, cfg.cloud_prob,
         )
         self.net_kwargs: dict[str, dict[str, Any]] = {}
         self.nets: dict[str, nn.Module] = {}
@@ -134,9 +139,24 @@ class Trainer:
         return self.dir / "last.pt"
 
     def _resume(self) -> None:
-        if not self.checkpoint_path.exists():
+        path = self.checkpoint_path
+        self.branched_from: dict[str, Any] | None = None
+        if not path.exists() and self.cfg.resume_from:
+            path = run_dir(self.cfg.resume_from) / "last.pt"
+            if not path.exists():
+                raise FileNotFoundError(
+                    f"expected a checkpoint of run {self.cfg.resume_from!r} to resume from at "
+                    f"{path}, found none"
+                )
+        if not path.exists():
             return
-        ckpt = torch.load(self.checkpoint_path, map_location="cpu", weights_only=False)
+        ckpt = torch.load(path, map_location="cpu", weights_only=False)
+        if path != self.checkpoint_path:
+            self.branched_from = {"run": self.cfg.resume_from, "step": int(ckpt["step"]),
+                                  "wall_time_s": round(float(ckpt["wall_time_s"]), 1),
+                                  "config": ckpt["config"], "command": ckpt.get("command", "")}
+        else:
+            self.branched_from = ckpt.get("branched_from")
         if ckpt["config"]["stage"] != self.cfg.stage:
             raise ValueError(
                 f"expected a checkpoint of stage {self.cfg.stage}, got {ckpt['config']['stage']}"
@@ -180,6 +200,7 @@ class Trainer:
             "views": len(self.sampler.views),
             "command": self.command,
             "lr_history": self.lr_history,
+            "branched_from": self.branched_from,
         }
         tmp = self.checkpoint_path.with_suffix(".tmp")
         torch.save(ckpt, tmp)
@@ -244,9 +265,13 @@ class Trainer:
         if self.cfg.stage == "relight":
             if self.shadow_net is None:
                 raise RuntimeError("the relight stage needs a shadow_checkpoint")
+            depth_n, normals_n = depth_o, normals_o
+            p_gt = self.cfg.new_shadow_gt_depth_prob
+            if p_gt > 0 and self.sampler.rng.random() < p_gt:
+                depth_n, normals_n = t["depth"], t["normals"]
             with torch.no_grad():  # no gradient from R into S
                 s_o_raw = self.shadow_net(t["image"], depth_o, normals_o, sun_o, t["focal"])
-                s_n = self.shadow_net(t["image"], depth_o, normals_o, t["sun_new"], t["focal"])
+                s_n = self.shadow_net(t["image"], depth_n, normals_n, t["sun_new"], t["focal"])
             s_o = self.nets["refine"](s_o_raw, t["image"], sun_o)
             c_n = self.nets["relight"](
                 t["image"], s_o, s_n, normals_o, sun_o, t["sun_new"], t["view_dirs"]
@@ -261,6 +286,11 @@ class Trainer:
             )
             loss_r = torch.zeros(())
         f_l = structural_loss(c_n, t["target"])
+        w_change = w.get("change", 0.0)
+        if w_change:
+            f_c = change_loss(c_n, t["target"], t["visibility_old"], t["visibility_new"])
+            logs["f_change"] = f_c.item()
+            loss_r = loss_r + w_change * f_c
         for p in critic.parameters():
             p.requires_grad_(False)
         f_a = lsgan_g_loss(critic(c_n, t["image"], s_n))

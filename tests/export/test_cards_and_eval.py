@@ -60,6 +60,16 @@ def test_cards_render_from_manifests(tmp_path) -> None:
     (tmp_path / "README.md").write_text(text.replace("12 steps", "99 steps"))  # stale card
     fresh = update_readme(tmp_path).read_text()
     assert "12 steps" in fresh and "99 steps" not in fresh and fresh.count("preamble") == 1
+    assert "Continues run" not in fresh
+    write_manifest(net, "refine", path, {
+        "config": {"stage": "relight", "run": "r2"}, "steps": 20, "wall_time_s": 7.0,
+        "command": "outcast train r2.toml",
+        "branched_from": {"run": "r", "step": 12, "wall_time_s": 3.5,
+                          "command": "outcast train r.toml"},
+    }, {})
+    text = render_cards(tmp_path, "")
+    assert "`outcast train r2.toml`" in text
+    assert "Continues run `r` (`outcast train r.toml`) from its step 12" in text
 
 
 def test_tables_and_pictures(tmp_path) -> None:

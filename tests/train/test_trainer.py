@@ -9,7 +9,8 @@ import pytest
 import torch
 
 from outcast_core.train.config import TrainConfig, load_config, run_dir
-from outcast_core.train.data import PairSampler, resize_view, tonemap_pair
+from outcast_core.train.data import PairSampler, add_clouds, resize_view, tonemap_pair
+from outcast_core.train.losses import change_loss
 from outcast_core.train.trainer import Trainer
 from tests.train.conftest import make_view
 
@@ -153,3 +154,74 @@ def test_cosine_schedule_survives_a_resume(fake_views) -> None:
     assert [tuple(x) for x in tr.lr_history] == [(0, 1e-3), (1, pytest.approx(tr.lr_at(1)))]
     with pytest.raises(ValueError, match="lr_final"):
         _cfg("shadow_2d", lr=1e-4, lr_final=1e-3)
+
+
+def test_change_loss_counts_only_pixels_whose_visibility_changed() -> None:
+    pred = torch.zeros(1, 3, 8, 8)
+    target = torch.zeros(1, 3, 8, 8)
+    target[..., :, :4] = 1.0  # wrong everywhere on the left half
+    vis_o = torch.ones(1, 1, 8, 8)
+    vis_n = torch.ones(1, 1, 8, 8)
+    assert change_loss(pred, target, vis_o, vis_n).item() == 0.0  # nothing moved
+    vis_n[..., 6:, 6:] = 0.0  # a shadow appears bottom right, where pred is right
+    assert change_loss(pred, target, vis_o, vis_n).item() == 0.0
+    vis_n[..., 0:2, 0:2] = 0.0  # and top left, where pred is wrong
+    assert change_loss(pred, target, vis_o, vis_n).item() > 0.3
+    with pytest.raises(ValueError, match="visibility"):
+        change_loss(pred, target, vis_o, vis_n[:, :, :4])
+
+
+def test_relight_change_weight_and_gt_new_shadows_reach_the_step(fake_views) -> None:
+    views = [resize_view(v, 32) for v in fake_views]
+    s = Trainer(_cfg("shadow", steps=1), views, progress=False)
+    s.fit()
+    base = {"shadow": 10.0, "refine": 2.0, "relight": 10.0, "adv": 0.1}
+    plain = Trainer(_cfg("relight", run="p", shadow_checkpoint=str(s.checkpoint_path),
+                         weights=base), views, progress=False).train_step()
+    assert "f_change" not in plain
+    tr = Trainer(_cfg("relight", run="c", shadow_checkpoint=str(s.checkpoint_path),
+                      weights=base | {"change": 10.0}, new_shadow_gt_depth_prob=1.0), views,
+                 progress=False)
+    logs = tr.train_step()
+    assert np.isfinite(logs["f_change"]) and logs["loss"] > plain["loss"]
+    with pytest.raises(ValueError, match="new_shadow_gt_depth_prob"):
+        _cfg("relight", shadow_checkpoint="x", new_shadow_gt_depth_prob=1.5)
+
+
+def test_resume_from_branches_off_another_run(fake_views) -> None:
+    views = [resize_view(v, 32) for v in fake_views]
+    first = Trainer(_cfg("shadow_2d", run="trunk", steps=2), views, progress=False)
+    first.fit()
+    br = Trainer(_cfg("shadow_2d", run="branch", steps=4, resume_from="trunk"), views,
+                 progress=False)
+    assert br.step == 2 and br.branched_from["run"] == "trunk"
+    for a, b in zip(br.nets["shadow_2d"].state_dict().values(),
+                    first.nets["shadow_2d"].state_dict().values(), strict=True):
+        torch.testing.assert_close(a, b)
+    br.fit()
+    again = Trainer(_cfg("shadow_2d", run="branch", steps=5, resume_from="trunk"), views,
+                    progress=False)
+    assert again.step == 4 and again.branched_from["step"] == 2  # its own checkpoint wins
+    assert torch.load(first.checkpoint_path, weights_only=False)["step"] == 2  # trunk untouched
+    with pytest.raises(FileNotFoundError, match="nowhere"):
+        Trainer(_cfg("shadow_2d", run="b2", resume_from="nowhere"), views, progress=False)
+    with pytest.raises(ValueError, match="another run"):
+        _cfg("shadow_2d", run="same", resume_from="same")
+
+
+def test_clouds_paint_only_the_sky_and_cost_no_draws_when_off(fake_views) -> None:
+    views = [resize_view(v, 32) for v in fake_views]
+    a = PairSampler(views, np.random.default_rng(4)).sample()
+    b = PairSampler(views, np.random.default_rng(4), cloud_prob=0.0).sample()
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k])  # old runs stay reproducible
+    rng = np.random.default_rng(0)
+    img = np.full((32, 32, 3), 0.3, np.float32)
+    sky = np.zeros((32, 32), bool)
+    sky[:12] = True
+    c1, c2 = add_clouds((img, img * 0.5), sky, rng)
+    assert np.array_equal(c1[~sky], img[~sky]) and np.array_equal(c2[~sky], (img * 0.5)[~sky])
+    assert np.abs(c1[sky] - img[sky]).max() > 0.1
+    assert np.all((c1 >= 0) & (c1 <= 1))
+    (same,) = add_clouds((img,), np.zeros((32, 32), bool), rng)
+    assert same is img

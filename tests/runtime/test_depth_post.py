@@ -1,0 +1,168 @@
+"""Post-processing of Z for real photos: sky prior, sky combination, depth smoothing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from outcast_core.runtime import depth_post as sky_mod
+from outcast_core.runtime.depth_post import (
+    combine_sky,
+    postprocess_z,
+    sky_prior,
+    smooth_depth,
+    top_connected,
+)
+
+
+def _photo(h: int = 120, w: int = 160, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Blue sky over the top 40 % with a white cloud running off the top-right corner, over
+    textured green ground; returns the image and its true sky mask."""
+    rng = np.random.default_rng(seed)
+    img = np.empty((h, w, 3), np.float32)
+    horizon = int(0.4 * h)
+    t = np.linspace(0.0, 1.0, horizon)[:, None]
+    img[:horizon] = np.stack([0.35 + 0.2 * t, 0.55 + 0.2 * t, 0.9 + 0.05 * t], -1)
+    yy, xx = np.mgrid[:h, :w]
+    cloud = ((yy / (0.25 * h)) ** 2 + ((xx - w) / (0.3 * w)) ** 2 < 1.0) & (yy < horizon)
+    img[cloud] = 0.92
+    # A cloud core with texture (a smooth-break hole the prior must close).
+    core = cloud & ((yy - 4) ** 2 + (xx - (w - 12)) ** 2 < 16)
+    img[core] = 0.75 + 0.2 * rng.random((int(core.sum()), 3))
+    img[horizon:] = np.array([0.2, 0.45, 0.15]) + 0.25 * rng.random((h - horizon, w, 1))
+    truth = np.zeros((h, w), bool)
+    truth[:horizon] = True
+    return img.clip(0, 1), truth
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    return float((a & b).sum() / max((a | b).sum(), 1))
+
+
+def test_prior_finds_clear_sky_and_clouds_but_not_ground() -> None:
+    img, truth = _photo()
+    found = sky_prior(img)
+    assert found.shape == truth.shape and found.dtype == bool
+    assert _iou(found, truth) > 0.9
+    assert not found[int(0.45 * truth.shape[0]):].any()  # no ground
+
+
+def test_prior_ignores_a_pale_smooth_patch_cut_off_from_the_top() -> None:
+    img, truth = _photo()
+    img[80:110, 40:90] = 0.9  # a white wall standing in the textured ground
+    found = sky_prior(img)
+    assert not found[80:110, 40:90].any()
+
+
+def test_combine_adds_clouds_z_missed_and_drops_sky_cut_off_from_the_top() -> None:
+    img, truth = _photo()
+    z_sky = truth.copy()
+    z_sky[:30, 110:] = False  # Z took the cloud for a surface
+    z_sky[100:115, 20:60] = True  # and a pool for sky
+    out = combine_sky(z_sky, img)
+    assert out[:20, 130:].all()  # the cloud is sky again
+    assert not out[100:115, 20:60].any()  # the pool is not
+    assert _iou(out, truth) > 0.9
+
+
+def test_combine_keeps_no_sky_where_z_sees_none() -> None:
+    # A smooth bluish facade filling the top of the frame looks like sky to the prior alone.
+    img, _ = _photo()
+    assert sky_prior(img).any()
+    assert not combine_sky(np.zeros(img.shape[:2], bool), img).any()
+
+
+def test_combine_stops_below_zs_horizon() -> None:
+    # Pale smooth ground meeting a pale sky without an edge: only the margin below Z's horizon.
+    h, w = 100, 100
+    img = np.full((h, w, 3), 0.8, np.float32)
+    z_sky = np.zeros((h, w), bool)
+    z_sky[:30] = True
+    out = combine_sky(z_sky, img)
+    limit = 30 + round(sky_mod.HORIZON_MARGIN * h)
+    assert out[:30].all() and not out[limit:].any()
+
+
+def test_top_connected() -> None:
+    m = np.zeros((10, 10), bool)
+    m[0:3, 0:3] = True
+    m[6:9, 6:9] = True
+    out = top_connected(m)
+    assert out[0:3, 0:3].all() and not out[6:9, 6:9].any()
+    assert not top_connected(np.zeros((4, 4), bool)).any()
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 7), (9, 1), (2, 3), (3000, 40)])
+def test_prior_tiny_and_extreme_shapes(shape: tuple[int, int]) -> None:
+    img = np.full((*shape, 3), 0.6, np.float32)
+    img[..., 2] = 0.9
+    out = sky_prior(img)
+    assert out.shape == shape and out.dtype == bool
+    assert combine_sky(np.ones(shape, bool), img).shape == shape
+    depth, sky = postprocess_z(np.full(shape, 3.0, np.float32), np.zeros(shape, np.float32), img)
+    assert depth.shape == shape and np.all(np.isfinite(depth[~sky]))
+
+
+def test_prior_survives_non_finite_pixels() -> None:
+    img, truth = _photo()
+    img[0, 0] = np.nan
+    img[5, 5] = np.inf
+    assert _iou(sky_prior(img), truth) > 0.9
+
+
+def test_bad_input_is_a_clear_error() -> None:
+    with pytest.raises(ValueError, match="H x W x 3"):
+        sky_prior(np.zeros((4, 4), np.float32))
+    with pytest.raises(ValueError, match="image's size"):
+        combine_sky(np.zeros((3, 3), bool), np.zeros((4, 4, 3), np.float32))
+
+
+def test_smooth_depth_flattens_noise_where_the_photo_is_smooth() -> None:
+    rng = np.random.default_rng(1)
+    depth = (5.0 * np.exp(0.1 * rng.standard_normal((64, 64)))).astype(np.float32)
+    img = np.full((64, 64, 3), 0.5, np.float32)
+    out = smooth_depth(depth, np.zeros((64, 64), bool), img)
+    assert np.std(np.log(out)) < 0.3 * np.std(np.log(depth))
+    assert abs(np.median(out) - 5.0) < 0.2
+
+
+def test_smooth_depth_keeps_an_edge_the_photo_has() -> None:
+    depth = np.full((64, 64), 2.0, np.float32)
+    depth[:, 32:] = 10.0
+    img = np.zeros((64, 64, 3), np.float32)
+    img[:, 32:] = 1.0
+    out = smooth_depth(depth, np.zeros((64, 64), bool), img)
+    assert np.allclose(out[:, :29], 2.0, rtol=0.1) and np.allclose(out[:, 35:], 10.0, rtol=0.1)
+
+
+def test_smooth_depth_is_scale_free_and_leaves_sky_alone() -> None:
+    rng = np.random.default_rng(2)
+    depth = (1.0 + rng.random((40, 50))).astype(np.float32)
+    sky = np.zeros((40, 50), bool)
+    sky[:10] = True
+    depth[sky] = 123.0
+    img = rng.random((40, 50, 3)).astype(np.float32)
+    a = smooth_depth(depth, sky, img)
+    b = smooth_depth(depth * 1e6, sky, img)
+    assert np.allclose(b[~sky], a[~sky] * 1e6, rtol=1e-4)
+    assert np.all(a[sky] == 123.0)
+    assert np.all(np.isfinite(a)) and np.all(a > 0)
+    assert np.array_equal(smooth_depth(depth, np.ones_like(sky), img), depth)
+
+
+def test_postprocess_z_gives_inf_sky_and_finite_positive_surfaces() -> None:
+    img, truth = _photo()
+    d = np.linspace(1.0, 50.0, img.shape[0], dtype=np.float32)[::-1, None].repeat(img.shape[1], 1)
+    d[50, 50] = np.nan
+    d[60, 60] = -3.0
+    prob = truth.astype(np.float32)
+    prob[:30, 110:] = 0.0  # a cloud Z missed
+    depth, sky = postprocess_z(d, prob, img)
+    assert sky.dtype == bool and _iou(sky, truth) > 0.9
+    assert np.all(np.isinf(depth[sky]))
+    assert np.all(np.isfinite(depth[~sky])) and np.all(depth[~sky] > 0)
+
+
+def test_smooth_depth_shape_mismatch_is_a_clear_error() -> None:
+    with pytest.raises(ValueError, match="one size"):
+        smooth_depth(np.ones((4, 4)), np.zeros((4, 4), bool), np.zeros((4, 5, 3)))
