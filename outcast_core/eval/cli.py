@@ -116,10 +116,12 @@ def run_eval(args: argparse.Namespace) -> int:
         "",
         f"Test data: `{args.data}` (data set record: {json.dumps(rec, sort_keys=True)}), "
         f"{res['views']} views, {res['pairs']} relighting pairs (every ordered pair of "
-        "different suns of a view). Geometry inputs: ground-truth depth (sky = no surface) and "
-        "normals from it, as the runtime computes them, except `Ours (Z depth)`, which runs the "
-        "photo-only pipeline of the app: Z's depth and sky of the input photo (the sky united "
-        "with the classical sky prior of `runtime/depth_post.py`, as the app does), normals from "
+        "different suns of a view). Geometry inputs of the shadow methods: ground-truth depth "
+        "(sky = no surface) and normals from it, as the runtime computes them; L and "
+        "Pix2Pix-like get normals from Z's depth (as they were trained and as the app runs "
+        "them). `Ours (Z depth)` runs the "
+        "photo-only pipeline of the app: Z's depth and sky of the input photo, post-processed "
+        "as the app does (sky prior and guided filter, `runtime/depth_post.py`), normals from "
         "them. Relighting metrics are on sRGB [0, 1] images tone-mapped with the view's "
         "exposure; DSSIM = (1 - SSIM) / 2 with an 11x11 Gaussian window.",
         "",

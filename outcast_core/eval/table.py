@@ -13,10 +13,12 @@ Table 1 (relighting DSSIM and MSE, shadow MSE, onnxruntime time per image) compa
 
 Every pair ``(i, j)``, ``i != j``, of a view is one test image: the photo under sun ``i`` is
 relit to sun ``j`` and compared with the render under sun ``j``; both are tone-mapped with the
-view's exposure (no augmentation). Geometry inputs are the ground-truth depth (sky = no surface)
-and normals computed from it as the runtime does, except in ``Ours (Z depth)``: the whole
-photo-only pipeline, where ``Z``'s depth and sky of the photo replace them (what the app does on a
-photo without a depth map). Shadow MSE is ``S(C_i, w_j)`` against the ground-truth shadow image
+view's exposure (no augmentation). Shadow networks and Direct get the ground-truth depth (sky =
+no surface) and normals computed from it as the runtime does; ``L`` and Pix2Pix-like get normals
+from ``Z``'s (post-processed) depth when ``Z`` is installed, as they were trained and as the app
+runs them. ``Ours (Z depth)`` is the whole photo-only pipeline, where ``Z``'s depth and sky of the
+photo replace the ground truth for the shadows too (what the app does on a photo without a depth
+map). Shadow MSE is ``S(C_i, w_j)`` against the ground-truth shadow image
 ``j`` over the whole frame.
 
 When ``depth.onnx`` is present, ``Z`` is also scored on its own (:func:`evaluate_table`'s
@@ -168,7 +170,9 @@ def evaluate_table(
             for label, (so, sn, ts) in shadows.items():
                 acc[label]["shadow_mse"].append(mse(sn, gt_s))
                 if m["refine"] is not None and m["relight"] is not None:
-                    nrm = z_geo[i][1] if label == "Ours (Z depth)" and z_geo else normals
+                    # L (and Pix2Pix-like) were trained on normals from Z's depth (the paper's
+                    # recipe), so every row feeds them those, as the app does.
+                    nrm = z_geo[i][1] if z_geo else normals
                     (so_r,), t_r = m["refine"].run(shadow=so[None, None], image=c_o_in, sun=w_o)
                     (c_n,), t_l = m["relight"].run(
                         image=c_o_in, shadow_old=so_r, shadow_new=sn[None, None],
@@ -192,7 +196,8 @@ def evaluate_table(
                     row[key] = phys
             if m["relight_pix2pix"] is not None:
                 (c_n,), t_p = m["relight_pix2pix"].run(
-                    image=c_o_in, normals=normals, sun_old=w_o, sun_new=w_n, view_dirs=psi
+                    image=c_o_in, normals=z_geo[i][1] if z_geo else normals, sun_old=w_o,
+                    sun_new=w_n, view_dirs=psi,
                 )
                 out = _hw(c_n)
                 acc["Pix2Pix-like"]["dssim"].append(dssim(out, gt))
