@@ -143,7 +143,7 @@ def run_eval(args: argparse.Namespace) -> int:
                "classical sky prior and Z's depth smoothed by a guided filter "
                "(`runtime/depth_post.py`). Both are for real photos (clouds Z takes for surfaces, "
                "photo texture read as relief); this row shows what they cost or gain on "
-               "synthetic views. Its depth errors leave out the pixels it calls sky.",
+               "synthetic views.",
                "",
                render_depth(res["depth"])]
     if res["missing"]:

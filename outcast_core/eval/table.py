@@ -239,10 +239,10 @@ def _depth_from_z(
         t0 = time.perf_counter()
         depth, sky = postprocess_z(d[0, 0], sky_prob[0, 0], view.images[s])
         t += time.perf_counter() - t0
-        app = depth_errors(depth, gt, ~gt_sky)  # pixels it calls sky count in the IoU
+        app = depth_errors(depth, gt, ~gt_sky)
         for k, v in (app | {"sky_iou": iou(sky, gt_sky), "time_s": t}).items():
             dacc["Z + post-processing (app)"][k].append(v)
-        normals = normals_from_depth(depth, view.camera)
+        normals = normals_from_depth(np.where(sky, np.inf, depth).astype(np.float32), view.camera)
         out.append((np.where(sky, 0.0, depth)[None, None].astype(np.float32),
                     np.moveaxis(normals, -1, 0)[None].astype(np.float32), t))
     t = time.perf_counter()

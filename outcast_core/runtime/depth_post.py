@@ -181,12 +181,13 @@ def postprocess_z(
 
     The sky is ``Z``'s (probability > 0.5) combined with :func:`sky_prior`
     (:func:`combine_sky`); the depth is clamped to be positive and smoothed by
-    :func:`smooth_depth`; sky pixels hold ``inf`` (no surface).
+    :func:`smooth_depth`. As everywhere for estimated depth (DESIGN.md), the depth stays finite
+    on sky pixels and the mask says where the sky is.
 
     Returns:
-        ``(depth, sky)``: ``H x W`` float32 (``inf`` on sky) and bool.
+        ``(depth, sky)``: ``H x W`` float32, finite and > 0, and ``H x W`` bool.
     """
-    depth = np.maximum(np.nan_to_num(np.asarray(depth, np.float32), nan=1e-6), 1e-6)
+    raw = np.asarray(depth, np.float32)
+    depth = np.clip(np.nan_to_num(raw, nan=1e-6, posinf=1e6, neginf=1e-6), 1e-6, None)
     sky = combine_sky(np.asarray(sky_prob) > 0.5, image_srgb)
-    depth = smooth_depth(depth, sky, image_srgb)
-    return np.where(sky, np.inf, depth).astype(np.float32), sky
+    return smooth_depth(depth, sky, image_srgb), sky

@@ -100,7 +100,7 @@ def test_prior_tiny_and_extreme_shapes(shape: tuple[int, int]) -> None:
     assert out.shape == shape and out.dtype == bool
     assert combine_sky(np.ones(shape, bool), img).shape == shape
     depth, sky = postprocess_z(np.full(shape, 3.0, np.float32), np.zeros(shape, np.float32), img)
-    assert depth.shape == shape and np.all(np.isfinite(depth[~sky]))
+    assert depth.shape == shape and sky.shape == shape and np.all(np.isfinite(depth))
 
 
 def test_prior_survives_non_finite_pixels() -> None:
@@ -150,17 +150,17 @@ def test_smooth_depth_is_scale_free_and_leaves_sky_alone() -> None:
     assert np.array_equal(smooth_depth(depth, np.ones_like(sky), img), depth)
 
 
-def test_postprocess_z_gives_inf_sky_and_finite_positive_surfaces() -> None:
+def test_postprocess_z_gives_a_sky_mask_and_finite_positive_depth() -> None:
     img, truth = _photo()
     d = np.linspace(1.0, 50.0, img.shape[0], dtype=np.float32)[::-1, None].repeat(img.shape[1], 1)
     d[50, 50] = np.nan
     d[60, 60] = -3.0
+    d[70, 70] = np.inf
     prob = truth.astype(np.float32)
     prob[:30, 110:] = 0.0  # a cloud Z missed
     depth, sky = postprocess_z(d, prob, img)
     assert sky.dtype == bool and _iou(sky, truth) > 0.9
-    assert np.all(np.isinf(depth[sky]))
-    assert np.all(np.isfinite(depth[~sky])) and np.all(depth[~sky] > 0)
+    assert np.all(np.isfinite(depth)) and np.all(depth > 0)  # estimated depth: finite + mask
 
 
 def test_smooth_depth_shape_mismatch_is_a_clear_error() -> None:

@@ -44,6 +44,24 @@ def test_learned_session_end_to_end() -> None:
     assert out.min() >= 0 and out.max() <= 1
 
 
+@pytest.mark.skipif("depth" not in SHIPPED, reason="no depth model shipped")
+def test_session_depth_from_z_is_post_processed() -> None:
+    from outcast_core.runtime.depth_post import postprocess_z
+
+    rng = np.random.default_rng(3)
+    image = np.empty((48, 64, 3), np.float32)
+    image[:20] = (0.4, 0.6, 0.95)  # clear sky over textured ground
+    image[20:] = 0.3 + 0.2 * rng.random((28, 64, 1))
+    s = RelightSession(mode="learned", preset="fast")
+    s.set_image(image, fov_deg=60.0)
+    assert s.depth_source == "model"
+    raw = ModelRegistry().load("depth").run({"image": s.image_srgb.transpose(2, 0, 1)[None]})
+    depth, sky = postprocess_z(raw["depth"][0, 0], raw["sky"][0, 0], s.image_srgb)
+    np.testing.assert_array_equal(s.sky, sky)
+    np.testing.assert_allclose(s.depth, depth, rtol=1e-6)
+    assert s.sky[:10].mean() > 0.9 and not s.sky[30:].any()
+
+
 def test_corrupt_model_file_is_named(tmp_path: Path) -> None:
     for f in DEFAULT_MODEL_DIR.glob("shadow.*"):
         shutil.copy(f, tmp_path / f.name)
