@@ -15,10 +15,10 @@ Every pair ``(i, j)``, ``i != j``, of a view is one test image: the photo under 
 relit to sun ``j`` and compared with the render under sun ``j``; both are tone-mapped with the
 view's exposure (no augmentation). Shadow networks and Direct get the ground-truth depth (sky =
 no surface) and normals computed from it as the runtime does; ``L`` and Pix2Pix-like get normals
-from ``Z``'s (post-processed) depth when ``Z`` is installed, as they were trained and as the app
-runs them. ``Ours (Z depth)`` is the whole photo-only pipeline, where ``Z``'s depth and sky of the
-photo replace the ground truth for the shadows too (what the app does on a photo without a depth
-map). Shadow MSE is ``S(C_i, w_j)`` against the ground-truth shadow image
+from ``Z``'s post-processed depth when ``Z`` is installed, as the app runs them (they were trained
+on normals from ``Z``'s raw depth). ``Ours (Z depth)`` is the whole photo-only pipeline, where
+``Z``'s depth and sky of the photo replace the ground truth for the shadows too (what the app does
+on a photo without a depth map). Shadow MSE is ``S(C_i, w_j)`` against the ground-truth shadow image
 ``j`` over the whole frame.
 
 When ``depth.onnx`` is present, ``Z`` is also scored on its own (:func:`evaluate_table`'s
@@ -170,8 +170,9 @@ def evaluate_table(
             for label, (so, sn, ts) in shadows.items():
                 acc[label]["shadow_mse"].append(mse(sn, gt_s))
                 if m["refine"] is not None and m["relight"] is not None:
-                    # L (and Pix2Pix-like) were trained on normals from Z's depth (the paper's
-                    # recipe), so every row feeds them those, as the app does.
+                    # L (and Pix2Pix-like) were trained on normals from Z's raw depth (the
+                    # paper's recipe); every row feeds them normals from Z's post-processed depth,
+                    # as the app does. Z's time is counted only in "Ours (Z depth)".
                     nrm = z_geo[i][1] if z_geo else normals
                     (so_r,), t_r = m["refine"].run(shadow=so[None, None], image=c_o_in, sun=w_o)
                     (c_n,), t_l = m["relight"].run(

@@ -6,14 +6,14 @@ the depth and sky the runtime uses (the session and ``outcast eval`` both call i
 photos it reads clouds as near surfaces (which then cast and receive shadows) and misses parts of
 the sky. The prior here uses what holds in almost every outdoor photo instead:
 
-* sky is bright and smooth: low local gradient of luminance;
+* sky is smooth: a low local colour gradient;
 * sky is blue (clear) or white-grey (cloud, haze, overcast): bluish, or bright and unsaturated;
 * sky touches the top of the frame: only smooth sky-coloured regions connected to the top rows
   count, so a white wall or a snowfield that does not reach the top is never taken for sky.
 
 :func:`combine_sky` adds the prior's regions in which ``Z`` found some sky to ``Z``'s mask and
-keeps what is connected to the top. The runtime session uses it whenever ``Z`` supplies the depth
-(never for a depth map the user loaded, whose own sky is trusted).
+drops ``Z``'s low sky regions cut off from the top (pools). The runtime session uses it whenever
+``Z`` supplies the depth (never for a depth map the user loaded, whose own sky is trusted).
 
 ``Z``'s depth also carries the texture of the photo (grass, gravel, tiles read as bumps), which
 the normals turn into speckled shading and the marcher into speckled shadows.
@@ -28,19 +28,36 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from outcast_core.runtime.geometry import fill_invalid
+
 #: Longer side (pixels) the prior works at; the mask is resized back (nearest) to the input.
 WORK_SIDE = 256
-#: Largest mean gradient magnitude of luminance (per pixel, [0, 1] units) that counts as smooth.
+#: Largest mean gradient magnitude (largest colour channel, per pixel, [0, 1] units) that counts
+#: as smooth.
 SMOOTH = 0.03
 #: Fraction of the height whose rows seed the region (the top rows).
 SEED_ROWS = 0.02
-#: Guided-filter radius as a fraction of the longer side, and its eps (log-depth units squared).
+#: Guided-filter radius as a fraction of the longer side, and its eps (regularisation in squared
+#: units of the sRGB guide: larger smooths across weaker photo edges).
 SMOOTH_RADIUS = 1.0 / 32.0
 SMOOTH_EPS = 1e-2
 #: Least fraction of a prior region that ``Z`` must call sky for the region to be added.
 MIN_AGREEMENT = 0.05
 #: Rows (fraction of the height) below ``Z``'s lowest sky row that the prior may still add.
 HORIZON_MARGIN = 0.15
+
+
+def sky_colour(image_srgb: np.ndarray) -> np.ndarray:
+    """Where a pixel has a sky's colour: bluish (clear sky), or bright and unsaturated (cloud,
+    haze, overcast). ``H x W x 3`` sRGB -> ``H x W`` bool."""
+    img = np.nan_to_num(np.clip(np.asarray(image_srgb, dtype=np.float32), 0.0, 1.0))
+    r, g, b = img[..., 0], img[..., 1], img[..., 2]
+    lum = 0.2126 * r + 0.7152 * g + 0.0722 * b
+    hi = img.max(axis=2)
+    sat = (hi - img.min(axis=2)) / np.maximum(hi, 1e-6)
+    bluish = (b > r + 0.03) & (b >= g - 0.02) & (lum > 0.2)
+    cloudish = (lum > 0.5) & (sat < 0.25)
+    return bluish | cloudish
 
 
 def sky_prior(image_srgb: np.ndarray) -> np.ndarray:
@@ -60,20 +77,14 @@ def sky_prior(image_srgb: np.ndarray) -> np.ndarray:
     sw, sh = max(1, round(w * scale)), max(1, round(h * scale))
     small = cv2.resize(img, (sw, sh), interpolation=cv2.INTER_AREA) if scale < 1 else img
     small = np.nan_to_num(np.clip(small, 0.0, 1.0))
-    r, g, b = small[..., 0], small[..., 1], small[..., 2]
-    lum = 0.2126 * r + 0.7152 * g + 0.0722 * b
-    hi = small.max(axis=2)
-    sat = (hi - small.min(axis=2)) / np.maximum(hi, 1e-6)
     # Local texture: mean over a 5 x 5 window of the largest colour channel's gradient magnitude
     # (lightly blurred), so a pale wall against blue sky is an edge even at equal luminance.
     blurred = cv2.GaussianBlur(small, (3, 3), 0)
     gx = cv2.Sobel(blurred, cv2.CV_32F, 1, 0, ksize=3) / 8.0
     gy = cv2.Sobel(blurred, cv2.CV_32F, 0, 1, ksize=3) / 8.0
     texture = cv2.blur(np.hypot(gx, gy).max(axis=2), (5, 5))
-    bluish = (b > r + 0.03) & (b >= g - 0.02) & (lum > 0.2)
-    cloudish = (lum > 0.5) & (sat < 0.25)
-    candidate = ((bluish | cloudish) & (texture < SMOOTH)).astype(np.uint8)
-    sky = _fill_holes(top_connected(candidate > 0))
+    colour = sky_colour(small)
+    sky = _fill_holes(top_connected(colour & (texture < SMOOTH)), colour)
     if (sh, sw) != (h, w):
         sky = cv2.resize(sky.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
     return sky
@@ -90,56 +101,74 @@ def top_connected(mask: np.ndarray) -> np.ndarray:
     return np.isin(labels, top[top > 0])
 
 
-def _fill_holes(sky: np.ndarray) -> np.ndarray:
-    """Close the non-sky islands cut off from the bottom of the frame (textured cloud cores, also
-    where a cloud runs off the top or side, birds, wires). Anything standing on the bottom edge
-    (ground, trees, buildings, poles) stays, and so does any island larger than a quarter of the
-    frame (a real overhang: a roof or a bridge in the top of the photo)."""
-    if not sky.any():
+def _fill_holes(sky: np.ndarray, colour: np.ndarray) -> np.ndarray:
+    """Close non-sky islands (8-connected) of two kinds:
+
+    * small ones that sky encloses on every side (under 1 % of the frame: birds, lamp tops);
+    * sky-coloured ones cut off from the bottom edge, under a quarter of the frame: textured
+      cloud cores, also where a cloud runs off the top or a side.
+
+    Anything standing on the bottom edge (ground, trees, poles) and anything not sky-coloured
+    that reaches a border (foliage entering from a corner, eaves) stays.
+    """
+    if not sky.any() or sky.all():
         return sky
-    n, labels = cv2.connectedComponents((~sky).astype(np.uint8), connectivity=4)
-    if n <= 1:
-        return sky
-    area = np.bincount(labels.ravel(), minlength=n)
-    keep = area > 0.25 * sky.size
-    keep[np.unique(labels[-1])] = True
-    keep[0] = True  # label 0: the sky itself
-    return sky | ~keep[labels]
+    n, labels = cv2.connectedComponents((~sky).astype(np.uint8), connectivity=8)
+    area = np.bincount(labels.ravel(), minlength=n).astype(np.float64)
+    coloured = np.bincount(labels.ravel(), weights=colour.ravel(), minlength=n)
+    border = np.zeros(n, bool)
+    border[np.unique(np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]]))] = True
+    bottom = np.zeros(n, bool)
+    bottom[np.unique(labels[-1])] = True
+    enclosed = ~border & (area < 0.01 * sky.size)
+    cloud = ~bottom & (area < 0.25 * sky.size) & (coloured >= 0.6 * np.maximum(area, 1))
+    fill = enclosed | cloud
+    fill[0] = False  # label 0: the sky itself
+    return sky | fill[labels]
 
 
 def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
-    """``Z``'s sky mask united with :func:`sky_prior` of the same photo (same ``H x W``), kept
-    only where connected to the top of the frame, with enclosed holes closed.
+    """``Z``'s sky mask combined with :func:`sky_prior` of the same photo (same ``H x W``).
 
-    A region of the prior is added only if ``Z`` marked at least :data:`MIN_AGREEMENT` of it as
-    sky, so a photo where ``Z`` sees no sky at all keeps none, and never more than
-    :data:`HORIZON_MARGIN` below the lowest row of ``Z``'s top-connected sky.
-
-    Sky that ``Z`` finds below the horizon and cut off from the top (a pool, a window) is dropped;
-    clouds that ``Z`` took for surfaces are added by the prior.
+    * A region of the prior is added only if ``Z`` marked at least :data:`MIN_AGREEMENT` of it
+      as sky (a smooth pale wall filling the top of the frame is sky-like in colour and texture,
+      but ``Z`` sees a surface there), and never more than :data:`HORIZON_MARGIN` below the
+      lowest row of ``Z``'s kept sky (sky and a pale ground often meet without an edge).
+    * A sky region of ``Z``'s is kept if it reaches the top of the frame (through the prior's
+      regions too) or starts in the upper half; one cut off from the top that starts in the lower
+      half is dropped (a pool or a window that ``Z`` took for sky).
+    * Holes are closed as in :func:`sky_prior`.
     """
     model_sky = np.asarray(model_sky, dtype=bool)
-    if model_sky.shape != np.asarray(image_srgb).shape[:2]:
+    image = np.asarray(image_srgb, dtype=np.float32)
+    if model_sky.shape != image.shape[:2]:
         raise ValueError(
-            f"expected a sky mask of the image's size {np.asarray(image_srgb).shape[:2]}, "
-            f"got {model_sky.shape}"
+            f"expected a sky mask of the image's size {image.shape[:2]}, got {model_sky.shape}"
         )
-    prior = sky_prior(image_srgb)
+    h = model_sky.shape[0]
+    prior = sky_prior(image)
     n, labels = cv2.connectedComponents(prior.astype(np.uint8), connectivity=4)
     if n > 1:
-        # A prior region counts only where Z saw some sky in it: a smooth pale wall filling the
-        # top of the frame is sky-like in colour and texture, but Z sees a surface there.
         area = np.bincount(labels.ravel(), minlength=n)
         agree = np.bincount(labels.ravel(), weights=model_sky.ravel(), minlength=n)
         ok = agree >= MIN_AGREEMENT * np.maximum(area, 1)
         ok[0] = False
         prior = ok[labels]
-    # Nor below Z's own horizon: the lowest row of Z's top-connected sky, plus a margin (sky and
-    # a pale, smooth ground or snowfield often meet without an edge).
-    rows = np.nonzero(top_connected(model_sky).any(axis=1))[0]
-    limit = rows[-1] + 1 + round(HORIZON_MARGIN * model_sky.shape[0]) if rows.size else 0
+    n, labels = cv2.connectedComponents(model_sky.astype(np.uint8), connectivity=8)
+    keep = np.zeros(n, bool)
+    if n > 1:
+        reached = np.unique(labels[top_connected(model_sky | prior) & model_sky])
+        keep[reached] = True
+        rows = np.arange(h)[:, None].repeat(model_sky.shape[1], 1)
+        first_row = np.full(n, h)
+        np.minimum.at(first_row, labels.ravel(), rows.ravel())
+        keep |= first_row < h / 2
+        keep[0] = False
+    z_kept = keep[labels]
+    rows_with_sky = np.nonzero(z_kept.any(axis=1))[0]
+    limit = rows_with_sky[-1] + 1 + round(HORIZON_MARGIN * h) if rows_with_sky.size else 0
     prior[limit:] = False
-    return _fill_holes(top_connected(model_sky | prior))
+    return _fill_holes(z_kept | prior, sky_colour(image))
 
 
 def smooth_depth(depth: np.ndarray, sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
@@ -151,8 +180,8 @@ def smooth_depth(depth: np.ndarray, sky: np.ndarray, image_srgb: np.ndarray) -> 
         image_srgb: ``H x W x 3`` sRGB ``[0, 1]``, the guide.
 
     Returns:
-        ``H x W`` float32 depth, positive and finite where ``sky`` is False; the input's values
-        where ``sky`` is True.
+        ``H x W`` float32 depth: smoothed where the input is a finite positive surface, the
+        input's values elsewhere (sky, and any non-finite or non-positive pixel).
     """
     depth = np.asarray(depth, dtype=np.float32)
     sky = np.asarray(sky, dtype=bool)
@@ -165,9 +194,9 @@ def smooth_depth(depth: np.ndarray, sky: np.ndarray, image_srgb: np.ndarray) -> 
     ok = ~sky & np.isfinite(depth) & (depth > 0)
     if not ok.any():
         return depth
-    log_d = np.log(np.where(ok, depth, 1.0)).astype(np.float32)
-    # Sky and invalid pixels take the median so they neither pull nor push their neighbours much.
-    log_d[~ok] = float(np.median(log_d[ok]))
+    # Sky and invalid pixels take their nearest surface's depth, so a far horizon is not pulled
+    # toward the image's median depth.
+    log_d = fill_invalid(np.log(np.where(ok, depth, 1.0)), ok).astype(np.float32)
     radius = max(1, round(SMOOTH_RADIUS * max(depth.shape)))
     guide = np.nan_to_num(np.clip(image, 0.0, 1.0))
     out = cv2.ximgproc.guidedFilter(guide, log_d, radius, SMOOTH_EPS)

@@ -250,7 +250,7 @@ def normals_from_depth(depth: np.ndarray, camera: Camera) -> np.ndarray:
     # Scale invariance: normals do not depend on the depth scale; normalising keeps any range sane.
     d = relative_depth(depth)
     # Invalid pixels take their nearest valid neighbour's depth for the stencil only.
-    d_filled = _fill_invalid(d, valid)
+    d_filled = fill_invalid(d, valid)
     pts = backproject(d_filled.astype(np.float32), camera).astype(np.float64)  # H x W x 3
     du, dv = _sobel_xy(pts)
     n = np.cross(du, dv)  # H x W x 3
@@ -262,7 +262,7 @@ def normals_from_depth(depth: np.ndarray, camera: Camera) -> np.ndarray:
     return n.astype(np.float32)
 
 
-def _fill_invalid(d: np.ndarray, valid: np.ndarray) -> np.ndarray:
+def fill_invalid(d: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """Replace invalid depth by the nearest valid value (or 1 when nothing is valid)."""
     if valid.all():
         return d

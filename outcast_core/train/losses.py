@@ -64,8 +64,9 @@ def change_loss(
     """L1 of ``pred`` against ``target`` on the pixels whose sun visibility changed.
 
     The weight is ``|vis_old - vis_new|`` dilated by one pixel (so shadow edges count), and the
-    mean is over the weighted pixels of the batch, so a small moved shadow weighs as much as a
-    large one. Where no visibility changed the term is 0. Whole-image losses are dominated by the
+    mean is over the weighted pixels of the whole batch: the term does not shrink when the moved
+    shadows are small (within a batch, images with larger changes weigh more). Where no
+    visibility changed the term is 0. Whole-image losses are dominated by the
     global change of light; this one is paid only where a shadow appears or disappears.
 
     Shape:

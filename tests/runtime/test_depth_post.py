@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -54,15 +55,50 @@ def test_prior_ignores_a_pale_smooth_patch_cut_off_from_the_top() -> None:
     assert not found[80:110, 40:90].any()
 
 
-def test_combine_adds_clouds_z_missed_and_drops_sky_cut_off_from_the_top() -> None:
+def test_combine_adds_a_horizon_cloud_only_the_prior_finds() -> None:
     img, truth = _photo()
+    # A soft-edged cloud bank sitting on the horizon (rows 30-47 of the sky).
+    bank = np.zeros(truth.shape, np.float32)
+    bank[30:48, 20:70] = 1.0
+    alpha = cv2.GaussianBlur(bank, (0, 0), 6.0)[..., None] * truth[..., None]
+    img = img * (1 - alpha) + np.array([0.8, 0.85, 0.95], np.float32) * alpha
     z_sky = truth.copy()
-    z_sky[:30, 110:] = False  # Z took the cloud for a surface
-    z_sky[100:115, 20:60] = True  # and a pool for sky
+    z_sky[30:48, 20:70] = False  # Z took it for a surface; it touches the ground below
     out = combine_sky(z_sky, img)
-    assert out[:20, 130:].all()  # the cloud is sky again
-    assert not out[100:115, 20:60].any()  # the pool is not
-    assert _iou(out, truth) > 0.9
+    assert out[30:44, 24:66].all()  # the last rows above the ground edge are textured
+    with pytest.MonkeyPatch.context() as mp:  # without the prior nothing restores it
+        mp.setattr(sky_mod, "sky_prior", lambda im: np.zeros(im.shape[:2], bool))
+        assert not combine_sky(z_sky, img)[30:44, 24:66].any()
+
+
+def test_combine_drops_a_low_pool_but_keeps_sky_seen_under_a_canopy() -> None:
+    img, truth = _photo()
+    rng = np.random.default_rng(5)
+    z_sky = truth.copy()
+    z_sky[100:115, 20:60] = True  # Z took a pool in the ground for sky
+    out = combine_sky(z_sky, img)
+    assert not out[100:115, 20:60].any() and _iou(out, truth) > 0.9
+    # A textured canopy across the top: Z's sky below it reaches the top nowhere, but it starts
+    # in the upper half of the frame, so it stays sky; the canopy stays a surface.
+    img[:12] = np.array([0.15, 0.35, 0.1]) + 0.3 * rng.random((12, img.shape[1], 1))
+    z_sky[:12] = False
+    out = combine_sky(z_sky, img)
+    assert out[14:46].mean() > 0.9 and not out[:12].any()
+
+
+def test_fill_keeps_foliage_from_a_corner_and_thin_diagonal_wires() -> None:
+    img, truth = _photo()
+    rng = np.random.default_rng(6)
+    img[:25, :30] = np.array([0.15, 0.35, 0.1]) + 0.3 * rng.random((25, 30, 1))  # foliage
+    z_sky = truth.copy()
+    z_sky[:25, :30] = False
+    for k in range(20):  # a 1 px diagonal cable from the left edge up into the foliage
+        img[44 - k, k] = 0.05
+        z_sky[44 - k, k] = False
+    out = combine_sky(z_sky, img)
+    assert not out[:25, :30].any()
+    cable = np.array([out[44 - k, k] for k in range(20)])
+    assert not cable.any()  # 8-connected: one object reaching the border, not 20 specks
 
 
 def test_combine_keeps_no_sky_where_z_sees_none() -> None:
