@@ -50,13 +50,12 @@ HORIZON_MARGIN = 0.15
 def sky_colour(image_srgb: np.ndarray) -> np.ndarray:
     """Where a pixel has a sky's colour: bluish (clear sky), or bright and unsaturated (cloud,
     haze, overcast). ``H x W x 3`` sRGB -> ``H x W`` bool."""
-    img = np.nan_to_num(np.clip(np.asarray(image_srgb, dtype=np.float32), 0.0, 1.0))
-    r, g, b = img[..., 0], img[..., 1], img[..., 2]
-    lum = 0.2126 * r + 0.7152 * g + 0.0722 * b
-    hi = img.max(axis=2)
-    sat = (hi - img.min(axis=2)) / np.maximum(hi, 1e-6)
+    img = np.asarray(image_srgb, dtype=np.float32)  # NaN compares False: never sky-coloured
+    r, g, b = cv2.split(img)
+    lum = cv2.transform(img, np.array([[0.2126, 0.7152, 0.0722]], np.float32))
+    lo, hi = np.minimum(np.minimum(r, g), b), np.maximum(np.maximum(r, g), b)
     bluish = (b > r + 0.03) & (b >= g - 0.02) & (lum > 0.2)
-    cloudish = (lum > 0.5) & (sat < 0.25)
+    cloudish = (lum > 0.5) & (hi - lo < 0.25 * hi)  # saturation < 0.25
     return bluish | cloudish
 
 
