@@ -44,9 +44,7 @@ def _card(man: dict[str, Any]) -> list[str]:
             f"seed {cfg.get('seed')}, "
             f"{tr.get('wall_time_s')} s wall time on this 2-core CPU "
             f"({cfg.get('threads')} torch thread(s); {_minutes(tr.get('wall_time_s'))})",
-            *([f"- Continues run `{br['run']}` (`{br['command']}`) from its step {br['step']} "
-               f"({_minutes(br['wall_time_s'])} of the wall time above); steps and wall time "
-               "count both runs"] if (br := tr.get("branched_from")) else []),
+            *_branch_lines(tr.get("branched_from")),
             f"- Data: `{tr.get('data_set')}` (data seed {tr.get('data_seed')}, "
             f"{tr.get('views')} views)",
             f"- Final training losses (moving average): {json.dumps(tr.get('loss', {}))}",
@@ -58,6 +56,16 @@ def _card(man: dict[str, Any]) -> list[str]:
         lines.append("- Held-out metrics: not measured")
     lines += [f"- sha256: `{man['sha256']}`", ""]
     return lines
+
+
+def _branch_lines(br: dict[str, Any] | None) -> list[str]:
+    """The card line of a run that continues another (``resume_from``), or none."""
+    if not br:
+        return []
+    threads = f", trained with {br['threads']} thread(s)" if br.get("threads") else ""
+    return [f"- Continues run `{br['run']}` (`{br['command']}`) from its step {br['step']} "
+            f"({_minutes(br['wall_time_s'])} of the wall time above{threads}); steps and wall "
+            "time count both runs"]
 
 
 def _minutes(seconds: Any) -> str:

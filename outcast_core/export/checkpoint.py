@@ -63,7 +63,9 @@ def _branch(rec: dict[str, Any] | None) -> dict[str, Any] | None:
     """Where a ``resume_from`` run branched off: run, step, wall time and that run's command."""
     if not rec:
         return None
-    return {k: rec.get(k) for k in ("run", "step", "wall_time_s", "command")}
+    out = {k: rec.get(k) for k in ("run", "step", "wall_time_s", "command")}
+    out["threads"] = (rec.get("config") or {}).get("threads")
+    return out
 
 
 def export_checkpoint(

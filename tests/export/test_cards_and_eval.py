@@ -65,11 +65,12 @@ def test_cards_render_from_manifests(tmp_path) -> None:
         "config": {"stage": "relight", "run": "r2"}, "steps": 20, "wall_time_s": 7.0,
         "command": "outcast train r2.toml",
         "branched_from": {"run": "r", "step": 12, "wall_time_s": 3.5,
-                          "command": "outcast train r.toml"},
+                          "command": "outcast train r.toml", "threads": 2},
     }, {})
     text = render_cards(tmp_path, "")
     assert "`outcast train r2.toml`" in text
     assert "Continues run `r` (`outcast train r.toml`) from its step 12" in text
+    assert "trained with 2 thread(s)" in text
 
 
 def test_tables_and_pictures(tmp_path) -> None:
