@@ -40,9 +40,15 @@ import numpy as np
 
 from outcast_core.eval.metrics import depth_errors, dssim, iou, mse
 from outcast_core.eval.onnx_models import TimedModel
+from outcast_core.runtime.colour import srgb_to_linear
 from outcast_core.runtime.depth_post import postprocess_z
-from outcast_core.runtime.geometry import Camera, normals_from_depth, view_directions
-from outcast_core.runtime.relight import physics_relight
+from outcast_core.runtime.geometry import (
+    Camera,
+    network_depth,
+    normals_from_depth,
+    view_directions,
+)
+from outcast_core.runtime.relight import estimate_light, physics_relight
 from outcast_core.runtime.session import ground_plane_depth
 from outcast_core.runtime.shadows import direct_shadow
 from outcast_core.train.data import Prepared, auto_exposure, load_prepared, tonemap
@@ -170,14 +176,23 @@ def evaluate_table(
             for label, (so, sn, ts) in shadows.items():
                 acc[label]["shadow_mse"].append(mse(sn, gt_s))
                 if m["refine"] is not None and m["relight"] is not None:
-                    # L (and Pix2Pix-like) were trained on normals from Z's raw depth (the
-                    # paper's recipe); every row feeds them normals from Z's post-processed depth,
-                    # as the app does. Z's time is counted only in "Ours (Z depth)".
+                    # L (and Pix2Pix-like) were trained on normals from Z's depth (the paper's
+                    # recipe); every row feeds them normals from Z's post-processed depth, as the
+                    # app does. Z's time is counted only in "Ours (Z depth)".
                     nrm = z_geo[i][1] if z_geo else normals
                     (so_r,), t_r = m["refine"].run(shadow=so[None, None], image=c_o_in, sun=w_o)
+                    ratio = np.ones(3, np.float32)
+                    if "light_ratio" in m["relight"].inputs:
+                        # L with the physics base takes the light ratio, estimated as the app
+                        # does (the sky: pixels without normals).
+                        t = time.perf_counter()
+                        ratio = estimate_light(srgb_to_linear(c_o), so_r[0, 0],
+                                               (nrm[0] ** 2).sum(0) <= 0.25).ratio
+                        t_r += time.perf_counter() - t
                     (c_n,), t_l = m["relight"].run(
                         image=c_o_in, shadow_old=so_r, shadow_new=sn[None, None],
                         normals=nrm, sun_old=w_o, sun_new=w_n, view_dirs=psi,
+                        light_ratio=ratio[None],
                     )
                     out = _hw(c_n)
                     acc[label]["dssim"].append(dssim(out, gt))
@@ -243,8 +258,10 @@ def _depth_from_z(
         app = depth_errors(depth, gt, ~gt_sky)
         for k, v in (app | {"sky_iou": iou(sky, gt_sky), "time_s": t}).items():
             dacc["Z + post-processing (app)"][k].append(v)
-        normals = normals_from_depth(np.where(sky, np.inf, depth).astype(np.float32), view.camera)
-        out.append((np.where(sky, 0.0, depth)[None, None].astype(np.float32),
+        # The network inputs as the session makes them (sky: inf for normals, 0 for S).
+        depth_sky = np.where(sky, np.inf, depth).astype(np.float32)
+        normals = normals_from_depth(depth_sky, view.camera)
+        out.append((network_depth(depth_sky)[None, None],
                     np.moveaxis(normals, -1, 0)[None].astype(np.float32), t))
     t = time.perf_counter()
     prior, prior_sky = ground_plane_depth(view.camera)

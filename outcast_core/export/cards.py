@@ -30,6 +30,12 @@ def _card(man: dict[str, Any]) -> list[str]:
         f"parameters: {man['parameters']:,}; ONNX opset {man.get('opset')}; onnxruntime vs "
         f"torch max abs diff at export: {man.get('onnx_parity_max_abs_diff')}",
     ]
+    if man.get("base") == "physics":
+        lines.append(
+            "- Residual on the physics relighting: the output is the shading-ratio relighting "
+            "`C_o (1 + r S_n) / (1 + r S_o)` (linear RGB; `light_ratio` is r, estimated from the "
+            "photo by `runtime.relight.estimate_light`) plus what the network corrects"
+        )
     if "march_steps" in man:
         lines.append(
             f"- March: z = {man['march_steps']} steps of {man['march_step']} (fraction of the "

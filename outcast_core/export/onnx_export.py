@@ -63,22 +63,40 @@ SPECS: dict[str, IOSpec] = {
     ),
 }
 SPECS["shadow_2d"] = SPECS["shadow"]
+#: ``L`` with the physics base (``RelightNet(base="physics")``) takes the light ratio as well.
+RELIGHT_PHYSICS = IOSpec(
+    SPECS["relight"].inputs + (("light_ratio", None),), SPECS["relight"].outputs,
+    {"sun_old": 3, "sun_new": 3, "light_ratio": 3},
+)
 
 
-def sample_inputs(kind: str, height: int, width: int, seed: int = 0) -> dict[str, np.ndarray]:
-    """Plausible random inputs for ``kind`` at ``height x width`` (batch 1, float32).
-
-    Depth maps hold a sky band (``+inf`` is not allowed by every runtime: sky is 0 here, which the
-    contract also defines as "no surface"); suns are unit vectors above the horizon; normals and
-    view directions are unit vectors; focal is the 60 degree focal length.
-    """
+def spec_for(kind: str, net: nn.Module | None = None) -> IOSpec:
+    """The I/O spec of network ``kind``; ``net`` picks the variant where a kind has two."""
     if kind not in SPECS:
         raise ValueError(f"expected a kind in {sorted(SPECS)}, got {kind!r}")
+    if kind == "relight" and getattr(net, "base", "photo") == "physics":
+        return RELIGHT_PHYSICS
+    return SPECS[kind]
+
+
+def sample_inputs(
+    kind: str, height: int, width: int, seed: int = 0, spec: IOSpec | None = None
+) -> dict[str, np.ndarray]:
+    """Plausible random inputs for ``kind`` (or ``spec``) at ``height x width`` (batch 1).
+
+    Depth maps and normals hold a sky band (depth 0: ``+inf`` is not allowed by every runtime,
+    and the contract also defines 0 as "no surface"; normals 0); suns are unit vectors above the
+    horizon; normals below the band and view directions are unit vectors; focal is the 60 degree
+    focal length; light ratios are positive, in the range a photo gives.
+    """
+    spec = spec or spec_for(kind)
     rng = np.random.default_rng(seed)
     out: dict[str, np.ndarray] = {}
-    for name, ch in SPECS[kind].inputs:
+    for name, ch in spec.inputs:
         if name == "focal":
             out[name] = np.array([[width / (2 * math.tan(math.radians(30)))]], np.float32)
+        elif name == "light_ratio":
+            out[name] = rng.uniform(0.5, 8.0, (1, 3)).astype(np.float32)
         elif ch is None:
             v = rng.normal(size=(1, 3))
             v[0, 1] = -abs(v[0, 1]) - 0.2
@@ -89,7 +107,10 @@ def sample_inputs(kind: str, height: int, width: int, seed: int = 0) -> dict[str
             out[name] = d
         elif name in ("normals", "view_dirs"):
             v = rng.normal(size=(1, 3, height, width))
-            out[name] = (v / np.linalg.norm(v, axis=1, keepdims=True)).astype(np.float32)
+            v = v / np.linalg.norm(v, axis=1, keepdims=True)
+            if name == "normals":
+                v[..., : height // 5, :] = 0.0  # the sky band has no surface normal
+            out[name] = v.astype(np.float32)
         else:
             out[name] = rng.random((1, ch, height, width)).astype(np.float32)
     return out
@@ -111,9 +132,10 @@ def check_parity(
     import onnxruntime as ort
 
     sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    spec = spec_for(kind, net)
     worst = 0.0
     for i, (h, w) in enumerate(sizes):
-        inputs = sample_inputs(kind, h, w, seed=i)
+        inputs = sample_inputs(kind, h, w, seed=i, spec=spec)
         ref = _torch_outputs(net, inputs)
         got = sess.run(None, inputs)
         for r, g in zip(ref, got, strict=True):
@@ -140,9 +162,7 @@ def export_onnx(
     Returns:
         The worst max abs difference seen (at most :data:`PARITY_TOL`).
     """
-    if kind not in SPECS:
-        raise ValueError(f"expected a kind in {sorted(SPECS)}, got {kind!r}")
-    spec = SPECS[kind]
+    spec = spec_for(kind, net)
     net = net.eval()
     m = int(getattr(net, "pad_multiple", 8))
     if parity_sizes is None:
@@ -150,7 +170,7 @@ def export_onnx(
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     h0, w0 = parity_sizes[0]
-    example = sample_inputs(kind, h0, w0)
+    example = sample_inputs(kind, h0, w0, spec=spec)
     names_in = [n for n, _ in spec.inputs]
     names_out = [n for n, _ in spec.outputs]
     dynamic: dict[str, dict[int, str]] = {}
@@ -177,9 +197,11 @@ def export_onnx(
         raise
 
 
-def io_shapes(kind: str) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """Manifest ``inputs`` / ``outputs`` lists for ``kind``."""
-    spec = SPECS[kind]
+def io_shapes(
+    kind: str, net: nn.Module | None = None
+) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Manifest ``inputs`` / ``outputs`` lists for ``kind`` (``net`` picks the variant)."""
+    spec = spec_for(kind, net)
 
     def shape(ch: int | None, name: str) -> list[Any]:
         if ch is None:
@@ -199,7 +221,7 @@ def write_manifest(
     """Write ``<name>.json`` beside ``onnx_path`` per the models contract; returns its path."""
     onnx_path = Path(onnx_path)
     name = onnx_name or onnx_path.stem
-    ins, outs = io_shapes(kind)
+    ins, outs = io_shapes(kind, net)
     manifest: dict[str, Any] = {
         "name": name,
         "version": MANIFEST_VERSION,
@@ -217,6 +239,8 @@ def write_manifest(
     }
     if parity is not None:
         manifest["onnx_parity_max_abs_diff"] = parity
+    if kind == "relight":
+        manifest["base"] = getattr(net, "base", "photo")
     if kind in ("shadow", "shadow_2d") and hasattr(net, "steps"):
         manifest["march_steps"] = int(net.steps)
         manifest["march_step"] = float(net.step)

@@ -153,6 +153,19 @@ def relative_depth(depth: np.ndarray) -> np.ndarray:
     return out
 
 
+def network_depth(depth: np.ndarray) -> np.ndarray:
+    """The depth input of the shadow networks: :func:`relative_depth` with 0 where no surface.
+
+    ``S`` and ``2D`` only use depth ratios, so the relative depth changes nothing for them, but
+    it keeps a depth map in any unit or range finite inside the float32 graph; 0 is the models
+    contract's "no surface" (``+inf`` is not allowed by every runtime).
+
+    Returns:
+        ``H x W`` float32.
+    """
+    return np.nan_to_num(relative_depth(depth), nan=0.0).astype(np.float32)
+
+
 def _check_depth(depth: np.ndarray) -> np.ndarray:
     depth = np.asarray(depth)
     if depth.ndim != 2:

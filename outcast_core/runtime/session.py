@@ -30,9 +30,9 @@ from outcast_core.runtime.geometry import (
     DEFAULT_FOV_DEG,
     Camera,
     focal_from_35mm,
+    network_depth,
     normalize_sun,
     normals_from_depth,
-    relative_depth,
     view_directions,
 )
 from outcast_core.runtime.models import ModelError, ModelRegistry
@@ -415,9 +415,7 @@ class RelightSession:
         w: np.ndarray,
     ) -> np.ndarray:
         model = self.registry.load("shadow")
-        # S and 2D only use depth ratios, so relative depth changes nothing for them but keeps
-        # a depth map in any unit or range finite inside the float32 graph.
-        d = np.nan_to_num(relative_depth(depth), nan=0.0).astype(np.float32)
+        d = network_depth(depth)
         out = model.run({
             "image": image.transpose(2, 0, 1)[None],
             "depth": d[None, None],
@@ -480,6 +478,8 @@ class RelightSession:
                 "sun_old": self.original_sun.astype(np.float32)[None],
                 "sun_new": wv.astype(np.float32)[None],
                 "view_dirs": self.view_dirs.transpose(2, 0, 1)[None],
+                # Used by L with the physics base only (Model.run feeds a graph's own inputs).
+                "light_ratio": self._light.ratio.astype(np.float32)[None],
             })
             img = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
         else:

@@ -45,6 +45,13 @@ class TrainConfig:
         new_shadow_gt_depth_prob: ``relight`` stage: probability that the new shadow ``S_n`` fed
             to ``L`` comes from ground-truth depth rather than ``Z``'s (old shadows and normals
             always use ``Z``'s, as in the paper); 0 = always ``Z``'s.
+        relight_base: ``relight`` stage: what ``L``'s residual is added to, ``photo`` (the
+            paper) or ``physics`` (the shading-ratio relighting, with the light ratio estimated
+            from ``C_o`` and ``R``'s ``S_o`` as the app does; see
+            :class:`outcast_core.nets.relight.RelightNet`).
+        postprocess_depth: pass ``Z``'s estimates through the app's post-processing
+            (:func:`outcast_core.runtime.depth_post.postprocess_z`: sky prior, guided smoothing)
+            before they feed ``S``, ``R`` and ``L``, so training sees what the app computes.
         resume_from: when this run has no checkpoint yet, continue the named run's checkpoint
             (networks, optimisers, step, wall time) under this config, e.g. to train longer
             with a changed loss; the checkpoint records where it branched.
@@ -81,6 +88,8 @@ class TrainConfig:
     depth_checkpoint: str = ""
     shadow_checkpoint: str = ""
     new_shadow_gt_depth_prob: float = 0.0
+    relight_base: str = "photo"
+    postprocess_depth: bool = False
     resume_from: str = ""
     sun_noise_deg: float = 3.0
     cloud_prob: float = 0.0
@@ -107,6 +116,16 @@ class TrainConfig:
         for key in ("gt_depth_prob", "new_shadow_gt_depth_prob", "cloud_prob"):
             if not 0.0 <= getattr(self, key) <= 1.0:
                 raise ValueError(f"expected {key} in [0, 1], got {getattr(self, key)}")
+        if self.relight_base not in ("photo", "physics"):
+            raise ValueError(f"expected relight_base photo or physics, got {self.relight_base!r}")
+        if self.relight_base != "photo" and self.stage != "relight":
+            raise ValueError(f"expected relight_base only for the relight stage, got stage "
+                             f"{self.stage!r}")
+        for key in ("flip", "postprocess_depth"):
+            if not isinstance(getattr(self, key), bool):
+                raise ValueError(f"expected {key} true or false, got {getattr(self, key)!r}")
+        if self.postprocess_depth and not self.depth_checkpoint:
+            raise ValueError("expected a depth_checkpoint for postprocess_depth, got none")
         if self.resume_from == self.run:
             raise ValueError(f"expected resume_from to name another run, got {self.run!r}")
         if self.stage == "relight" and not self.shadow_checkpoint:

@@ -72,6 +72,40 @@ def load_checkpoint_nets(path: str | Path) -> tuple[dict[str, nn.Module], dict[s
     return nets, ckpt
 
 
+def _postprocessed(
+    depth: torch.Tensor, sky: torch.Tensor, image: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`~outcast_core.runtime.depth_post.postprocess_z` on each item of a batch."""
+    from outcast_core.runtime.depth_post import postprocess_z
+
+    ds, ss = [], []
+    for b in range(depth.shape[0]):
+        d, s = postprocess_z(depth[b, 0].numpy(), sky[b, 0].numpy(),
+                             image[b].permute(1, 2, 0).numpy())
+        ds.append(torch.from_numpy(np.where(s, 0.0, d).astype(np.float32)))
+        ss.append(torch.from_numpy(s.astype(np.float32)))
+    return torch.stack(ds)[:, None], torch.stack(ss)[:, None]
+
+
+def light_ratios(
+    image: torch.Tensor, shadow_old: torch.Tensor, normals: torch.Tensor
+) -> torch.Tensor:
+    """Per-item sun/ambient ratio ``B x 3`` as the app estimates it (no gradient).
+
+    :func:`~outcast_core.runtime.relight.estimate_light` on the photo, the refined original
+    shadow and the sky of the geometry (pixels with zero normals).
+    """
+    from outcast_core.runtime.colour import srgb_to_linear
+    from outcast_core.runtime.relight import estimate_light
+
+    out = []
+    for b in range(image.shape[0]):
+        lin = srgb_to_linear(image[b].detach().permute(1, 2, 0).numpy())
+        sky = (normals[b].detach() ** 2).sum(0).numpy() <= 0.25
+        out.append(estimate_light(lin, shadow_old[b, 0].detach().numpy(), sky).ratio)
+    return torch.from_numpy(np.stack(out).astype(np.float32))
+
+
 class Trainer:
     """Runs one :class:`TrainConfig` to completion (or to its time limit), resuming if possible.
 
@@ -104,6 +138,8 @@ class Trainer:
         self.nets: dict[str, nn.Module] = {}
         for kind in STAGE_NETS[cfg.stage]:
             kw = dict(cfg.net) if kind == STAGE_NETS[cfg.stage][0] else {}
+            if kind == "relight" and cfg.relight_base != "photo":
+                kw["base"] = cfg.relight_base
             self.net_kwargs[kind] = kw
             self.nets[kind] = build(kind, **kw).train()
         gen = [p for k, n in self.nets.items() if k != "critic" for p in n.parameters()]
@@ -161,6 +197,13 @@ class Trainer:
             raise ValueError(
                 f"expected a checkpoint of stage {self.cfg.stage}, got {ckpt['config']['stage']}"
             )
+        for k in self.nets:
+            saved = ckpt.get("net_kwargs", {}).get(k, {})
+            if saved != self.net_kwargs[k] and path == self.checkpoint_path:
+                raise ValueError(
+                    f"expected {k} built as in its checkpoint {path} ({saved}), got "
+                    f"{self.net_kwargs[k]}; start a new run with resume_from to change it"
+                )
         for k, net in self.nets.items():
             net.load_state_dict(ckpt["nets"][k])
         self.opt_g.load_state_dict(ckpt["opt_g"])
@@ -215,11 +258,16 @@ class Trainer:
     def _estimated_geometry(
         self, t: dict[str, torch.Tensor]
     ) -> tuple[torch.Tensor, torch.Tensor]:
-        """``Z``'s depth (sky -> 0) and the normals from it, or the ground truth without ``Z``."""
+        """``Z``'s depth (sky -> 0) and the normals from it, or the ground truth without ``Z``.
+
+        With ``postprocess_depth`` the estimate goes through the app's post-processing first.
+        """
         if self.depth_net is None:
             return t["depth"], t["normals"]
         with torch.no_grad():
             depth, sky = self.depth_net(t["image"])
+            if self.cfg.postprocess_depth:
+                depth, sky = _postprocessed(depth, sky, t["image"])
             depth = torch.where(sky > 0.5, torch.zeros_like(depth), depth)
             return depth, normals_from_depth(depth, t["focal"])
 
@@ -273,8 +321,11 @@ class Trainer:
                 s_o_raw = self.shadow_net(t["image"], depth_o, normals_o, sun_o, t["focal"])
                 s_n = self.shadow_net(t["image"], depth_n, normals_n, t["sun_new"], t["focal"])
             s_o = self.nets["refine"](s_o_raw, t["image"], sun_o)
+            extra = ()
+            if self.cfg.relight_base == "physics":
+                extra = (light_ratios(t["image"], s_o.detach(), normals_o),)
             c_n = self.nets["relight"](
-                t["image"], s_o, s_n, normals_o, sun_o, t["sun_new"], t["view_dirs"]
+                t["image"], s_o, s_n, normals_o, sun_o, t["sun_new"], t["view_dirs"], *extra
             )
             f_r = structural_loss(s_o, t["shadow_old"])
             logs["f_R"] = f_r.item()

@@ -108,3 +108,35 @@ def test_sample_photos_are_relit_into_a_sheet(tmp_path) -> None:
     spec.write_text(json.dumps({"_about": "nothing"}))
     with pytest.raises(ValueError, match="at least one photo"):
         relight_samples(spec)
+
+
+def test_evaluate_table_runs_every_method_on_a_tiny_test_set(tmp_path) -> None:
+    """Table 1 end to end on a hand-made view with untrained exported networks: every row is
+    measured, and a zero-head physics-base L (fed its light ratio and true normals, as there is
+    no Z here) changes the photo where a zero-head Pix2Pix-like L returns it."""
+    from outcast_core.data.dataset import save_view
+    from outcast_core.eval.table import evaluate_table
+    from outcast_core.runtime.geometry import sun_angles
+    from tests.train.conftest import make_view
+
+    data = tmp_path / "test"
+    v = make_view(0, size=128, suns=2)  # the evaluation works at 128 px
+    v["sun_azel"] = np.array([sun_angles(s) for s in v["sun"]], np.float32)
+    save_view(data / "view_000000", v, {})
+    models = tmp_path / "models"
+    torch.manual_seed(0)
+    for kind, kw in (("shadow", {"steps": 8}), ("shadow_2d", {}), ("refine", {}),
+                     ("relight", {"base": "physics"}), ("relight_pix2pix", {})):
+        export_onnx(build(kind, **kw), kind, models / f"{kind}.onnx", [(16, 16)])
+    res = evaluate_table(data, models, threads=1, sheet_pairs=1)
+    assert res["missing"] == ["depth"] and res["views"] == 1 and res["pairs"] == 2
+    rows = res["rows"]
+    for method in ("Input", "Direct", "Ours", "2D", "Pix2Pix-like", "Physics (Ours shadows)",
+                   "Physics (Direct shadows)"):
+        assert method in rows and np.isfinite(rows[method]["dssim"]), method
+    for method in ("Direct", "Ours", "2D"):
+        assert np.isfinite(rows[method]["shadow_mse"]), method
+    assert "Ours (Z depth)" not in rows and res["depth"] == {}
+    assert rows["Pix2Pix-like"]["dssim"] == pytest.approx(rows["Input"]["dssim"], abs=1e-4)
+    assert abs(rows["Ours"]["mse"] - rows["Input"]["mse"]) > 1e-5
+    assert len(res["sheet"]) == 1 and "Ours" in res["sheet"][0]

@@ -15,6 +15,7 @@ from outcast_core.export.onnx_export import (
     check_parity,
     export_onnx,
     sample_inputs,
+    spec_for,
     write_manifest,
 )
 from outcast_core.nets import build
@@ -41,6 +42,61 @@ def test_export_parity_and_manifest(kind: str, tmp_path) -> None:
     assert man["pad_multiple"] == m
     if kind == "shadow":
         assert man["march_steps"] == 8 and man["volume_scale"] == 0.5
+
+
+def test_export_of_relight_with_the_physics_base_takes_the_light_ratio(tmp_path) -> None:
+    torch.manual_seed(0)
+    net = build("relight", base="physics")
+    torch.nn.init.normal_(net.unet.head.weight, std=0.1)
+    path = tmp_path / "relight.onnx"
+    assert export_onnx(net, "relight", path, [(16, 16), (24, 40)]) <= PARITY_TOL
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    names = [i.name for i in sess.get_inputs()]
+    assert names == [n for n, _ in SPECS["relight"].inputs] + ["light_ratio"]
+    feeds = sample_inputs("relight", 16, 16, spec=spec_for("relight", net))
+    a = sess.run(None, feeds)[0]
+    b = sess.run(None, feeds | {"light_ratio": feeds["light_ratio"] * 4.0})[0]
+    assert np.abs(a - b).max() > 1e-3  # the ratio reaches the graph
+    man = json.loads(write_manifest(net, "relight", path, {"steps": 0}).read_text())
+    assert man["base"] == "physics"
+    assert man["inputs"][-1] == {"name": "light_ratio", "shape": ["B", 3]}
+
+
+def test_session_relights_with_a_physics_base_l_as_the_physics_mode_does(tmp_path) -> None:
+    """An untrained physics-base L (zero head) is the shading-ratio relighting: the session must
+    feed it its own light estimate, shadows and sky exactly as its physics mode uses them."""
+    from outcast_core.runtime.models import ModelRegistry
+    from outcast_core.runtime.relight import physics_relight
+    from outcast_core.runtime.session import RelightSession
+    from tests.runtime.scenes import box_scene_depth
+
+    net = build("relight", base="physics")
+    path = tmp_path / "relight.onnx"
+    write_manifest(net, "relight", path, {"steps": 0},
+                   parity=export_onnx(net, "relight", path, [(16, 16)]))
+    h, w = 48, 64
+    depth = box_scene_depth(h, w, 150.0, 60.0, [(-4.0, 0.0, -3.0, 1.0, 4.0)])
+    depth[:8] = np.inf  # a sky band
+    rng = np.random.default_rng(2)
+    image = np.clip(0.5 + 0.15 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", relight_mode="learned",
+                       preset="fast")
+    assert s.relight_mode == "learned"
+    s.set_image(image, depth=depth, fov_deg=30.0)
+    # Shade the photo by its own shadows so the session measures its light ratio.
+    from outcast_core.runtime.colour import linear_to_srgb, srgb_to_linear
+
+    shade = 1.0 + np.array([4.0, 3.0, 2.0], np.float32) * s.shadow((-0.5, -0.3, -0.8))[..., None]
+    s.set_image(linear_to_srgb(0.15 * srgb_to_linear(s.image_srgb) * shade), depth=depth,
+                fov_deg=30.0)
+    s.set_original_sun((-0.5, -0.3, -0.8))
+    assert s.light_estimate.measured
+    w_n = (0.6, -0.2, -0.8)
+    got = s.relight(w_n)
+    want = physics_relight(s.image_srgb, s.original_shadow, s.shadow(w_n), s.sky,
+                           light=s.light_estimate, snap=False)
+    np.testing.assert_allclose(got, np.clip(want, 1e-3, 1 - 1e-3), atol=2e-5)
+    assert np.abs(got - s.image_srgb).max() > 0.05  # the shadows moved
 
 
 def test_batch_of_two_runs_in_onnxruntime(tmp_path) -> None:

@@ -89,6 +89,63 @@ def test_refine_and_relight_start_as_identity() -> None:
         build("relight")(image, shadow, shadow, normals, sun, sun[:, :2], normals)
 
 
+def test_physics_base_is_the_runtimes_shading_ratio_relighting() -> None:
+    import numpy as np
+
+    from outcast_core.nets.relight import linear_to_srgb, physics_base, srgb_to_linear
+    from outcast_core.runtime import colour
+    from outcast_core.runtime.relight import LightEstimate, physics_relight
+
+    g = torch.Generator().manual_seed(3)
+    image = torch.rand(1, 3, 24, 32, generator=g)
+    s_o, s_n = torch.rand(1, 1, 24, 32, generator=g), torch.rand(1, 1, 24, 32, generator=g)
+    normals = F.normalize(torch.randn(1, 3, 24, 32, generator=g), dim=1)
+    normals[:, :, :5] = 0.0  # a sky band: no surface
+    ratio = torch.tensor([[5.0, 4.0, 2.5]])
+    x = image[0].permute(1, 2, 0).numpy()
+    np.testing.assert_allclose(srgb_to_linear(image)[0].permute(1, 2, 0).numpy(),
+                               colour.srgb_to_linear(x), atol=1e-6)
+    np.testing.assert_allclose(linear_to_srgb(image)[0].permute(1, 2, 0).numpy(),
+                               colour.linear_to_srgb(x), atol=1e-6)
+    with torch.no_grad():
+        got = physics_base(image, s_o, s_n, normals, ratio)[0].permute(1, 2, 0).numpy()
+    sky = np.zeros((24, 32), bool)
+    sky[:5] = True
+    want = physics_relight(x, s_o[0, 0].numpy(), s_n[0, 0].numpy(), sky, snap=False,
+                           light=LightEstimate(ratio[0].numpy(), True, 0, 0))
+    np.testing.assert_allclose(got, want, atol=1e-5)
+    np.testing.assert_allclose(got[:5], x[:5], atol=1e-5)  # the sky keeps the photo
+    # A pixel that leaves the shadow gets brighter, one that enters it darker.
+    assert (got[5:] > x[5:] + 1e-3).any() and (got[5:] < x[5:] - 1e-3).any()
+
+
+def test_relight_physics_base_starts_as_physics_and_needs_the_ratio() -> None:
+    from outcast_core.nets.relight import physics_base
+
+    image = torch.rand(2, 3, 16, 16) * 0.9 + 0.05
+    s_o = torch.rand(2, 1, 16, 16)
+    s_n = torch.rand(2, 1, 16, 16)
+    sun = F.normalize(torch.randn(2, 3), dim=1)
+    normals = F.normalize(torch.randn(2, 3, 16, 16), dim=1)
+    ratio = torch.tensor([[5.0, 4.0, 2.8], [1.0, 1.0, 1.0]])
+    net = build("relight", base="physics")
+    photo = build("relight")
+    net.load_state_dict(photo.state_dict())  # the base adds no parameters
+    with torch.no_grad():
+        out = net(image, s_o, s_n, normals, sun, sun, normals, ratio)
+        base = physics_base(image, s_o, s_n, normals, ratio).clamp(1e-3, 1 - 1e-3)
+        same = net(image, s_o, s_o, normals, sun, sun, normals, ratio)
+    torch.testing.assert_close(out, base, atol=1e-5, rtol=0)
+    torch.testing.assert_close(same, image, atol=1e-5, rtol=0)  # same sun: the photo
+    assert (out - image).abs().max() > 0.05
+    with pytest.raises(ValueError, match="light_ratio"):
+        net(image, s_o, s_n, normals, sun, sun, normals)
+    with pytest.raises(ValueError, match="light_ratio"):
+        net(image, s_o, s_n, normals, sun, sun, normals, ratio[:1])
+    with pytest.raises(ValueError, match="base"):
+        build("relight", base="paint")
+
+
 def test_critic_receptive_field_and_shape() -> None:
     critic = build("critic")
     x = torch.zeros(1, 3, 128, 128, requires_grad=True)

@@ -16,6 +16,7 @@ from outcast_core.runtime.geometry import (
     cosine_term,
     focal_from_35mm,
     focal_from_fov,
+    network_depth,
     normals_from_depth,
     project,
     sun_angles,
@@ -136,3 +137,17 @@ def test_cosine_term() -> None:
     for bad in ([0, 0, 0], [np.nan, 1, 0], [1, 2]):
         with pytest.raises(ValueError, match="sun direction"):
             cosine_term(n, bad)
+
+
+@pytest.mark.parametrize("scale", [1e-30, 1e-3, 1.0, 1e6, 1e30])
+def test_network_depth_is_unit_free_finite_and_zero_off_surfaces(scale: float) -> None:
+    rng = np.random.default_rng(0)
+    depth = (1.0 + 9.0 * rng.random((6, 8))).astype(np.float32)
+    depth[0] = np.inf  # sky
+    depth[1, :2] = (0.0, np.nan)  # degenerate pixels: no surface
+    ref = network_depth(depth)
+    got = network_depth((depth.astype(np.float64) * scale).astype(np.float32))
+    assert got.dtype == np.float32 and np.isfinite(got).all()
+    assert (got[0] == 0).all() and (got[1, :2] == 0).all()
+    np.testing.assert_allclose(got, ref, rtol=1e-5)
+    assert np.median(got[2:]) == pytest.approx(1.0, rel=0.2)

@@ -88,3 +88,4 @@ def test_learned_shadows_do_not_depend_on_depth_units() -> None:
         out.append(s.shadow(sun))
     assert np.all(np.isfinite(out[1]))
     np.testing.assert_allclose(out[0], out[1], atol=1e-4)
+

@@ -11,7 +11,7 @@ import torch
 from outcast_core.train.config import TrainConfig, load_config, run_dir
 from outcast_core.train.data import PairSampler, add_clouds, resize_view, tonemap_pair
 from outcast_core.train.losses import change_loss
-from outcast_core.train.trainer import Trainer
+from outcast_core.train.trainer import Trainer, light_ratios, load_checkpoint_nets
 from tests.train.conftest import make_view
 
 
@@ -197,6 +197,59 @@ def test_relight_change_weight_and_gt_new_shadows_reach_the_step(fake_views) -> 
     assert torch.isfinite(seen[1]).all()
     with pytest.raises(ValueError, match="new_shadow_gt_depth_prob"):
         _cfg("relight", shadow_checkpoint="x", new_shadow_gt_depth_prob=1.5)
+
+
+def test_relight_physics_base_and_postprocessed_depth_reach_the_step(fake_views) -> None:
+    views = [resize_view(v, 32) for v in fake_views]
+    s = Trainer(_cfg("shadow", steps=1), views, progress=False)
+    s.fit()
+    z = Trainer(_cfg("depth", run="z", steps=1), views, progress=False)
+    z.fit()
+    tr = Trainer(_cfg("relight", run="phys", steps=2, shadow_checkpoint=str(s.checkpoint_path),
+                      depth_checkpoint=str(z.checkpoint_path), relight_base="physics",
+                      postprocess_depth=True), views, progress=False)
+    assert tr.nets["relight"].base == "physics" and tr.net_kwargs["relight"] == {"base": "physics"}
+    args: list[tuple] = []
+    forward = tr.nets["relight"].forward
+    tr.nets["relight"].forward = lambda *a: args.append(a) or forward(*a)
+    calls: list[int] = []
+    import outcast_core.runtime.depth_post as dp
+
+    real = dp.postprocess_z
+    dp.postprocess_z = lambda *a: calls.append(1) or real(*a)
+    try:
+        logs = tr.train_step()
+    finally:
+        dp.postprocess_z = real
+    assert np.isfinite(logs["loss"]) and len(calls) == tr.cfg.batch
+    image, s_o, _, normals = args[0][:4]
+    ratio = args[0][-1]
+    assert ratio.shape == (tr.cfg.batch, 3)
+    # The ratio is estimated from the photo, R's S_o that L receives and the geometry's sky.
+    torch.testing.assert_close(ratio, light_ratios(image, s_o, normals))
+    # And light_ratios measures r: lit pixels (S_o = 1) are 1 + r times the shadowed ones.
+    r_true = torch.tensor([3.0, 2.0, 1.5])
+    shadowed = torch.full((1, 3, 8, 8), 0.1)
+    lit_mask = (torch.arange(8) < 4).float().view(1, 1, 1, 8)
+    lin = shadowed * (1 + r_true.view(1, 3, 1, 1) * lit_mask)
+    srgb = torch.where(lin <= 0.0031308, lin * 12.92, 1.055 * lin ** (1 / 2.4) - 0.055)
+    got = light_ratios(srgb, lit_mask.expand(1, 1, 8, 8), torch.ones(1, 3, 8, 8))
+    torch.testing.assert_close(got[0], r_true, atol=1e-3, rtol=1e-3)
+    tr.nets["relight"].forward = forward
+    tr.fit()
+    nets, ckpt = load_checkpoint_nets(tr.checkpoint_path)  # what the exporter rebuilds
+    assert nets["relight"].base == "physics" and ckpt["step"] == 2
+    with pytest.raises(ValueError, match="relight_base"):
+        _cfg("relight", shadow_checkpoint="x", relight_base="paint")
+    with pytest.raises(ValueError, match="relight_base only"):
+        _cfg("shadow", relight_base="physics")
+    with pytest.raises(ValueError, match="postprocess_depth"):
+        _cfg("shadow", postprocess_depth="False")
+    with pytest.raises(ValueError, match="depth_checkpoint"):
+        _cfg("shadow", postprocess_depth=True)
+    with pytest.raises(ValueError, match="built as in its checkpoint"):
+        Trainer(_cfg("relight", run="phys", steps=2, shadow_checkpoint=str(s.checkpoint_path)),
+                views, progress=False)  # its own checkpoint has a physics-base L
 
 
 def test_resume_from_branches_off_another_run(fake_views) -> None:
