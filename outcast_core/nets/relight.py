@@ -7,7 +7,9 @@ returns its base image, and training only has to learn the change. ``L``'s base 
 (``base="physics"``): ``C_o (1 + r S_n) / (1 + r S_o)`` in linear RGB with the per-channel
 sun/ambient ratio ``r`` as an extra input (``light_ratio``, estimated from the photo by
 :func:`outcast_core.runtime.relight.estimate_light`), so new shadows are already cast and old ones
-already lifted before the network corrects what the ratio model misses.
+already lifted before the network corrects what the ratio model misses. The shipped ``L`` uses
+the photo base: the physics base was tried (``train/configs/relight_v4.toml``) and scored worse on
+held-out views, as the base paints the shadow networks' errors at full strength.
 """
 
 from __future__ import annotations

@@ -171,12 +171,18 @@ def test_change_loss_counts_only_pixels_whose_visibility_changed() -> None:
         change_loss(pred, target, vis_o, vis_n[:, :, :4])
 
 
-def test_relight_change_weight_and_gt_new_shadows_reach_the_step(fake_views) -> None:
+def _views_s_and_z(fake_views: list[dict]) -> tuple[list, Trainer, Trainer]:
+    """32 px views and one-step S and Z runs, for relight-stage tests that need checkpoints."""
     views = [resize_view(v, 32) for v in fake_views]
     s = Trainer(_cfg("shadow", steps=1), views, progress=False)
     s.fit()
     z = Trainer(_cfg("depth", run="z", steps=1), views, progress=False)
     z.fit()
+    return views, s, z
+
+
+def test_relight_change_weight_and_gt_new_shadows_reach_the_step(fake_views) -> None:
+    views, s, z = _views_s_and_z(fake_views)
     base = {"shadow": 10.0, "refine": 2.0, "relight": 10.0, "adv": 0.1}
     plain = Trainer(_cfg("relight", run="p", shadow_checkpoint=str(s.checkpoint_path),
                          weights=base), views, progress=False).train_step()
@@ -200,11 +206,7 @@ def test_relight_change_weight_and_gt_new_shadows_reach_the_step(fake_views) -> 
 
 
 def test_relight_physics_base_and_postprocessed_depth_reach_the_step(fake_views) -> None:
-    views = [resize_view(v, 32) for v in fake_views]
-    s = Trainer(_cfg("shadow", steps=1), views, progress=False)
-    s.fit()
-    z = Trainer(_cfg("depth", run="z", steps=1), views, progress=False)
-    z.fit()
+    views, s, z = _views_s_and_z(fake_views)
     tr = Trainer(_cfg("relight", run="phys", steps=2, shadow_checkpoint=str(s.checkpoint_path),
                       depth_checkpoint=str(z.checkpoint_path), relight_base="physics",
                       postprocess_depth=True), views, progress=False)
