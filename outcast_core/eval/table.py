@@ -40,7 +40,6 @@ import numpy as np
 
 from outcast_core.eval.metrics import depth_errors, dssim, iou, mse
 from outcast_core.eval.onnx_models import TimedModel
-from outcast_core.runtime.colour import srgb_to_linear
 from outcast_core.runtime.depth_post import postprocess_z
 from outcast_core.runtime.geometry import (
     Camera,
@@ -48,7 +47,7 @@ from outcast_core.runtime.geometry import (
     normals_from_depth,
     view_directions,
 )
-from outcast_core.runtime.relight import estimate_light, physics_relight
+from outcast_core.runtime.relight import estimate_light_on_surfaces, physics_relight
 from outcast_core.runtime.session import ground_plane_depth
 from outcast_core.runtime.shadows import direct_shadow
 from outcast_core.train.data import Prepared, auto_exposure, load_prepared, tonemap
@@ -186,8 +185,8 @@ def evaluate_table(
                         # L with the physics base takes the light ratio, estimated as the app
                         # does (the sky: pixels without normals).
                         t = time.perf_counter()
-                        ratio = estimate_light(srgb_to_linear(c_o), so_r[0, 0],
-                                               (nrm[0] ** 2).sum(0) <= 0.25).ratio
+                        ratio = estimate_light_on_surfaces(
+                            c_o, so_r[0, 0], np.moveaxis(nrm[0], 0, -1)).ratio
                         t_r += time.perf_counter() - t
                     (c_n,), t_l = m["relight"].run(
                         image=c_o_in, shadow_old=so_r, shadow_new=sn[None, None],

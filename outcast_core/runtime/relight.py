@@ -90,6 +90,20 @@ def estimate_light(
     return LightEstimate(ratio, True, n_lit, n_shd)
 
 
+def estimate_light_on_surfaces(
+    image_srgb: np.ndarray, shadow_old: np.ndarray, normals: np.ndarray
+) -> LightEstimate:
+    """:func:`estimate_light` on an sRGB photo, with the sky taken from the geometry: pixels
+    whose normals are zero (no surface). What ``L`` with the physics base is fed, in training
+    and in the evaluation (the session passes its sky mask, which is the same set of pixels).
+
+    Args:
+        image_srgb: ``H x W x 3`` sRGB photo; shadow_old: ``H x W``; normals: ``H x W x 3``.
+    """
+    sky = np.sum(np.asarray(normals, np.float32) ** 2, axis=-1) <= 0.25
+    return estimate_light(srgb_to_linear(image_srgb), shadow_old, sky)
+
+
 def snap_shadow_to_photo(
     shadow: np.ndarray, image_srgb: np.ndarray, radius: int | None = None, eps: float = 1e-3
 ) -> np.ndarray:

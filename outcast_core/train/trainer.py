@@ -95,14 +95,14 @@ def light_ratios(
     :func:`~outcast_core.runtime.relight.estimate_light` on the photo, the refined original
     shadow and the sky of the geometry (pixels with zero normals).
     """
-    from outcast_core.runtime.colour import srgb_to_linear
-    from outcast_core.runtime.relight import estimate_light
+    from outcast_core.runtime.relight import estimate_light_on_surfaces
 
-    out = []
-    for b in range(image.shape[0]):
-        lin = srgb_to_linear(image[b].detach().permute(1, 2, 0).numpy())
-        sky = (normals[b].detach() ** 2).sum(0).numpy() <= 0.25
-        out.append(estimate_light(lin, shadow_old[b, 0].detach().numpy(), sky).ratio)
+    out = [
+        estimate_light_on_surfaces(image[b].detach().permute(1, 2, 0).numpy(),
+                                   shadow_old[b, 0].detach().numpy(),
+                                   normals[b].detach().permute(1, 2, 0).numpy()).ratio
+        for b in range(image.shape[0])
+    ]
     return torch.from_numpy(np.stack(out).astype(np.float32))
 
 

@@ -9,6 +9,7 @@ from outcast_core.runtime.colour import linear_to_srgb, srgb_to_linear
 from outcast_core.runtime.relight import (
     PRIOR_RATIO,
     estimate_light,
+    estimate_light_on_surfaces,
     physics_relight,
     shading_ratio,
     transfer_to_full_resolution,
@@ -69,3 +70,22 @@ def test_transfer_keeps_detail_and_applies_gain() -> None:
                                atol=2e-3)
     with pytest.raises(ValueError):
         transfer_to_full_resolution(full, small_before, small_after[:5])
+
+
+def test_light_estimate_on_surfaces_leaves_out_pixels_without_normals() -> None:
+    from outcast_core.runtime.colour import linear_to_srgb
+
+    rng = np.random.default_rng(5)
+    shadow = (rng.random((20, 30)) > 0.5).astype(np.float32)
+    lin = 0.1 * (1.0 + np.array([3.0, 2.0, 1.5], np.float32) * shadow[..., None])
+    lin[:12] = (0.9, 0.05, 0.05)  # a "sky" that would break the ratio if it were counted
+    shadow[:12] = 1.0
+    normals = np.zeros((20, 30, 3), np.float32)
+    normals[12:, :, 1] = -1.0
+    got = estimate_light_on_surfaces(linear_to_srgb(lin), shadow, normals)
+    want = estimate_light(lin, shadow, np.arange(20)[:, None].repeat(30, 1) < 12)
+    assert got.measured
+    np.testing.assert_allclose(got.ratio, want.ratio, rtol=1e-3)
+    np.testing.assert_allclose(got.ratio, [3.0, 2.0, 1.5], rtol=2e-2)
+    with_sky = estimate_light(lin, shadow)
+    assert np.abs(with_sky.ratio - got.ratio).max() > 0.1
