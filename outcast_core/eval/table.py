@@ -250,9 +250,9 @@ def _depth_from_z(
         scores = depth_errors(depth, gt, ~gt_sky) | {"sky_iou": iou(z_sky, gt_sky), "time_s": t}
         for k, v in scores.items():
             dacc["Z"][k].append(v)
-        # What the app uses: sky prior and smoothing (runtime.depth_post.postprocess_z).
+        # What the app uses: sky prior, smoothing, ground plane (runtime.depth_post.postprocess_z).
         t0 = time.perf_counter()
-        depth, sky = postprocess_z(d[0, 0], sky_prob[0, 0], view.images[s])
+        depth, sky = postprocess_z(d[0, 0], sky_prob[0, 0], view.images[s], view.camera)
         t += time.perf_counter() - t0
         app = depth_errors(depth, gt, ~gt_sky)
         for k, v in (app | {"sky_iou": iou(sky, gt_sky), "time_s": t}).items():
@@ -393,16 +393,35 @@ def plot_speed_accuracy(results: list[dict[str, Any]], path: str | Path) -> Path
                 cv2.putText(img, f"{10 ** v:g}", (x - 8, h - m + 16), font, 0.35, (0, 0, 0), 1)
     colours = [(200, 60, 40), (40, 150, 40), (40, 60, 220), (150, 40, 160), (0, 140, 200)]
     sizes = sorted({r["size"] for r in results})
+    series = []
     for n, size in enumerate(sizes):
-        pts = [r for r in results if r["size"] == size]
-        pts.sort(key=lambda r: r["steps"])
+        pts = sorted((r for r in results if r["size"] == size), key=lambda r: r["steps"])
         col = colours[n % len(colours)]
         coords = [px(np.log10(r["latency_ms"]), r["shadow_mse"]) for r in pts]
         for a, b in zip(coords[:-1], coords[1:], strict=True):
             cv2.line(img, a, b, col, 2, cv2.LINE_AA)
-        for r, c in zip(pts, coords, strict=True):
+        for c in coords:
             cv2.circle(img, c, 4, col, -1)
-            cv2.putText(img, str(r["steps"]), (c[0] + 5, c[1] - 5), font, 0.35, col, 1)
+        series.append((pts, coords, col))
+    # Labels after all points, each at the first of four corners where it overlaps no point and
+    # no label placed before it (else the least-overlapping corner).
+    placed = [(c[0] - 5, c[1] - 5, c[0] + 5, c[1] + 5) for _, coords, _ in series for c in coords]
+    for pts, coords, col in series:
+        for r, c in zip(pts, coords, strict=True):
+            text = str(r["steps"])
+            (tw, th), _ = cv2.getTextSize(text, font, 0.35, 1)
+            corners = [(c[0] + 5, c[1] - 5), (c[0] + 5, c[1] + th + 5),
+                       (c[0] - tw - 5, c[1] - 5), (c[0] - tw - 5, c[1] + th + 5)]
+
+            def overlap(o: tuple[int, int], tw: int = tw, th: int = th) -> int:
+                box = (o[0], o[1] - th, o[0] + tw, o[1])
+                return sum(max(0, min(box[2], b[2]) - max(box[0], b[0]))
+                           * max(0, min(box[3], b[3]) - max(box[1], b[1])) for b in placed)
+
+            org = min(corners, key=overlap)  # min keeps the first of equal overlaps
+            placed.append((org[0], org[1] - th, org[0] + tw, org[1]))
+            cv2.putText(img, text, org, font, 0.35, col, 1)
+    for n, (size, (_, _, col)) in enumerate(zip(sizes, series, strict=True)):
         cv2.putText(img, f"{size} px", (w - m - 60, m + 18 + 16 * n), font, 0.45, col, 1,
                     cv2.LINE_AA)
     path = Path(path)

@@ -21,14 +21,29 @@ the normals turn into speckled shading and the marcher into speckled shadows.
 the photo is smooth or only textured, edges kept where the photo has them. On 6 held-out
 synthetic views (72 pairs) S's shadow MSE on ``Z``'s depth went from 0.097 to 0.090 with radius
 1/32 of the longer side and eps 1e-2 (r = 4 at 128 px); r = 8 and r = 16 were worse.
+
+Smoothing leaves the ground's low-frequency bumps, which still cast and catch speckled shadows.
+Almost every outdoor photo stands on a ground that is close to a plane, and nothing visible lies
+below it. :func:`snap_ground` fits that plane to the lower half of the frame (RANSAC, its normal
+within :data:`GROUND_MAX_TILT_DEG` of the camera's up) and moves every surface point that is below
+it or within :data:`GROUND_BAND` (log depth) above it onto it, blending across the band so that
+objects standing on the ground keep their shape and no step appears at the band's edge. A frame
+whose lower half is not mostly one such plane (a wall, a close-up) is left as it is. S's shadow
+MSE on ``Z``'s depth went from 0.0840 to 0.0804 on the first 6 held-out synthetic views (72
+pairs) and from 0.0881 to 0.0860 on the next 20 (240 pairs), while Z's scale-free error grew a
+little (silog 0.376 to 0.381 on those 20: the plane is flatter than the true ground near
+objects); on the sample photos the path's and the snowfield's speckled shadows are gone. A band
+of 0.04 or 0.15 and fitting to the bottom 35 % of the rows scored within 0.001 of this.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
-from outcast_core.runtime.geometry import fill_invalid
+from outcast_core.runtime.geometry import Camera, fill_invalid, pixel_centres
 
 #: Longer side (pixels) the prior works at; the mask is resized back (nearest) to the input.
 WORK_SIDE = 256
@@ -41,6 +56,17 @@ SEED_ROWS = 0.02
 #: units of the sRGB guide: larger smooths across weaker photo edges).
 SMOOTH_RADIUS = 1.0 / 32.0
 SMOOTH_EPS = 1e-2
+#: Ground plane (:func:`snap_ground`): the bottom fraction of the rows it is fitted to; the
+#: RANSAC inlier distance as a fraction of the point's depth; the largest angle between its
+#: normal and the camera's up; the least fraction of the fitted points that must lie on it; the
+#: log-depth band above it that is blended onto it; RANSAC trials and the most points it uses.
+GROUND_ROWS = 0.5
+GROUND_TOL = 0.03
+GROUND_MAX_TILT_DEG = 50.0
+GROUND_MIN_INLIERS = 0.4
+GROUND_BAND = 0.08
+GROUND_TRIALS = 200
+GROUND_POINTS = 4000
 #: Least fraction of a prior region that ``Z`` must call sky for the region to be added.
 MIN_AGREEMENT = 0.05
 #: Rows (fraction of the height) below ``Z``'s lowest sky row that the prior may still add.
@@ -202,15 +228,125 @@ def smooth_depth(depth: np.ndarray, sky: np.ndarray, image_srgb: np.ndarray) -> 
     return np.where(ok, np.exp(out), depth).astype(np.float32)
 
 
+@dataclass(frozen=True)
+class GroundPlane:
+    """A plane ``normal . X = offset`` in camera space (``normal`` unit, pointing up, i.e. toward
+    ``-y``; ``offset`` in the depth map's units), and the fraction of the fitted points on it."""
+
+    normal: np.ndarray
+    offset: float
+    inliers: float
+
+
+def fit_ground_plane(
+    depth: np.ndarray, sky: np.ndarray, camera: Camera, seed: int = 0
+) -> GroundPlane | None:
+    """The ground plane of the bottom :data:`GROUND_ROWS` of a depth map, or None.
+
+    RANSAC over at most :data:`GROUND_POINTS` surface points (deterministic for a ``seed``):
+    planes whose normal is more than :data:`GROUND_MAX_TILT_DEG` from the camera's up are not
+    considered; the plane with the most points within :data:`GROUND_TOL` of their depth is
+    refitted to them by least squares. None when there are too few surface points, no plane
+    qualifies, or fewer than :data:`GROUND_MIN_INLIERS` of the points are on it.
+    """
+    depth = np.asarray(depth, np.float64)
+    sky = np.asarray(sky, dtype=bool)
+    if depth.shape != sky.shape or depth.shape != (camera.height, camera.width):
+        raise ValueError(f"expected depth and sky of the camera's size "
+                         f"{(camera.height, camera.width)}, got {depth.shape} and {sky.shape}")
+    h, w = depth.shape
+    top = min(h - 1, int(h * (1.0 - GROUND_ROWS)))
+    ok = ~sky[top:] & np.isfinite(depth[top:]) & (depth[top:] > 0)
+    vv, uu = np.nonzero(ok)
+    if vv.size < 3 * 8:
+        return None
+    rng = np.random.default_rng(seed)
+    if vv.size > GROUND_POINTS:
+        keep = rng.choice(vv.size, GROUND_POINTS, replace=False)
+        vv, uu = vv[keep], uu[keep]
+    z = depth[top:][vv, uu]
+    pts = np.stack([(uu + 0.5 - camera.cx) / camera.focal * z,
+                    (vv + top + 0.5 - camera.cy) / camera.focal * z, z], axis=-1)
+    # Every trial at once: normals of random point triples, flipped to point up (-y).
+    tri = pts[rng.integers(0, len(pts), (GROUND_TRIALS, 3))]  # T x 3 x 3
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    norm = np.linalg.norm(n, axis=1)
+    cos_max = np.cos(np.radians(GROUND_MAX_TILT_DEG))
+    good = norm > 1e-12 * np.maximum(z.max(), 1e-12) ** 2
+    n = n / np.where(good, norm, 1.0)[:, None] * np.where(n[:, 1] > 0, -1.0, 1.0)[:, None]
+    good &= -n[:, 1] >= cos_max
+    if not good.any():
+        return None
+    n, tri = n[good], tri[good]
+    offset = np.einsum("tj,tj->t", n, tri[:, 0])
+    inl = np.abs(pts @ n.T - offset) < GROUND_TOL * z[:, None]  # P x T
+    best = inl[:, int(np.argmax(inl.sum(axis=0)))]
+    if best.sum() < 3:
+        return None
+    q = pts[best]
+    centre = q.mean(axis=0)
+    normal = np.linalg.svd(q - centre, full_matrices=False)[2][-1]
+    normal = -normal if normal[1] > 0 else normal
+    if -normal[1] < cos_max:
+        return None
+    offset = float(normal @ centre)
+    on = np.abs(pts @ normal - offset) < GROUND_TOL * z
+    frac = float(on.mean())
+    if frac < GROUND_MIN_INLIERS:
+        return None
+    return GroundPlane(normal.astype(np.float64), offset, frac)
+
+
+def plane_depth(plane: GroundPlane, camera: Camera) -> np.ndarray:
+    """``H x W`` z depth at which each pixel's ray meets ``plane``; ``inf`` where it never does
+    (at and above the plane's horizon)."""
+    uu, vv = pixel_centres(camera.height, camera.width)
+    den = (plane.normal[0] * (uu - camera.cx) / camera.focal
+           + plane.normal[1] * (vv - camera.cy) / camera.focal + plane.normal[2])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = plane.offset / den
+    return np.where(np.isfinite(t) & (t > 0), t, np.inf)
+
+
+def snap_ground(
+    depth: np.ndarray, sky: np.ndarray, camera: Camera
+) -> tuple[np.ndarray, GroundPlane | None]:
+    """Surface points below or just above the ground plane moved onto it.
+
+    With ``a = clip(1 - (log t - log d) / GROUND_BAND, 0, 1)`` for a point at depth ``d`` whose
+    ray meets the plane at ``t``, the new log depth is ``a log t + (1 - a) log d``: points on or
+    below the plane go onto it (nothing visible lies below the ground), points more than the band
+    above it keep their depth, and the band between is blended so no step appears at its edge.
+
+    Returns:
+        ``(depth, plane)``: ``H x W`` float32 (the input where no plane was found, on sky and on
+        non-finite or non-positive pixels), and the plane or None.
+    """
+    depth = np.asarray(depth, np.float32)
+    sky = np.asarray(sky, dtype=bool)
+    plane = fit_ground_plane(depth, sky, camera)
+    if plane is None:
+        return depth, None
+    t = plane_depth(plane, camera)
+    ok = ~sky & np.isfinite(depth) & (depth > 0) & np.isfinite(t)
+    log_d = np.log(np.where(ok, depth, 1.0))
+    log_t = np.log(np.where(ok, t, 1.0))
+    a = np.clip(1.0 - (log_t - log_d) / GROUND_BAND, 0.0, 1.0)
+    out = np.exp(a * log_t + (1.0 - a) * log_d)
+    return np.where(ok, out, depth).astype(np.float32), plane
+
+
 def postprocess_z(
-    depth: np.ndarray, sky_prob: np.ndarray, image_srgb: np.ndarray
+    depth: np.ndarray, sky_prob: np.ndarray, image_srgb: np.ndarray,
+    camera: Camera | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``Z``'s raw outputs (``H x W`` depth and sky probability) to the runtime's depth and sky.
 
     The sky is ``Z``'s (probability > 0.5) combined with :func:`sky_prior`
     (:func:`combine_sky`); the depth is clamped to be positive and smoothed by
-    :func:`smooth_depth`. As everywhere for estimated depth (DESIGN.md), the depth stays finite
-    on sky pixels and the mask says where the sky is.
+    :func:`smooth_depth`, and, given the ``camera`` (intrinsics of the same size), its ground is
+    snapped to a plane by :func:`snap_ground`. As everywhere for estimated depth (DESIGN.md), the
+    depth stays finite on sky pixels and the mask says where the sky is.
 
     Returns:
         ``(depth, sky)``: ``H x W`` float32, finite and > 0, and ``H x W`` bool.
@@ -218,4 +354,7 @@ def postprocess_z(
     raw = np.asarray(depth, np.float32)
     depth = np.clip(np.nan_to_num(raw, nan=1e-6, posinf=1e6, neginf=1e-6), 1e-6, None)
     sky = combine_sky(np.asarray(sky_prob) > 0.5, image_srgb)
-    return smooth_depth(depth, sky, image_srgb), sky
+    depth = smooth_depth(depth, sky, image_srgb)
+    if camera is not None:
+        depth = snap_ground(depth, sky, camera)[0]
+    return depth, sky

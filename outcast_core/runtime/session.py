@@ -340,8 +340,10 @@ class RelightSession:
             model = self.registry.load("depth")
             x = self.image_srgb.transpose(2, 0, 1)[None]  # 1 x 3 x H x W
             out = model.run({"image": x})
-            # Sky prior and edge-aware smoothing for real photos (runtime.depth_post).
-            depth, sky = postprocess_z(out["depth"][0, 0], out["sky"][0, 0], self.image_srgb)
+            # Sky prior, edge-aware smoothing and the ground plane for real photos
+            # (runtime.depth_post).
+            depth, sky = postprocess_z(out["depth"][0, 0], out["sky"][0, 0], self.image_srgb,
+                                       cam)
             self.depth_source = "model"
             return depth, sky
         self.depth_source = "ground-plane prior (no depth model)"

@@ -52,6 +52,9 @@ class TrainConfig:
         postprocess_depth: pass ``Z``'s estimates through the app's post-processing
             (:func:`outcast_core.runtime.depth_post.postprocess_z`: sky prior, guided smoothing)
             before they feed ``S``, ``R`` and ``L``, so training sees what the app computes.
+        snap_ground: with ``postprocess_depth``, also snap the estimate's ground to its plane
+            (:func:`outcast_core.runtime.depth_post.snap_ground`, as the app does since
+            2026-11-22); off by default so that earlier configs train as they did.
         resume_from: when this run has no checkpoint yet, continue the named run's checkpoint
             (networks, optimisers, step, wall time) under this config, e.g. to train longer
             with a changed loss; the checkpoint records where it branched.
@@ -90,6 +93,7 @@ class TrainConfig:
     new_shadow_gt_depth_prob: float = 0.0
     relight_base: str = "photo"
     postprocess_depth: bool = False
+    snap_ground: bool = False
     resume_from: str = ""
     sun_noise_deg: float = 3.0
     cloud_prob: float = 0.0
@@ -121,11 +125,13 @@ class TrainConfig:
         if self.relight_base != "photo" and self.stage != "relight":
             raise ValueError(f"expected relight_base only for the relight stage, got stage "
                              f"{self.stage!r}")
-        for key in ("flip", "postprocess_depth"):
+        for key in ("flip", "postprocess_depth", "snap_ground"):
             if not isinstance(getattr(self, key), bool):
                 raise ValueError(f"expected {key} true or false, got {getattr(self, key)!r}")
         if self.postprocess_depth and not self.depth_checkpoint:
             raise ValueError("expected a depth_checkpoint for postprocess_depth, got none")
+        if self.snap_ground and not self.postprocess_depth:
+            raise ValueError("expected postprocess_depth = true for snap_ground, got false")
         if self.resume_from == self.run:
             raise ValueError(f"expected resume_from to name another run, got {self.run!r}")
         if self.stage == "relight" and not self.shadow_checkpoint:

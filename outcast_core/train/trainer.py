@@ -73,15 +73,20 @@ def load_checkpoint_nets(path: str | Path) -> tuple[dict[str, nn.Module], dict[s
 
 
 def _postprocessed(
-    depth: torch.Tensor, sky: torch.Tensor, image: torch.Tensor
+    depth: torch.Tensor, sky: torch.Tensor, image: torch.Tensor,
+    focal: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """:func:`~outcast_core.runtime.depth_post.postprocess_z` on each item of a batch."""
+    """:func:`~outcast_core.runtime.depth_post.postprocess_z` on each item of a batch; given the
+    focal lengths (``B x 1``, pixels), with the ground snapped to its plane as the app does."""
     from outcast_core.runtime.depth_post import postprocess_z
+    from outcast_core.runtime.geometry import Camera
 
     ds, ss = [], []
+    h, w = depth.shape[-2:]
     for b in range(depth.shape[0]):
+        cam = None if focal is None else Camera(h, w, float(focal[b].reshape(-1)[0]))
         d, s = postprocess_z(depth[b, 0].numpy(), sky[b, 0].numpy(),
-                             image[b].permute(1, 2, 0).numpy())
+                             image[b].permute(1, 2, 0).numpy(), cam)
         ds.append(torch.from_numpy(np.where(s, 0.0, d).astype(np.float32)))
         ss.append(torch.from_numpy(s.astype(np.float32)))
     return torch.stack(ds)[:, None], torch.stack(ss)[:, None]
@@ -260,14 +265,16 @@ class Trainer:
     ) -> tuple[torch.Tensor, torch.Tensor]:
         """``Z``'s depth (sky -> 0) and the normals from it, or the ground truth without ``Z``.
 
-        With ``postprocess_depth`` the estimate goes through the app's post-processing first.
+        With ``postprocess_depth`` the estimate goes through the app's post-processing first
+        (with ``snap_ground``, including the ground plane).
         """
         if self.depth_net is None:
             return t["depth"], t["normals"]
         with torch.no_grad():
             depth, sky = self.depth_net(t["image"])
             if self.cfg.postprocess_depth:
-                depth, sky = _postprocessed(depth, sky, t["image"])
+                depth, sky = _postprocessed(depth, sky, t["image"],
+                                            t["focal"] if self.cfg.snap_ground else None)
             depth = torch.where(sky > 0.5, torch.zeros_like(depth), depth)
             return depth, normals_from_depth(depth, t["focal"])
 

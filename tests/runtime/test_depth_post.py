@@ -8,12 +8,17 @@ import pytest
 
 from outcast_core.runtime import depth_post as sky_mod
 from outcast_core.runtime.depth_post import (
+    GroundPlane,
     combine_sky,
+    fit_ground_plane,
+    plane_depth,
     postprocess_z,
     sky_prior,
     smooth_depth,
+    snap_ground,
     top_connected,
 )
+from outcast_core.runtime.geometry import Camera
 
 
 def _photo(h: int = 120, w: int = 160, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -202,3 +207,124 @@ def test_postprocess_z_gives_a_sky_mask_and_finite_positive_depth() -> None:
 def test_smooth_depth_shape_mismatch_is_a_clear_error() -> None:
     with pytest.raises(ValueError, match="one size"):
         smooth_depth(np.ones((4, 4)), np.zeros((4, 4), bool), np.zeros((4, 5, 3)))
+
+
+# ---------------------------------------------------------------- ground plane (snap_ground)
+
+
+def _ground_scene(h: int = 96, w: int = 128, pitch_deg: float = -10.0, seed: int = 0):
+    """A camera 1.6 above a plane ground, pitched down, with bumps on the ground (3 % of depth),
+    a box standing on it and sky above the horizon. Returns depth, sky, camera, the box mask
+    and the true plane depth."""
+    cam = Camera.from_fov(h, w, 60.0)
+    p = np.radians(pitch_deg)
+    # Camera-space up (toward -y) of a camera pitched by p: the level up seen from the camera.
+    normal = np.array([0.0, -np.cos(p), np.sin(p)])
+    plane = GroundPlane(normal, -1.6, 1.0)
+    t = plane_depth(plane, cam)
+    sky = ~np.isfinite(t) | (t > 80.0)
+    rng = np.random.default_rng(seed)
+    bumps = np.exp(0.03 * rng.standard_normal((h, w)))
+    depth = np.where(sky, 1e3, t * bumps).astype(np.float32)
+    box = np.zeros((h, w), bool)
+    box[int(0.45 * h):int(0.75 * h), int(0.4 * w):int(0.6 * w)] = True
+    box &= ~sky
+    depth[box] = 0.6 * t[box].min()  # a box face standing well above the ground behind it
+    return depth, sky, cam, box, t.astype(np.float32)
+
+
+def test_fit_ground_plane_recovers_the_plane_under_bumps_and_a_box() -> None:
+    depth, sky, cam, box, _ = _ground_scene()
+    plane = fit_ground_plane(depth, sky, cam)
+    assert plane is not None and plane.inliers > 0.6
+    p = np.radians(-10.0)
+    truth = np.array([0.0, -np.cos(p), np.sin(p)])
+    assert np.degrees(np.arccos(np.clip(plane.normal @ truth, -1, 1))) < 1.5
+    assert abs(plane.offset / -1.6 - 1.0) < 0.03
+
+
+def test_snap_ground_flattens_the_ground_and_keeps_what_stands_on_it() -> None:
+    depth, sky, cam, box, t = _ground_scene()
+    out, plane = snap_ground(depth, sky, cam)
+    assert plane is not None and out.dtype == np.float32
+    ground = ~sky & ~box
+    before = np.abs(np.log(depth[ground] / t[ground])).mean()
+    after = np.abs(np.log(out[ground] / t[ground])).mean()
+    assert after < 0.45 * before  # bumps below go onto it, bumps above shrink to e^2 / band
+    np.testing.assert_array_equal(out[box], depth[box])  # far above the band: untouched
+    np.testing.assert_array_equal(out[sky], depth[sky])
+    # Nothing is left below the plane, and a point far below it goes onto it.
+    tp = plane_depth(plane, cam)
+    assert (out[~sky] <= tp[~sky] * (1 + 1e-5)).all()
+    hole = depth.copy()
+    hole[-5, 5] = 50.0 * t[-5, 5]
+    np.testing.assert_allclose(snap_ground(hole, sky, cam)[0][-5, 5], tp[-5, 5], rtol=1e-5)
+
+
+def test_snap_ground_is_scale_free_and_deterministic() -> None:
+    depth, sky, cam, _, _ = _ground_scene()
+    a, _ = snap_ground(depth, sky, cam)
+    b, _ = snap_ground(10.0 * depth, sky, cam)
+    np.testing.assert_allclose(b, 10.0 * a, rtol=1e-4)
+    np.testing.assert_array_equal(snap_ground(depth, sky, cam)[0], a)
+
+
+def test_snap_ground_blends_across_the_band_without_a_step() -> None:
+    h, w = 64, 64
+    cam = Camera.from_fov(h, w, 60.0)
+    plane = GroundPlane(np.array([0.0, -1.0, 0.0]), -1.6, 1.0)
+    t = plane_depth(plane, cam)
+    sky = ~np.isfinite(t)
+    # Ground rows fitted exactly; one column rises smoothly from on the plane to 2 bands above it.
+    depth = np.where(sky, 1e3, t).astype(np.float32)
+    rows = np.nonzero(~sky[:, 0])[0]
+    lift = np.linspace(0.0, 2.0 * sky_mod.GROUND_BAND, rows.size)
+    depth[rows, 0] = t[rows, 0] * np.exp(-lift)
+    out, found = snap_ground(depth, sky, cam)
+    assert found is not None
+    tf = plane_depth(found, cam)
+    gap = np.log(tf[rows, 0]) - np.log(out[rows, 0])  # height above the plane, in log depth
+    assert (np.diff(gap) >= -1e-6).all()  # still rising: no fold, no step
+    assert np.abs(np.diff(gap)).max() < 4 * np.diff(lift).max()
+    np.testing.assert_allclose(out[rows[lift > sky_mod.GROUND_BAND], 0],
+                               depth[rows[lift > sky_mod.GROUND_BAND], 0])
+
+
+@pytest.mark.parametrize("case", ["wall", "all_sky", "tiny", "line", "nan", "zero"])
+def test_snap_ground_leaves_frames_without_a_ground_alone(case: str) -> None:
+    h, w = {"tiny": (1, 1), "line": (2, 300)}.get(case, (48, 64))
+    cam = Camera.from_fov(h, w, 60.0)
+    depth = np.full((h, w), 5.0, np.float32)  # a wall facing the camera
+    sky = np.zeros((h, w), bool)
+    if case == "all_sky":
+        sky[:] = True
+    elif case == "nan":
+        depth[:] = np.nan
+    elif case == "zero":
+        depth[:] = 0.0
+    out, plane = snap_ground(depth, sky, cam)
+    assert plane is None
+    np.testing.assert_array_equal(out, depth)
+
+
+def test_snap_ground_on_a_large_frame_and_bad_sizes() -> None:
+    depth, sky, cam, _, t = _ground_scene(h=1500, w=2000)
+    out, plane = snap_ground(depth, sky, cam)
+    assert plane is not None and np.isfinite(out).all()
+    with pytest.raises(ValueError, match="camera's size"):
+        fit_ground_plane(depth[:10], sky[:10], cam)
+
+
+def test_postprocess_z_snaps_the_ground_only_given_a_camera() -> None:
+    depth, sky, cam, box, t = _ground_scene()
+    img, _ = _photo(*depth.shape)
+    prob = sky.astype(np.float32)
+    plain, s1 = postprocess_z(depth, prob, img)
+    snapped, s2 = postprocess_z(depth, prob, img, cam)
+    np.testing.assert_array_equal(s1, s2)
+    # The guided filter smears the box into the ground around it (the photo has no box edge
+    # to keep): compare on the ground away from it.
+    near_box = cv2.dilate(box.astype(np.uint8), np.ones((25, 25), np.uint8)) > 0
+    ground = ~s1 & ~near_box & ~sky
+    err = lambda d: np.abs(np.log(d[ground] / t[ground])).mean()  # noqa: E731
+    assert err(snapped) < 0.7 * err(plain)

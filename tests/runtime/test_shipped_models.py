@@ -56,7 +56,7 @@ def test_session_depth_from_z_is_post_processed() -> None:
     s.set_image(image, fov_deg=60.0)
     assert s.depth_source == "model"
     raw = ModelRegistry().load("depth").run({"image": s.image_srgb.transpose(2, 0, 1)[None]})
-    depth, sky = postprocess_z(raw["depth"][0, 0], raw["sky"][0, 0], s.image_srgb)
+    depth, sky = postprocess_z(raw["depth"][0, 0], raw["sky"][0, 0], s.image_srgb, s.camera)
     np.testing.assert_array_equal(s.sky, sky)
     np.testing.assert_allclose(s.depth, depth, rtol=1e-6)
     assert s.sky[:10].mean() > 0.9 and not s.sky[30:].any()

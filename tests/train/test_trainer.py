@@ -297,3 +297,35 @@ def test_clouds_paint_only_the_sky_and_cost_no_draws_when_off(fake_views) -> Non
     assert np.all((c1 >= 0) & (c1 <= 1))
     (same,) = add_clouds((img,), np.zeros((32, 32), bool), rng)
     assert same is img
+
+
+def test_snap_ground_gives_postprocess_z_each_items_camera(fake_views) -> None:
+    views, s, z = _views_s_and_z(fake_views)
+    cams: list = []
+    import outcast_core.runtime.depth_post as dp
+
+    real = dp.postprocess_z
+    dp.postprocess_z = lambda *a: cams.append(a[3] if len(a) > 3 else None) or real(*a)
+    try:
+        for snap in (False, True):
+            tr = Trainer(_cfg("relight", run=f"snap{snap}", steps=1,
+                              shadow_checkpoint=str(s.checkpoint_path),
+                              depth_checkpoint=str(z.checkpoint_path), postprocess_depth=True,
+                              snap_ground=snap), views, progress=False)
+            cams.clear()
+            batch = tr._tensors()
+            tr._estimated_geometry(batch)
+            if not snap:
+                assert cams == [None] * tr.cfg.batch
+            else:
+                assert len(cams) == tr.cfg.batch
+                h, w = batch["image"].shape[-2:]
+                for b, cam in enumerate(cams):
+                    assert (cam.height, cam.width) == (h, w)
+                    assert cam.focal == pytest.approx(float(batch["focal"][b].reshape(-1)[0]))
+    finally:
+        dp.postprocess_z = real
+    with pytest.raises(ValueError, match="postprocess_depth = true for snap_ground"):
+        _cfg("shadow", snap_ground=True)
+    with pytest.raises(ValueError, match="snap_ground"):
+        _cfg("shadow", snap_ground="yes")
