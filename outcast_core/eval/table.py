@@ -403,9 +403,10 @@ def plot_speed_accuracy(results: list[dict[str, Any]], path: str | Path) -> Path
         for c in coords:
             cv2.circle(img, c, 4, col, -1)
         series.append((pts, coords, col))
-    # Labels after all points, each at the first of four corners where it overlaps no point and
-    # no label placed before it (else the least-overlapping corner).
+    # Labels after all points, each at the first of four corners where it overlaps no point, no
+    # legend entry and no label placed before it (else the least-overlapping corner).
     placed = [(c[0] - 5, c[1] - 5, c[0] + 5, c[1] + 5) for _, coords, _ in series for c in coords]
+    placed += [(w - m - 62, m + 4 + 16 * n, w - m, m + 22 + 16 * n) for n in range(len(sizes))]
     for pts, coords, col in series:
         for r, c in zip(pts, coords, strict=True):
             text = str(r["steps"])

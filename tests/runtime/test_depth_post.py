@@ -212,14 +212,21 @@ def test_smooth_depth_shape_mismatch_is_a_clear_error() -> None:
 # ---------------------------------------------------------------- ground plane (snap_ground)
 
 
-def _ground_scene(h: int = 96, w: int = 128, pitch_deg: float = -10.0, seed: int = 0):
+def _up(pitch_deg: float, roll_deg: float = 0.0) -> np.ndarray:
+    """The world's up in the space of a camera pitched (up positive) and rolled."""
+    p, r = np.radians(pitch_deg), np.radians(roll_deg)
+    up = np.array([0.0, -np.cos(p), np.sin(p)])
+    rz = np.array([[np.cos(r), -np.sin(r), 0.0], [np.sin(r), np.cos(r), 0.0], [0.0, 0.0, 1.0]])
+    return rz @ up
+
+
+def _ground_scene(h: int = 96, w: int = 128, pitch_deg: float = -10.0, seed: int = 0,
+                  roll_deg: float = 0.0):
     """A camera 1.6 above a plane ground, pitched down, with bumps on the ground (3 % of depth),
     a box standing on it and sky above the horizon. Returns depth, sky, camera, the box mask
     and the true plane depth."""
     cam = Camera.from_fov(h, w, 60.0)
-    p = np.radians(pitch_deg)
-    # Camera-space up (toward -y) of a camera pitched by p: the level up seen from the camera.
-    normal = np.array([0.0, -np.cos(p), np.sin(p)])
+    normal = _up(pitch_deg, roll_deg)
     plane = GroundPlane(normal, -1.6, 1.0)
     t = plane_depth(plane, cam)
     sky = ~np.isfinite(t) | (t > 80.0)
@@ -233,14 +240,75 @@ def _ground_scene(h: int = 96, w: int = 128, pitch_deg: float = -10.0, seed: int
     return depth, sky, cam, box, t.astype(np.float32)
 
 
-def test_fit_ground_plane_recovers_the_plane_under_bumps_and_a_box() -> None:
-    depth, sky, cam, box, _ = _ground_scene()
+@pytest.mark.parametrize(("pitch", "roll"), [(-10.0, 0.0), (-25.0, 15.0), (5.0, -20.0)])
+def test_fit_ground_plane_recovers_the_plane_under_bumps_and_a_box(pitch, roll) -> None:
+    depth, sky, cam, box, _ = _ground_scene(pitch_deg=pitch, roll_deg=roll)
     plane = fit_ground_plane(depth, sky, cam)
     assert plane is not None and plane.inliers > 0.6
-    p = np.radians(-10.0)
-    truth = np.array([0.0, -np.cos(p), np.sin(p)])
+    truth = _up(pitch, roll)
     assert np.degrees(np.arccos(np.clip(plane.normal @ truth, -1, 1))) < 1.5
     assert abs(plane.offset / -1.6 - 1.0) < 0.03
+
+
+def test_plane_depth_of_a_level_camera_is_the_closed_form() -> None:
+    cam = Camera.from_fov(40, 60, 60.0)
+    t = plane_depth(GroundPlane(np.array([0.0, -1.0, 0.0]), -1.6, 1.0), cam)
+    v = np.arange(40) + 0.5
+    below = v > cam.cy
+    np.testing.assert_allclose(t[below], np.repeat(1.6 * cam.focal / (v[below] - cam.cy)[:, None],
+                                                   60, 1), rtol=1e-5)
+    assert np.isinf(t[~below]).all()
+    # Rolled: the horizon tilts, the depth is not the same along a row.
+    rolled = plane_depth(GroundPlane(_up(0.0, 15.0), -1.6, 1.0), cam)
+    assert np.isinf(rolled[20, 0]) != np.isinf(rolled[20, -1])
+
+
+def test_snap_ground_leaves_a_valley_seen_from_a_terrace() -> None:
+    # Terrace 1.6 below a camera pitched 30 deg down, ending 8 ahead; a valley 30 below it.
+    h, w = 96, 128
+    cam = Camera.from_fov(h, w, 60.0)
+    up = _up(-30.0)
+    terrace = plane_depth(GroundPlane(up, -1.6, 1.0), cam)
+    valley = plane_depth(GroundPlane(up, -31.6, 1.0), cam)
+    uu, vv = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+    rays = np.stack([(uu - cam.cx) / cam.focal, (vv - cam.cy) / cam.focal, np.ones_like(uu)], -1)
+    fwd = np.cross(up, [1.0, 0.0, 0.0])  # the level forward direction, camera space
+    ahead = terrace * (rays @ fwd)  # how far ahead the terrace point lies
+    on_terrace = np.isfinite(terrace) & (ahead < 8.0)
+    depth = np.where(on_terrace, terrace, valley).astype(np.float32)
+    sky = ~np.isfinite(depth)
+    depth[sky] = 1.0
+    out, plane = snap_ground(depth, sky, cam)
+    assert plane is not None and abs(plane.offset / -1.6 - 1.0) < 0.02
+    lower = ~sky & ~on_terrace
+    assert lower.sum() > 0.1 * h * w
+    np.testing.assert_array_equal(out[lower], depth[lower])
+
+
+def test_fit_ground_plane_rejects_a_wall_and_a_cluttered_frame() -> None:
+    h, w = 96, 128
+    cam = Camera.from_fov(h, w, 60.0)
+    # A wall 20 ahead seen by a camera pitched 45 deg up: its normal is beyond the tilt limit.
+    p = np.radians(45.0)
+    back = np.array([0.0, -np.sin(p), -np.cos(p)])  # the wall's normal, toward the camera
+    wall = plane_depth(GroundPlane(back, -20.0, 1.0), cam).astype(np.float32)
+    assert np.isfinite(wall).all()
+    assert fit_ground_plane(wall, np.zeros((h, w), bool), cam) is None
+    tilted = plane_depth(GroundPlane(_up(-30.0), -1.6, 1.0), cam).astype(np.float32)
+    sky = ~np.isfinite(tilted)
+    assert fit_ground_plane(np.where(sky, 1.0, tilted), sky, cam) is not None  # 30: a ground
+    # Pitched 45 deg down, the same wall's plane has the camera under it.
+    p = np.radians(-45.0)
+    back = np.array([0.0, -np.sin(p), -np.cos(p)])
+    wall = plane_depth(GroundPlane(-back, 20.0, 1.0), cam).astype(np.float32)
+    assert np.isfinite(wall).all()
+    assert fit_ground_plane(wall, np.zeros((h, w), bool), cam) is None
+    # A ground under clutter: 70 % of the lower half at random depths.
+    depth, sky, cam, _, _ = _ground_scene()
+    rng = np.random.default_rng(1)
+    clutter = rng.random(depth.shape) < 0.7
+    depth = np.where(clutter & ~sky, rng.uniform(1.0, 20.0, depth.shape), depth).astype(np.float32)
+    assert fit_ground_plane(depth, sky, cam) is None
 
 
 def test_snap_ground_flattens_the_ground_and_keeps_what_stands_on_it() -> None:
@@ -250,15 +318,18 @@ def test_snap_ground_flattens_the_ground_and_keeps_what_stands_on_it() -> None:
     ground = ~sky & ~box
     before = np.abs(np.log(depth[ground] / t[ground])).mean()
     after = np.abs(np.log(out[ground] / t[ground])).mean()
-    assert after < 0.45 * before  # bumps below go onto it, bumps above shrink to e^2 / band
+    assert after < 0.6 * before  # dips go onto it, bumps above shrink to about 2 e^2 / band
     np.testing.assert_array_equal(out[box], depth[box])  # far above the band: untouched
     np.testing.assert_array_equal(out[sky], depth[sky])
-    # Nothing is left below the plane, and a point far below it goes onto it.
+    # Nothing is left below the plane: a dip goes onto it; a surface far below is left alone.
     tp = plane_depth(plane, cam)
     assert (out[~sky] <= tp[~sky] * (1 + 1e-5)).all()
-    hole = depth.copy()
-    hole[-5, 5] = 50.0 * t[-5, 5]
-    np.testing.assert_allclose(snap_ground(hole, sky, cam)[0][-5, 5], tp[-5, 5], rtol=1e-5)
+    dips = depth.copy()
+    dips[-5, 5] = np.exp(0.5 * sky_mod.GROUND_BELOW) * t[-5, 5]
+    dips[-5, 9] = 50.0 * t[-5, 9]
+    got = snap_ground(dips, sky, cam)[0]
+    np.testing.assert_allclose(got[-5, 5], tp[-5, 5], rtol=1e-5)
+    assert got[-5, 9] == dips[-5, 9]
 
 
 def test_snap_ground_is_scale_free_and_deterministic() -> None:
@@ -285,9 +356,11 @@ def test_snap_ground_blends_across_the_band_without_a_step() -> None:
     tf = plane_depth(found, cam)
     gap = np.log(tf[rows, 0]) - np.log(out[rows, 0])  # height above the plane, in log depth
     assert (np.diff(gap) >= -1e-6).all()  # still rising: no fold, no step
-    assert np.abs(np.diff(gap)).max() < 4 * np.diff(lift).max()
+    # The smooth blend's slope peaks at 4/3 of the input's (a linear one would reach 2 at the
+    # band's edge: a crease in the normals around the foot of every object).
+    assert np.abs(np.diff(gap)).max() < 1.5 * np.diff(lift).max()
     np.testing.assert_allclose(out[rows[lift > sky_mod.GROUND_BAND], 0],
-                               depth[rows[lift > sky_mod.GROUND_BAND], 0])
+                               depth[rows[lift > sky_mod.GROUND_BAND], 0], rtol=1e-6)
 
 
 @pytest.mark.parametrize("case", ["wall", "all_sky", "tiny", "line", "nan", "zero"])
@@ -308,9 +381,13 @@ def test_snap_ground_leaves_frames_without_a_ground_alone(case: str) -> None:
 
 
 def test_snap_ground_on_a_large_frame_and_bad_sizes() -> None:
-    depth, sky, cam, _, t = _ground_scene(h=1500, w=2000)
+    depth, sky, cam, box, t = _ground_scene(h=1500, w=2000)
     out, plane = snap_ground(depth, sky, cam)
-    assert plane is not None and np.isfinite(out).all()
+    assert plane is not None and np.isfinite(out).all() and out.dtype == np.float32
+    ground = ~sky & ~box
+    assert np.abs(np.log(out[ground] / t[ground])).mean() < 0.7 * np.abs(
+        np.log(depth[ground] / t[ground])).mean()
+    np.testing.assert_array_equal(out[box], depth[box])
     with pytest.raises(ValueError, match="camera's size"):
         fit_ground_plane(depth[:10], sky[:10], cam)
 
@@ -327,4 +404,4 @@ def test_postprocess_z_snaps_the_ground_only_given_a_camera() -> None:
     near_box = cv2.dilate(box.astype(np.uint8), np.ones((25, 25), np.uint8)) > 0
     ground = ~s1 & ~near_box & ~sky
     err = lambda d: np.abs(np.log(d[ground] / t[ground])).mean()  # noqa: E731
-    assert err(snapped) < 0.7 * err(plain)
+    assert err(snapped) < 0.8 * err(plain)

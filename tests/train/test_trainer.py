@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -301,6 +302,8 @@ def test_clouds_paint_only_the_sky_and_cost_no_draws_when_off(fake_views) -> Non
 
 def test_snap_ground_gives_postprocess_z_each_items_camera(fake_views) -> None:
     views, s, z = _views_s_and_z(fake_views)
+    views = [dataclasses.replace(v, focal=v.focal * (0.8 + 0.2 * i))  # a focal each
+             for i, v in enumerate(views)]
     cams: list = []
     import outcast_core.runtime.depth_post as dp
 
@@ -320,6 +323,7 @@ def test_snap_ground_gives_postprocess_z_each_items_camera(fake_views) -> None:
             else:
                 assert len(cams) == tr.cfg.batch
                 h, w = batch["image"].shape[-2:]
+                assert len({float(f) for f in batch["focal"].reshape(-1)}) > 1
                 for b, cam in enumerate(cams):
                     assert (cam.height, cam.width) == (h, w)
                     assert cam.focal == pytest.approx(float(batch["focal"][b].reshape(-1)[0]))
