@@ -118,11 +118,12 @@ def run_eval(args: argparse.Namespace) -> int:
         f"{res['views']} views, {res['pairs']} relighting pairs (every ordered pair of "
         "different suns of a view). Geometry inputs of the shadow methods: ground-truth depth "
         "(sky = no surface) and normals from it, as the runtime computes them; L and "
-        "Pix2Pix-like get normals from Z's post-processed depth, as the app runs them (they "
-        "were trained on normals from Z's raw depth); Z's time is counted only in "
+        "Pix2Pix-like get normals from Z's post-processed depth, as the app runs them (their "
+        "model cards say which depth they were trained on); Z's time is counted only in "
         "`Ours (Z depth)`. `Ours (Z depth)` runs the "
         "photo-only pipeline of the app: Z's depth and sky of the input photo, post-processed "
-        "as the app does (sky prior and guided filter, `runtime/depth_post.py`), normals from "
+        "as the app does (sky prior, guided filter and ground plane, `runtime/depth_post.py`), "
+        "normals from "
         "them. Relighting metrics are on sRGB [0, 1] images tone-mapped with the view's "
         "exposure; DSSIM = (1 - SSIM) / 2 with an 11x11 Gaussian window.",
         "",
@@ -141,10 +142,10 @@ def run_eval(args: argparse.Namespace) -> int:
                "std of the log error (scale-free); sky IoU against the ground truth's sky. The "
                "ground-plane prior is what the app uses when no depth model is installed. "
                "`Z + post-processing (app)` is what the app uses: Z's sky combined with the "
-               "classical sky prior and Z's depth smoothed by a guided filter "
-               "(`runtime/depth_post.py`). Both are for real photos (clouds Z takes for surfaces, "
-               "photo texture read as relief); this row shows what they cost or gain on "
-               "synthetic views.",
+               "classical sky prior, and Z's depth smoothed by a guided filter with its ground "
+               "snapped to a fitted plane (`runtime/depth_post.py`). These are for real photos "
+               "(clouds Z takes for surfaces, photo texture and ground bumps read as relief); "
+               "this row shows what they cost or gain on synthetic views.",
                "",
                render_depth(res["depth"])]
     if res["missing"]:
