@@ -59,10 +59,9 @@ SEED_ROWS = 0.02
 SMOOTH_RADIUS = 1.0 / 32.0
 SMOOTH_EPS = 1e-2
 #: Ground plane (:func:`snap_ground`): the bottom fraction of the rows it is fitted to; the
-#: RANSAC inlier distance as a fraction of the point's depth; the largest angle between its
-#: normal and the camera's up; the least fraction of the fitted points that must lie on it; the
+#: RANSAC inlier distance (log depth along the point's ray); the largest angle between its normal
+#: and the camera's up; the least fraction of the fitted points that must lie on it; the
 #: log-depth band above it that is blended onto it; RANSAC trials and the most points it uses.
-#: GROUND_TOL is in log depth along the ray.
 GROUND_ROWS = 0.5
 GROUND_TOL = 0.08
 GROUND_MAX_TILT_DEG = 35.0
@@ -261,7 +260,7 @@ def fit_ground_plane(
     Only planes below the camera whose normal is within :data:`GROUND_MAX_TILT_DEG` of the
     camera's up count. The plane on which most points lie (depth along their ray within
     :data:`GROUND_TOL` in log) is refitted to those points by least squares. None when there are
-    too few surface points, no plane qualifies, fewer than :data:`GROUND_MIN_INLIERS` of the
+    too few surface points, no plane qualifies, or fewer than :data:`GROUND_MIN_INLIERS` of the
     points lie on it.
 
     Depth alone cannot tell a wall seen by a camera pitched up from a slope seen by a level
