@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from outcast_core.runtime.geometry import Camera, fill_invalid
+from outcast_core.runtime.geometry import Camera, backproject, fill_invalid
 
 #: Longer side (pixels) the prior works at; the mask is resized back (nearest) to the input.
 WORK_SIDE = 256
@@ -274,19 +274,15 @@ def fit_ground_plane(
     if depth.shape != sky.shape or depth.shape != (camera.height, camera.width):
         raise ValueError(f"expected depth and sky of the camera's size "
                          f"{(camera.height, camera.width)}, got {depth.shape} and {sky.shape}")
-    h, w = depth.shape
-    top = min(h - 1, int(h * (1.0 - GROUND_ROWS)))
-    ok = ~sky[top:] & np.isfinite(depth[top:]) & (depth[top:] > 0)
-    vv, uu = np.nonzero(ok)
-    if vv.size < 24:
+    top = min(depth.shape[0] - 1, int(depth.shape[0] * (1.0 - GROUND_ROWS)))
+    pts = backproject(np.where(sky, np.nan, depth), camera)[top:].reshape(-1, 3)
+    pts = pts[np.isfinite(pts).all(axis=1)].astype(np.float64)  # surface points only
+    if len(pts) < 24:
         return None
     rng = np.random.default_rng(seed)
-    if vv.size > GROUND_POINTS:
-        keep = rng.choice(vv.size, GROUND_POINTS, replace=False)
-        vv, uu = vv[keep], uu[keep]
-    z = depth[top:][vv, uu].astype(np.float64)
-    pts = np.stack([(uu + 0.5 - camera.cx) / camera.focal * z,
-                    (vv + top + 0.5 - camera.cy) / camera.focal * z, z], axis=-1)
+    if len(pts) > GROUND_POINTS:
+        pts = pts[rng.choice(len(pts), GROUND_POINTS, replace=False)]
+    z = pts[:, 2]
     # Every trial at once: normals of random point triples, flipped to point up (-y).
     tri = pts[rng.integers(0, len(pts), (GROUND_TRIALS, 3))]  # T x 3 x 3
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
