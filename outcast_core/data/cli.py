@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 from outcast_core.data.dataset import STANDARD_SETS, DiskFullError, default_set_dir
+from outcast_core.data.scene import EXTRA_KINDS, SCENE_KINDS
 
 
 def _progress_bar(desc: str):  # noqa: ANN202 - a closure
@@ -27,12 +28,15 @@ def _progress_bar(desc: str):  # noqa: ANN202 - a closure
     return bar, update
 
 
-def _make(out: Path, views: int, suns: int, res: int, spp: int, seed: int, workers: int) -> int:
+def _make(
+    out: Path, views: int, suns: int, res: int, spp: int, seed: int, workers: int,
+    kind: str | None = None,
+) -> int:
     from outcast_core.data.dataset import make_dataset
 
     bar, update = _progress_bar(out.name)
     try:
-        make_dataset(out, views, suns, res, spp, seed, workers, progress=update)
+        make_dataset(out, views, suns, res, spp, seed, workers, progress=update, kind=kind)
     except DiskFullError as exc:
         bar.close()
         print(
@@ -51,7 +55,10 @@ def _make(out: Path, views: int, suns: int, res: int, spp: int, seed: int, worke
 
 
 def cmd_make(args: argparse.Namespace) -> int:
-    return _make(Path(args.out), args.views, args.suns, args.res, args.spp, args.seed, args.workers)
+    return _make(
+        Path(args.out), args.views, args.suns, args.res, args.spp, args.seed, args.workers,
+        args.kind,
+    )
 
 
 def cmd_standard(args: argparse.Namespace) -> int:
@@ -119,6 +126,10 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
     make.add_argument("--spp", type=_positive, default=32, help="samples per pixel (default 32)")
     make.add_argument("--seed", type=_non_negative, default=0, help="base seed; view i uses seed+i")
     make.add_argument("--workers", type=_positive, default=1, help="parallel processes (default 1)")
+    make.add_argument(
+        "--kind", choices=SCENE_KINDS + EXTRA_KINDS, default=None,
+        help="only this scene kind (default: the standard street/plaza/close-up mix)",
+    )
     make.set_defaults(func=cmd_make)
 
     std = sub.add_parser("standard", help="make a standard set (train / test / dev)")

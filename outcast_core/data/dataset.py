@@ -29,7 +29,7 @@ STANDARD_SETS: dict[str, dict[str, int]] = {
     "test": {"views": 100, "suns": 4, "res": 128, "spp": 32, "seed": 1_000_000},
     "dev": {"views": 60, "suns": 4, "res": 128, "spp": 32, "seed": 500_000},
 }
-_ARG_KEYS = ("suns", "res", "spp", "seed", "version")
+_ARG_KEYS = ("suns", "res", "spp", "seed", "version", "kind")
 
 
 class DiskFullError(OSError):
@@ -149,13 +149,18 @@ def bytes_per_view(suns: int, res: int) -> int:
     return suns * px * (3 * 2 + 2) + px * (4 + 3 * 2 + 1) + 4096
 
 
-def render_one(index: int, suns: int, res: int, spp: int, base_seed: int) -> tuple[dict, dict]:
-    """Generate and render view ``index`` of a data set (seed = base seed + index)."""
+def render_one(
+    index: int, suns: int, res: int, spp: int, base_seed: int, kind: str | None = None
+) -> tuple[dict, dict]:
+    """Generate and render view ``index`` of a data set (seed = base seed + index).
+
+    ``kind`` forces a scene kind (``generate_scene``); ``None`` draws the standard mix.
+    """
     from outcast_core.data.render import render_view, suggest_exposure
     from outcast_core.data.scene import generate_scene
 
     seed = int(base_seed) + int(index)
-    spec = generate_scene(seed, suns)
+    spec = generate_scene(seed, suns, kind)
     data = render_view(spec, res, spp, seed)
     data["exposure"] = suggest_exposure(data["rgb"], data["sky"])
     cam = spec.camera
@@ -180,9 +185,9 @@ def render_one(index: int, suns: int, res: int, spp: int, base_seed: int) -> tup
     return data, meta
 
 
-def _worker(job: tuple[str, int, int, int, int, int]) -> int:
-    root, index, suns, res, spp, seed = job
-    data, meta = render_one(index, suns, res, spp, seed)
+def _worker(job: tuple[str, int, int, int, int, int, str | None]) -> int:
+    root, index, suns, res, spp, seed, kind = job
+    data, meta = render_one(index, suns, res, spp, seed, kind)
     save_view(view_dir(Path(root), index), data, meta)
     return index
 
@@ -212,6 +217,7 @@ def make_dataset(
     seed: int,
     workers: int = 1,
     progress: Callable[[int, int], None] | None = None,
+    kind: str | None = None,
 ) -> list[int]:
     """Render views ``0 .. views-1`` into ``root``, skipping finished ones.
 
@@ -221,6 +227,8 @@ def make_dataset(
         spp: path-tracing samples per pixel. seed: base seed (view i uses seed + i).
         workers: parallel processes.
         progress: called as ``progress(done, total)`` after each view.
+        kind: render only this scene kind (recorded in ``dataset.json``); ``None``: the
+            standard mix of street, plaza and close-up.
 
     Returns:
         The indices rendered by this call.
@@ -230,13 +238,19 @@ def make_dataset(
         DiskFullError: the disk filled up (finished views stay; re-run to resume).
     """
     check_args(views, suns, res, spp, seed, workers)
+    from outcast_core.data.scene import EXTRA_KINDS, SCENE_KINDS
+
+    if kind is not None and kind not in SCENE_KINDS + EXTRA_KINDS:
+        raise ValueError(f"expected --kind in {SCENE_KINDS + EXTRA_KINDS}, got {kind!r}")
     root = Path(root)
     root.mkdir(parents=True, exist_ok=True)
     args = {"suns": suns, "res": res, "spp": spp, "seed": seed, "version": FORMAT_VERSION}
+    if kind is not None:
+        args["kind"] = kind
     info_path = root / "dataset.json"
     if info_path.is_file():
         old = json.loads(info_path.read_text())
-        diff = {k: (old.get(k), args[k]) for k in _ARG_KEYS if old.get(k) != args[k]}
+        diff = {k: (old.get(k), args.get(k)) for k in _ARG_KEYS if old.get(k) != args.get(k)}
         if diff:
             raise ValueError(
                 f"expected {root} to hold a set made with the same arguments, got "
@@ -262,7 +276,7 @@ def make_dataset(
     done = views - len(todo)
     if progress:
         progress(done, views)
-    jobs = [(str(root), i, suns, res, spp, seed) for i in todo]
+    jobs = [(str(root), i, suns, res, spp, seed, kind) for i in todo]
     finished: list[int] = []
     if workers == 1:
         for job in jobs:

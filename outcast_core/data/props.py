@@ -61,6 +61,8 @@ class SceneBuilder:
     # Axis-aligned ground footprints (xmin, xmax, ymin, ymax) of large solids that are not items
     # (walls and steps behind close-ups): no camera or prop goes inside, no camera looks through.
     blockers: list[tuple[float, float, float, float]] = field(default_factory=list)
+    # Blockers a camera may stand in all the same (a path props keep off).
+    walkable: list[tuple[float, float, float, float]] = field(default_factory=list)
 
     def ground_z(self, x: float, y: float) -> float:
         return self.slope[0] * x + self.slope[1] * y

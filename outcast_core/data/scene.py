@@ -14,10 +14,13 @@ import numpy as np
 
 from outcast_core.data import props as pr
 from outcast_core.data import textures as tx
-from outcast_core.data.meshes import Mesh, box, concat
+from outcast_core.data.meshes import Mesh, box, concat, ellipsoid
 from outcast_core.runtime.geometry import camera_rotation, sun_vector
 
 SCENE_KINDS = ("street", "plaza", "closeup")
+# Kinds only drawn when asked for (``generate_scene(kind=...)``, ``outcast data make --kind``):
+# the random mix of SCENE_KINDS, and so every standard set, stays as it was.
+EXTRA_KINDS = ("landscape",)
 MIN_SUN_ELEVATION, MAX_SUN_ELEVATION = 3.0, 85.0
 GROUND_SIZE = 1500.0
 
@@ -222,7 +225,133 @@ def closeup(b: pr.SceneBuilder) -> None:
         )
 
 
-LAYOUTS = {"street": street, "plaza": plaza, "closeup": closeup}
+def _on_ground(b: pr.SceneBuilder, mesh: Mesh, lift: float = 0.0) -> Mesh:
+    """``mesh`` built on z = 0 moved onto the (planar) ground, every vertex by its own height."""
+    v = mesh.vertices.copy()
+    v[:, 2] += np.array([b.ground_z(x, y) for x, y in v[:, :2]]) + lift
+    return Mesh(v, mesh.faces, mesh.uv)
+
+
+def _slab(
+    b: pr.SceneBuilder, x0: float, x1: float, y0: float, y1: float, height: float, mat: int
+) -> None:
+    """A block whose top follows the ground ``height`` above it (a crop field, a hedge, a path).
+
+    Slabs more than 0.1 m high become blockers: no prop and no camera stands in them.
+    """
+    m = box(x1 - x0, y1 - y0, height + 0.5).transformed(
+        np.eye(3), [(x0 + x1) / 2, (y0 + y1) / 2, -0.5]
+    )
+    b.add(_on_ground(b, m), mat)
+    if height > 0.1:
+        b.blockers.append((x0, x1, y0, y1))
+
+
+def landscape(b: pr.SceneBuilder) -> None:
+    """Open country to the horizon along x: fields, a path, hedges, tree lines, hills, pylons.
+
+    The camera stands on or beside the path at head height and looks along it (see
+    :func:`_landscape_camera`), so the ground recedes to a far horizon, as in most holiday and
+    hiking photos: a geometry the street, plaza and close-up layouts never show.
+    """
+    rng = b.rng
+    r = rng.random()
+    # Steep slopes only rise ahead (a hillside or ski run seen from below): a plane falling
+    # away ahead or to a side would show the environment below the horizon between its
+    # vanishing line and its far edge, which the renderer labels sky.
+    if r < 0.5:
+        b.slope = tuple(rng.uniform(-0.03, 0.03, 2))
+    elif r < 0.75:
+        b.slope = (float(rng.uniform(0.08, 0.3)), float(rng.uniform(-0.03, 0.03)))
+    ground = str(rng.choice(["grass", "grass", "grass", "sand", "snow", "gravel", "field"]))
+    _ground(b, ground)
+    # The path: a strip along x from behind the camera to far ahead, a little above the ground.
+    # Props keep off it (a blocker); the camera may stand on it (walkable).
+    half = 0.0
+    if rng.random() < 0.75:
+        half = float(rng.uniform(0.6, 2.5))
+        kind = str(rng.choice(["asphalt", "gravel", "sand", "concrete", "snow"]))
+        mat = b.material(tx.ground_texture(rng, kind))
+        _slab(b, -30.0, 400.0, -half, half, float(rng.uniform(0.01, 0.06)), mat)
+        b.blockers.append((-30.0, 400.0, -half, half))
+        b.walkable.append((-30.0, 400.0, -half, half))
+    # Fields beside the path: raised crops or flat patches of another ground.
+    for side in (-1, 1):
+        x = -30.0
+        while x < 300.0:
+            length = float(rng.uniform(20.0, 120.0))
+            if rng.random() < 0.6:
+                edge = half + float(rng.uniform(0.3, 3.0))
+                width = float(rng.uniform(10.0, 80.0))
+                crop = rng.random() < 0.5
+                kind = "field" if crop else str(rng.choice(["grass", "gravel", "sand", "field"]))
+                mat = b.material(tx.ground_texture(rng, kind))
+                h = float(rng.uniform(0.3, 1.2)) if crop else 0.02
+                y0, y1 = sorted((side * edge, side * (edge + width)))
+                _slab(b, x, x + length, y0, y1, h, mat)
+            x += length + float(rng.uniform(0.0, 10.0))
+    # Hedges and tree lines along the fields or across them (with a gap for the path).
+    gap = half + 1.5
+    for _ in range(int(rng.integers(0, 5))):
+        along = rng.random() < 0.5
+        dist = float(rng.uniform(15.0, 250.0))
+        side = 1 if rng.random() < 0.5 else -1
+        if rng.random() < 0.5:  # hedge
+            leaf = tx.grainy(rng, np.array([0.05, 0.1, 0.03]) * rng.uniform(0.5, 1.6), 0.5, 0.3)
+            mat = b.material(leaf)
+            h, w = float(rng.uniform(1.0, 3.5)), float(rng.uniform(0.8, 3.0))
+            span = float(rng.uniform(20.0, 200.0))
+            if along:
+                y = side * (half + dist * 0.3 + 2.0)
+                x0 = float(rng.uniform(-10.0, 100.0))
+                _slab(b, x0, x0 + span, y - w / 2, y + w / 2, h, mat)
+            else:
+                y0 = float(rng.uniform(-span, 0.0))
+                for lo, hi in ((y0, min(y0 + span, -gap)), (max(y0, gap), y0 + span)):
+                    if hi - lo > 1.0:
+                        _slab(b, dist, dist + w, lo, hi, h, mat)
+        else:  # a row of trees
+            step = float(rng.uniform(4.0, 15.0))
+            n = int(rng.integers(4, 20))
+            start = float(rng.uniform(-40.0, 40.0))
+            for k in range(n):
+                t = start + k * step + float(rng.normal(0, step * 0.15))
+                x, y = (t, side * (half + dist * 0.3 + 3.0)) if along else (dist, t)
+                if not b.overlaps(x, y, 1.0):
+                    pr.tree(b, x, y, float(rng.uniform(0, 2 * math.pi)))
+    # Low hills on the horizon, sheared with the ground so that no rim floats.
+    for _ in range(int(rng.integers(0, 3))):
+        a = rng.uniform(-1.2, 1.2)
+        d = float(rng.uniform(300.0, 700.0))
+        rx, rz = float(rng.uniform(60.0, 250.0)), float(rng.uniform(8.0, 45.0))
+        mat = b.material(tx.ground_texture(rng, str(rng.choice(["grass", "snow", "gravel"]))))
+        hill = ellipsoid(rx, rx * float(rng.uniform(0.6, 1.4)), rz, 24)
+        x, y = d * math.cos(a), d * math.sin(a)
+        b.add(_on_ground(b, hill.transformed(np.eye(3), [x, y, -rz * 0.3])), mat)
+    # Pylons and poles (lamp posts, tall columns), fence along the path, a few near props.
+    for _ in range(int(rng.integers(0, 4))):
+        x, y = float(rng.uniform(5.0, 150.0)), float(rng.uniform(-40.0, 40.0))
+        if not b.overlaps(x, y, 1.0):
+            if rng.random() < 0.5:
+                pr.column(b, x, y, 0.0, height=float(rng.uniform(8.0, 25.0)))
+            else:
+                pr.lamp_post(b, x, y, float(rng.uniform(0, 2 * math.pi)))
+    if half > 0 and rng.random() < 0.3:
+        side = 1 if rng.random() < 0.5 else -1
+        for x in np.arange(rng.uniform(-5.0, 5.0), rng.uniform(20.0, 80.0), 3.0):
+            y = side * (half + 0.5)
+            if not b.overlaps(x, y, 0.3):
+                pr.fence(b, float(x), y, 0.0)
+    _scatter(
+        b,
+        [pr.tree, pr.tree, pr.person, pr.bench, pr.sign, pr.bike, pr.wall, pr.ball_or_bin],
+        int(rng.integers(4, 16)),
+        (2.0, 50.0),
+        (-12.0, 12.0),
+    )
+
+
+LAYOUTS = {"street": street, "plaza": plaza, "closeup": closeup, "landscape": landscape}
 
 
 # --------------------------------------------------------------------------------------------
@@ -238,6 +367,8 @@ def _sight_blocked(b: pr.SceneBuilder, a: np.ndarray, c: np.ndarray) -> bool:
 def _camera(b: pr.SceneBuilder, kind: str) -> tuple[CameraPose, str, float]:
     rng = b.rng
     fov = float(rng.uniform(35.0, 80.0))
+    if kind == "landscape":
+        return _landscape_camera(b, fov)
     candidates = (
         b.items if kind != "closeup" else [it for it in b.items if it.size < 4.0] or b.items
     )
@@ -272,6 +403,43 @@ def _camera(b: pr.SceneBuilder, kind: str) -> tuple[CameraPose, str, float]:
     return CameraPose(np.array([cx, cy, cz]), heading, pitch, roll, fov), target.name, float(h)
 
 
+def landscape_stand_clear(b: pr.SceneBuilder, x: float, y: float, margin: float = 0.5) -> bool:
+    """Whether a photographer can stand at ``x, y``: on open ground or a walkable path, not in
+    a crop field, a hedge or another blocker, and ``margin`` clear of every item."""
+    walkable = set(b.walkable)
+    if any(
+        x0 - margin <= x <= x1 + margin and y0 - margin <= y <= y1 + margin
+        for x0, x1, y0, y1 in b.blockers
+        if (x0, x1, y0, y1) not in walkable
+    ):
+        return False
+    return all(
+        math.hypot(it.centre[0] - x, it.centre[1] - y) >= it.radius + margin for it in b.items
+    )
+
+
+def _landscape_camera(b: pr.SceneBuilder, fov: float) -> tuple[CameraPose, str, float]:
+    """On or beside the path near x = 0, looking roughly along it, the horizon in view."""
+    rng = b.rng
+    for _ in range(60):
+        cx, cy = float(rng.uniform(-20.0, 0.0)), float(rng.uniform(-4.0, 4.0))
+        if landscape_stand_clear(b, cx, cy):
+            break
+    else:  # the middle of the path (or of the open strip where a path would be)
+        cx, cy = -10.0, 0.0
+    h = float(rng.uniform(1.3, 2.0)) if rng.random() < 0.85 else float(rng.uniform(2.0, 8.0))
+    heading = float(rng.normal(0.0, 25.0))
+    # Look level with the slope ahead, then tilt, mostly down a little as people do, but never
+    # so far that the horizon leaves the (square) frame.
+    hd = math.radians(heading)
+    ahead = math.degrees(math.atan(b.slope[0] * math.cos(hd) + b.slope[1] * math.sin(hd)))
+    pitch = ahead + float(np.clip(rng.normal(-6.0, 7.0), -0.45 * fov, 0.45 * fov))
+    roll = float(np.clip(rng.normal(0, 1.5), -4.0, 4.0))
+    cz = b.ground_z(cx, cy) + h
+    target = "path" if b.walkable else "open ground"
+    return CameraPose(np.array([cx, cy, cz]), heading, pitch, roll, fov), target, h
+
+
 def random_suns(rng: np.random.Generator, k: int) -> list[Sun]:
     """``k`` suns: azimuth uniform, elevation uniform in [3, 85] degrees."""
     return [
@@ -286,7 +454,8 @@ def generate_scene(seed: int, suns: int = 4, kind: str | None = None) -> SceneSp
     Args:
         seed: non-negative integer.
         suns: number of sun directions (K >= 1).
-        kind: ``street``, ``plaza`` or ``closeup``; random (40/25/35 %) when ``None``.
+        kind: ``street``, ``plaza``, ``closeup`` or ``landscape``; random among the first three
+            (40/25/35 %) when ``None``.
 
     Returns:
         A :class:`SceneSpec` (culling is done by the renderer).
@@ -295,8 +464,8 @@ def generate_scene(seed: int, suns: int = 4, kind: str | None = None) -> SceneSp
         raise ValueError(f"expected a non-negative seed, got {seed}")
     if suns < 1:
         raise ValueError(f"expected at least one sun, got {suns}")
-    if kind is not None and kind not in SCENE_KINDS:
-        raise ValueError(f"expected a scene kind in {SCENE_KINDS}, got {kind!r}")
+    if kind is not None and kind not in SCENE_KINDS + EXTRA_KINDS:
+        raise ValueError(f"expected a scene kind in {SCENE_KINDS + EXTRA_KINDS}, got {kind!r}")
     rng = np.random.default_rng(seed)
     if kind is None:
         kind = str(rng.choice(SCENE_KINDS, p=[0.4, 0.25, 0.35]))

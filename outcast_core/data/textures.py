@@ -210,7 +210,7 @@ def facade(
 
 
 def ground_texture(rng: np.random.Generator, kind: str) -> Texture:
-    """A ground material: asphalt, paving, tiles, grass, gravel, sand, snow, concrete."""
+    """A ground material: asphalt, paving, tiles, grass, gravel, sand, snow, concrete, field."""
     c = rng.uniform
     if kind == "asphalt":
         return grainy(rng, np.array([0.07, 0.07, 0.075]) * c(0.7, 1.6), 0.35, c(0.6, 1.5))
@@ -231,6 +231,13 @@ def ground_texture(rng: np.random.Generator, kind: str) -> Texture:
         return grainy(rng, col, 0.12, c(0.5, 2.0), beta=1.5)
     if kind == "snow":
         return grainy(rng, np.array([0.78, 0.8, 0.85]) * c(0.9, 1.05), 0.05, c(1.0, 3.0), beta=2)
+    if kind == "field":  # ripe or green crops, stubble: not in GROUND_KINDS (landscapes only)
+        col = (
+            np.array([0.42, 0.32, 0.13]) * c(0.6, 1.2)
+            if rng.random() < 0.6
+            else np.array([0.12, 0.2, 0.05]) * c(0.6, 1.5)
+        )
+        return grainy(rng, col, 0.35, c(0.3, 1.0), beta=0.7)
     # concrete
     return grainy(rng, random_colour(rng, 0.2, 0.5, 0.1), 0.15, c(1.0, 3.0), beta=1.8)
 

@@ -38,6 +38,9 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--samples", default="",
                    help="JSON of sample photos and suns (e.g. samples/suns.json): relight them "
                    "with the shipped models into samples_sheet.png")
+    p.add_argument("--depth-data", default="",
+                   help="a second held-out folder on which only Z is scored (e.g. one-sun "
+                   "landscape views, a scene kind the Table 1 views do not have)")
     p.add_argument("--threads", type=int, default=2, help="onnxruntime threads")
     p.add_argument("--out", default="", help="report file (default: MODELS/EVAL.md)")
     p.add_argument("--no-manifest-update", action="store_true",
@@ -93,6 +96,7 @@ def render_sweep(results: list[dict[str, Any]]) -> str:
 
 def run_eval(args: argparse.Namespace) -> int:
     from outcast_core.eval.table import (
+        evaluate_depth,
         evaluate_table,
         plot_speed_accuracy,
         save_sheet,
@@ -104,6 +108,9 @@ def run_eval(args: argparse.Namespace) -> int:
     command = "outcast eval " + " ".join(
         shlex.quote(a) for a in _argv_of(args)
     )
+    if args.depth_data and not (models / "depth.onnx").is_file():
+        # Before the long table run, not after it.
+        raise ValueError(f"expected {models / 'depth.onnx'} for --depth-data, got no such file")
     res = evaluate_table(args.data, models, args.max_views, args.threads)
     sheet = save_sheet(res["sheet"], out.parent / "eval_sheet.png") if res["sheet"] else None
     rec = data_record(args.data)
@@ -148,6 +155,13 @@ def run_eval(args: argparse.Namespace) -> int:
                "this row shows what they cost or gain on synthetic views.",
                "",
                render_depth(res["depth"])]
+    depth_extra = None
+    if args.depth_data:
+        depth_extra = evaluate_depth(args.depth_data, models, 0, args.threads)
+        md += ["", f"### Z on `{args.depth_data}`", "",
+               f"Data set record: {json.dumps(data_record(args.depth_data), sort_keys=True)}; "
+               f"{depth_extra['views']} views, {depth_extra['photos']} photos, scored as above.",
+               "", render_depth(depth_extra["depth"])]
     if res["missing"]:
         md += ["", "Not evaluated (model not shipped / not trained): "
                + ", ".join(f"`{n}.onnx`" for n in res["missing"]) + "."]
@@ -185,7 +199,7 @@ def run_eval(args: argparse.Namespace) -> int:
     if not args.no_manifest_update:
         from outcast_core.export.cards import update_readme
 
-        _update_manifests(models, res)
+        _update_manifests(models, res, depth_extra)
         update_readme(models)
     print(out)
     return 0
@@ -202,10 +216,14 @@ def _argv_of(args: argparse.Namespace) -> list[str]:
                   str(args.sweep_views)]
     if args.samples:
         parts += ["--samples", args.samples]
+    if args.depth_data:
+        parts += ["--depth-data", args.depth_data]
     return parts
 
 
-def _update_manifests(models: Path, res: dict[str, Any]) -> None:
+def _update_manifests(
+    models: Path, res: dict[str, Any], depth_extra: dict[str, Any] | None = None
+) -> None:
     from outcast_core.export.onnx_export import update_metrics
 
     rows = res["rows"]
@@ -224,6 +242,11 @@ def _update_manifests(models: Path, res: dict[str, Any]) -> None:
         if "Ours (Z depth)" in rows:
             vals |= {f"heldout_pipeline_{k}": round(rows["Ours (Z depth)"][k], 5)
                      for k in ("dssim", "mse", "shadow_mse") if k in rows["Ours (Z depth)"]}
+        if depth_extra:
+            z = depth_extra["depth"]["Z"]
+            vals |= {f"heldout_extra_{k}": round(z[k], 5) for k in ("silog", "abs_rel", "delta1")}
+            vals["heldout_extra_photos"] = depth_extra["photos"]
+            vals["heldout_extra_data"] = depth_extra["data"]
         update_metrics(models / "depth.json", vals | where)
     for name, (row, keys) in pick.items():
         man = models / f"{name}.json"

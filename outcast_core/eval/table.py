@@ -237,6 +237,31 @@ def evaluate_table(
             "sheet": sheet, "depth": depth_rows}
 
 
+def evaluate_depth(
+    data: str | Path, models: str | Path = "models", max_views: int = 0, threads: int = 2,
+) -> dict[str, Any]:
+    """``Z`` alone on every photo of ``data`` (views of any number of suns, e.g. one-sun
+    landscapes): ``{"data": folder, "views": n, "photos": n, "depth": {source: {"silog", ...}}}``
+    as in :func:`evaluate_table`.
+
+    Raises:
+        ValueError: no ``depth.onnx`` in ``models``, or no views in ``data``.
+    """
+    model = _load(Path(models), "depth", threads)
+    if model is None:
+        raise ValueError(f"expected {Path(models) / 'depth.onnx'}, got no such file")
+    views = load_test_views(data, max_views=max_views)
+    dacc: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for view in views:
+        _depth_from_z(model, view, dacc)
+    depth_rows = {
+        src: {k: float(np.nanmean(v)) for k, v in d.items()} | {"n": len(d["silog"])}
+        for src, d in dacc.items()
+    }
+    return {"data": str(data), "views": len(views), "photos": depth_rows["Z"]["n"],
+            "depth": depth_rows}
+
+
 def _depth_from_z(
     model: TimedModel, view: TestView, dacc: dict[str, dict[str, list[float]]]
 ) -> list[tuple[np.ndarray, np.ndarray, float]]:

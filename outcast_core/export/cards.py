@@ -52,7 +52,8 @@ def _card(man: dict[str, Any]) -> list[str]:
             f"({cfg.get('threads')} torch thread(s); {_minutes(tr.get('wall_time_s'))})",
             *_branch_lines(tr.get("branched_from")),
             f"- Data: `{tr.get('data_set')}` (data seed {tr.get('data_seed')}, "
-            f"{tr.get('views')} views)",
+            f"{tr.get('views')} views in all)",
+            *_extra_data_lines(tr.get("extra_data")),
             f"- Final training losses (moving average): {json.dumps(tr.get('loss', {}))}",
         ]
     mets = man.get("metrics") or {}
@@ -61,6 +62,21 @@ def _card(man: dict[str, Any]) -> list[str]:
     else:
         lines.append("- Held-out metrics: not measured")
     lines += [f"- sha256: `{man['sha256']}`", ""]
+    return lines
+
+
+def _extra_data_lines(extra: list[dict[str, Any]] | None) -> list[str]:
+    """One card line per extra data folder of a run: where, its seed, its views and kind."""
+    lines = []
+    for e in extra or []:
+        rec = e.get("data_record") or {}
+        kind = f", scene kind {rec['kind']}" if rec.get("kind") else ""
+        loaded = e.get("views_loaded")
+        used = f", {loaded} of them loaded" if loaded is not None else ""
+        lines.append(
+            f"- Extra data: `{e.get('data_set')}` (data seed {rec.get('seed')}, "
+            f"{rec.get('views')} views of {rec.get('suns')} sun(s){kind}{used})"
+        )
     return lines
 
 

@@ -54,6 +54,11 @@ def training_record(ckpt: dict[str, Any], data_seed: int | None) -> dict[str, An
             else "L1 + (1 - SSIM) / 2 (E-LPIPS backbones cannot be downloaded)"
         ),
         "data_record": rec,
+        "extra_data": [
+            {"data_set": d, "data_record": data_record(d),
+             "views_loaded": (ckpt.get("views_by_folder") or {}).get(d)}
+            for d in cfg.get("extra_data", [])
+        ],
         "command": ckpt.get("command") or f"outcast train <config of run {cfg['run']}>",
         "branched_from": _branch(ckpt.get("branched_from")),
     }

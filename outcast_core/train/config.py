@@ -26,6 +26,9 @@ class TrainConfig:
             critic ``A`` jointly on top of a frozen ``S`` (``shadow_checkpoint``);
             ``relight_pix2pix`` trains the ablation with the same critic.
         data: training data folder (views written by ``outcast data make``).
+        extra_data: more data folders whose views are all added to ``data``'s (e.g. a set of
+            one-sun views made for ``Z`` only, or of one scene kind); ``max_views`` applies to
+            ``data`` alone. Each view is drawn with equal probability, whatever its folder.
         size: working resolution (longer side, pixels) the views are resized to.
         batch: images per step.
         steps: total optimiser steps of the generator(s).
@@ -106,6 +109,7 @@ class TrainConfig:
     time_limit_s: float = 0.0
     max_views: int = 0
     reload_every: int = 0
+    extra_data: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         if self.stage not in STAGES:
@@ -137,6 +141,13 @@ class TrainConfig:
         if self.stage == "relight" and not self.shadow_checkpoint:
             raise ValueError("expected a shadow_checkpoint for the relight stage, got none")
         self.data = str(Path(self.data).expanduser())
+        if isinstance(self.extra_data, str) or not all(
+            isinstance(d, str) for d in self.extra_data
+        ):
+            raise ValueError(
+                f"expected extra_data to be a list of folders, got {self.extra_data!r}"
+            )
+        self.extra_data = [str(Path(d).expanduser()) for d in self.extra_data]
         for key in ("depth_checkpoint", "shadow_checkpoint"):
             value = getattr(self, key)
             if value:

@@ -133,8 +133,15 @@ class Trainer:
         self.dir.mkdir(parents=True, exist_ok=True)
         self._loaded: set[Path] = set()
         self._reload = views is None and cfg.reload_every > 0
+        # Views loaded from each data folder (recorded in checkpoints and model cards).
+        self.views_by_folder: dict[str, int] = {}
         if views is None:
-            views = load_prepared(cfg.data, cfg.size, cfg.max_views, skip=self._loaded)
+            views = []
+            for folder, most in self._folders():
+                got = load_prepared(folder, cfg.size, most, skip=self._loaded,
+                                    allow_empty=folder != cfg.data)
+                self.views_by_folder[folder] = len(got)
+                views += got
         self.sampler = PairSampler(
             views, np.random.default_rng(cfg.seed), cfg.exposure_stops, cfg.saturation,
             cfg.gamma, cfg.flip, cfg.sun_noise_deg, cfg.cloud_prob,
@@ -175,6 +182,10 @@ class Trainer:
             self.lr_history.append((self.step, cfg.lr))
 
     # -- checkpoints -------------------------------------------------------------------------
+    def _folders(self) -> list[tuple[str, int]]:
+        """The data folders with the most views to load from each (0 = all)."""
+        return [(self.cfg.data, self.cfg.max_views)] + [(d, 0) for d in self.cfg.extra_data]
+
     @property
     def checkpoint_path(self) -> Path:
         return self.dir / "last.pt"
@@ -246,6 +257,7 @@ class Trainer:
             "wall_time_s": self.wall_time_s,
             "history": self.history,
             "views": len(self.sampler.views),
+            "views_by_folder": self.views_by_folder,
             "command": self.command,
             "lr_history": self.lr_history,
             "branched_from": self.branched_from,
@@ -438,10 +450,14 @@ class Trainer:
                 if self.step % self.cfg.checkpoint_every == 0:
                     self.save()
                 if self._reload and self.step % self.cfg.reload_every == 0:
-                    self.sampler.views += load_prepared(
-                        self.cfg.data, self.cfg.size, self.cfg.max_views, skip=self._loaded,
-                        allow_empty=True,
-                    )
+                    for folder, most in self._folders():
+                        got = load_prepared(
+                            folder, self.cfg.size, most, skip=self._loaded, allow_empty=True,
+                        )
+                        self.views_by_folder[folder] = self.views_by_folder.get(folder, 0) + len(
+                            got
+                        )
+                        self.sampler.views += got
                 limit = self.cfg.time_limit_s
                 if limit and time.monotonic() - start >= limit:
                     break

@@ -138,3 +138,31 @@ def test_contact_sheet_of_fake_views(tmp_path) -> None:
     img = np.asarray(Image.open(out))
     assert img.shape == (16 + 2 * 32, len(COLUMNS) * 32, 3)
     assert img[16:].std() > 10  # real content, not a blank canvas
+
+
+def test_scene_kind_is_checked_and_recorded(tmp_path, monkeypatch) -> None:
+    args = {"views": 2, "suns": 1, "res": 8, "spp": 1, "seed": 5}
+    with pytest.raises(ValueError, match="--kind"):
+        make_dataset(tmp_path / "x", **args, kind="moonscape")
+    # The kind reaches every view's render and is recorded in dataset.json.
+    seen = []
+
+    def fake_render(index, suns, res, spp, base_seed, kind=None):
+        seen.append((index, kind))
+        return _fake_view(np.random.default_rng(index), k=suns, h=res, w=res), {"kind": kind}
+
+    monkeypatch.setattr(ds, "render_one", fake_render)
+    land = tmp_path / "land"
+    assert sorted(make_dataset(land, **args, kind="landscape")) == [0, 1]
+    assert sorted(seen) == [(0, "landscape"), (1, "landscape")]
+    assert json.loads((land / "dataset.json").read_text())["kind"] == "landscape"
+    # A landscape folder refuses the standard mix, and a standard folder (no "kind" recorded,
+    # as every set made before the landscape kind) refuses landscapes.
+    with pytest.raises(ValueError, match="'kind'"):
+        make_dataset(land, **args)
+    mixed = tmp_path / "mixed"
+    make_dataset(mixed, **args)
+    assert "kind" not in json.loads((mixed / "dataset.json").read_text())
+    assert seen[-1] == (1, None)
+    with pytest.raises(ValueError, match="'kind'"):
+        make_dataset(mixed, **args, kind="landscape")

@@ -71,6 +71,15 @@ def test_cards_render_from_manifests(tmp_path) -> None:
     assert "`outcast train r2.toml`" in text
     assert "Continues run `r` (`outcast train r.toml`) from its step 12" in text
     assert "trained with 2 thread(s)" in text
+    assert "Extra data" not in text
+    write_manifest(net, "refine", path, {
+        "config": {"stage": "depth", "run": "z"}, "steps": 5, "wall_time_s": 1.0,
+        "extra_data": [{"data_set": "/d/land", "views_loaded": 650,
+                        "data_record": {"seed": 7, "views": 700, "suns": 1,
+                                        "kind": "landscape"}}],
+    }, {})
+    assert ("- Extra data: `/d/land` (data seed 7, 700 views of 1 sun(s), scene kind landscape, "
+            "650 of them loaded)") in render_cards(tmp_path, "")
 
 
 def test_tables_and_pictures(tmp_path) -> None:
@@ -140,3 +149,28 @@ def test_evaluate_table_runs_every_method_on_a_tiny_test_set(tmp_path) -> None:
     assert rows["Pix2Pix-like"]["dssim"] == pytest.approx(rows["Input"]["dssim"], abs=1e-4)
     assert abs(rows["Ours"]["mse"] - rows["Input"]["mse"]) > 1e-5
     assert len(res["sheet"]) == 1 and "Ours" in res["sheet"][0]
+
+
+def test_evaluate_depth_scores_z_alone_on_one_sun_views(tmp_path) -> None:
+    """The Z-only evaluation (``outcast eval --depth-data``) scores every photo of one-sun views
+    (no relighting pairs there) and names the missing model file."""
+    from outcast_core.data.dataset import save_view
+    from outcast_core.eval.table import evaluate_depth
+    from outcast_core.runtime.geometry import sun_angles
+    from tests.train.conftest import make_view
+
+    data = tmp_path / "land"
+    for i in range(2):
+        v = make_view(i, size=128, suns=1)
+        v["sun_azel"] = np.array([sun_angles(s) for s in v["sun"]], np.float32)
+        save_view(data / f"view_{i:06d}", v, {})
+    models = tmp_path / "models"
+    with pytest.raises(ValueError, match="depth.onnx"):
+        evaluate_depth(data, models, threads=1)
+    torch.manual_seed(0)
+    export_onnx(build("depth"), "depth", models / "depth.onnx", [(32, 32)])
+    res = evaluate_depth(data, models, threads=1)
+    assert (res["views"], res["photos"]) == (2, 2)
+    z = res["depth"]["Z"]
+    assert z["n"] == 2 and np.isfinite(z["silog"]) and 0.0 <= z["sky_iou"] <= 1.0
+    assert set(res["depth"]) == {"Z", "Z + post-processing (app)", "Ground-plane prior"}

@@ -333,3 +333,28 @@ def test_snap_ground_gives_postprocess_z_each_items_camera(fake_views) -> None:
         _cfg("shadow", snap_ground=True)
     with pytest.raises(ValueError, match="snap_ground"):
         _cfg("shadow", snap_ground="yes")
+
+
+def test_extra_data_folders_add_their_views(tmp_path) -> None:
+    from outcast_core.data.dataset import save_view
+
+    def folder(name: str, seeds: range, suns: int) -> str:
+        root = tmp_path / name
+        for i, s in enumerate(seeds):
+            v = make_view(s, suns=suns)
+            v["sun_azel"] = np.zeros((suns, 2), np.float32)
+            save_view(root / f"view_{i:06d}", v, {"seed": s})
+        return str(root)
+
+    main = folder("main", range(3), 3)
+    extra = folder("one_sun", range(10, 14), 1)
+    cfg = _cfg("depth", data=main, max_views=2, extra_data=[extra], steps=2)
+    tr = Trainer(cfg, progress=False)
+    # max_views limits the main folder only; one-sun views sample pairs of the same sun.
+    assert len(tr.sampler.views) == 2 + 4
+    assert sorted(v.rgb.shape[0] for v in tr.sampler.views) == [1, 1, 1, 1, 3, 3]
+    assert tr.fit()["step"] == 2
+    ckpt = torch.load(tr.checkpoint_path, weights_only=False)
+    assert ckpt["views_by_folder"] == {main: 2, extra: 4}
+    with pytest.raises(ValueError, match="extra_data"):
+        _cfg("depth", extra_data=extra)
