@@ -94,16 +94,19 @@ class SceneBuilder:
             )
         self.parts.append((mesh, material))
 
-    def blocked(self, x: float, y: float, margin: float = 0.0) -> bool:
-        """Whether a ground point lies inside a blocker footprint (grown by ``margin``)."""
+    def blocked(self, x: float, y: float, margin: float = 0.0, walk: bool = False) -> bool:
+        """Whether a ground point lies inside a blocker footprint (grown by ``margin``); with
+        ``walk``, walkable blockers (paths) do not count."""
         return any(
             x0 - margin <= x <= x1 + margin and y0 - margin <= y <= y1 + margin
             for x0, x1, y0, y1 in self.blockers
+            if not (walk and (x0, x1, y0, y1) in self.walkable)
         )
 
-    def overlaps(self, x: float, y: float, radius: float) -> bool:
-        """Whether a footprint hits an already placed item or a blocker."""
-        if self.blocked(x, y, radius):
+    def overlaps(self, x: float, y: float, radius: float, walk: bool = False) -> bool:
+        """Whether a footprint hits an already placed item or a blocker (with ``walk``: a
+        blocker other than a walkable one, as for a person standing there)."""
+        if self.blocked(x, y, radius, walk):
             return True
         for it in self.items:
             if math.hypot(it.centre[0] - x, it.centre[1] - y) < it.radius + radius:

@@ -225,10 +225,10 @@ def closeup(b: pr.SceneBuilder) -> None:
         )
 
 
-def _on_ground(b: pr.SceneBuilder, mesh: Mesh, lift: float = 0.0) -> Mesh:
+def _on_ground(b: pr.SceneBuilder, mesh: Mesh) -> Mesh:
     """``mesh`` built on z = 0 moved onto the (planar) ground, every vertex by its own height."""
     v = mesh.vertices.copy()
-    v[:, 2] += np.array([b.ground_z(x, y) for x, y in v[:, :2]]) + lift
+    v[:, 2] += np.array([b.ground_z(x, y) for x, y in v[:, :2]])
     return Mesh(v, mesh.faces, mesh.uv)
 
 
@@ -406,16 +406,7 @@ def _camera(b: pr.SceneBuilder, kind: str) -> tuple[CameraPose, str, float]:
 def landscape_stand_clear(b: pr.SceneBuilder, x: float, y: float, margin: float = 0.5) -> bool:
     """Whether a photographer can stand at ``x, y``: on open ground or a walkable path, not in
     a crop field, a hedge or another blocker, and ``margin`` clear of every item."""
-    walkable = set(b.walkable)
-    if any(
-        x0 - margin <= x <= x1 + margin and y0 - margin <= y <= y1 + margin
-        for x0, x1, y0, y1 in b.blockers
-        if (x0, x1, y0, y1) not in walkable
-    ):
-        return False
-    return all(
-        math.hypot(it.centre[0] - x, it.centre[1] - y) >= it.radius + margin for it in b.items
-    )
+    return not b.overlaps(x, y, margin, walk=True)
 
 
 def _landscape_camera(b: pr.SceneBuilder, fov: float) -> tuple[CameraPose, str, float]:

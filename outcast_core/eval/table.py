@@ -229,12 +229,17 @@ def evaluate_table(
         method: {k: float(np.mean(v)) for k, v in d.items()} | {"n": len(next(iter(d.values())))}
         for method, d in acc.items()
     }
-    depth_rows = {
+    depth_rows = _depth_rows(dacc)
+    return {"rows": rows, "missing": missing, "views": len(views), "pairs": n_pairs,
+            "sheet": sheet, "depth": depth_rows}
+
+
+def _depth_rows(dacc: dict[str, dict[str, list[float]]]) -> dict[str, dict[str, float]]:
+    """Per depth source: the mean of each score over the photos, and their number."""
+    return {
         src: {k: float(np.nanmean(v)) for k, v in d.items()} | {"n": len(d["silog"])}
         for src, d in dacc.items()
     }
-    return {"rows": rows, "missing": missing, "views": len(views), "pairs": n_pairs,
-            "sheet": sheet, "depth": depth_rows}
 
 
 def evaluate_depth(
@@ -254,10 +259,7 @@ def evaluate_depth(
     dacc: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     for view in views:
         _depth_from_z(model, view, dacc)
-    depth_rows = {
-        src: {k: float(np.nanmean(v)) for k, v in d.items()} | {"n": len(d["silog"])}
-        for src, d in dacc.items()
-    }
+    depth_rows = _depth_rows(dacc)
     return {"data": str(data), "views": len(views), "photos": depth_rows["Z"]["n"],
             "depth": depth_rows}
 
