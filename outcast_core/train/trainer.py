@@ -136,12 +136,7 @@ class Trainer:
         # Views loaded from each data folder (recorded in checkpoints and model cards).
         self.views_by_folder: dict[str, int] = {}
         if views is None:
-            views = []
-            for folder, most in self._folders():
-                got = load_prepared(folder, cfg.size, most, skip=self._loaded,
-                                    allow_empty=folder != cfg.data)
-                self.views_by_folder[folder] = len(got)
-                views += got
+            views = self._load_new_views(first=True)
         self.sampler = PairSampler(
             views, np.random.default_rng(cfg.seed), cfg.exposure_stops, cfg.saturation,
             cfg.gamma, cfg.flip, cfg.sun_noise_deg, cfg.cloud_prob,
@@ -182,9 +177,17 @@ class Trainer:
             self.lr_history.append((self.step, cfg.lr))
 
     # -- checkpoints -------------------------------------------------------------------------
-    def _folders(self) -> list[tuple[str, int]]:
-        """The data folders with the most views to load from each (0 = all)."""
-        return [(self.cfg.data, self.cfg.max_views)] + [(d, 0) for d in self.cfg.extra_data]
+    def _load_new_views(self, first: bool = False) -> list[Prepared]:
+        """The views of ``data`` (at most ``max_views``) and ``extra_data`` not loaded yet,
+        counted per folder. ``data`` must hold some on the ``first`` call."""
+        out: list[Prepared] = []
+        folders = [(self.cfg.data, self.cfg.max_views)] + [(d, 0) for d in self.cfg.extra_data]
+        for folder, most in folders:
+            got = load_prepared(folder, self.cfg.size, most, skip=self._loaded,
+                                allow_empty=not first or folder != self.cfg.data)
+            self.views_by_folder[folder] = self.views_by_folder.get(folder, 0) + len(got)
+            out += got
+        return out
 
     @property
     def checkpoint_path(self) -> Path:
@@ -450,14 +453,7 @@ class Trainer:
                 if self.step % self.cfg.checkpoint_every == 0:
                     self.save()
                 if self._reload and self.step % self.cfg.reload_every == 0:
-                    for folder, most in self._folders():
-                        got = load_prepared(
-                            folder, self.cfg.size, most, skip=self._loaded, allow_empty=True,
-                        )
-                        self.views_by_folder[folder] = self.views_by_folder.get(folder, 0) + len(
-                            got
-                        )
-                        self.sampler.views += got
+                    self.sampler.views += self._load_new_views()
                 limit = self.cfg.time_limit_s
                 if limit and time.monotonic() - start >= limit:
                     break
