@@ -76,7 +76,7 @@ def render_depth(depth: dict[str, Any]) -> str:
              "|---|---|---|---|---|---|"]
     for src, r in depth.items():
         lines.append(f"| {src} | {_fmt(r['silog'])} | {_fmt(r['abs_rel'])} | "
-                     f"{_fmt(r['delta1'], 3)} | {_fmt(r['sky_iou'], 3)} | "
+                     f"{_fmt(r['delta1'], 3)} | {_fmt(r.get('sky_iou'), 3)} | "
                      f"{_fmt(r['time_s'], 3)} |")
     return "\n".join(lines)
 

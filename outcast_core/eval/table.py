@@ -259,9 +259,34 @@ def evaluate_depth(
     dacc: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     for view in views:
         _depth_from_z(model, view, dacc)
+        _depth_at_scales(model, view, dacc)
     depth_rows = _depth_rows(dacc)
     return {"data": str(data), "views": len(views), "photos": depth_rows["Z"]["n"],
             "depth": depth_rows}
+
+
+#: Scales of :func:`_depth_at_scales`: how much larger than at training the views are shown.
+DEPTH_SCALES = (1.5, 2.0, 3.0)
+
+
+def _depth_at_scales(
+    model: TimedModel, view: TestView, dacc: dict[str, dict[str, list[float]]]
+) -> None:
+    """Raw ``Z`` on each photo of ``view`` upsampled (bicubic) by each of :data:`DEPTH_SCALES`,
+    its log depth shrunk back (area) and scored against the ground truth: how much worse ``Z``
+    gets on an image larger than the views it was trained on, which is why the app runs it at
+    its training scale (:func:`outcast_core.runtime.depth_post.run_depth_model`)."""
+    gt, valid = view.prep.depth, ~view.sky
+    h, w = gt.shape
+    for s in range(view.prep.rgb.shape[0]):
+        for f in DEPTH_SCALES:
+            big = cv2.resize(view.images[s], (round(w * f), round(h * f)),
+                             interpolation=cv2.INTER_CUBIC).clip(0.0, 1.0)
+            (d, _), t = model.run(image=big.transpose(2, 0, 1)[None])
+            log_d = np.log(np.maximum(d[0, 0, : big.shape[0], : big.shape[1]], 1e-6))
+            depth = np.exp(cv2.resize(log_d, (w, h), interpolation=cv2.INTER_AREA))
+            for k, v in (depth_errors(depth, gt, valid) | {"time_s": t}).items():
+                dacc[f"Z, view shown {f:g}x larger"][k].append(v)
 
 
 def _depth_from_z(

@@ -241,6 +241,9 @@ def write_manifest(
         manifest["onnx_parity_max_abs_diff"] = parity
     if kind == "relight":
         manifest["base"] = getattr(net, "base", "photo")
+    if kind == "depth" and (training.get("config") or {}).get("size"):
+        # The runtime shrinks larger photos to this side before Z (depth_post.run_depth_model).
+        manifest["input_side"] = int(training["config"]["size"])
     if kind in ("shadow", "shadow_2d") and hasattr(net, "steps"):
         manifest["march_steps"] = int(net.steps)
         manifest["march_step"] = float(net.step)

@@ -56,6 +56,16 @@ class Model:
         return int(self.manifest.get("pad_multiple", 16))
 
     @property
+    def input_side(self) -> int | None:
+        """Longer image side the network was trained at (``input_side`` in the manifest, else its
+        training config's ``size``), or None when the manifest does not say. ``Z`` is run at this
+        scale (:func:`outcast_core.runtime.depth_post.run_depth_model`)."""
+        side = self.manifest.get("input_side")
+        if side is None:
+            side = (self.manifest.get("training") or {}).get("config", {}).get("size")
+        return int(side) if side else None
+
+    @property
     def input_names(self) -> list[str]:
         return [i.name for i in self.session.get_inputs()]
 

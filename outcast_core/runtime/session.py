@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 
 from outcast_core.runtime.colour import srgb_to_linear
-from outcast_core.runtime.depth_post import postprocess_z
+from outcast_core.runtime.depth_post import postprocess_z, run_depth_model
 from outcast_core.runtime.geometry import (
     DEFAULT_FOV_DEG,
     Camera,
@@ -337,13 +337,10 @@ class RelightSession:
             self.depth_source = "given"
             return np.where(sky, np.inf, depth).astype(np.float32), sky
         if self.depth_mode != "prior" and self.registry.available("depth"):
-            model = self.registry.load("depth")
-            x = self.image_srgb.transpose(2, 0, 1)[None]  # 1 x 3 x H x W
-            out = model.run({"image": x})
-            # Sky prior, edge-aware smoothing and the ground plane for real photos
-            # (runtime.depth_post).
-            depth, sky = postprocess_z(out["depth"][0, 0], out["sky"][0, 0], self.image_srgb,
-                                       cam)
+            # Z at the scale it was trained at, then the sky prior, edge-aware smoothing and
+            # the ground plane for real photos (runtime.depth_post).
+            raw, sky_prob = run_depth_model(self.registry.load("depth"), self.image_srgb)
+            depth, sky = postprocess_z(raw, sky_prob, self.image_srgb, cam)
             self.depth_source = "model"
             return depth, sky
         self.depth_source = "ground-plane prior (no depth model)"

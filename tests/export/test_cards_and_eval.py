@@ -155,7 +155,7 @@ def test_evaluate_depth_scores_z_alone_on_one_sun_views(tmp_path) -> None:
     """The Z-only evaluation (``outcast eval --depth-data``) scores every photo of one-sun views
     (no relighting pairs there) and names the missing model file."""
     from outcast_core.data.dataset import save_view
-    from outcast_core.eval.table import evaluate_depth
+    from outcast_core.eval.table import DEPTH_SCALES, evaluate_depth
     from outcast_core.runtime.geometry import sun_angles
     from tests.train.conftest import make_view
 
@@ -173,4 +173,9 @@ def test_evaluate_depth_scores_z_alone_on_one_sun_views(tmp_path) -> None:
     assert (res["views"], res["photos"]) == (2, 2)
     z = res["depth"]["Z"]
     assert z["n"] == 2 and np.isfinite(z["silog"]) and 0.0 <= z["sky_iou"] <= 1.0
-    assert set(res["depth"]) == {"Z", "Z + post-processing (app)", "Ground-plane prior"}
+    scaled = {f"Z, view shown {f:g}x larger" for f in DEPTH_SCALES}
+    assert set(res["depth"]) == {"Z", "Z + post-processing (app)", "Ground-plane prior"} | scaled
+    for row in scaled:  # scored on the view's own size, against the same ground truth
+        assert res["depth"][row]["n"] == 2 and np.isfinite(res["depth"][row]["silog"])
+    # An untrained Z's output depends on the scale it sees.
+    assert res["depth"]["Z, view shown 3x larger"]["silog"] != pytest.approx(z["silog"])

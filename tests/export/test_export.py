@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import onnxruntime as ort
@@ -42,6 +43,20 @@ def test_export_parity_and_manifest(kind: str, tmp_path) -> None:
     assert man["pad_multiple"] == m
     if kind == "shadow":
         assert man["march_steps"] == 8 and man["volume_scale"] == 0.5
+    # Only Z records the side it was trained at (the runtime shrinks photos to it).
+    man = json.loads(write_manifest(net, kind, path, {"config": {"size": 96}}).read_text())
+    assert man.get("input_side") == (96 if kind == "depth" else None)
+
+
+def test_model_input_side_from_the_manifest_or_its_training_config() -> None:
+    from outcast_core.runtime.models import Model
+
+    def side(manifest: dict) -> int | None:
+        return Model("depth", Path("depth.onnx"), manifest, None).input_side
+
+    assert side({"input_side": 160, "training": {"config": {"size": 128}}}) == 160
+    assert side({"training": {"config": {"size": 128}}}) == 128  # manifests before the key
+    assert side({}) is None and side({"training": {}}) is None
 
 
 def test_export_of_relight_with_the_physics_base_takes_the_light_ratio(tmp_path) -> None:

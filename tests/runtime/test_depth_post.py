@@ -405,3 +405,51 @@ def test_postprocess_z_snaps_the_ground_only_given_a_camera() -> None:
     ground = ~s1 & ~near_box & ~sky
     err = lambda d: np.abs(np.log(d[ground] / t[ground])).mean()  # noqa: E731
     assert err(snapped) < 0.8 * err(plain)
+
+
+class _RecordingZ:
+    """A stand-in for the depth model: depth = 1 + x (a left-to-right ramp in the shape it is
+    given), sky = the top quarter; records the shapes it ran on."""
+
+    def __init__(self, input_side: int | None) -> None:
+        self.input_side = input_side
+        self.shapes: list[tuple[int, ...]] = []
+
+    def run(self, feeds: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        x = feeds["image"]
+        self.shapes.append(x.shape)
+        h, w = x.shape[2:]
+        ramp = np.broadcast_to(np.linspace(1.0, 2.0, w, dtype=np.float32), (h, w))
+        sky = np.zeros((h, w), np.float32)
+        sky[: h // 4] = 1.0
+        return {"depth": ramp[None, None].copy(), "sky": sky[None, None]}
+
+
+@pytest.mark.parametrize(("shape", "side", "ran_on"), [
+    ((300, 400), 128, (96, 128)),   # landscape: longer side shrunk to the training side
+    ((400, 300), 128, (128, 96)),   # portrait
+    ((90, 120), 128, (90, 120)),    # already smaller: run as it is (never enlarged)
+    ((300, 400), None, (300, 400)),  # the manifest does not say: run at the photo's size
+])
+def test_run_depth_model_runs_z_at_its_training_scale(shape, side, ran_on) -> None:
+    from outcast_core.runtime.depth_post import run_depth_model
+
+    model = _RecordingZ(side)
+    img = np.random.default_rng(0).random((*shape, 3)).astype(np.float32)
+    depth, sky = run_depth_model(model, img)
+    assert model.shapes == [(1, 3, *ran_on)]
+    assert depth.shape == sky.shape == shape and depth.dtype == sky.dtype == np.float32
+    # The ramp comes back up as a ramp (bilinear in log depth), the sky as the top quarter.
+    row = np.log(depth[shape[0] // 2])
+    assert np.all(np.diff(row) >= -1e-6) and row[0] < 0.02 and abs(row[-1] - np.log(2)) < 0.02
+    assert sky[: shape[0] // 5].min() > 0.5 and sky[shape[0] // 3:].max() < 0.5
+
+
+def test_run_depth_model_side_override_and_bad_input() -> None:
+    from outcast_core.runtime.depth_post import run_depth_model
+
+    model = _RecordingZ(128)
+    run_depth_model(model, np.zeros((200, 200, 3), np.float32), side=64)
+    assert model.shapes == [(1, 3, 64, 64)]
+    with pytest.raises(ValueError, match="H x W x 3"):
+        run_depth_model(model, np.zeros((200, 200), np.float32))

@@ -46,20 +46,26 @@ def test_learned_session_end_to_end() -> None:
 
 @pytest.mark.skipif("depth" not in SHIPPED, reason="no depth model shipped")
 def test_session_depth_from_z_is_post_processed() -> None:
-    from outcast_core.runtime.depth_post import postprocess_z
+    """The session runs Z at its training scale (a 192 x 256 photo shrunk to 96 x 128, as its
+    manifest says) and post-processes at the working size."""
+    from outcast_core.runtime.depth_post import postprocess_z, run_depth_model
 
     rng = np.random.default_rng(3)
-    image = np.empty((48, 64, 3), np.float32)
-    image[:20] = (0.4, 0.6, 0.95)  # clear sky over textured ground
-    image[20:] = 0.3 + 0.2 * rng.random((28, 64, 1))
+    image = np.empty((192, 256, 3), np.float32)
+    image[:80] = (0.4, 0.6, 0.95)  # clear sky over textured ground
+    image[80:] = 0.3 + 0.2 * rng.random((112, 256, 1))
     s = RelightSession(mode="learned", preset="fast")
     s.set_image(image, fov_deg=60.0)
-    assert s.depth_source == "model"
-    raw = ModelRegistry().load("depth").run({"image": s.image_srgb.transpose(2, 0, 1)[None]})
-    depth, sky = postprocess_z(raw["depth"][0, 0], raw["sky"][0, 0], s.image_srgb, s.camera)
+    assert s.depth_source == "model" and s.image_srgb.shape == (192, 256, 3)
+    model = ModelRegistry().load("depth")
+    assert model.input_side == model.manifest["training"]["config"]["size"] == 128
+    raw, sky_prob = run_depth_model(model, s.image_srgb)
+    depth, sky = postprocess_z(raw, sky_prob, s.image_srgb, s.camera)
     np.testing.assert_array_equal(s.sky, sky)
     np.testing.assert_allclose(s.depth, depth, rtol=1e-6)
-    assert s.sky[:10].mean() > 0.9 and not s.sky[30:].any()
+    full = model.run({"image": s.image_srgb.transpose(2, 0, 1)[None]})["depth"][0, 0]
+    assert not np.allclose(raw, full, rtol=1e-3)  # not Z at the working size
+    assert not s.sky[120:].any()  # the textured ground is never sky
 
 
 def test_corrupt_model_file_is_named(tmp_path: Path) -> None:
