@@ -396,7 +396,7 @@ def run_depth_model(
     if image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) < 1:
         raise ValueError(f"expected an H x W x 3 image, got shape {image.shape}")
     h, w = image.shape[:2]
-    side = side if side is not None else getattr(model, "input_side", None)
+    side = side if side is not None else model.input_side
     small = image
     if side and max(h, w) > side:
         scale = side / max(h, w)
