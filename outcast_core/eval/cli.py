@@ -19,7 +19,7 @@ PAPER = {  # Table 1 of the paper (their data), for orientation only
     "Ours": (".154", ".0399", ".175"),
 }
 ORDER = ["Input", "Pix2Pix-like", "2D", "Direct", "Physics (Direct shadows)",
-         "Physics (Ours shadows)", "Ours", "Ours (Z depth)"]
+         "Physics (Ours shadows)", "Ours", "Direct (Z depth)", "Ours (Z depth)"]
 
 
 def register(subparsers: Any) -> argparse.ArgumentParser:
@@ -127,11 +127,12 @@ def run_eval(args: argparse.Namespace) -> int:
         "(sky = no surface) and normals from it, as the runtime computes them; L and "
         "Pix2Pix-like get normals from Z's post-processed depth, as the app runs them (their "
         "model cards say which depth they were trained on); Z's time is counted only in "
-        "`Ours (Z depth)`. `Ours (Z depth)` runs the "
+        "`Ours (Z depth)` and `Direct (Z depth)`. `Ours (Z depth)` runs the "
         "photo-only pipeline of the app: Z's depth and sky of the input photo, post-processed "
         "as the app does (sky prior, guided filter and ground plane, `runtime/depth_post.py`), "
         "normals from "
-        "them. Relighting metrics are on sRGB [0, 1] images tone-mapped with the view's "
+        "them; `Direct (Z depth)` is the app's Direct shadow mode on the same depth. "
+        "Relighting metrics are on sRGB [0, 1] images tone-mapped with the view's "
         "exposure; DSSIM = (1 - SSIM) / 2 with an 11x11 Gaussian window.",
         "",
         "## Table 1",
@@ -195,6 +196,17 @@ def run_eval(args: argparse.Namespace) -> int:
         md += [f"- `{r['file']}`: original {r['from']}, sun 1..n = {r['to']}; depth: "
                f"{r['depth_source']}, shadows: {r['shadows']}, relighting: {r['relight']}, "
                f"{r['seconds']} s" for r in records]
+        md += ["", "New shadows in the relit photos (`eval.samples.shadow_contrast`): the "
+               "fraction of the surface that is lit under the original sun and that S_n puts "
+               "in shadow, and the relit photo's mean sRGB there over its mean where both suns "
+               "light the surface; `photo` is the same ratio for the input's own shadows "
+               "(S_o), i.e. how dark a real shadow is in that photo.", "",
+               "| Photo | Sun | New shadow (fraction of surface) | Relit contrast | Photo "
+               "contrast |", "|---|---|---|---|---|"]
+        for r in records:
+            for k, c in enumerate(r["contrast"]):
+                md.append(f"| `{r['file']}` | {k + 1} {r['to'][k]} | {c['new_shadow_frac']} | "
+                          f"{c['relit_contrast']} | {c['photo_contrast']} |")
     out.write_text("\n".join(md) + "\n")
     if not args.no_manifest_update:
         from outcast_core.export.cards import update_readme

@@ -18,8 +18,9 @@ no surface) and normals computed from it as the runtime does; ``L`` and Pix2Pix-
 from ``Z``'s post-processed depth when ``Z`` is installed, as the app runs them (they were trained
 on normals from ``Z``'s raw depth). ``Ours (Z depth)`` is the whole photo-only pipeline, where
 ``Z``'s depth and sky of the photo replace the ground truth for the shadows too (what the app does
-on a photo without a depth map). Shadow MSE is ``S(C_i, w_j)`` against the ground-truth shadow image
-``j`` over the whole frame.
+on a photo without a depth map); ``Direct (Z depth)`` is the app's Direct shadow mode on that same
+depth, fed to ``R`` and ``L`` like the rest. Shadow MSE is ``S(C_i, w_j)`` against the
+ground-truth shadow image ``j`` over the whole frame.
 
 When ``depth.onnx`` is present, ``Z`` is also scored on its own (:func:`evaluate_table`'s
 ``depth`` entry): scale-free depth errors and sky IoU against the ground truth, next to the
@@ -162,12 +163,18 @@ def evaluate_table(
                                     focal=focal)
                 shadows[label] = (so[0, 0], sn[0, 0], t1 + t2)
             if z_geo is not None and m["shadow"] is not None:
-                zd, zn, tz = z_geo[i]
+                zd, zn, tz, z_depth, z_sky = z_geo[i]
                 (so,), t1 = m["shadow"].run(image=c_o_in, depth=zd, normals=zn, sun=w_o,
                                             focal=focal)
                 (sn,), t2 = m["shadow"].run(image=c_o_in, depth=zd, normals=zn, sun=w_n,
                                             focal=focal)
                 shadows["Ours (Z depth)"] = (so[0, 0], sn[0, 0], tz + t1 + t2)
+                # Direct on the same estimated depth: the photo pipeline's other shadow mode.
+                t = time.perf_counter()
+                z_nrm = np.moveaxis(zn[0], 0, -1)
+                d_o, d_n = (direct_shadow(z_depth, view.camera, view.prep.sun[k], normals=z_nrm,
+                                          sky=z_sky) for k in (i, j))
+                shadows["Direct (Z depth)"] = (d_o, d_n, tz + time.perf_counter() - t)
             row = {"Input": c_o}
             acc["Input"]["dssim"].append(dssim(c_o, gt))
             acc["Input"]["mse"].append(mse(c_o, gt))
@@ -291,9 +298,10 @@ def _depth_at_scales(
 
 def _depth_from_z(
     model: TimedModel, view: TestView, dacc: dict[str, dict[str, list[float]]]
-) -> list[tuple[np.ndarray, np.ndarray, float]]:
-    """``Z`` on each photo of ``view``: network inputs (depth with sky 0, normals) and time;
-    scores ``Z`` and the ground-plane prior into ``dacc``."""
+) -> list[tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray]]:
+    """``Z`` on each photo of ``view``: network inputs (depth with sky 0, normals), time, and
+    the post-processed ``H x W`` depth and sky; scores ``Z`` and the ground-plane prior into
+    ``dacc``."""
     gt, gt_sky = view.prep.depth, view.sky
     out = []
     for s in range(view.prep.rgb.shape[0]):
@@ -313,7 +321,7 @@ def _depth_from_z(
         depth_sky = np.where(sky, np.inf, depth).astype(np.float32)
         normals = normals_from_depth(depth_sky, view.camera)
         out.append((network_depth(depth_sky)[None, None],
-                    np.moveaxis(normals, -1, 0)[None].astype(np.float32), t))
+                    np.moveaxis(normals, -1, 0)[None].astype(np.float32), t, depth, sky))
     t = time.perf_counter()
     prior, prior_sky = ground_plane_depth(view.camera)
     t = time.perf_counter() - t

@@ -38,6 +38,16 @@ shadow MSE on ``Z``'s depth went from 0.0878 to 0.0846 with these settings (a pl
 0.0856 (and no plane on the samples); 0.05, 0.0848; tilt limit 50 degrees, 0.0845 (but walls
 under a camera pitched up 40 degrees pass); band 0.04 or 0.15 and below-limit 0.1 or 0.5, all
 within 0.0007. On the sample photos the path's and the snowfield's speckled shadows are gone.
+
+Tried and not kept (2026-11-22): a "pop-up" step after the plane, which pulls every pixel
+standing above the plane (log gap over 0.15) toward the depth of its foot, the plane's depth at
+the nearest ground pixel below it in its column (at most a factor e, guided-filtered against
+column streaks), so thin objects that ``Z`` blurs into the ground behind them stand up and cast
+shadows. With the shipped Z v3 and S v5, S's shadow MSE on Z's depth went 0.0789 -> 0.0752 on
+the dev split (24 views, 288 pairs) but only 0.0812 -> 0.0798 on 20 held-out views (Direct's
+0.0889 -> 0.0860), while Z's silog got worse (0.344 -> 0.363); on the sample photos the
+relit images hardly changed. Too little for a heuristic that also turns overhead structures
+(a pergola's roof) into walls.
 """
 
 from __future__ import annotations

@@ -64,6 +64,9 @@ class TrainConfig:
         sun_noise_deg: std of the angular noise added to the original sun (user alignment).
         cloud_prob: probability of painting random clouds into the sky of a training pair (the
             synthetic skies are cloudless; see :func:`outcast_core.train.data.add_clouds`).
+        zoom_prob: probability of a random zoom of a training pair (depth stage only; see
+            :func:`outcast_core.train.data.zoom_crop`).
+        zoom_max: the largest zoom factor (uniform in ``[1, zoom_max]``).
         exposure_stops: range of the random exposure (both images of a pair alike).
         saturation: range of the random saturation factor.
         gamma: range of the random gamma.
@@ -100,6 +103,8 @@ class TrainConfig:
     resume_from: str = ""
     sun_noise_deg: float = 3.0
     cloud_prob: float = 0.0
+    zoom_prob: float = 0.0
+    zoom_max: float = 1.5
     exposure_stops: float = 1.0
     saturation: tuple[float, float] = (0.8, 1.2)
     gamma: tuple[float, float] = (0.9, 1.1)
@@ -121,9 +126,14 @@ class TrainConfig:
             )
         if not 0.0 <= self.lr_final <= self.lr:
             raise ValueError(f"expected 0 <= lr_final <= lr, got {self.lr_final} (lr {self.lr})")
-        for key in ("gt_depth_prob", "new_shadow_gt_depth_prob", "cloud_prob"):
+        for key in ("gt_depth_prob", "new_shadow_gt_depth_prob", "cloud_prob", "zoom_prob"):
             if not 0.0 <= getattr(self, key) <= 1.0:
                 raise ValueError(f"expected {key} in [0, 1], got {getattr(self, key)}")
+        if self.zoom_max < 1.0:
+            raise ValueError(f"expected zoom_max >= 1, got {self.zoom_max}")
+        if self.zoom_prob > 0 and self.stage != "depth":
+            raise ValueError(f"expected zoom_prob only for the depth stage (a zoomed view's "
+                             f"principal point is off centre), got stage {self.stage!r}")
         if self.relight_base not in ("photo", "physics"):
             raise ValueError(f"expected relight_base photo or physics, got {self.relight_base!r}")
         if self.relight_base != "photo" and self.stage != "relight":

@@ -212,6 +212,26 @@ def add_clouds(
                  for img in images)
 
 
+def zoom_crop(
+    arrays: tuple[np.ndarray, ...], factor: float, rng: np.random.Generator
+) -> tuple[np.ndarray, ...]:
+    """The same random window, ``1 / factor`` of each side, cut from every ``H x W [x C]`` array
+    and brought back to ``H x W``: the scene seen ``factor`` times larger (a longer lens).
+
+    ``Z`` runs on a photo shrunk to its training size, where every object is as small as in the
+    training views; zooming shows it objects, and fields of view, it would otherwise never see.
+    Nearest-neighbour resampling, so depth edges and the sky (inf) stay what they are.
+    """
+    h, w = arrays[0].shape[:2]
+    if factor < 1.0:
+        raise ValueError(f"expected a zoom factor >= 1, got {factor}")
+    ch, cw = max(1, round(h / factor)), max(1, round(w / factor))
+    y, x = int(rng.integers(0, h - ch + 1)), int(rng.integers(0, w - cw + 1))
+    rows = y + (np.arange(h) * ch) // h
+    cols = x + (np.arange(w) * cw) // w
+    return tuple(np.ascontiguousarray(a[rows][:, cols]) for a in arrays)
+
+
 def visibility_target(
     shadow: np.ndarray, normals_true: np.ndarray | None, sun: np.ndarray
 ) -> np.ndarray:
@@ -275,12 +295,16 @@ class PairSampler:
         flip: random horizontal flips.
         sun_noise_deg: noise on the original sun (``sun_old_noisy``).
         cloud_prob: probability of painting clouds into the sky of a pair (:func:`add_clouds`).
+        zoom_prob, zoom_max: probability of a zoom, and its largest factor (:func:`zoom_crop`).
+            A zoomed pair's principal point is off centre, which only the depth stage (image
+            and depth alone) may ignore; the training config allows it for that stage only.
     """
 
     def __init__(
         self, views: list[Prepared], rng: np.random.Generator, exposure_stops: float = 1.0,
         saturation: tuple[float, float] = (0.8, 1.2), gamma: tuple[float, float] = (0.9, 1.1),
         flip: bool = True, sun_noise_deg: float = 3.0, cloud_prob: float = 0.0,
+        zoom_prob: float = 0.0, zoom_max: float = 1.5,
     ) -> None:
         if not views:
             raise ValueError("expected at least one view, got none")
@@ -290,6 +314,8 @@ class PairSampler:
         self.flip = flip
         self.sun_noise_deg = sun_noise_deg
         self.cloud_prob = cloud_prob
+        self.zoom_prob = zoom_prob
+        self.zoom_max = zoom_max
 
     def sample(self) -> dict[str, np.ndarray]:
         """One pair as ``C x H x W`` / vector float32 arrays (keys as in :meth:`batch`)."""
@@ -314,6 +340,12 @@ class PairSampler:
             psi = psi[:, ::-1] * np.array([-1, 1, 1], np.float32)
             sun_o[0], sun_n[0] = -sun_o[0], -sun_n[0]
         sun_o_noisy = perturb_sun(sun_o, self.sun_noise_deg, self.rng)
+        focal = v.focal
+        if self.zoom_prob > 0 and self.rng.random() < self.zoom_prob:
+            factor = float(self.rng.uniform(1.0, self.zoom_max))
+            c_o, c_n, s_o, s_n, depth, vis_o, vis_n, normals, psi = zoom_crop(
+                (c_o, c_n, s_o, s_n, depth, vis_o, vis_n, normals, psi), factor, self.rng)
+            focal = focal * factor
 
         def chw(a: np.ndarray) -> np.ndarray:
             a = np.ascontiguousarray(a, dtype=np.float32)
@@ -324,7 +356,7 @@ class PairSampler:
             "shadow_new": chw(s_n), "visibility_old": chw(vis_o), "visibility_new": chw(vis_n),
             "depth": chw(depth), "normals": chw(normals),
             "view_dirs": chw(psi), "sun_old": sun_o, "sun_old_noisy": sun_o_noisy,
-            "sun_new": sun_n, "focal": np.array([v.focal], np.float32),
+            "sun_new": sun_n, "focal": np.array([focal], np.float32),
         }
 
     def batch(self, n: int) -> dict[str, np.ndarray]:

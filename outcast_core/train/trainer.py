@@ -139,7 +139,8 @@ class Trainer:
             views = self._load_new_views(first=True)
         self.sampler = PairSampler(
             views, np.random.default_rng(cfg.seed), cfg.exposure_stops, cfg.saturation,
-            cfg.gamma, cfg.flip, cfg.sun_noise_deg, cfg.cloud_prob,
+            cfg.gamma, cfg.flip, cfg.sun_noise_deg, cfg.cloud_prob, cfg.zoom_prob,
+            cfg.zoom_max,
         )
         self.net_kwargs: dict[str, dict[str, Any]] = {}
         self.nets: dict[str, nn.Module] = {}

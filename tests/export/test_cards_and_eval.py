@@ -95,6 +95,33 @@ def test_tables_and_pictures(tmp_path) -> None:
     assert png.stat().st_size > 1000 and sheet.stat().st_size > 100
 
 
+def test_shadow_contrast_measures_a_painted_new_shadow() -> None:
+    """A relit photo whose new-shadow band is half as bright as the lit surface gives a
+    contrast of 0.5 there; the band's share of the surface and the photo's own shadow contrast
+    come out as painted."""
+    from outcast_core.eval.samples import shadow_contrast
+
+    h, w = 40, 50
+    sky = np.zeros((h, w), bool)
+    sky[:10] = True  # 30 surface rows
+    s_o = np.full((h, w), 0.8, np.float32)
+    s_o[:, :5] = 0.0  # an old shadow on the left
+    s_n = np.full((h, w), 0.6, np.float32)
+    s_n[20:26, 10:40] = 0.0  # a new shadow band, lit under the old sun
+    image = np.full((h, w, 3), 0.6, np.float32)
+    image[:, :5] = 0.24  # the photo's shadow: 0.4 of its lit surface
+    relit = np.full((h, w, 3), 0.8, np.float32)
+    relit[20:26, 10:40] = 0.4
+    c = shadow_contrast(image, relit, s_o, s_n, sky)
+    assert c["new_shadow_frac"] == pytest.approx(6 * 30 / (30 * 50), abs=1e-4)
+    assert c["relit_contrast"] == pytest.approx(0.5, abs=1e-3)
+    assert c["photo_contrast"] == pytest.approx(0.4, abs=1e-3)
+    none = shadow_contrast(image, relit, s_o, np.full((h, w), 0.6, np.float32), sky)
+    assert none["new_shadow_frac"] == 0.0 and none["relit_contrast"] is None
+    assert shadow_contrast(image, relit, s_o, s_n, np.ones((h, w), bool))["relit_contrast"] \
+        is None
+
+
 def test_sample_photos_are_relit_into_a_sheet(tmp_path) -> None:
     import json
 
@@ -111,6 +138,8 @@ def test_sample_photos_are_relit_into_a_sheet(tmp_path) -> None:
     assert list(rows[0]) == ["Input", "Z depth", "S_o (refined)", "S_n 270,30", "Relit 270,30",
                              "S_n 0,20", "Relit 0,20"]
     assert records[0]["file"] == "a.jpg" and records[0]["relight"] == "learned"
+    assert len(records[0]["contrast"]) == 2
+    assert 0.0 <= records[0]["contrast"][0]["new_shadow_frac"] <= 1.0
     png = save_samples_sheet(rows, tmp_path / "s.png", tile=32)
     h, w = np.asarray(Image.open(png)).shape[:2]
     assert (h, w) == (18 + 24, 7 * 32)  # rows keep the photo's 4:3 aspect
@@ -149,6 +178,35 @@ def test_evaluate_table_runs_every_method_on_a_tiny_test_set(tmp_path) -> None:
     assert rows["Pix2Pix-like"]["dssim"] == pytest.approx(rows["Input"]["dssim"], abs=1e-4)
     assert abs(rows["Ours"]["mse"] - rows["Input"]["mse"]) > 1e-5
     assert len(res["sheet"]) == 1 and "Ours" in res["sheet"][0]
+
+
+def test_evaluate_table_with_z_adds_the_photo_pipeline_rows(tmp_path) -> None:
+    """With ``depth.onnx`` installed, Table 1 also runs the photo-only pipeline: S and Direct on
+    Z's post-processed depth, both fed to R and L, and Direct there differs from Direct on the
+    true depth (an untrained Z's depth is not the ground truth)."""
+    from outcast_core.data.dataset import save_view
+    from outcast_core.eval.table import evaluate_table
+    from outcast_core.runtime.geometry import sun_angles
+    from tests.train.conftest import make_view
+
+    data = tmp_path / "test"
+    v = make_view(0, size=128, suns=2)
+    v["sun_azel"] = np.array([sun_angles(s) for s in v["sun"]], np.float32)
+    save_view(data / "view_000000", v, {})
+    models = tmp_path / "models"
+    torch.manual_seed(0)
+    for kind, kw in (("depth", {}), ("shadow", {"steps": 8}), ("refine", {}),
+                     ("relight", {"base": "physics"})):
+        export_onnx(build(kind, **kw), kind, models / f"{kind}.onnx", [(16, 16)])
+    res = evaluate_table(data, models, threads=1, sheet_pairs=1)
+    rows = res["rows"]
+    for method in ("Ours (Z depth)", "Direct (Z depth)"):
+        assert rows[method]["n"] == 2, method
+        for key in ("dssim", "mse", "shadow_mse", "time_s"):
+            assert np.isfinite(rows[method][key]), (method, key)
+    assert rows["Direct (Z depth)"]["shadow_mse"] != pytest.approx(
+        rows["Direct"]["shadow_mse"], abs=1e-6)
+    assert "S_n Direct (Z depth)" in res["sheet"][0]
 
 
 def test_evaluate_depth_scores_z_alone_on_one_sun_views(tmp_path) -> None:

@@ -10,7 +10,13 @@ import pytest
 import torch
 
 from outcast_core.train.config import TrainConfig, load_config, run_dir
-from outcast_core.train.data import PairSampler, add_clouds, resize_view, tonemap_pair
+from outcast_core.train.data import (
+    PairSampler,
+    add_clouds,
+    resize_view,
+    tonemap_pair,
+    zoom_crop,
+)
 from outcast_core.train.losses import change_loss
 from outcast_core.train.trainer import Trainer, light_ratios, load_checkpoint_nets
 from tests.train.conftest import make_view
@@ -298,6 +304,41 @@ def test_clouds_paint_only_the_sky_and_cost_no_draws_when_off(fake_views) -> Non
     assert np.all((c1 >= 0) & (c1 <= 1))
     (same,) = add_clouds((img,), np.zeros((32, 32), bool), rng)
     assert same is img
+
+
+def test_zoom_crops_one_window_from_every_map_and_scales_the_focal(fake_views) -> None:
+    """A zoomed pair is one window of the view, the same for image, depth and sky, brought back
+    to the view's size, with the focal scaled by the factor; no zoom costs no draws."""
+    ramp = np.arange(32, dtype=np.float32)
+    grid = (ramp[:, None] * 100 + ramp[None, :]).astype(np.float32)  # row * 100 + column
+    (same,) = zoom_crop((grid,), 1.0, np.random.default_rng(0))
+    np.testing.assert_array_equal(same, grid)
+    a, b = zoom_crop((grid, grid[..., None].repeat(3, -1)), 2.0, np.random.default_rng(1))
+    assert a.shape == (32, 32) and b.shape == (32, 32, 3)
+    np.testing.assert_array_equal(b[..., 0], a)
+    rows, cols = np.unique(a // 100), np.unique(a % 100)
+    assert len(rows) == len(cols) == 16  # a 16 x 16 window, each pixel shown twice
+    assert np.all(np.diff(rows) == 1) and np.all(np.diff(cols) == 1)
+    with pytest.raises(ValueError, match="zoom factor"):
+        zoom_crop((grid,), 0.5, np.random.default_rng(0))
+
+    views = [resize_view(v, 32) for v in fake_views]
+    z = PairSampler(views, np.random.default_rng(2), flip=False, zoom_prob=1.0, zoom_max=2.0)
+    item = z.sample()
+    ratio = float(item["focal"][0]) / next(v.focal for v in views)
+    assert 1.0 <= ratio <= 2.0
+    sky_img = ~np.isfinite(item["depth"][0])
+    assert item["image"].shape == (3, 32, 32) and sky_img.shape == (32, 32)
+    plain = PairSampler(views, np.random.default_rng(4), zoom_prob=0.0)
+    for _ in range(3):
+        plain.batch(2)
+    # Same draws as before zooms existed (see the cloud test above).
+    assert plain.rng.bit_generator.state["state"]["state"] == \
+        333745762058983232234985214045603476843
+    with pytest.raises(ValueError, match="depth stage"):
+        TrainConfig(run="r", stage="shadow", data="d", zoom_prob=0.5)
+    with pytest.raises(ValueError, match="zoom_max"):
+        TrainConfig(run="r", stage="depth", data="d", zoom_max=0.5)
 
 
 def test_snap_ground_gives_postprocess_z_each_items_camera(fake_views) -> None:
