@@ -199,8 +199,8 @@ def run_eval(args: argparse.Namespace) -> int:
         md += ["", "New shadows in the relit photos (`eval.samples.shadow_contrast`): the "
                "fraction of the surface that is lit under the original sun and that S_n puts "
                "in shadow, and the relit photo's mean sRGB there over its mean where both suns "
-               "light the surface; `photo` is the same ratio for the input's own shadows "
-               "(S_o), i.e. how dark a real shadow is in that photo.", "",
+               "light the surface; the photo contrast is the same ratio for the input's own "
+               "shadows (S_o), i.e. how dark a real shadow is in that photo.", "",
                "| Photo | Sun | New shadow (fraction of surface) | Relit contrast | Photo "
                "contrast |", "|---|---|---|---|---|"]
         for r in records:
