@@ -323,12 +323,15 @@ def test_zoom_crops_one_window_from_every_map_and_scales_the_focal(fake_views) -
         zoom_crop((grid,), 0.5, np.random.default_rng(0))
 
     views = [resize_view(v, 32) for v in fake_views]
-    z = PairSampler(views, np.random.default_rng(2), flip=False, zoom_prob=1.0, zoom_max=2.0)
+    view = views[0]
+    z = PairSampler([view], np.random.default_rng(2), flip=False, zoom_prob=1.0, zoom_max=2.0)
     item = z.sample()
-    ratio = float(item["focal"][0]) / next(v.focal for v in views)
-    assert 1.0 <= ratio <= 2.0
-    sky_img = ~np.isfinite(item["depth"][0])
-    assert item["image"].shape == (3, 32, 32) and sky_img.shape == (32, 32)
+    ratio = float(item["focal"][0]) / view.focal
+    assert 1.0 < ratio <= 2.0
+    depth = item["depth"][0]
+    assert depth.shape == (32, 32) and not np.array_equal(depth, view.depth)
+    # Every zoomed depth value comes from the view (nearest neighbour: no new values, sky kept).
+    assert np.isin(depth, view.depth).all()
     plain = PairSampler(views, np.random.default_rng(4), zoom_prob=0.0)
     for _ in range(3):
         plain.batch(2)
