@@ -16,7 +16,9 @@ Reading (:func:`read_image`) turns any supported photo into ``image_srgb``, a fl
   (``Image.draft``), other formats are decoded at 8 (or 16) bits and reduced before the float
   conversion.
 * Pillow's decompression-bomb guard (about 89 MP warns, 179 MP fails) would reject real photos
-  from large sensors and panoramas; it is replaced by :data:`MAX_DECODE_PIXELS` (1 gigapixel).
+  from large sensors; it is replaced by :data:`MAX_DECODE_PIXELS` (160 MP), checked from the
+  header before any pixel is decoded (a PNG's EXIF is found by walking its chunks, not by
+  decoding it), so a decompression bomb costs milliseconds and no memory.
 * Every failure is an :class:`ImageReadError` (a ``ValueError``) with a one-line message;
   the library exception is chained as ``__cause__``.
 
@@ -58,8 +60,12 @@ from outcast_core.runtime.exif import TAG_ORIENTATION, PhotoMetadata, metadata_f
 
 pillow_heif.register_heif_opener()
 
-MAX_DECODE_PIXELS = 1_000_000_000
-"""Largest image (in pixels) :func:`read_image` agrees to decode."""
+MAX_DECODE_PIXELS = 160_000_000
+"""Largest image (in pixels) :func:`read_image` agrees to decode.
+
+Sized to what the full-resolution pipeline holds: ``outcast relight`` peaks at about 60 bytes
+per pixel (6.4 GB for a 108 MP photo), so about 10 GB here; the largest camera sensors (151 MP)
+fit. Checked from the header, before any pixel is decoded."""
 
 READ_FORMATS = frozenset({"JPEG", "MPO", "PNG", "TIFF", "WEBP", "HEIF", "BMP"})
 """Pillow format names :func:`read_image` accepts."""
@@ -165,14 +171,10 @@ def read_image(path: str | os.PathLike[str], max_pixels: int | None = None) -> L
                     f"cannot read image '{path}': unsupported format {fmt}; "
                     f"expected {_READABLE_NAMES}"
                 )
-            exif, exif_bytes = _exif_of(im)
-            meta = metadata_from_exif(exif)
             stored_w, stored_h = im.size
-            if stored_w * stored_h > MAX_DECODE_PIXELS:
-                raise ImageReadError(
-                    f"cannot read image '{path}': {stored_w}x{stored_h} is larger than the "
-                    f"{MAX_DECODE_PIXELS / 1e6:.0f} MP limit"
-                )
+            _check_pixel_count(path, stored_w, stored_h)
+            exif, exif_bytes = _exif_of(im, path)
+            meta = metadata_from_exif(exif)
             target = _fit_size(stored_w, stored_h, max_pixels)
             bits = _bits_per_sample(im, path)
             if bits > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I;16N", "I", "F"):
@@ -222,9 +224,10 @@ def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
                     f"cannot read image '{path}': unsupported format {im.format}; "
                     f"expected {_READABLE_NAMES}"
                 )
-            exif, _ = _exif_of(im)
-            orientation = metadata_from_exif(exif).orientation
             w, h = im.size
+            _check_pixel_count(path, w, h)
+            exif, _ = _exif_of(im, path)
+            orientation = metadata_from_exif(exif).orientation
     except ImageReadError:
         raise
     except UnidentifiedImageError as exc:
@@ -276,10 +279,29 @@ def _open_pil(path: Path) -> Iterator[Image.Image]:
         im.close()
 
 
-def _exif_of(im: Image.Image) -> tuple[Image.Exif | None, bytes | None]:
-    """The image's EXIF and its bytes with orientation 1; (None, None) when absent/corrupt."""
+def _check_pixel_count(path: Path, width: int, height: int) -> None:
+    """Refuse an image larger than :data:`MAX_DECODE_PIXELS` (from its header size)."""
+    if width * height > MAX_DECODE_PIXELS:
+        raise ImageReadError(
+            f"cannot read image '{path}': {width}x{height} is larger than the "
+            f"{MAX_DECODE_PIXELS / 1e6:.0f} MP limit"
+        )
+
+
+def _exif_of(im: Image.Image, path: Path) -> tuple[Image.Exif | None, bytes | None]:
+    """The image's EXIF and its bytes with orientation 1; (None, None) when absent/corrupt.
+
+    Never decodes pixels: Pillow's ``PngImageFile.getexif`` decodes the whole image to find an
+    ``eXIf`` chunk stored after the pixel data, so for PNG the chunks are walked instead.
+    """
     try:
-        exif = im.getexif()
+        if im.format == "PNG" and "exif" not in im.info:
+            exif = Image.Exif()
+            data = _png_exif_chunk(path)
+            if data:
+                exif.load(data)
+        else:
+            exif = im.getexif()
     except Exception:  # corrupt EXIF must not stop reading the pixels
         return None, None
     if len(exif) == 0:
@@ -292,6 +314,29 @@ def _exif_of(im: Image.Image) -> tuple[Image.Exif | None, bytes | None]:
     except Exception:
         data = None
     return exif, data
+
+
+def _png_exif_chunk(path: Path, max_chunks: int = 10_000) -> bytes | None:
+    """The data of a PNG's ``eXIf`` chunk, found by seeking from chunk to chunk (no decoding).
+
+    Returns None when there is none, the file is truncated, or after ``max_chunks`` chunks.
+    """
+    with open(path, "rb") as f:
+        if f.read(8) != b"\x89PNG\r\n\x1a\n":
+            return None
+        for _ in range(max_chunks):
+            head = f.read(8)
+            if len(head) < 8:
+                return None
+            length = int.from_bytes(head[:4], "big")
+            kind = head[4:]
+            if kind == b"eXIf":
+                data = f.read(length)
+                return data if len(data) == length else None
+            if kind == b"IEND":
+                return None
+            f.seek(length + 4, os.SEEK_CUR)  # chunk data and CRC
+    return None
 
 
 def _fit_size(width: int, height: int, max_pixels: int | None) -> tuple[int, int] | None:

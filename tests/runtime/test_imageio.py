@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import OpenEXR
 import pytest
-from PIL import Image, ImageOps
+from PIL import Image, ImageFile, ImageOps
 
 from outcast_core.runtime import imageio
 from outcast_core.runtime.imageio import (
@@ -304,15 +304,117 @@ def _png_header_only(path: Path, width: int, height: int) -> None:
 def test_pillow_bomb_guard_is_replaced_by_our_limit(tmp_path: Path) -> None:
     limit_before = Image.MAX_IMAGE_PIXELS
     big = tmp_path / "pano.png"
-    _png_header_only(big, 15000, 12000)  # 180 MP: Pillow alone raises DecompressionBombError
-    with pytest.raises(Image.DecompressionBombError):
-        Image.open(big)
-    assert read_image_size(big) == (15000, 12000)
+    _png_header_only(big, 12000, 10000)  # 120 MP: Pillow alone warns (DecompressionBombWarning)
+    with pytest.warns(Image.DecompressionBombWarning):
+        Image.open(big).close()
+    assert read_image_size(big) == (12000, 10000)
     _check_error(big, "truncated or corrupt")  # the pixels are missing, not a bomb error
     huge = tmp_path / "huge.png"
     _png_header_only(huge, 40000, 30000)
     _check_error(huge, "MP limit")
     assert limit_before == Image.MAX_IMAGE_PIXELS
+
+
+def _png_with_late_exif(path: Path, width: int, height: int, orientation: int,
+                        pixels: bool = True) -> None:
+    """A PNG whose eXIf chunk comes after the pixel data (Pillow decodes to find it)."""
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        body = kind + data
+        return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body))
+
+    exif = Image.Exif()
+    exif[0x0112] = orientation
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    if pixels:
+        rows = b"".join(b"\x00" + bytes(range(3 * width)) for _ in range(height))
+        idat = zlib.compress(rows)
+    else:
+        idat = zlib.compress(b"\x00" * 64)
+    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", idat)
+                     + chunk(b"eXIf", exif.tobytes()) + chunk(b"IEND", b""))
+
+
+@pytest.fixture
+def no_decoding(monkeypatch) -> list[str]:
+    """Records (and fails) every attempt to decode pixels with Pillow or OpenCV."""
+    calls: list[str] = []
+
+    def pil_load(self, *args, **kwargs):
+        calls.append("PIL load")
+        raise RuntimeError("pixels decoded")
+
+    def cv2_imdecode(*args, **kwargs):
+        calls.append("cv2.imdecode")
+        raise RuntimeError("pixels decoded")
+
+    monkeypatch.setattr(ImageFile.ImageFile, "load", pil_load)
+    monkeypatch.setattr(imageio.cv2, "imdecode", cv2_imdecode)
+    return calls
+
+
+@pytest.mark.parametrize("late_exif", [False, True])
+def test_bomb_is_refused_from_the_header_without_decoding(
+    tmp_path: Path, no_decoding: list[str], late_exif: bool
+) -> None:
+    bomb = tmp_path / "bomb.png"
+    if late_exif:
+        _png_with_late_exif(bomb, 50000, 50000, 1, pixels=False)
+    else:
+        _png_header_only(bomb, 50000, 50000)
+    _check_error(bomb, "MP limit")
+    with pytest.raises(ImageReadError, match="MP limit"):
+        read_image(bomb, max_pixels=1000)
+    with pytest.raises(ImageReadError, match="MP limit"):
+        read_image_size(bomb)
+    assert no_decoding == []
+
+
+def test_read_image_size_reads_a_late_png_exif_without_decoding(
+    tmp_path: Path, no_decoding: list[str]
+) -> None:
+    path = tmp_path / "rotated.png"
+    _png_with_late_exif(path, 3000, 2000, orientation=6, pixels=False)
+    assert read_image_size(path) == (2000, 3000)
+    assert no_decoding == []
+
+
+def test_late_png_exif_is_applied_when_reading(tmp_path: Path) -> None:
+    path = tmp_path / "rotated.png"
+    _png_with_late_exif(path, 6, 4, orientation=6)
+    loaded = read_image(path)
+    assert loaded.image_srgb.shape == (6, 4, 3) and loaded.original_size == (4, 6)
+    assert loaded.exif.orientation == 6
+
+
+_BOMB_CHILD = """
+import resource, sys, time
+from outcast_core.runtime.imageio import ImageReadError, read_image
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+t0 = time.perf_counter()
+try:
+    read_image(sys.argv[1])
+except ImageReadError as exc:
+    assert "MP limit" in str(exc), exc
+else:
+    raise SystemExit("not refused")
+seconds = time.perf_counter() - t0
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+print(seconds, (peak - base) / 1024)
+"""
+
+
+@pytest.mark.parametrize(("width", "height"), [(50000, 50000), (20000, 20000)])
+def test_bomb_refusal_is_fast_and_small(tmp_path: Path, width: int, height: int) -> None:
+    bomb = tmp_path / "bomb.png"
+    _png_with_late_exif(bomb, width, height, 1, pixels=False)
+    result = subprocess.run(
+        [sys.executable, "-c", _BOMB_CHILD, str(bomb)],
+        capture_output=True, text=True, check=True, cwd=REPO,
+        env={**os.environ, "PYTHONPATH": str(REPO)},
+    )
+    seconds, extra_mb = (float(v) for v in result.stdout.split())
+    assert seconds < 1.0 and extra_mb < 20.0
 
 
 def test_max_pixels_on_a_photo_above_pillows_warning_size(tmp_path: Path) -> None:
