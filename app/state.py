@@ -21,6 +21,13 @@ PROJECT_SUFFIX = ".outcast.json"
 PROJECT_VERSION = 1
 PRESET_NAMES = ("fast", "balanced", "accurate")
 BUFFER_VIEWS = ("output", "depth", "normals", "original_shadow", "new_shadow", "all")
+MAX_PROJECT_BYTES = 1_000_000  # project files are a few kB
+#: Time-lapse ranges: the dialog's spin boxes (a project outside them does not load).
+MAX_TIMELAPSE_FRAMES = 2000
+MIN_TIMELAPSE_FPS = 1.0
+MAX_TIMELAPSE_FPS = 60.0
+#: Easing names of :data:`outcast_core.runtime.timelapse.EASINGS` (a test keeps them equal).
+EASING_NAMES = ("linear", "ease-in-out", "ease-in", "ease-out")
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".heic", ".heif", ".webp", ".bmp")
 
 
@@ -42,7 +49,7 @@ class Sun:
     def __post_init__(self) -> None:
         for name in ("azimuth", "elevation"):
             v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            if isinstance(v, bool) or not isinstance(v, int | float) or not _finite(v):
                 raise ValueError(f"expected a finite sun {name}, got {v!r}")
         if not -90.0 <= self.elevation <= 90.0:
             raise ValueError(f"expected an elevation in [-90, 90], got {self.elevation}")
@@ -89,21 +96,33 @@ class TimelapseSettings:
     full_resolution: bool = False
 
     def validate(self) -> TimelapseSettings:
-        if self.kind not in ("sweep", "sun"):
-            raise ValueError(f"expected a time-lapse kind 'sweep' or 'sun', got {self.kind!r}")
-        if self.way not in ("shorter", "longer"):
-            raise ValueError(f"expected way 'shorter' or 'longer', got {self.way!r}")
-        if isinstance(self.frames, bool) or not isinstance(self.frames, int) or self.frames < 2:
-            raise ValueError(f"expected at least 2 frames, got {self.frames!r}")
-        if not (isinstance(self.fps, int | float) and self.fps > 0):
-            raise ValueError(f"expected fps > 0, got {self.fps!r}")
-        if self.format not in ("mp4", "gif", "webp", "png"):
-            raise ValueError(f"expected a format mp4/gif/webp/png, got {self.format!r}")
-        if self.date:
-            dt.date.fromisoformat(self.date)
+        """Check every field (type and range); ``ValueError`` naming the first bad one.
+
+        Ranges are the time-lapse dialog's (frames 2..2000, fps 1..60, ...), so settings that
+        pass open in the dialog as they are. ``heading`` is wrapped into ``[0, 360)``.
+        """
+        _choice(self.kind, ("sweep", "sun"), "timelapse.kind")
+        for name in ("sweep_from", "sweep_to"):
+            if not isinstance(getattr(self, name), Sun):
+                raise ValueError(f"timelapse.{name}: expected a sun, got {getattr(self, name)!r}")
+        _choice(self.way, ("shorter", "longer"), "timelapse.way")
+        self.frames = _int_in(self.frames, 2, MAX_TIMELAPSE_FRAMES, "timelapse.frames")
+        _choice(self.easing, EASING_NAMES, "timelapse.easing")
+        _iso(self.date, dt.date.fromisoformat, "an ISO date YYYY-MM-DD", "timelapse.date")
+        self.latitude = _number_in(self.latitude, -90.0, 90.0, "timelapse.latitude", True)
+        self.longitude = _number_in(self.longitude, -180.0, 180.0, "timelapse.longitude", True)
+        self.heading = _number_in(self.heading, -math.inf, math.inf, "timelapse.heading", True)
+        if self.heading is not None:
+            self.heading %= 360.0
         for name in ("start", "end"):
-            if getattr(self, name):
-                dt.time.fromisoformat(getattr(self, name))
+            _iso(getattr(self, name), dt.time.fromisoformat, "a time HH:MM", f"timelapse.{name}")
+        self.utc_offset = _number_in(self.utc_offset, -14.0, 14.0, "timelapse.utc_offset", True)
+        self.fps = _number_in(self.fps, MIN_TIMELAPSE_FPS, MAX_TIMELAPSE_FPS, "timelapse.fps")
+        _choice(self.format, ("mp4", "gif", "webp", "png"), "timelapse.format")
+        if not isinstance(self.full_resolution, bool):
+            raise ValueError(
+                f"timelapse.full_resolution: expected true or false, got {self.full_resolution!r}"
+            )
         return self
 
     def to_dict(self) -> dict[str, Any]:
@@ -115,11 +134,15 @@ class TimelapseSettings:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> TimelapseSettings:
         if not isinstance(d, dict):
-            raise ValueError(f"expected time-lapse settings as an object, got {type(d).__name__}")
+            raise ValueError(
+                f"timelapse: expected the time-lapse settings as an object, got {type(d).__name__}"
+            )
         known = {k: v for k, v in d.items() if k in cls.__dataclass_fields__}
         for key in ("sweep_from", "sweep_to"):
             if key in known:
-                known[key] = Sun.from_any(known[key])
+                known[key] = _named(Sun.from_any, known[key], f"timelapse.{key}")
+                if known[key] is None:
+                    raise ValueError(f"timelapse.{key}: expected a sun, got null")
         return cls(**known).validate()
 
 
@@ -174,24 +197,25 @@ class ProjectState:
             raise ValueError(
                 f"expected project version {PROJECT_VERSION}, got {d['outcast_project']!r}"
             )
-        image = str(d.get("image") or "")
+        image = _text(d, "image")
         if image and base is not None and not os.path.isabs(image):
             image = str((base / image).resolve())
-        if image and not os.path.exists(image) and d.get("image_absolute"):
-            image = str(d["image_absolute"])
+        image_absolute = _text(d, "image_absolute")
+        if image and not os.path.exists(image) and image_absolute:
+            image = image_absolute
         preset = d.get("preset", "balanced")
-        if preset not in PRESET_NAMES:
-            raise ValueError(f"expected a preset in {PRESET_NAMES}, got {preset!r}")
+        if not isinstance(preset, str) or preset not in PRESET_NAMES:
+            raise ValueError(f"preset: expected one of {PRESET_NAMES}, got {preset!r}")
         view = d.get("buffer_view", "output")
-        if view not in BUFFER_VIEWS:
-            raise ValueError(f"expected a buffer view in {BUFFER_VIEWS}, got {view!r}")
+        if not isinstance(view, str) or view not in BUFFER_VIEWS:
+            raise ValueError(f"buffer_view: expected one of {BUFFER_VIEWS}, got {view!r}")
         return cls(
             image_path=image,
             preset=preset,
-            depth_source=str(d.get("depth_source", "")),
-            depth_path=_absolute(str(d.get("depth_path") or ""), base),
-            original_sun=Sun.from_any(d.get("original_sun")),
-            target_sun=Sun.from_any(d.get("target_sun")),
+            depth_source=_text(d, "depth_source"),
+            depth_path=_absolute(_text(d, "depth_path"), base),
+            original_sun=_named(Sun.from_any, d.get("original_sun"), "original_sun"),
+            target_sun=_named(Sun.from_any, d.get("target_sun"), "target_sun"),
             overlay_opacity=_fraction(d.get("overlay_opacity", 0.6), "overlay_opacity"),
             split=_fraction(d.get("split", 0.5), "split"),
             buffer_view=view,
@@ -216,8 +240,67 @@ def _absolute(path: str, base: Path | None) -> str:
 
 def _fraction(v: Any, name: str) -> float:
     if isinstance(v, bool) or not isinstance(v, int | float) or not 0.0 <= v <= 1.0:
-        raise ValueError(f"expected {name} in [0, 1], got {v!r}")
+        raise ValueError(f"{name}: expected a number in [0, 1], got {v!r}")
     return float(v)
+
+
+def _finite(v: int | float) -> bool:
+    """``math.isfinite`` that says False (instead of raising) for ints too large for a float."""
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
+
+
+def _text(d: dict[str, Any], key: str) -> str:
+    """``d[key]`` as a string: absent or null is ``""``; anything but a string is an error."""
+    v = d.get(key)
+    if v is None:
+        return ""
+    if not isinstance(v, str):
+        raise ValueError(f"{key}: expected a string, got {v!r}")
+    return v
+
+
+def _named(parse: Any, value: Any, name: str) -> Any:
+    """``parse(value)`` with a ``ValueError`` message that starts with the field's name."""
+    try:
+        return parse(value)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{name}: {exc}") from exc
+
+
+def _choice(v: Any, choices: tuple[str, ...], name: str) -> None:
+    if not isinstance(v, str) or v not in choices:
+        raise ValueError(f"{name}: expected one of {choices}, got {v!r}")
+
+
+def _int_in(v: Any, lo: int, hi: int, name: str) -> int:
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise ValueError(f"{name}: expected a whole number in [{lo}, {hi}], got {v!r}")
+    return v
+
+
+def _number_in(v: Any, lo: float, hi: float, name: str, optional: bool = False) -> Any:
+    """A finite number in ``[lo, hi]`` as a float (``None`` passes when ``optional``)."""
+    if v is None and optional:
+        return None
+    ok = not isinstance(v, bool) and isinstance(v, int | float) and _finite(v)
+    if not ok or not lo <= v <= hi:
+        where = "a finite number" if math.isinf(lo) else f"a number in [{lo:g}, {hi:g}]"
+        raise ValueError(f"{name}: expected {where}, got {v!r}")
+    return float(v)
+
+
+def _iso(v: Any, parse: Any, what: str, name: str) -> None:
+    """An empty string, or a string ``parse`` (``date``/``time.fromisoformat``) accepts."""
+    if not isinstance(v, str):
+        raise ValueError(f"{name}: expected {what} as a string, got {v!r}")
+    if v:
+        try:
+            parse(v)
+        except ValueError as exc:
+            raise ValueError(f"{name}: expected {what}, got {v!r}") from exc
 
 
 def project_path_for(image_path: str | os.PathLike[str]) -> Path:
@@ -249,11 +332,21 @@ def save_project(state: ProjectState, path: str | os.PathLike[str]) -> Path:
 def load_project(path: str | os.PathLike[str]) -> ProjectState:
     """Read a project file; ``ValueError`` when it is not a valid OutCast project."""
     path = Path(path)
+    if path.is_file() and path.stat().st_size > MAX_PROJECT_BYTES:
+        raise ValueError(
+            f"expected a project file under {MAX_PROJECT_BYTES // 1_000_000} MB, "
+            f"got {path.stat().st_size} bytes in '{path}'"
+        )
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as exc:
         raise ValueError(f"expected a JSON project file, got invalid JSON: {exc}") from exc
-    return ProjectState.from_dict(data, base=path.parent)
+    except RecursionError as exc:
+        raise ValueError("expected a JSON project file, got JSON nested too deeply") from exc
+    try:
+        return ProjectState.from_dict(data, base=path.parent)
+    except ValueError as exc:
+        raise ValueError(f"invalid project '{path.name}': {exc}") from exc
 
 
 class RecentFiles:

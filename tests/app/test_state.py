@@ -133,3 +133,82 @@ def test_sun_path_needs_place_and_heading():
     s.heading = 163.7
     path = samples_for(s)
     assert len(path) == 4 and path[0].time is not None
+
+
+def _project(**fields) -> str:
+    return json.dumps({"outcast_project": 1, **fields})
+
+
+@pytest.mark.parametrize(
+    "data, field",
+    [
+        (_project(timelapse={"date": 20240101}), "timelapse.date"),
+        (_project(timelapse={"date": "2024-13-01"}), "timelapse.date"),
+        (_project(timelapse={"start": 5}), "timelapse.start"),
+        (_project(timelapse={"end": "25:99"}), "timelapse.end"),
+        (_project(timelapse={"frames": 10**12}), "timelapse.frames"),
+        (_project(timelapse={"frames": 12.5}), "timelapse.frames"),
+        (_project(timelapse={"latitude": "abc"}), "timelapse.latitude"),
+        (_project(timelapse={"latitude": 91}), "timelapse.latitude"),
+        (_project(timelapse={"longitude": [1]}), "timelapse.longitude"),
+        (_project(timelapse={"heading": 10**400}), "timelapse.heading"),
+        (_project(timelapse={"utc_offset": 99}), "timelapse.utc_offset"),
+        (_project(timelapse={"fps": 1e-9}), "timelapse.fps"),
+        (_project(timelapse={"fps": "fast"}), "timelapse.fps"),
+        (_project(timelapse={"full_resolution": "yes"}), "timelapse.full_resolution"),
+        (_project(timelapse={"easing": "bouncy"}), "timelapse.easing"),
+        (_project(timelapse={"easing": ["linear"]}), "timelapse.easing"),
+        (_project(timelapse={"kind": {}}), "timelapse.kind"),
+        (_project(timelapse={"sweep_from": "east"}), "timelapse.sweep_from"),
+        (_project(timelapse={"sweep_to": None}), "timelapse.sweep_to"),
+        (_project(timelapse={"sweep_to": {"azimuth": 10**400, "elevation": 1}}),
+         "timelapse.sweep_to"),
+        (_project(timelapse=None), "timelapse"),
+        (_project(timelapse=[]), "timelapse"),
+        (_project(image=5), "image"),
+        (_project(image_absolute=["x"]), "image_absolute"),
+        (_project(depth_path={"a": 1}), "depth_path"),
+        (_project(depth_source=3), "depth_source"),
+        (_project(original_sun="noon"), "original_sun"),
+        (_project(target_sun={"azimuth": "a", "elevation": 3}), "target_sun"),
+        (_project(preset=["fast"]), "preset"),
+        (_project(buffer_view={}), "buffer_view"),
+        (_project(split=float("nan")), "split"),
+        (_project(overlay_opacity=True), "overlay_opacity"),
+        pytest.param('{"outcast_project": 1, "timelapse": ' + "[" * 100000 + "]" * 100000 + "}",
+                     "nested", id="deeply-nested"),
+    ],
+)
+def test_malformed_projects_name_the_bad_field(tmp_path, data, field):
+    p = tmp_path / "x.outcast.json"
+    p.write_text(data)
+    with pytest.raises(ValueError) as info:
+        load_project(p)
+    message = str(info.value)
+    assert "\n" not in message and field in message
+    assert type(info.value) is ValueError
+
+
+def test_oversized_project_file_is_refused(tmp_path):
+    p = tmp_path / "x.outcast.json"
+    p.write_text(_project(depth_source="x" * 2_000_000))
+    with pytest.raises(ValueError, match="MB"):
+        load_project(p)
+
+
+def test_valid_timelapse_fields_still_load(tmp_path):
+    p = tmp_path / "x.outcast.json"
+    p.write_text(_project(timelapse={"heading": -90, "latitude": 45, "longitude": -120,
+                                     "utc_offset": -8, "fps": 24, "frames": 2000,
+                                     "date": "2024-06-21", "start": "06:30", "end": "",
+                                     "full_resolution": True}))
+    tl = load_project(p).timelapse
+    assert tl.heading == 270.0 and tl.latitude == 45.0 and tl.fps == 24.0
+    assert tl.frames == 2000 and tl.full_resolution is True
+
+
+def test_easing_names_match_the_runtime():
+    from app.state import EASING_NAMES
+    from outcast_core.runtime.timelapse import EASINGS
+
+    assert EASING_NAMES == EASINGS
