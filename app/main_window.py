@@ -13,11 +13,13 @@ from __future__ import annotations
 import math
 import os
 import time
+from collections.abc import Callable, Iterable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from PySide6.QtCore import QSettings, Qt, Slot
+from PySide6.QtCore import QEvent, QObject, QSettings, Qt, Slot
 from PySide6.QtGui import (
     QAction,
     QCloseEvent,
@@ -27,10 +29,13 @@ from PySide6.QtGui import (
     QFont,
     QIcon,
     QImage,
+    QKeyEvent,
     QKeySequence,
     QPainter,
+    QUndoStack,
 )
 from PySide6.QtWidgets import (
+    QAbstractSpinBox,
     QApplication,
     QComboBox,
     QFileDialog,
@@ -47,6 +52,7 @@ from PySide6.QtWidgets import (
 from app import display
 from app.canvas import ImageCanvas, qimage_from_array
 from app.errors import message_for
+from app.history import EditCommand, EditState
 from app.panels import VIEW_CHOICES, AlignPanel, RelightPanel
 from app.state import (
     IMAGE_SUFFIXES,
@@ -85,6 +91,32 @@ def _timings(session: Any) -> dict[str, float]:
     return dict(getattr(session, "timings", {}) or {})
 
 
+class WindowShortcutsWin(QObject):
+    """Event filter for text fields: the window's shortcuts win over the field's own key bindings.
+
+    A focused spin box's line edit claims Ctrl+E (end of line), Ctrl+Z (its own undo) and more;
+    without this filter Export still, Undo, ... do nothing while the azimuth box has focus.
+
+    Args:
+        sequences: returns the key sequences that must reach the window's actions.
+        parent: owner of the filter.
+    """
+
+    def __init__(self, sequences: Callable[[], Iterable[QKeySequence]], parent: QObject):
+        super().__init__(parent)
+        self._sequences = sequences
+
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:
+        if event.type() == QEvent.Type.ShortcutOverride and isinstance(event, QKeyEvent):
+            pressed = QKeySequence(event.keyCombination())
+            exact = QKeySequence.SequenceMatch.ExactMatch
+            for seq in self._sequences():
+                if not seq.isEmpty() and pressed.matches(seq) == exact:
+                    event.ignore()  # not claimed by the field: the shortcut map fires the action
+                    return True
+        return False
+
+
 class MainWindow(QMainWindow):
     """OutCast's main window.
 
@@ -120,8 +152,14 @@ class MainWindow(QMainWindow):
         self._shown: dict[str, int] = {}
         self._photo_qimage: QImage | None = None
         self._timelapse_dialog: Any = None
-        self._last_load: tuple[str, ProjectState | None] | None = None
+        self._last_load: tuple[Any, ...] | None = None
         self._after_label = "Relit"
+        # Undo/redo (app/history.py): the last recorded state, and a reload's state to restore.
+        self.undo_stack = QUndoStack(self)
+        self._edit_state: EditState | None = None
+        self._applying_edit = False
+        self._pending_restore: EditState | None = None
+        self._pending_record_from: EditState | None = None
 
         self.runner = TaskRunner(self)
         self.runner.started.connect(self._on_job_started)
@@ -193,6 +231,13 @@ class MainWindow(QMainWindow):
             "&Confirm original sun", self, shortcut=QKeySequence("Ctrl+Return")
         )
         self.act_confirm.triggered.connect(self.confirm_original_sun)
+        self.act_undo = self.undo_stack.createUndoAction(self, "&Undo")
+        self.act_undo.setShortcut(QKeySequence.StandardKey.Undo)
+        self.act_redo = self.undo_stack.createRedoAction(self, "&Redo")
+        self.act_redo.setShortcuts(
+            [QKeySequence.StandardKey.Redo, QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")]
+        )
+        self.undo_stack.cleanChanged.connect(self._on_clean_changed)
         self.act_about = QAction("&About OutCast", self)
         self.act_about.triggered.connect(self._about)
         self.act_keys = QAction("&Keyboard shortcuts", self, shortcut=QKeySequence("F1"))
@@ -211,6 +256,9 @@ class MainWindow(QMainWindow):
         file_menu.addAction(self.act_timelapse)
         file_menu.addSeparator()
         file_menu.addAction(self.act_quit)
+        self.edit_menu = self.menuBar().addMenu("&Edit")
+        self.edit_menu.addAction(self.act_undo)
+        self.edit_menu.addAction(self.act_redo)
         view_menu = self.menuBar().addMenu("&View")
         for a in (self.act_fit, self.act_actual, self.act_zoom_in, self.act_zoom_out):
             view_menu.addAction(a)
@@ -270,12 +318,12 @@ class MainWindow(QMainWindow):
         # Wiring
         ap, rp = self.align_panel, self.relight_panel
         ap.sun_panel.sun_changed.connect(self._on_original_sun_changed)
-        ap.sun_panel.sun_committed.connect(lambda az, el: self.request_shadow(az, el, False))
+        ap.sun_panel.sun_committed.connect(self._on_original_sun_committed)
         ap.opacity_slider.valueChanged.connect(lambda v: self.canvas.set_overlay_opacity(v / 100.0))
         ap.confirm_clicked.connect(self.confirm_original_sun)
         ap.exif_clicked.connect(self.use_exif_sun)
         rp.sun_panel.sun_changed.connect(self._on_target_sun_changed)
-        rp.sun_panel.sun_committed.connect(lambda az, el: self.request_relight(az, el, False))
+        rp.sun_panel.sun_committed.connect(self._on_target_sun_committed)
         rp.split_slider.valueChanged.connect(self._on_split_changed)
         self.canvas.split_dragged.connect(lambda f: rp.split_slider.setValue(round(f * 100)))
         rp.view_combo.currentIndexChanged.connect(self._on_view_changed)
@@ -283,6 +331,19 @@ class MainWindow(QMainWindow):
         rp.timelapse_clicked.connect(self.open_timelapse)
         rp.realign_clicked.connect(self.back_to_align)
         self.canvas.set_overlay_opacity(ap.opacity_slider.value() / 100.0)
+        shortcuts_win = WindowShortcutsWin(self._window_shortcuts, self)
+        for box in self.findChildren(QAbstractSpinBox):
+            box.installEventFilter(shortcuts_win)
+            for child in box.findChildren(QObject):
+                child.installEventFilter(shortcuts_win)
+
+    def _window_shortcuts(self) -> list[QKeySequence]:
+        """Shortcuts that reach the window even while a number field has focus."""
+        acts = (
+            self.act_export, self.act_timelapse, self.act_confirm, self.act_save, self.act_open,
+            self.act_quit, self.act_undo, self.act_redo, self.act_keys,
+        )  # fmt: skip
+        return [seq for act in acts for seq in act.shortcuts()]
 
     def _rebuild_recent_menu(self) -> None:
         self.recent_menu.clear()
@@ -317,7 +378,86 @@ class MainWindow(QMainWindow):
 
     def _update_title(self) -> None:
         name = os.path.basename(self.image_path) if self.image_path else ""
-        self.setWindowTitle(f"{name} — {APP_NAME}" if name else APP_NAME)
+        self.setWindowTitle(f"{name}[*] — {APP_NAME}" if name else APP_NAME)
+        self.setWindowModified(bool(name) and self.has_unsaved_changes())
+
+    @Slot(bool)
+    def _on_clean_changed(self, _clean: bool) -> None:
+        self._update_title()
+
+    def has_unsaved_changes(self) -> bool:
+        """Whether undoable edits were made since the photo was opened or the project saved."""
+        return not self.undo_stack.isClean()
+
+    # ================================================================== undo / redo
+    def edit_state(self) -> EditState | None:
+        """The undoable part of the current session (``None`` without a photo)."""
+        if self.session is None or self.step is Step.EMPTY:
+            return None
+        return EditState(
+            step="relight" if self.step is Step.RELIGHT else "align",
+            align_sun=self.align_panel.sun_panel.sun(),
+            original_sun=self.original_sun.as_tuple() if self.original_sun else None,
+            target_sun=self.relight_panel.sun_panel.sun(),
+            preset=self.preset,
+            depth_path=self.depth_path,
+        )
+
+    def _record(self, after: EditState | None = None, text: str = "") -> None:
+        """Push the change from the last recorded state to ``after`` (default: the current one)."""
+        if self._applying_edit:
+            return
+        after = after if after is not None else self.edit_state()
+        before, self._edit_state = self._edit_state, after
+        if before is None or after is None or before == after:
+            return
+        self.undo_stack.push(EditCommand(self, before, after, text))
+
+    def _reset_history(self, state: EditState | None) -> None:
+        self.undo_stack.clear()
+        self._edit_state = state
+        self.undo_stack.setClean()
+        self._update_title()
+
+    def apply_edit_state(self, state: EditState) -> None:
+        """Show ``state``: preset, depth, both suns and the step (undo/redo; records nothing)."""
+        if self.session is None:
+            return
+        self._edit_state = state
+        if state.depth_path != self.depth_path:  # re-run the light-independent stages
+            self._reload(state)
+            return
+        self._applying_edit = True
+        try:
+            if state.preset != self.preset:
+                self.set_preset(state.preset)
+            self.relight_panel.sun_panel.set_sun(*state.target_sun)
+            if state.step == "relight" and state.original_sun is not None:
+                confirmed = self.original_sun.as_tuple() if self.original_sun else None
+                if self.step is Step.RELIGHT and confirmed == state.original_sun:
+                    self.align_panel.sun_panel.set_sun(*state.original_sun)
+                    self.request_relight(preview=False)
+                else:
+                    self.align_panel.sun_panel.set_sun(*state.original_sun)
+                    self.confirm_original_sun(keep_target=True)
+            else:
+                self.align_panel.sun_panel.set_sun(*state.align_sun)
+                self.original_sun = Sun(*state.original_sun) if state.original_sun else None
+                if self.step is not Step.ALIGN:
+                    self._set_step(Step.ALIGN)
+                self.request_shadow(preview=False)
+        finally:
+            self._applying_edit = False
+
+    def _reload(self, state: EditState, record_from: EditState | None = None) -> None:
+        """Open the photo again with ``state`` (a new depth map); record the change on success."""
+        project = self.project_state()
+        project.preset = state.preset
+        project.depth_path = state.depth_path
+        relight = state.step == "relight" and state.original_sun is not None
+        project.original_sun = Sun(*state.original_sun) if relight else None
+        project.target_sun = Sun(*state.target_sun)
+        self.open_image(self.image_path, project=project, restore=state, record_from=record_from)
 
     def _about(self) -> None:
         QMessageBox.about(
@@ -373,7 +513,22 @@ class MainWindow(QMainWindow):
         else:
             self.open_image(path)
 
-    def open_image(self, path: str, project: ProjectState | None = None) -> None:
+    def open_image(
+        self,
+        path: str,
+        project: ProjectState | None = None,
+        restore: EditState | None = None,
+        record_from: EditState | None = None,
+    ) -> None:
+        """Load ``path`` in the worker, with a project's settings when given.
+
+        Args:
+            path: the photo.
+            project: settings to apply once it is loaded (suns, preset, depth map, views).
+            restore: reopening the same photo (a new depth map, undo, a model fallback): the
+                undo history is kept and this state shown. ``None``: a new photo, a fresh history.
+            record_from: with ``restore``, record the change from this state once loaded.
+        """
         preset = project.preset if project is not None else self.preset
         mode = self.session_mode
         depth_mode = self.depth_mode
@@ -395,11 +550,15 @@ class MainWindow(QMainWindow):
                     "depth_path": depth_path}
 
         self._pending_project = project
-        self._last_load = (path, project)
+        self._pending_restore = restore
+        self._pending_record_from = record_from
+        self._last_load = (path, project, restore, record_from)
         self.runner.submit("load", job, f"Opening {os.path.basename(path)}")
 
     def _on_loaded(self, result: dict[str, Any]) -> None:
         project, self._pending_project = self._pending_project, None
+        restore, self._pending_restore = self._pending_restore, None
+        record_from, self._pending_record_from = self._pending_record_from, None
         old_path = self.image_path
         self.session = result["session"]
         self.loaded = result["loaded"]
@@ -439,11 +598,29 @@ class MainWindow(QMainWindow):
         self.align_panel.show_notice(notice)
         self.align_panel.exif_button.setEnabled(self.exif_sun() is not None)
         self._set_step(Step.ALIGN)
-        if project is not None:
-            self._apply_project(project)
-        else:
-            self.request_shadow(preview=False)
+        self._applying_edit = True
+        try:
+            if project is not None:
+                self._apply_project(project)
+            else:
+                self.request_shadow(preview=False)
+            if restore is not None and restore.step == "align":
+                self.align_panel.sun_panel.set_sun(*restore.align_sun)
+                self.original_sun = Sun(*restore.original_sun) if restore.original_sun else None
+                self.request_shadow(preview=False)
+        finally:
+            self._applying_edit = False
         self.stage_label.setText(f"Opened {os.path.basename(self.image_path)}")
+        if restore is not None:  # the same photo again: keep the history
+            self._edit_state = record_from
+            self._record(restore)
+            return
+        baseline = self.edit_state()
+        if baseline is not None and project is not None and project.original_sun is not None:
+            baseline = replace(
+                baseline, step="relight", original_sun=project.original_sun.as_tuple()
+            )
+        self._reset_history(baseline)
 
     def _mode_text(self) -> str:
         s = self.session
@@ -477,6 +654,7 @@ class MainWindow(QMainWindow):
             return
         self.align_panel.sun_panel.set_sun(*sun)
         self.request_shadow(*sun, preview=False)
+        self._record(text="Sun from EXIF")
         magnetic = getattr(getattr(self.loaded, "exif", None), "heading_ref", None) == "M"
         note = "; the heading is magnetic, so allow for the local declination" if magnetic else ""
         self.stage_label.setText(
@@ -540,6 +718,7 @@ class MainWindow(QMainWindow):
 
         self.runner.submit("preset", job, f"Switching to {name}")
         self._refresh_view()
+        self._record()
 
     def _refresh_view(self) -> None:
         if self.step is Step.ALIGN:
@@ -548,6 +727,14 @@ class MainWindow(QMainWindow):
             self.request_relight(preview=False)
 
     # ================================================================== step 1
+    def _on_original_sun_committed(self, az: float, el: float) -> None:
+        self.request_shadow(az, el, False)
+        self._record()
+
+    def _on_target_sun_committed(self, az: float, el: float) -> None:
+        self.request_relight(az, el, False)
+        self._record()
+
     def _on_original_sun_changed(self, az: float, el: float, preview: bool) -> None:
         if preview:
             self.request_shadow(az, el, True)
@@ -584,6 +771,13 @@ class MainWindow(QMainWindow):
         if session is None:
             return
         az, el = self.align_panel.sun_panel.sun()
+        # A new sun chosen in step 2 survives a re-alignment of the original sun.
+        keep_target = keep_target or self.original_sun is not None
+        current = self.edit_state()
+        if current is not None:
+            target = current.target_sun if keep_target else (az, el)
+            self._record(replace(current, step="relight", align_sun=(az, el),
+                                 original_sun=(az, el), target_sun=target))  # fmt: skip
 
         def job(ctx: JobContext) -> dict[str, Any]:
             ctx.progress("refining", 0.1)
@@ -604,8 +798,12 @@ class MainWindow(QMainWindow):
         self.request_relight(preview=False)
 
     def back_to_align(self) -> None:
+        """Step 2 -> step 1: align the original sun again (the new sun is kept)."""
+        if self.step is not Step.RELIGHT:
+            return
         self._set_step(Step.ALIGN)
         self.request_shadow(preview=False)
+        self._record()
 
     # ================================================================== step 2
     def _on_target_sun_changed(self, az: float, el: float, preview: bool) -> None:
@@ -753,10 +951,11 @@ class MainWindow(QMainWindow):
             self.load_depth(path)
 
     def load_depth(self, path: str) -> None:
-        """Use ``path`` as the photo's depth (suns and settings are kept)."""
-        state = self.project_state()
-        state.depth_path = os.path.abspath(path)
-        self.open_image(self.image_path, project=state)
+        """Use ``path`` as the photo's depth (suns, step and settings are kept; undoable)."""
+        current = self.edit_state()
+        if current is None:
+            return
+        self._reload(replace(current, depth_path=os.path.abspath(path)), record_from=current)
 
     # ================================================================== projects
     def project_state(self) -> ProjectState:
@@ -786,6 +985,7 @@ class MainWindow(QMainWindow):
             return None
         self.recent.add(target)
         self._save_recent()
+        self.undo_stack.setClean()
         self.stage_label.setText(f"Saved project {os.path.basename(target)}")
         return target
 
@@ -857,6 +1057,7 @@ class MainWindow(QMainWindow):
         self.progress_bar.hide()
         if channel == "load":
             self._pending_project = None
+            self._pending_restore = self._pending_record_from = None
             path = self._last_load[0] if self._last_load else ""
             if path and not os.path.exists(path):  # a recent file that has gone away
                 self.recent.remove(path)
@@ -876,7 +1077,9 @@ class MainWindow(QMainWindow):
         if channel == "load" and self._last_load is not None:
             self.open_image(*self._last_load)
         elif self.image_path:
-            self.open_image(self.image_path, project=self.project_state())
+            state = self.edit_state()
+            self.open_image(self.image_path, project=self.project_state(), restore=state,
+                            record_from=state)  # fmt: skip
 
     @Slot(int, str)
     def _on_job_cancelled(self, job_id: int, channel: str) -> None:

@@ -1,0 +1,173 @@
+"""Issue 19's photo-editor workflow: undo/redo, prompts, shortcuts in fields, another photo."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from PySide6.QtCore import Qt
+
+from app.history import EditState, describe_change
+from app.state import Step
+from tests.app.test_main_window import _confirm, _drag, _ground_with_a_box, _load
+
+
+def _undo_texts(window) -> list[str]:
+    stack = window.undo_stack
+    return [stack.text(i) for i in range(stack.count())]
+
+
+def _type_sun(panel, az: float, el: float) -> None:
+    """Type both numbers as a user would (each box commits on its own)."""
+    panel.azimuth_box.setValue(az)
+    panel.elevation_box.setValue(el)
+
+
+# ---------------------------------------------------------------- defect 5: undo / redo
+def test_edit_state_names_the_change():
+    a = EditState("align", (10.0, 30.0), None, (90.0, 30.0), "fast")
+    assert describe_change(a, EditState("relight", (10.0, 30.0), (10.0, 30.0), (10.0, 30.0),
+                                        "fast")) == "Confirm original sun"  # fmt: skip
+    assert describe_change(a, EditState("align", (10.0, 30.0), None, (90.0, 30.0), "accurate")) == (
+        "Quality: Accurate"
+    )
+    with pytest.raises(ValueError, match="original sun"):
+        EditState("relight", (0.0, 10.0), None, (0.0, 10.0), "fast")
+
+
+def test_edit_menu_undoes_and_redoes_sun_moves(qtbot, window, photo, settle):
+    _load(window, photo, settle)
+    menus = {a.text().replace("&", ""): a.menu() for a in window.menuBar().actions()}
+    assert "Edit" in menus
+    assert [a.text().replace("&", "") for a in menus["Edit"].actions()][:2] == ["Undo", "Redo"]
+    assert not window.act_undo.isEnabled()
+    dial = window.align_panel.sun_panel.dial
+    _drag(qtbot, dial, [(150.0, 40.0), (170.0, 35.0)])
+    settle()
+    first = dial.sun()
+    _drag(qtbot, dial, [(200.0, 30.0), (240.0, 25.0)])
+    settle()
+    second = dial.sun()
+    assert _undo_texts(window) == ["Move original sun", "Move original sun"]  # a drag is one step
+    assert window.act_undo.text().replace("&", "") == "Undo Move original sun"
+    window.activateWindow()
+    qtbot.keyClick(window, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier)
+    settle()
+    assert dial.sun() == pytest.approx(first)
+    assert window.align_panel.sun_panel.azimuth_box.value() == pytest.approx(first[0], abs=0.05)
+    window.act_undo.trigger()
+    settle()
+    assert dial.sun() == pytest.approx((135.0, 45.0))  # where the photo opened
+    window.act_redo.trigger()
+    window.act_redo.trigger()
+    settle()
+    assert dial.sun() == pytest.approx(second)
+    assert window.has_unsaved_changes() and window.isWindowModified()
+
+
+def test_undo_steps_and_new_sun(qtbot, window, photo, settle):
+    _load(window, photo, settle)
+    _type_sun(window.align_panel.sun_panel, 100.0, 35.0)
+    _confirm(window, settle)
+    rp = window.relight_panel.sun_panel
+    assert rp.sun() == pytest.approx((100.0, 35.0))
+    _type_sun(rp, 220.0, 25.0)
+    settle()
+    assert _undo_texts(window)[-3:] == ["Confirm original sun", "Move new sun", "Move new sun"]
+    window.act_undo.trigger()
+    window.act_undo.trigger()
+    settle()
+    assert rp.sun() == pytest.approx((100.0, 35.0)) and window.step is Step.RELIGHT
+    window.act_undo.trigger()  # the confirm: back to step 1
+    settle()
+    assert window.step is Step.ALIGN and window.original_sun is None
+    assert window.canvas.overlay() is not None
+    window.act_redo.trigger()
+    settle()
+    assert window.step is Step.RELIGHT and window.original_sun.as_tuple() == (100.0, 35.0)
+    window.act_redo.trigger()
+    window.act_redo.trigger()
+    settle()
+    assert rp.sun() == pytest.approx((220.0, 25.0))
+    assert window.canvas.after() is not None
+
+
+def test_new_sun_is_kept_across_a_realignment(qtbot, window, photo, settle):
+    _load(window, photo, settle)
+    _type_sun(window.align_panel.sun_panel, 100.0, 35.0)
+    _confirm(window, settle)
+    _type_sun(window.relight_panel.sun_panel, 220.0, 25.0)
+    settle()
+    window.relight_panel.realign_button.click()
+    settle()
+    assert window.step is Step.ALIGN
+    assert _undo_texts(window)[-1] == "Re-align original sun"
+    _type_sun(window.align_panel.sun_panel, 110.0, 40.0)
+    _confirm(window, settle)
+    assert window.original_sun.as_tuple() == (110.0, 40.0)
+    assert window.relight_panel.sun_panel.sun() == pytest.approx((220.0, 25.0))
+    assert window.relight_panel.sun_panel.dial._reference == pytest.approx((110.0, 40.0))
+    window.act_undo.trigger()  # the second confirm
+    settle()
+    assert window.step is Step.ALIGN
+    window.act_undo.trigger()
+    window.act_undo.trigger()  # the two typed numbers
+    window.act_undo.trigger()  # the re-alignment
+    settle()
+    assert window.step is Step.RELIGHT and window.original_sun.as_tuple() == (100.0, 35.0)
+    assert window.relight_panel.sun_panel.sun() == pytest.approx((220.0, 25.0))
+
+
+def test_undo_preset_and_depth_map(qtbot, window, photo, settle, tmp_path):
+    from outcast_core.runtime.geometry import Camera
+    from outcast_core.runtime.imageio import write_depth
+
+    _load(window, photo, settle)
+    window.preset_combo.setCurrentIndex(window.preset_combo.findData("balanced"))
+    settle()
+    assert window.session.preset.name == "balanced"
+    depth, sky = _ground_with_a_box(Camera.from_fov(96, 128, 60.0))
+    depth_file = tmp_path / "phone_depth.npy"
+    write_depth(depth_file, np.where(sky, np.inf, depth).astype(np.float32))
+    window.load_depth(str(depth_file))
+    settle()
+    assert window.session.depth_source == "given"
+    assert _undo_texts(window) == ["Quality: Balanced", "Load depth map"]
+    window.act_undo.trigger()
+    settle()
+    assert window.session.depth_source != "given" and window.depth_path == ""
+    assert window.preset == "balanced"
+    window.act_undo.trigger()
+    settle()
+    assert window.preset == "fast" and window.session.preset.name == "fast"
+    assert window.preset_combo.currentData() == "fast"
+    window.act_redo.trigger()
+    window.act_redo.trigger()
+    settle()
+    assert window.session.depth_source == "given" and window.preset == "balanced"
+    assert window.step is Step.ALIGN
+
+
+def test_depth_map_in_step_one_after_a_realignment_stays_in_step_one(window, photo, settle,
+                                                                    tmp_path):  # fmt: skip
+    from outcast_core.runtime.geometry import Camera
+    from outcast_core.runtime.imageio import write_depth
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    window.back_to_align()
+    settle()
+    depth, sky = _ground_with_a_box(Camera.from_fov(96, 128, 60.0))
+    depth_file = tmp_path / "d.npy"
+    write_depth(depth_file, np.where(sky, np.inf, depth).astype(np.float32))
+    window.load_depth(str(depth_file))
+    settle()
+    assert window.step is Step.ALIGN and window.session.depth_source == "given"
+
+
+def test_save_marks_the_project_clean(window, photo, settle):
+    _load(window, photo, settle)
+    assert not window.has_unsaved_changes()
+    _type_sun(window.align_panel.sun_panel, 100.0, 35.0)
+    assert window.has_unsaved_changes() and window.windowTitle().startswith("scene.jpg[*]")
+    window.save_project()
+    assert not window.has_unsaved_changes() and not window.isWindowModified()
