@@ -171,3 +171,29 @@ def test_save_marks_the_project_clean(window, photo, settle):
     assert window.has_unsaved_changes() and window.windowTitle().startswith("scene.jpg[*]")
     window.save_project()
     assert not window.has_unsaved_changes() and not window.isWindowModified()
+
+
+# ---------------------------------------------------------------- defect 7: shortcuts in fields
+def test_window_shortcuts_work_while_a_number_field_has_focus(qtbot, window, photo, settle,
+                                                              monkeypatch):  # fmt: skip
+    from PySide6.QtWidgets import QFileDialog
+
+    asked = []
+    monkeypatch.setattr(QFileDialog, "getSaveFileName",
+                        staticmethod(lambda *a, **k: (asked.append(a), ("", ""))[1]))  # fmt: skip
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    box = window.relight_panel.sun_panel.azimuth_box
+    window.activateWindow()
+    box.setFocus()
+    qtbot.waitUntil(box.hasFocus)
+    qtbot.keyClick(box, Qt.Key.Key_E, Qt.KeyboardModifier.ControlModifier)
+    assert len(asked) == 1 and asked[0][1] == "Export relit photo"
+    _type_sun(window.relight_panel.sun_panel, 220.0, 25.0)
+    settle()
+    box.setFocus()
+    qtbot.keyClick(box, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier)
+    settle()
+    assert window.relight_panel.sun_panel.sun()[1] != pytest.approx(25.0)  # the app's undo ran
+    qtbot.keyClick(box, Qt.Key.Key_A, Qt.KeyboardModifier.ControlModifier)  # the field keeps these
+    assert box.lineEdit().hasSelectedText()

@@ -34,6 +34,35 @@ win.close()
 """
 
 
+_CTRL_E_CHILD = r"""
+import sys
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QKeySequence
+from PySide6.QtTest import QTest
+from PySide6.QtWidgets import QApplication, QFileDialog
+from app.main_window import MainWindow, process_until_idle
+
+asked = []
+QFileDialog.getSaveFileName = staticmethod(lambda *a, **k: (asked.append(a[1]), ("", ""))[1])
+app = QApplication(sys.argv[:1])
+ends = [k.toString() for k in QKeySequence.keyBindings(QKeySequence.StandardKey.MoveToEndOfLine)]
+win = MainWindow()
+win.show()
+win.open_path(sys.argv[1])
+process_until_idle(win, timeout=120)
+win.confirm_original_sun()
+process_until_idle(win, timeout=120)
+win.activateWindow()
+box = win.relight_panel.sun_panel.azimuth_box
+box.setFocus()
+QTest.qWait(200)
+QTest.keyClick(box, Qt.Key.Key_E, Qt.KeyboardModifier.ControlModifier)
+app.processEvents()
+print("end-of-line keys", ends, "focus", box.hasFocus(), "asked", asked, flush=True)
+win.close()
+"""
+
+
 def _qxcb_plugin() -> Path:
     import PySide6
 
@@ -85,19 +114,35 @@ def xvfb_display():
         proc.wait(10)
 
 
-def test_app_starts_on_a_real_x_server(xvfb_display, tmp_path):
+def _env(display: str, tmp_path: Path) -> dict[str, str]:
     env = dict(
         os.environ,
-        DISPLAY=xvfb_display,
+        DISPLAY=display,
         QT_QPA_PLATFORM="xcb",
         HOME=str(tmp_path),
         XDG_CONFIG_HOME=str(tmp_path / "config"),
     )
     env.pop("WAYLAND_DISPLAY", None)
+    return env
+
+
+def _run_child(code: str, display: str, tmp_path: Path) -> subprocess.CompletedProcess[str]:
     photo = str(ROOT / "samples" / "exif_003_th_pool.jpg")
-    run = subprocess.run(
-        [sys.executable, "-c", _CHILD, photo], cwd=ROOT, env=env, capture_output=True, text=True,
-        timeout=300,
+    return subprocess.run(
+        [sys.executable, "-c", code, photo], cwd=ROOT, env=_env(display, tmp_path),
+        capture_output=True, text=True, timeout=300,
     )  # fmt: skip
+
+
+def test_app_starts_on_a_real_x_server(xvfb_display, tmp_path):
+    run = _run_child(_CHILD, xvfb_display, tmp_path)
     assert run.returncode == 0, run.stderr[-2000:]
     assert "platform xcb step align exposed True" in run.stdout, run.stdout + run.stderr[-2000:]
+
+
+def test_ctrl_e_exports_while_the_azimuth_box_has_focus(xvfb_display, tmp_path):
+    """Issue 19, defect 7: on X11 a line edit claims Ctrl+E (end of line) before the window."""
+    run = _run_child(_CTRL_E_CHILD, xvfb_display, tmp_path)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "'Ctrl+E'" in run.stdout  # X11's key bindings: the field would take Ctrl+E
+    assert "focus True asked ['Export relit photo']" in run.stdout, run.stdout + run.stderr[-2000:]
