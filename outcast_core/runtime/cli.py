@@ -11,7 +11,11 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
+import signal
 import sys
+import tempfile
+import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -23,6 +27,7 @@ from outcast_core.runtime.geometry import normalize_sun, sun_vector
 #: Optional command groups: (module, function adding sub-commands). Missing ones are skipped.
 OPTIONAL_COMMANDS: list[tuple[str, str]] = [
     ("outcast_core.runtime.timelapse_cli", "register"),
+    ("outcast_core.runtime.real_eval_cli", "register"),
     ("outcast_core.data.cli", "register"),
     ("outcast_core.train.cli", "register"),
     ("outcast_core.export.cli", "register"),
@@ -33,8 +38,17 @@ OPTIONAL_COMMANDS: list[tuple[str, str]] = [
 DEFAULT_CLI_PRESET = "balanced"
 
 
+#: Most Direct march steps ``--steps`` accepts (4 steps per pixel at the accurate preset's
+#: 512 px; 100 000 steps took a minute).
+MAX_DIRECT_STEPS = 2048
+
+
 class CliError(Exception):
     """A user-facing error: printed as one line, exit status 2."""
+
+
+class Terminated(KeyboardInterrupt):
+    """Raised by the SIGTERM handler so every ``finally`` and context manager cleans up."""
 
 
 def parse_azel(text: str) -> np.ndarray:
@@ -110,6 +124,9 @@ def cmd_shadow(args: argparse.Namespace) -> int:
     preset = PRESETS[args.preset]
     loaded = _load(args.image, max_pixels=4 * preset.working_size**2)
     session = _make_session(args, shadow_mode=args.mode)
+    if args.steps is not None and session.shadow_mode != "direct":
+        _say(args, f"note: --steps applies to Direct shadows only; {session.shadow_mode} "
+                   f"shadows use the preset's {preset.steps} steps")
     if args.steps is not None and session.shadow_mode == "direct":
         from outcast_core.runtime.session import Preset
 
@@ -169,7 +186,7 @@ def _add_common(p: argparse.ArgumentParser, *, depth: bool = True) -> None:
     if depth:
         p.add_argument("--depth", help="depth map (.npy float32 H x W, 16-bit PNG or .exr) "
                                        "to use instead of the depth model")
-    p.add_argument("--fov", type=float, default=None,
+    p.add_argument("--fov", type=_fov, default=None,
                    help="horizontal field of view in degrees (default: EXIF, else 60)")
     p.add_argument("--preset", choices=["fast", "balanced", "accurate"],
                    default=DEFAULT_CLI_PRESET, help="speed/accuracy preset")
@@ -200,8 +217,9 @@ def build_parser(
                    help="learned S network (default when installed) or Direct ray marching")
     p.add_argument("--thickness", default=math.inf, type=_thickness,
                    help="Direct occluder thickness relative to depth, or 'inf' (default)")
-    p.add_argument("--steps", type=_positive_int, default=None,
-                   help="Direct march steps across one image side (default: from the preset)")
+    p.add_argument("--steps", type=_direct_steps, default=None,
+                   help=f"Direct march steps across one image side, 1..{MAX_DIRECT_STEPS} "
+                        "(default: from the preset; --mode direct only)")
     _add_common(p)
     p.set_defaults(func=cmd_shadow)
 
@@ -252,14 +270,118 @@ def _positive_int(text: str) -> int:
     return n
 
 
+def _direct_steps(text: str) -> int:
+    n = _positive_int(text)
+    if n > MAX_DIRECT_STEPS:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_DIRECT_STEPS} steps, got {n}")
+    return n
+
+
+def _fov(text: str) -> float:
+    try:
+        fov = float(text)
+    except ValueError:
+        fov = math.nan
+    if not (math.isfinite(fov) and 0.0 < fov < 180.0):
+        raise argparse.ArgumentTypeError(
+            f"expected a field of view in (0, 180) degrees, got {text!r}"
+        )
+    return fov
+
+
+def _output_extensions(command: str) -> tuple[str, ...] | None:
+    """The extensions ``command`` writes, or None for a command this module does not check."""
+    from outcast_core.runtime.imageio import DEPTH_EXTENSIONS, WRITE_EXTENSIONS
+
+    return {"shadow": (".png",), "relight": tuple(WRITE_EXTENSIONS),
+            "depth": tuple(DEPTH_EXTENSIONS)}.get(command)
+
+
+def check_output_path(
+    output: str,
+    *,
+    extensions: Sequence[str] | None,
+    force: bool,
+    inputs: Sequence[str | None] = (),
+) -> Path:
+    """Check, before any work, that ``output`` can be written; return it as a ``Path``.
+
+    Args:
+        output: the output file as the user typed it (missing folders are allowed: the
+            caller creates them).
+        extensions: accepted lower-case extensions, or None to accept any.
+        force: whether an existing file may be replaced.
+        inputs: input files; the output may never be one of them, even with ``force``.
+
+    Raises:
+        CliError: wrong extension, a folder, an input file, a parent that is a file, or a
+            folder that cannot be written.
+        FileExistsError: the file exists and ``force`` is False.
+    """
+    path = Path(output).expanduser()
+    if extensions is not None and path.suffix.lower() not in extensions:
+        raise CliError(f"cannot write '{output}': expected an extension in "
+                       f"{', '.join(extensions)}, got '{path.suffix}'")
+    if path.is_dir():
+        raise CliError(f"cannot write '{output}': it is a folder")
+    for source in inputs:
+        if source and path.exists() and Path(source).exists() and os.path.samefile(path, source):
+            raise CliError(f"cannot write '{output}': it is the input file '{source}'; "
+                           "choose another output name")
+    if path.exists() and not force:
+        raise FileExistsError(f"'{output}' already exists; use --force to overwrite it")
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise CliError(f"cannot write '{output}': '{folder}' is a file, not a folder")
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise CliError(f"cannot write '{output}': folder '{folder}' is not writable "
+                       f"({exc.strerror or exc})") from exc
+    return path
+
+
+def _check_output(args: argparse.Namespace) -> None:
+    """:func:`check_output_path` for the commands whose outputs this module knows."""
+    output = getattr(args, "output", None)
+    extensions = _output_extensions(args.command)
+    if isinstance(output, str) and output and extensions is not None:
+        check_output_path(output, extensions=extensions, force=args.force,
+                          inputs=[getattr(args, "image", None), getattr(args, "depth", None)])
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
+def _catch_sigterm() -> object:
+    """Turn SIGTERM into :class:`Terminated` (main thread only); returns the old handler."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _on_sigterm)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``outcast``; returns the exit status."""
+    """Entry point of ``outcast``; returns the exit status.
+
+    While a command runs, SIGTERM raises :class:`Terminated` (a ``KeyboardInterrupt``), so
+    temporary and partial files are removed as on Ctrl+C; the exit status is then 143.
+    """
     from outcast_core.runtime.models import ModelError
 
     parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:2] == ["eval", "real"]:
+        # ``outcast eval real DIR`` (runtime only) beside ``outcast eval`` (synthetic, torch).
+        argv = ["eval-real", *argv[2:]]
     args = parser.parse_args(argv)
+    previous_sigterm = _catch_sigterm()
     try:
         output = getattr(args, "output", None)
+        _check_output(args)  # before the work: extension, existing file, folder, input
         if isinstance(output, str) and output:
             # Users name an output folder that may not exist yet (out/relit.jpg): make it.
             Path(output).expanduser().parent.mkdir(parents=True, exist_ok=True)
@@ -272,12 +394,19 @@ def main(argv: Sequence[str] | None = None) -> int:
               "image", file=sys.stderr)
         return 2
     except OSError as exc:
-        print(f"outcast {args.command}: error: {exc.strerror or exc} "
-              f"({exc.filename or ''})", file=sys.stderr)
+        where = exc.filename or getattr(args, "output", None)
+        print(f"outcast {args.command}: error: " + (f"'{where}': " if where else "")
+              + f"{exc.strerror or exc}", file=sys.stderr)
         return 2
+    except Terminated:
+        print(f"outcast {args.command}: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print(f"outcast {args.command}: interrupted", file=sys.stderr)
         return 130
+    finally:
+        if previous_sigterm is not None:
+            signal.signal(signal.SIGTERM, previous_sigterm)
 
 
 if __name__ == "__main__":
