@@ -283,7 +283,7 @@ def _check_pixel_count(path: Path, width: int, height: int) -> None:
     """Refuse an image larger than :data:`MAX_DECODE_PIXELS` (from its header size)."""
     if width * height > MAX_DECODE_PIXELS:
         raise ImageReadError(
-            f"cannot read image '{path}': {width}x{height} is larger than the "
+            f"cannot read '{path}': {width}x{height} is larger than the "
             f"{MAX_DECODE_PIXELS / 1e6:.0f} MP limit"
         )
 
@@ -524,8 +524,11 @@ def atomic_output(
         if not make_parents:
             raise FileNotFoundError(f"cannot write '{path}': folder '{parent}' does not exist")
         parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}",
-                                    dir=parent)
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}",
+                                        dir=parent)
+    except OSError as exc:
+        _raise_for_destination(exc, path)
     os.close(fd)
     tmp = Path(tmp_name)
     try:
@@ -538,9 +541,24 @@ def atomic_output(
         if not force and path.exists():
             raise FileExistsError(f"'{path}' already exists; use --force to overwrite it")
         os.replace(tmp, path)
+    except OSError as exc:
+        _raise_for_destination(exc, path)
     finally:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
+
+
+def _raise_for_destination(exc: OSError, path: Path) -> None:
+    """Re-raise ``exc`` naming the destination instead of the hidden temporary file.
+
+    An error with no file name (``No space left on device``) or naming the temporary file or
+    the folder is raised again as the same type naming ``path``; any other error as it is.
+    """
+    name = "" if exc.filename is None else str(exc.filename)
+    ours = name in ("", str(path.parent)) or name.startswith(str(path.parent / f".{path.stem}."))
+    if exc.errno is None or not ours:
+        raise exc
+    raise type(exc)(exc.errno, exc.strerror or os.strerror(exc.errno), str(path)) from exc
 
 
 def _umask() -> int:
@@ -733,7 +751,7 @@ def read_depth(path: str | os.PathLike[str]) -> np.ndarray:
         raise ImageReadError(f"cannot read depth '{path}': the file is empty")
     try:
         if ext == ".npy":
-            depth = np.load(path, allow_pickle=False)
+            depth = _read_npy(path)
         elif ext == ".exr":
             depth = _read_exr(path)
         else:
@@ -750,6 +768,11 @@ def read_depth(path: str | os.PathLike[str]) -> np.ndarray:
     depth = _check_depth(np.asarray(depth), f"depth in '{path}'")
     depth = depth.copy()
     depth[~(depth > 0)] = np.inf  # NaN and non-positive are invalid, like sky
+    if not np.isfinite(depth).any():
+        raise ImageReadError(
+            f"cannot use depth '{path}': no valid pixel (every value is zero, negative, NaN or "
+            "infinite, which would make the whole frame sky)"
+        )
     return depth
 
 
@@ -772,9 +795,38 @@ def _write_exr(path: Path, depth: np.ndarray) -> None:
     OpenEXR.File(header, {"Z": depth}).write(str(path))
 
 
+def _read_npy(path: Path) -> np.ndarray:
+    """A ``.npy`` depth map; the header (magic, dtype, shape, size) is checked before loading."""
+    with open(path, "rb") as f:
+        try:
+            version = np.lib.format.read_magic(f)
+            if version == (1, 0):
+                shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+            elif version == (2, 0):
+                shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+            else:
+                raise ValueError(f"unsupported .npy version {version}")
+        except ValueError as exc:
+            raise ImageReadError(
+                f"cannot read depth '{path}': not a NumPy .npy file ({_one_line(exc)})"
+            ) from exc
+        header_bytes = f.tell()
+    if dtype.kind != "f" or len(shape) != 2:
+        raise _DepthContentError(
+            f"expected depth in '{path}' to be an H x W float array, got {dtype} of shape {shape}"
+        )
+    _check_pixel_count(path, shape[1], shape[0])
+    if path.stat().st_size < header_bytes + dtype.itemsize * shape[0] * shape[1]:
+        raise ImageReadError(f"cannot read depth '{path}': the file is truncated")
+    return np.load(path, allow_pickle=False)
+
+
 def _read_exr(path: Path) -> np.ndarray:
     import OpenEXR
 
+    with OpenEXR.File(str(path), header_only=True) as exr:
+        (x0, y0), (x1, y1) = (np.asarray(c, dtype=np.int64) for c in exr.header()["dataWindow"])
+    _check_pixel_count(path, int(x1 - x0 + 1), int(y1 - y0 + 1))
     with OpenEXR.File(str(path), separate_channels=True) as exr:
         channels = exr.channels()
         for name in ("Z", "Y", "R", "depth.Z", "depth.Y", "depth.R"):
@@ -805,14 +857,17 @@ def _read_depth_png(path: Path) -> np.ndarray:
             raise _DepthContentError(
                 f"expected a 16-bit grey PNG depth map, got {im.format} mode {im.mode}"
             )
+        _check_pixel_count(path, *im.size)
         codes = np.asarray(im).astype(np.float64)
         text = im.info.get(DEPTH_SCALE_KEY)
     try:
         scale = float(text) if text is not None else 1.0
     except ValueError:
         scale = float("nan")
-    if not (np.isfinite(scale) and scale > 0):
-        raise _DepthContentError(f"expected a positive '{DEPTH_SCALE_KEY}', got {text!r}")
+    if not (np.isfinite(scale) and 0 < scale <= float(np.finfo(np.float32).max)):
+        raise _DepthContentError(
+            f"expected a positive '{DEPTH_SCALE_KEY}' that float32 can hold, got {text!r}"
+        )
     depth = (codes / 65535.0 * scale).astype(np.float32)
     depth[codes == 0] = np.inf
     return depth

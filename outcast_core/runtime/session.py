@@ -262,7 +262,7 @@ class RelightSession:
         if focal_35mm is not None and fov_deg is None:
             focal = focal_from_35mm(w, h, focal_35mm)
         else:
-            focal = Camera.from_fov(h, w, fov_deg or DEFAULT_FOV_DEG).focal
+            focal = Camera.from_fov(h, w, DEFAULT_FOV_DEG if fov_deg is None else fov_deg).focal
         if depth is not None:
             depth = np.asarray(depth, np.float32)
             if depth.ndim != 2:
@@ -270,8 +270,13 @@ class RelightSession:
             ar_img, ar_d = w / h, depth.shape[1] / depth.shape[0]
             if abs(ar_img - ar_d) > 0.02 * ar_img + 1.0 / min(depth.shape):
                 raise ValueError(
-                    f"expected depth with the photo's aspect ratio {w}x{h}, got "
-                    f"{depth.shape[1]}x{depth.shape[0]}"
+                    f"expected depth with the photo's aspect ratio (width / height {ar_img:.3f}),"
+                    f" got {depth.shape[1]}x{depth.shape[0]} ({ar_d:.3f})"
+                )
+            if not (np.isfinite(depth) & (depth > 0)).any():
+                raise ValueError(
+                    "expected depth with at least one valid pixel (finite and > 0), got none "
+                    "(the whole frame would be sky)"
                 )
         with self._lock:
             self.full_image_srgb = img
