@@ -53,6 +53,7 @@ from app import display
 from app.canvas import ImageCanvas, qimage_from_array
 from app.errors import message_for
 from app.history import EditCommand, EditState
+from app.leave_prompts import SAVE, STOP, Question, RunningExport, leave_questions
 from app.panels import VIEW_CHOICES, AlignPanel, RelightPanel
 from app.state import (
     IMAGE_SUFFIXES,
@@ -83,6 +84,7 @@ STAGE_WORDS = {
     "tl_preview": "Rendering time-lapse frame",
     "tl_export": "Exporting time-lapse",
 }
+EXPORT_CHANNELS = ("export_still", "tl_export")
 ICON_PATH = Path(__file__).resolve().parent / "resources" / "outcast.svg"
 STILL_FILTERS = "PNG image (*.png);;JPEG image (*.jpg *.jpeg);;16-bit TIFF (*.tif *.tiff)"
 
@@ -160,6 +162,8 @@ class MainWindow(QMainWindow):
         self._applying_edit = False
         self._pending_restore: EditState | None = None
         self._pending_record_from: EditState | None = None
+        self._job_fraction: dict[int, float] = {}  # last progress of each running job
+        self._close_without_asking = False
 
         self.runner = TaskRunner(self)
         self.runner.started.connect(self._on_job_started)
@@ -500,7 +504,12 @@ class MainWindow(QMainWindow):
             self.open_path(path)
 
     def open_path(self, path: str) -> None:
-        """Open a photo or a project file (the load runs in the worker)."""
+        """Open a photo or a project file (the load runs in the worker).
+
+        With a running export or unsaved edits the user is asked first (and may say no).
+        """
+        if self.image_path and not self.confirm_leave("open"):
+            return
         if is_project_file(path):
             try:
                 state = load_project(path)
@@ -1010,6 +1019,8 @@ class MainWindow(QMainWindow):
 
     @Slot(int, str, str, float)
     def _on_job_progress(self, job_id: int, channel: str, stage: str, fraction: float) -> None:
+        if channel in EXPORT_CHANNELS:
+            self._job_fraction[job_id] = fraction
         if channel in ("load", "preset", "export_still", "tl_export"):
             self.progress_bar.setRange(0, 100)
             self.progress_bar.setValue(round(100 * fraction))
@@ -1093,7 +1104,74 @@ class MainWindow(QMainWindow):
     def _on_idle(self) -> None:
         self.progress_bar.hide()
 
+    # ================================================================== leaving
+    def running_exports(self) -> list[RunningExport]:
+        """Exports waiting or running in the worker."""
+        active = [(i, d) for i, ch, d in self.runner.active() if ch in EXPORT_CHANNELS]
+        self._job_fraction = {i: f for i, f in self._job_fraction.items()
+                              if i in {j for j, _ in active}}  # fmt: skip
+        return [
+            RunningExport(d.removeprefix("Exporting ") or "a file", self._job_fraction.get(i))
+            for i, d in active
+        ]
+
+    def question_box(self, question: Question) -> QMessageBox:
+        """A message box for ``question``; each button carries its answer in ``"answer"``."""
+        box = QMessageBox(QMessageBox.Icon.Warning, question.title, question.text, parent=self)
+        box.setInformativeText(question.detail)
+        roles = {
+            "accept": QMessageBox.ButtonRole.AcceptRole,
+            "reject": QMessageBox.ButtonRole.RejectRole,
+            "destructive": QMessageBox.ButtonRole.DestructiveRole,
+        }
+        for choice in question.choices:
+            button = box.addButton(choice.label, roles[choice.role])
+            button.setProperty("answer", choice.key)
+            if choice.key == question.default:
+                box.setDefaultButton(button)
+            if choice.key == question.escape:
+                box.setEscapeButton(button)
+        return box
+
+    def ask(self, question: Question) -> str:
+        """Show ``question`` modally; returns the answer (Esc gives ``question.escape``)."""
+        box = self.question_box(question)
+        box.exec()
+        clicked = box.clickedButton()
+        answer = clicked.property("answer") if clicked is not None else None
+        return str(answer) if answer else question.escape
+
+    def confirm_leave(self, action: str) -> bool:
+        """Ask about running exports and unsaved edits before ``"quit"`` or ``"open"``.
+
+        Returns:
+            True to go ahead (exports stopped, the project saved or the edits dropped as the
+            user chose); False to stay.
+        """
+        name = project_path_for(self.image_path).name if self.image_path else ""
+        questions = leave_questions(
+            action, self.running_exports(), self.has_unsaved_changes(), name
+        )
+        for question in questions:
+            answer = self.ask(question)
+            if not question.goes_ahead(answer):
+                return False
+            if answer == STOP:
+                for channel in EXPORT_CHANNELS:
+                    self.runner.cancel(channel)
+            elif answer == SAVE and self.save_project() is None:
+                return False
+        return True
+
+    def close_without_asking(self) -> bool:
+        """Close even with a running export or unsaved edits (scripts and benchmarks)."""
+        self._close_without_asking = True
+        return self.close()
+
     def closeEvent(self, event: QCloseEvent) -> None:
+        if not self._close_without_asking and not self.confirm_leave("quit"):
+            event.ignore()
+            return
         self.runner.shutdown()
         if self._timelapse_dialog is not None:
             self._timelapse_dialog.close()

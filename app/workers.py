@@ -206,6 +206,7 @@ class TaskRunner(QObject):
         self._latest: dict[str, int] = {}
         # Jobs whose outcome has not reached the GUI thread yet (GUI-thread state only).
         self._outstanding: set[int] = set()
+        self._about: dict[int, tuple[str, str]] = {}  # id -> (channel, description), outstanding
         self._thread = _WorkerThread(self.queue)
         self._thread.job_started.connect(self._on_started)
         self._thread.job_progress.connect(self._on_progress)
@@ -218,8 +219,9 @@ class TaskRunner(QObject):
         """Queue ``fn(context)`` on ``channel``; a job still waiting on that channel is dropped."""
         job_id, replaced = self.queue.put(Job(channel, fn, description))
         if replaced is not None:
-            self._outstanding.discard(replaced.id)
+            self._forget(replaced.id)
         self._outstanding.add(job_id)
+        self._about[job_id] = (channel, description)
         self._latest[channel] = job_id
         return job_id
 
@@ -232,12 +234,20 @@ class TaskRunner(QObject):
 
     def cancel(self, channel: str) -> None:
         for job in self.queue.cancel(channel):
-            self._outstanding.discard(job.id)
+            self._forget(job.id)
         self._maybe_idle()
 
     def busy(self) -> bool:
         """Whether a job is waiting, running, or its outcome has not reached the GUI yet."""
         return bool(self._outstanding)
+
+    def active(self) -> list[tuple[int, str, str]]:
+        """``(id, channel, description)`` of every job waiting, running or not yet reported."""
+        return [(i, *self._about[i]) for i in sorted(self._outstanding) if i in self._about]
+
+    def _forget(self, job_id: int) -> None:
+        self._outstanding.discard(job_id)
+        self._about.pop(job_id, None)
 
     def shutdown(self, timeout_ms: int = 10000) -> None:
         """Cancel everything and stop the thread."""
@@ -254,19 +264,19 @@ class TaskRunner(QObject):
 
     @Slot(int, str, object, float)
     def _on_finished(self, job_id: int, channel: str, result: Any, seconds: float) -> None:
-        self._outstanding.discard(job_id)
+        self._forget(job_id)
         self.finished.emit(job_id, channel, result, seconds)
         self._maybe_idle()
 
     @Slot(int, str, object)
     def _on_failed(self, job_id: int, channel: str, exc: Any) -> None:
-        self._outstanding.discard(job_id)
+        self._forget(job_id)
         self.failed.emit(job_id, channel, exc)
         self._maybe_idle()
 
     @Slot(int, str)
     def _on_cancelled(self, job_id: int, channel: str) -> None:
-        self._outstanding.discard(job_id)
+        self._forget(job_id)
         self.cancelled.emit(job_id, channel)
         self._maybe_idle()
 

@@ -110,7 +110,7 @@ def run_preset(app, photo: str, preset: str, seconds: float, hz: float, tmp: Pat
     h, w = win.session.image_srgb.shape[:2]
     res["working size"] = f"{w}x{h}"
     dialog.close()
-    win.close()
+    win.close_without_asking()
     return res
 
 

@@ -128,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     box.close()
 
     print("timings:", win.timings.summary(limit=20))
-    win.close()
+    win.close_without_asking()
     return 0
 
 

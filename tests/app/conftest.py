@@ -79,3 +79,27 @@ def settle(qtbot, window):
         qtbot.waitUntil(done, timeout=timeout)
 
     return _settle
+
+
+@pytest.fixture(autouse=True)
+def leave_answers(monkeypatch):
+    """Answer the quit / open-another prompts without a modal box (it would block the test).
+
+    By default the answer goes ahead (stop the export, don't save); a test scripts other answers
+    by appending to ``leave_answers.script`` and reads the questions in ``leave_answers.asked``.
+    """
+    from types import SimpleNamespace
+
+    from app.leave_prompts import DISCARD, STOP
+    from app.main_window import MainWindow
+
+    record = SimpleNamespace(asked=[], script=[])
+
+    def fake_ask(self, question):
+        record.asked.append(question)
+        if record.script:
+            return record.script.pop(0)
+        return STOP if any(c.key == STOP for c in question.choices) else DISCARD
+
+    monkeypatch.setattr(MainWindow, "ask", fake_ask)
+    return record

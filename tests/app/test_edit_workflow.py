@@ -197,3 +197,120 @@ def test_window_shortcuts_work_while_a_number_field_has_focus(qtbot, window, pho
     assert window.relight_panel.sun_panel.sun()[1] != pytest.approx(25.0)  # the app's undo ran
     qtbot.keyClick(box, Qt.Key.Key_A, Qt.KeyboardModifier.ControlModifier)  # the field keeps these
     assert box.lineEdit().hasSelectedText()
+
+
+# ---------------------------------------------------------------- defect 4: quit / open prompts
+def _slow_timelapse(window, settle, monkeypatch, frames=40):
+    import time
+
+    from tests.app.test_main_window import _timelapse
+
+    session = window.session
+    real = session.relight
+
+    def slow_relight(w, preview=False):
+        time.sleep(0.03)
+        return real(w, preview=preview)
+
+    monkeypatch.setattr(session, "relight", slow_relight)
+    dialog = _timelapse(window, frames)
+    settle()
+    return dialog
+
+
+def _wait_for_progress(qtbot, window):
+    seen = []
+    window.runner.progress.connect(lambda i, ch, st, f: seen.append(f) if ch == "tl_export" else 0)
+    qtbot.waitUntil(lambda: len(seen) >= 2, timeout=30000)
+
+
+def test_quit_during_an_export_asks_and_can_keep_exporting(qtbot, window, photo, settle,
+                                                           tmp_path, monkeypatch,
+                                                           leave_answers):  # fmt: skip
+    from app.leave_prompts import DISCARD, KEEP
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    dialog = _slow_timelapse(window, settle, monkeypatch)
+    out = tmp_path / "clip.mp4"
+    dialog.export(str(out))
+    _wait_for_progress(qtbot, window)
+    leave_answers.script.append(KEEP)
+    window.act_quit.trigger()  # Ctrl+Q
+    assert window.isVisible()
+    q = leave_answers.asked[-1]
+    assert q.title == "An export is still running" and "clip.mp4 (" in q.text
+    assert [c.label for c in q.choices] == ["Keep exporting", "Stop export and quit"]
+    settle()
+    assert dialog.last_result == "finished" and out.exists()
+    leave_answers.script.append(DISCARD)
+    assert window.close()  # the export is done: only the unsaved edits are asked about
+    assert leave_answers.asked[-1].title == "Save the changes to this photo?"
+
+
+def test_quit_during_an_export_can_stop_it(qtbot, window, photo, settle, tmp_path, monkeypatch,
+                                           leave_answers):  # fmt: skip
+    from app.leave_prompts import DISCARD, STOP
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    window.save_project()
+    dialog = _slow_timelapse(window, settle, monkeypatch)
+    before = set(tmp_path.iterdir())
+    out = tmp_path / "clip.mp4"
+    dialog.export(str(out))
+    _wait_for_progress(qtbot, window)
+    leave_answers.script += [STOP, DISCARD]
+    assert window.close()
+    assert [q.title for q in leave_answers.asked] == ["An export is still running"]
+    assert not out.exists() and set(tmp_path.iterdir()) == before  # no temp file either
+
+
+def test_unsaved_changes_are_asked_about_on_quit(window, photo, settle, leave_answers):
+    from app.leave_prompts import CANCEL, SAVE
+    from app.state import project_path_for
+
+    _load(window, photo, settle)
+    assert window.confirm_leave("quit") and leave_answers.asked == []  # nothing to lose
+    _type_sun(window.align_panel.sun_panel, 100.0, 35.0)
+    leave_answers.script.append(CANCEL)
+    assert window.close() is False and window.isVisible()
+    assert [c.label for c in leave_answers.asked[-1].choices] == ["Save project", "Don't save",
+                                                                  "Cancel"]  # fmt: skip
+    leave_answers.script.append(SAVE)
+    assert window.close() is True
+    assert project_path_for(photo).is_file()
+
+
+def test_opening_another_photo_asks_about_unsaved_changes(window, photo, settle, tmp_path,
+                                                          leave_answers):  # fmt: skip
+    import os
+
+    from app.leave_prompts import CANCEL, DISCARD
+    from tests.app.conftest import make_photo
+
+    _load(window, photo, settle)
+    other = make_photo(tmp_path / "other.jpg", 96, 64)
+    _type_sun(window.align_panel.sun_panel, 100.0, 35.0)
+    leave_answers.script.append(CANCEL)
+    window.open_path(other)
+    settle()
+    assert window.image_path == os.path.abspath(photo)
+    assert window.align_panel.sun_panel.sun() == pytest.approx((100.0, 35.0))
+    leave_answers.script.append(DISCARD)
+    window.open_path(other)
+    settle()
+    assert window.image_path == os.path.abspath(other) and not window.has_unsaved_changes()
+    assert len(leave_answers.asked) == 2
+
+
+def test_question_box_shows_the_choices(window):
+    from app.leave_prompts import RunningExport, leave_questions
+
+    q = leave_questions("quit", [RunningExport("clip.mp4", 0.42)], False, "x.outcast.json")[0]
+    box = window.question_box(q)
+    labels = [b.text() for b in box.buttons()]
+    assert sorted(labels) == ["Keep exporting", "Stop export and quit"]
+    assert box.defaultButton().text() == "Keep exporting"
+    assert box.escapeButton().text() == "Keep exporting"
+    assert "42 % done" in box.text()

@@ -30,7 +30,7 @@ process_until_idle(win, timeout=120)
 app.processEvents()
 exposed = win.windowHandle() is not None and win.windowHandle().isExposed()
 print("platform", app.platformName(), "step", win.step.value, "exposed", exposed, flush=True)
-win.close()
+win.close_without_asking()
 """
 
 
@@ -59,7 +59,7 @@ QTest.qWait(200)
 QTest.keyClick(box, Qt.Key.Key_E, Qt.KeyboardModifier.ControlModifier)
 app.processEvents()
 print("end-of-line keys", ends, "focus", box.hasFocus(), "asked", asked, flush=True)
-win.close()
+win.close_without_asking()
 """
 
 

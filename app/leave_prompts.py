@@ -1,0 +1,112 @@
+"""What to ask before the work on screen goes away: quitting, or opening another photo (Qt-free).
+
+Two things can be lost: an export that is still running (the worker is killed on quit, and a new
+photo would wait behind it), and edits not saved in the project file. :func:`leave_questions`
+lists the questions in the order to ask them; the window shows each one and acts on the answer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: Answers that go ahead (the export is stopped / the project saved / the edits dropped).
+STOP, SAVE, DISCARD = "stop", "save", "discard"
+#: Answers that keep everything as it is and abandon the quit or open.
+KEEP, CANCEL = "keep", "cancel"
+
+
+@dataclass(frozen=True)
+class Choice:
+    """One button: the answer it gives, its label, and its role (``accept``, ``reject``,
+    ``destructive``)."""
+
+    key: str
+    label: str
+    role: str
+
+
+@dataclass(frozen=True)
+class Question:
+    """A question with buttons; ``default`` is the button Enter presses, ``escape`` Esc's."""
+
+    title: str
+    text: str
+    detail: str
+    choices: tuple[Choice, ...]
+    default: str
+    escape: str
+
+    def goes_ahead(self, answer: str) -> bool:
+        """Whether ``answer`` lets the quit or open go on."""
+        return answer not in (KEEP, CANCEL)
+
+
+@dataclass(frozen=True)
+class RunningExport:
+    """An export in the worker: its file name and how far it got (0-1, or ``None``)."""
+
+    name: str
+    fraction: float | None = None
+
+
+def leave_questions(
+    action: str, exports: list[RunningExport], unsaved: bool, project_name: str
+) -> list[Question]:
+    """The questions to ask before ``action``.
+
+    Args:
+        action: ``"quit"`` or ``"open"`` (another photo or project).
+        exports: exports running or waiting in the worker.
+        unsaved: whether there are edits not saved in the project file.
+        project_name: the project file's name, for the save question.
+
+    Returns:
+        Zero, one or two questions: the running export first, then unsaved changes.
+
+    Example:
+        >>> [q.title for q in leave_questions("quit", [RunningExport("a.mp4", 0.4)], True, "a")]
+        ['An export is still running', 'Save the changes to this photo?']
+    """
+    if action not in ("quit", "open"):
+        raise ValueError(f"expected action 'quit' or 'open', got {action!r}")
+    verb = "Quit" if action == "quit" else "Open"
+    questions = []
+    if exports:
+        parts = []
+        for e in exports:
+            done = f" ({100 * e.fraction:.0f} % done)" if e.fraction is not None else ""
+            parts.append(f"{e.name}{done}")
+        names = ", ".join(parts)
+        then = "quit" if action == "quit" else "open the other photo"
+        questions.append(
+            Question(
+                title="An export is still running",
+                text=f"OutCast is still exporting {names}.",
+                detail=(
+                    f"If you stop it now, nothing is written and the file is not created. "
+                    f"Keep exporting, and {then} when it has finished."
+                ),
+                choices=(
+                    Choice(KEEP, "Keep exporting", "reject"),
+                    Choice(STOP, f"Stop export and {verb.lower()}", "destructive"),
+                ),
+                default=KEEP,
+                escape=KEEP,
+            )
+        )
+    if unsaved:
+        questions.append(
+            Question(
+                title="Save the changes to this photo?",
+                text="The suns, quality and depth map you chose are not saved.",
+                detail=f"Save them in {project_name} to continue later, or drop them.",
+                choices=(
+                    Choice(SAVE, "Save project", "accept"),
+                    Choice(DISCARD, "Don't save", "destructive"),
+                    Choice(CANCEL, "Cancel", "reject"),
+                ),
+                default=SAVE,
+                escape=CANCEL,
+            )
+        )
+    return questions
