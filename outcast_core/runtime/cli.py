@@ -303,6 +303,7 @@ def check_output_path(
     extensions: Sequence[str] | None,
     force: bool,
     inputs: Sequence[str | None] = (),
+    folder_ok: bool = False,
 ) -> Path:
     """Check, before any work, that ``output`` can be written; return it as a ``Path``.
 
@@ -312,6 +313,7 @@ def check_output_path(
         extensions: accepted lower-case extensions, or None to accept any.
         force: whether an existing file may be replaced.
         inputs: input files; the output may never be one of them, even with ``force``.
+        folder_ok: the output is a folder (PNG frames): an existing folder is like a file.
 
     Raises:
         CliError: wrong extension, a folder, an input file, a parent that is a file, or a
@@ -322,7 +324,7 @@ def check_output_path(
     if extensions is not None and path.suffix.lower() not in extensions:
         raise CliError(f"cannot write '{output}': expected an extension in "
                        f"{', '.join(extensions)}, got '{path.suffix}'")
-    if path.is_dir():
+    if path.is_dir() and not folder_ok:
         raise CliError(f"cannot write '{output}': it is a folder")
     for source in inputs:
         if source and path.exists() and Path(source).exists() and os.path.samefile(path, source):
@@ -345,7 +347,15 @@ def check_output_path(
 
 
 def _check_output(args: argparse.Namespace) -> None:
-    """:func:`check_output_path` for the commands whose outputs this module knows."""
+    """:func:`check_output_path` for the commands whose outputs this module knows.
+
+    A command registered elsewhere can set its own check with
+    ``parser.set_defaults(check_output=fn)``; ``fn(args)`` then runs instead.
+    """
+    custom = getattr(args, "check_output", None)
+    if custom is not None:
+        custom(args)
+        return
     output = getattr(args, "output", None)
     extensions = _output_extensions(args.command)
     if isinstance(output, str) and output and extensions is not None:

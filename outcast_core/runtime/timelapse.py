@@ -41,6 +41,11 @@ CancelCheck = Callable[[], bool] | Any  # a callable returning bool, or a thread
 FORMATS = ("mp4", "gif", "webp", "png")
 EASINGS = ("linear", "ease-in-out", "ease-in", "ease-out")
 DEFAULT_FPS = 12.0
+#: Frame rates a time-lapse accepts (the app's dialog offers the same range).
+MIN_FPS = 1.0
+MAX_FPS = 60.0
+#: File extensions of the video formats; a path without an extension is a PNG folder.
+VIDEO_SUFFIXES = {".mp4": "mp4", ".m4v": "mp4", ".gif": "gif", ".webp": "webp"}
 #: Suns below this elevation are lifted to it for rendering (a sun under the ground casts nonsense).
 MIN_RENDER_ELEVATION = 0.5
 
@@ -311,9 +316,20 @@ def sun_vectors(
 
 
 def format_from_path(path: str | os.PathLike[str]) -> str:
-    """Output format from a path: ``.mp4``, ``.gif``, ``.webp``; anything else is a PNG folder."""
+    """Output format from a path: ``.mp4``/``.m4v``, ``.gif``, ``.webp``; no extension: PNG folder.
+
+    Raises:
+        ValueError: any other extension (``out.avi`` would otherwise become a folder of PNGs).
+    """
     suffix = Path(path).suffix.lower()
-    return {".mp4": "mp4", ".m4v": "mp4", ".gif": "gif", ".webp": "webp"}.get(suffix, "png")
+    if not suffix:
+        return "png"
+    if suffix not in VIDEO_SUFFIXES:
+        raise ValueError(
+            f"expected a time-lapse output ending in {', '.join(VIDEO_SUFFIXES)} or a folder "
+            f"name without an extension (PNG frames), got '{Path(path).name}'"
+        )
+    return VIDEO_SUFFIXES[suffix]
 
 
 def to_uint8(frame: np.ndarray) -> np.ndarray:
@@ -366,8 +382,8 @@ class FrameWriter(ABC):
 
     def __init__(self, path: str | os.PathLike[str], fps: float = DEFAULT_FPS, force: bool = False):
         self.path = Path(path)
-        if not (math.isfinite(fps) and fps > 0):
-            raise ValueError(f"expected fps > 0, got {fps}")
+        if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+            raise ValueError(f"expected fps in [{MIN_FPS:g}, {MAX_FPS:g}], got {fps}")
         self.fps = float(fps)
         self.force = bool(force)
         if self.path.exists() and not self.force:

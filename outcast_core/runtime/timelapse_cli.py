@@ -8,15 +8,19 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import math
 import sys
-from pathlib import Path
+from collections.abc import Callable
 from typing import Any
 
 from outcast_core.runtime.geometry import sun_vector
 from outcast_core.runtime.timelapse import (
     DEFAULT_FPS,
     EASINGS,
+    MAX_FPS,
+    MIN_FPS,
     SunSample,
+    format_from_path,
     real_sun_path,
     render_timelapse,
     solve_heading,
@@ -26,14 +30,50 @@ from outcast_core.runtime.timelapse import (
 # --------------------------------------------------------------------------------------------
 
 
+#: Most frames a time-lapse renders (the app's dialog offers the same).
+MAX_FRAMES = 2000
+
+
 def _pair(text: str) -> tuple[float, float]:
     parts = text.split(",")
     if len(parts) != 2:
         raise argparse.ArgumentTypeError(f"expected AZ,EL, got {text!r}")
     try:
-        return float(parts[0]), float(parts[1])
+        az, el = float(parts[0]), float(parts[1])
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected AZ,EL as numbers, got {text!r}") from None
+    if not (math.isfinite(az) and math.isfinite(el)) or not -90.0 <= el <= 90.0:
+        raise argparse.ArgumentTypeError(
+            f"expected AZ,EL with a finite azimuth and an elevation in [-90, 90], got {text!r}"
+        )
+    return az, el
+
+
+def _number(lo: float, hi: float, what: str) -> Callable[[str], float]:
+    """An argparse type: a finite number in ``[lo, hi]``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise argparse.ArgumentTypeError(f"expected {what} in [{lo:g}, {hi:g}], got {text!r}")
+        return value
+
+    return parse
+
+
+def _frames(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if not 2 <= n <= MAX_FRAMES:
+        raise argparse.ArgumentTypeError(
+            f"expected a frame count in [2, {MAX_FRAMES}], got {text!r}"
+        )
+    return n
 
 
 def _sweep(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -85,32 +125,36 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
         help="the photo's original sun (aligned in the app)",
     )
     p.add_argument("--sweep", type=_sweep, metavar="AZ1,EL1:AZ2,EL2", help="sweep the sun A -> B")
-    p.add_argument("--frames", type=int, default=None, help="frame count (sweep: required)")
+    p.add_argument("--frames", type=_frames, default=None,
+                   help=f"frame count, 2..{MAX_FRAMES} (sweep: required)")
     p.add_argument("--easing", choices=EASINGS, default="ease-in-out")
     p.add_argument("--date", type=_date, metavar="YYYY-MM-DD", help="real sun path of this day")
-    p.add_argument("--lat", type=float, help="latitude (default: EXIF GPS)")
-    p.add_argument("--lon", type=float, help="longitude (default: EXIF GPS)")
+    p.add_argument("--lat", type=_number(-90.0, 90.0, "a latitude"),
+                   help="latitude (default: EXIF GPS)")
+    p.add_argument("--lon", type=_number(-180.0, 180.0, "a longitude"),
+                   help="longitude (default: EXIF GPS)")
     p.add_argument(
         "--heading",
-        type=float,
+        type=_number(-360.0, 360.0, "a heading"),
         help="camera compass heading, deg from true north (default: solved from EXIF time + GPS)",
     )
     p.add_argument("--start", type=_hhmm, metavar="HH:MM", help="local start time (sunrise)")
     p.add_argument("--end", type=_hhmm, metavar="HH:MM", help="local end time (sunset)")
     p.add_argument(
         "--utc-offset",
-        type=float,
+        type=_number(-14.0, 14.0, "a UTC offset (hours)"),
         default=None,
         help="local time's offset from UTC in hours (default: from longitude)",
     )
     p.add_argument(
         "-o", "--output", required=True, metavar="OUT", help="OUT.mp4, .gif, .webp or a folder"
     )
-    p.add_argument("--fps", type=float, default=DEFAULT_FPS)
+    p.add_argument("--fps", type=_number(MIN_FPS, MAX_FPS, "frames per second"),
+                   default=DEFAULT_FPS, help=f"{MIN_FPS:g}..{MAX_FPS:g} (default {DEFAULT_FPS:g})")
     p.add_argument("--full-res", action="store_true", help="render at the photo's full resolution")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     p.add_argument("--preset", choices=("fast", "balanced", "accurate"), default="balanced")
-    p.set_defaults(func=run_timelapse_command)
+    p.set_defaults(func=run_timelapse_command, check_output=check_timelapse_output)
     return p
 
 
@@ -141,14 +185,22 @@ def _samples_from_args(args: argparse.Namespace, exif: Any) -> list[SunSample]:
     )
 
 
+def check_timelapse_output(args: argparse.Namespace) -> None:
+    """Check ``-o`` before any work: a known extension (or none: PNG folder), not the photo,
+    not an existing file without ``--force``, a folder that can be written."""
+    from outcast_core.runtime.cli import check_output_path
+
+    fmt = format_from_path(args.output)  # ValueError for out.avi
+    check_output_path(args.output, extensions=None, force=args.force, inputs=[args.image],
+                      folder_ok=fmt == "png")
+
+
 def run_timelapse_command(args: argparse.Namespace) -> int:
     """Handler of ``outcast timelapse``; returns the process exit code."""
     from outcast_core.runtime.imageio import read_image
     from outcast_core.runtime.session import RelightSession
 
-    out_path = Path(args.output)
-    if out_path.exists() and not args.force:  # fail before the slow part
-        raise FileExistsError(f"{out_path} already exists; choose another name or use --force")
+    check_timelapse_output(args)  # before the slow part
     loaded = read_image(args.image)
     exif = getattr(loaded, "exif", None)
     samples = _samples_from_args(args, exif)
