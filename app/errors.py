@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
+from pathlib import Path
 
+from outcast_core.runtime.imageio import DEPTH_EXTENSIONS
 from outcast_core.runtime.models import ModelError
+
+DEPTH_KINDS = "a .npy array (float32, H × W), a 16-bit grayscale PNG or an OpenEXR (.exr) file"
 
 
 @dataclass(frozen=True)
@@ -29,7 +34,7 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
 
     Args:
         exc: the exception.
-        action: one of ``"open"``, ``"export"``, ``"project"``, or anything else.
+        action: one of ``"open"``, ``"depth"``, ``"export"``, ``"project"``, or anything else.
 
     Returns:
         A :class:`UserMessage`.
@@ -54,6 +59,13 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
             detail,
             "Choose a JPEG, PNG, TIFF, WebP or HEIC photo. Your current work is unchanged.",
         )
+    if action == "depth":
+        return UserMessage(
+            "Could not load the depth map",
+            detail,
+            f"A depth map is {DEPTH_KINDS}, the size of the photo or with its aspect ratio. "
+            "The photo, its depth and your suns are unchanged.",
+        )
     if action == "export":
         if isinstance(exc, FileExistsError):
             todo = "Nothing was overwritten. Choose another name, or confirm replacing the file."
@@ -77,3 +89,28 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
         detail,
         "Your photo and settings are unchanged; try again, or choose the Fast preset.",
     )
+
+
+def depth_file_problem(path: str | os.PathLike[str]) -> str | None:
+    """What is wrong with ``path`` as a depth map, from its name and size alone (no reading).
+
+    Cheap enough for the GUI thread, so a wrong pick is reported at once rather than after the
+    worker's queue; the content is checked when the worker reads it.
+
+    Returns:
+        One line for the user, or ``None`` when the file may be a depth map.
+
+    Example:
+        >>> depth_file_problem("photo.jpg")
+        "'photo.jpg' is a .jpg file, not a depth map"
+    """
+    p = Path(path)
+    ext = p.suffix.lower()
+    if ext not in DEPTH_EXTENSIONS:
+        kind = f"a {ext} file" if ext else "a file without an extension"
+        return f"'{p.name}' is {kind}, not a depth map"
+    if not p.is_file():
+        return f"'{p.name}' does not exist (in {p.parent})"
+    if p.stat().st_size == 0:
+        return f"'{p.name}' is empty"
+    return None

@@ -51,7 +51,7 @@ from PySide6.QtWidgets import (
 
 from app import display
 from app.canvas import ImageCanvas, qimage_from_array
-from app.errors import message_for
+from app.errors import depth_file_problem, message_for
 from app.history import EditCommand, EditState
 from app.leave_prompts import SAVE, STOP, Question, RunningExport, leave_questions
 from app.panels import VIEW_CHOICES, AlignPanel, RelightPanel
@@ -964,6 +964,10 @@ class MainWindow(QMainWindow):
         current = self.edit_state()
         if current is None:
             return
+        problem = depth_file_problem(path)
+        if problem is not None:  # at once, not after the work queued in the worker
+            self.show_error(ValueError(problem), "depth")
+            return
         self._reload(replace(current, depth_path=os.path.abspath(path)), record_from=current)
 
     # ================================================================== projects
@@ -1076,6 +1080,10 @@ class MainWindow(QMainWindow):
         if channel in ("tl_export", "tl_preview") and self._timelapse_dialog is not None:
             self._timelapse_dialog.on_job_failed(channel, exc)
         action = {"load": "open", "export_still": "export", "tl_export": "export"}.get(channel, "")
+        last = self._last_load
+        restore = last[2] if channel == "load" and last is not None else None
+        if restore is not None and restore.depth_path != self.depth_path:
+            action = "depth"  # the same photo with another depth map: the map failed
         self.show_error(exc, action)
         if isinstance(exc, ModelError) and self.session_mode != "classic":
             if "depth" in str(exc):  # a broken depth model: use the ground-plane prior instead

@@ -314,3 +314,41 @@ def test_question_box_shows_the_choices(window):
     assert box.defaultButton().text() == "Keep exporting"
     assert box.escapeButton().text() == "Keep exporting"
     assert "42 % done" in box.text()
+
+
+# ---------------------------------------------------------------- defect 6: depth map errors
+def test_a_jpeg_as_depth_map_is_refused_at_once_in_plain_words(window, photo, settle, errors,
+                                                               monkeypatch):  # fmt: skip
+    import time
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    real = window.session.relight_full
+
+    def slow_full(w):
+        time.sleep(1.0)
+        return real(w)
+
+    monkeypatch.setattr(window.session, "relight_full", slow_full)
+    window.request_relight(preview=False)  # a slow relight in the worker
+    window.load_depth(photo)  # a JPEG
+    assert window.runner.busy()  # the error did not wait for the relight
+    assert len(errors) == 1
+    title, text = errors[0]
+    assert title == "Could not load the depth map"
+    assert "'scene.jpg' is a .jpg file, not a depth map" in text
+    assert "16-bit grayscale PNG" in text and "photo" not in title.lower()
+    assert "(" not in text.split("\n")[2]  # no raw Python tuple
+    settle()
+    assert window.step is Step.RELIGHT and window.depth_path == ""
+    assert window.undo_stack.count() == 1  # only the confirm; the failed load is no edit
+
+
+def test_a_broken_depth_map_says_depth_map(window, photo, settle, errors, tmp_path):
+    _load(window, photo, settle)
+    bad = tmp_path / "depth.npy"
+    bad.write_bytes(b"not a numpy file")
+    window.load_depth(str(bad))
+    settle()
+    assert errors and errors[-1][0] == "Could not load the depth map"
+    assert window.depth_path == "" and window.undo_stack.count() == 0
