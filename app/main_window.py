@@ -85,6 +85,7 @@ STAGE_WORDS = {
     "tl_export": "Exporting time-lapse",
 }
 EXPORT_CHANNELS = ("export_still", "tl_export")
+DEFAULT_SUN = (135.0, 45.0)  # behind-right of the camera, half-way up: where a new photo starts
 ICON_PATH = Path(__file__).resolve().parent / "resources" / "outcast.svg"
 STILL_FILTERS = "PNG image (*.png);;JPEG image (*.jpg *.jpeg);;16-bit TIFF (*.tif *.tiff)"
 
@@ -607,6 +608,16 @@ class MainWindow(QMainWindow):
         self.align_panel.show_notice(notice)
         self.align_panel.exif_button.setEnabled(self.exif_sun() is not None)
         self._set_step(Step.ALIGN)
+        exif_sun = None
+        if restore is None:  # another photo: nothing of the previous one stays on screen
+            self.timings = StageTimings()
+            self.timings_label.setText("")
+            self.timings_label.setToolTip("How long each stage took, last run")
+            self.relight_panel.sun_panel.dial.set_reference(None)
+            if project is None:
+                exif_sun = self.exif_sun()
+                self.align_panel.sun_panel.set_sun(*(exif_sun or DEFAULT_SUN))
+                self.relight_panel.sun_panel.set_sun(*DEFAULT_SUN)
         self._applying_edit = True
         try:
             if project is not None:
@@ -619,7 +630,13 @@ class MainWindow(QMainWindow):
                 self.request_shadow(preview=False)
         finally:
             self._applying_edit = False
-        self.stage_label.setText(f"Opened {os.path.basename(self.image_path)}")
+        opened = f"Opened {os.path.basename(self.image_path)}"
+        if exif_sun is not None:
+            opened += (
+                f" · sun from its EXIF: azimuth {exif_sun[0]:.1f}°, elevation {exif_sun[1]:.1f}°"
+                " (check it against the shadows)"
+            )
+        self.stage_label.setText(opened)
         if restore is not None:  # the same photo again: keep the history
             self._edit_state = record_from
             self._record(restore)

@@ -352,3 +352,36 @@ def test_a_broken_depth_map_says_depth_map(window, photo, settle, errors, tmp_pa
     settle()
     assert errors and errors[-1][0] == "Could not load the depth map"
     assert window.depth_path == "" and window.undo_stack.count() == 0
+
+
+# ---------------------------------------------------------------- defect 8: another photo
+def test_opening_another_photo_starts_fresh_with_its_exif_sun(window, photo, settle):
+    import os
+
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    pool = os.path.join(root, "samples", "exif_003_th_pool.jpg")
+    _load(window, photo, settle)
+    _type_sun(window.align_panel.sun_panel, 10.0, 12.0)
+    _confirm(window, settle)
+    _type_sun(window.relight_panel.sun_panel, 300.0, 20.0)
+    settle()
+    window.timings.update({"stale stage": 9.0})
+    labels = []
+    window.runner.finished.connect(
+        lambda i, ch, r, sec: labels.append(window.stage_label.text()) if ch == "load" else None
+    )
+    window.open_path(pool)
+    settle()
+    assert window.step is Step.ALIGN and window.original_sun is None
+    exif = window.exif_sun()
+    assert exif is not None
+    assert window.align_panel.sun_panel.sun() == pytest.approx(exif, abs=0.05)
+    assert "sun from its EXIF: azimuth" in labels[0]
+    assert "stale stage" not in window.timings.seconds
+    assert "stale" not in window.timings_label.text()
+    assert window.relight_panel.sun_panel.sun() != pytest.approx((300.0, 20.0))
+    assert window.relight_panel.sun_panel.dial._reference is None
+    assert not window.act_undo.isEnabled()  # a fresh history for the new photo
+    window.open_path(photo)  # no EXIF: the default sun, not the pool's
+    settle()
+    assert window.align_panel.sun_panel.sun() == pytest.approx((135.0, 45.0))
