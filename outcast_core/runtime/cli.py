@@ -158,7 +158,8 @@ def cmd_relight(args: argparse.Namespace) -> int:
     write_image(args.output, out, bit_depth=bit_depth, force=args.force)
     t = session.timings
     _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows: "
-               f"{session.shadow_mode}, relighting: {session.relight_mode}, depth: "
+               f"{session.shadow_mode}, refinement: {session.refinement}, "
+               f"relighting: {session.relight_mode}, depth: "
                f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
          + ")")
     return 0

@@ -23,6 +23,23 @@ DEFAULT_MODEL_DIR = Path(__file__).resolve().parents[2] / "models"
 KNOWN_MODELS = ("depth", "shadow", "refine", "relight", "shadow_2d", "relight_pix2pix")
 
 
+#: The input names the runtime feeds each known model (a network shipped under another
+#: model's name, with its manifest and sha256 edited to match, is refused on load).
+EXPECTED_INPUTS: dict[str, frozenset[str]] = {
+    "depth": frozenset({"image"}),
+    "shadow": frozenset({"image", "depth", "normals", "sun", "focal"}),
+    "shadow_2d": frozenset({"image", "depth", "normals", "sun", "focal"}),
+    "refine": frozenset({"shadow", "image", "sun"}),
+    "relight": frozenset(
+        {"image", "shadow_old", "shadow_new", "normals", "sun_old", "sun_new", "view_dirs"}
+    ),
+    "relight_pix2pix": frozenset({"image", "normals", "sun_old", "sun_new", "view_dirs"}),
+}
+#: Largest ``pad_multiple`` / ``input_side`` a manifest may give.
+MAX_PAD_MULTIPLE = 256
+MAX_INPUT_SIDE = 8192
+
+
 class ModelError(RuntimeError):
     """A model file is missing, corrupt or does not match its manifest."""
 
@@ -145,6 +162,7 @@ class ModelRegistry:
         for key in ("file", "sha256"):
             if key not in data:
                 raise ModelError(f"model manifest {path} lacks the key '{key}'")
+        check_manifest(data, path)
         return data
 
     def load(self, name: str) -> Model:
@@ -174,6 +192,82 @@ class ModelRegistry:
                 )
             except Exception as exc:  # onnxruntime raises its own exception types
                 raise ModelError(f"model file {onnx_path} could not be loaded: {exc}") from exc
+            check_model_io(name, manifest, sess, onnx_path)
             model = Model(name, onnx_path, manifest, sess)
             self._loaded[name] = model
             return model
+
+
+def check_manifest(data: Any, path: Path) -> None:
+    """Check a manifest's fields (types and ranges); :class:`ModelError` naming the bad one.
+
+    Args:
+        data: the parsed JSON.
+        path: the manifest file (for the message).
+    """
+    if not isinstance(data, dict):
+        raise ModelError(f"model manifest {path} is not a JSON object")
+
+    def bad(key: str, expected: str) -> ModelError:
+        return ModelError(f"model manifest {path}: expected '{key}' to be {expected}, "
+                          f"got {data.get(key)!r}")
+
+    file = data.get("file")
+    if not isinstance(file, str) or not file or Path(file).name != file:
+        raise bad("file", "a file name in the model folder")
+    digest = data.get("sha256")
+    if not (isinstance(digest, str) and len(digest) == 64
+            and all(c in "0123456789abcdef" for c in digest)):
+        raise bad("sha256", "64 lower-case hex digits")
+    pad = data.get("pad_multiple", 16)
+    if isinstance(pad, bool) or not isinstance(pad, int) or not 1 <= pad <= MAX_PAD_MULTIPLE:
+        raise bad("pad_multiple", f"a whole number in [1, {MAX_PAD_MULTIPLE}]")
+    side = data.get("input_side")
+    if side is not None and (isinstance(side, bool) or not isinstance(side, int)
+                             or not 1 <= side <= MAX_INPUT_SIDE):
+        raise bad("input_side", f"a whole number in [1, {MAX_INPUT_SIDE}]")
+    for key in ("inputs", "outputs"):
+        ports = data.get(key)
+        if ports is None:
+            continue
+        if not isinstance(ports, list) or not ports or not all(
+            isinstance(p, dict) and isinstance(p.get("name"), str)
+            and isinstance(p.get("shape", []), list) for p in ports
+        ):
+            raise bad(key, "a list of {name, shape} objects")
+
+
+def check_model_io(name: str, manifest: dict[str, Any], session: Any, path: Path) -> None:
+    """Check a loaded network's inputs and outputs against its manifest and the runtime.
+
+    The input and output names must be the manifest's (when it lists them), with the ranks of
+    their shapes; the inputs must be those the runtime feeds a model called ``name``.
+
+    Raises:
+        ModelError: naming the file and the mismatch.
+    """
+    actual = {"inputs": {i.name: len(i.shape) for i in session.get_inputs()},
+              "outputs": {o.name: len(o.shape) for o in session.get_outputs()}}
+    for key in ("inputs", "outputs"):
+        listed = manifest.get(key)
+        if listed is None:
+            continue
+        expected = {p["name"]: len(p.get("shape", [])) for p in listed}
+        if set(expected) != set(actual[key]):
+            raise ModelError(
+                f"model file {path} does not match its manifest: {key} "
+                f"{sorted(actual[key])}, the manifest lists {sorted(expected)}"
+            )
+        ranks = {n: (expected[n], actual[key][n]) for n in expected
+                 if "shape" in next(p for p in listed if p["name"] == n)}
+        wrong = {n: r for n, r in ranks.items() if r[0] != r[1]}
+        if wrong:
+            n, (want, got) = next(iter(wrong.items()))
+            raise ModelError(f"model file {path} does not match its manifest: {key[:-1]} "
+                             f"'{n}' has {got} dimensions, the manifest says {want}")
+    wanted = EXPECTED_INPUTS.get(name)
+    if wanted is not None and set(actual["inputs"]) != wanted:
+        raise ModelError(
+            f"model file {path} is not a '{name}' network: inputs {sorted(actual['inputs'])}, "
+            f"expected {sorted(wanted)}"
+        )

@@ -437,7 +437,7 @@ class RelightSession:
             self._require_image()
             t0 = time.perf_counter()
             s = self.shadow(wv)
-            if self.shadow_mode == "learned" and self.registry.available("refine"):
+            if self.refinement == "learned":
                 model = self.registry.load("refine")
                 out = model.run({
                     "shadow": s[None, None],
@@ -453,6 +453,13 @@ class RelightSession:
             self._relight_cache.clear()
             self._time("original_sun", t0)
             return self.original_shadow
+
+    @property
+    def refinement(self) -> str:
+        """How ``S_o`` is refined: ``"learned"`` (the R network, with learned shadows and
+        ``refine.json`` installed) or ``"guided filter"`` (said, not dropped silently)."""
+        learned = self.shadow_mode == "learned" and self.registry.available("refine")
+        return "learned" if learned else "guided filter"
 
     @property
     def light_estimate(self) -> LightEstimate | None:
