@@ -11,7 +11,6 @@ import datetime as dt
 import json
 import math
 import os
-import tempfile
 from dataclasses import asdict, dataclass, field
 from enum import Enum
 from pathlib import Path
@@ -314,18 +313,13 @@ def is_project_file(path: str | os.PathLike[str]) -> bool:
 
 
 def save_project(state: ProjectState, path: str | os.PathLike[str]) -> Path:
-    """Write a project file atomically (temp file, then rename)."""
+    """Write a project file atomically (temp file, then rename), with the umask's permissions."""
+    from outcast_core.runtime.imageio import atomic_output
+
     path = Path(path)
     data = state.to_dict(relative_to=path.parent)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            json.dump(data, f, indent=2)
-            f.write("\n")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_output(path, force=True) as tmp:
+        tmp.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     return path
 
 

@@ -352,8 +352,17 @@ def _is_cancelled(cancel: CancelCheck | None) -> bool:
     return bool(cancel())
 
 
+def _follow_umask(path: Path, folder: bool = False) -> None:
+    """Give a temp file (0600) or folder (0700) the mode a plain ``open`` would: 0666 / 0777 less
+    the umask, like every other output (stills, depth maps)."""
+    from outcast_core.runtime.imageio import _umask
+
+    os.chmod(path, (0o777 if folder else 0o666) & ~_umask())
+
+
 def _commit_file(tmp: Path, final: Path, force: bool) -> None:
     """Move a finished temp file into place; no-clobber unless ``force``."""
+    _follow_umask(tmp)
     if force:
         os.replace(tmp, final)
         return
@@ -581,6 +590,7 @@ class PngSequenceWriter(FrameWriter):
                 shutil.rmtree(self.path)
             else:
                 self.path.unlink()
+        _follow_umask(self._tmp, folder=True)
         os.rename(self._tmp, self.path)
         self._tmp = None
         return self.path

@@ -385,3 +385,18 @@ def test_opening_another_photo_starts_fresh_with_its_exif_sun(window, photo, set
     window.open_path(photo)  # no EXIF: the default sun, not the pool's
     settle()
     assert window.align_panel.sun_panel.sun() == pytest.approx((135.0, 45.0))
+
+
+# ---------------------------------------------------------------- defect 9: file modes
+def test_project_file_follows_the_umask(window, photo, settle):
+    import os
+    import stat
+
+    _load(window, photo, settle)
+    old = os.umask(0o022)
+    try:
+        saved = window.save_project()
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(os.stat(saved).st_mode) == 0o644
+    assert not [n for n in os.listdir(os.path.dirname(saved)) if n.startswith(".")]  # no temp
