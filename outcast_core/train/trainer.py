@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 import math
+import pickle
 import random
 import signal
 import time
@@ -61,9 +62,39 @@ def seed_everything(seed: int) -> None:
     torch.manual_seed(seed)
 
 
+def load_checkpoint(path: str | Path) -> dict[str, Any]:
+    """Read a checkpoint as tensors and plain data only (``torch.load(weights_only=True)``).
+
+    A checkpoint is a pickle: loaded with ``weights_only=False``, one from elsewhere could run
+    any code. Ours hold only state dicts, numbers, strings, lists and dicts.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: the file is not a checkpoint, is corrupt, or holds other objects.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"checkpoint {path} not found")
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    except pickle.UnpicklingError as exc:
+        raise ValueError(
+            f"refusing to load checkpoint {path}: it holds objects other than tensors and "
+            "plain data (loading them could run code)"
+        ) from exc
+    except (RuntimeError, EOFError, OSError, ValueError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ValueError(f"cannot read checkpoint {path}: not a checkpoint, or corrupt "
+                         f"({first})") from exc
+    if not isinstance(ckpt, dict) or not isinstance(ckpt.get("nets"), dict):
+        raise ValueError(f"expected a training checkpoint with 'nets' in {path}, got "
+                         f"{type(ckpt).__name__}")
+    return ckpt
+
+
 def load_checkpoint_nets(path: str | Path) -> tuple[dict[str, nn.Module], dict[str, Any]]:
     """Rebuild the networks of a checkpoint (eval mode) and return them with its record."""
-    ckpt = torch.load(Path(path), map_location="cpu", weights_only=False)
+    ckpt = load_checkpoint(path)
     nets: dict[str, nn.Module] = {}
     for kind, state in ckpt["nets"].items():
         net = build(kind, **ckpt["net_kwargs"].get(kind, {}))
@@ -206,7 +237,7 @@ class Trainer:
                 )
         if not path.exists():
             return
-        ckpt = torch.load(path, map_location="cpu", weights_only=False)
+        ckpt = load_checkpoint(path)
         if path != self.checkpoint_path:
             self.branched_from = {"run": self.cfg.resume_from, "step": int(ckpt["step"]),
                                   "wall_time_s": round(float(ckpt["wall_time_s"]), 1),
