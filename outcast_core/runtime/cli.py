@@ -155,7 +155,8 @@ def cmd_relight(args: argparse.Namespace) -> int:
     session.set_original_sun(w_from)
     out = session.relight_full(w_to)
     bit_depth = 16 if Path(args.output).suffix.lower() in {".tif", ".tiff"} else 8
-    write_image(args.output, out, bit_depth=bit_depth, force=args.force)
+    exif = loaded.exif_bytes if bit_depth == 8 else None  # GPS and time, as the app's export
+    write_image(args.output, out, bit_depth=bit_depth, force=args.force, exif=exif)
     t = session.timings
     _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows: "
                f"{session.shadow_mode}, refinement: {session.refinement}, "

@@ -369,10 +369,11 @@ def normalize_sun(w: Any) -> np.ndarray:
         raise ValueError(f"expected a sun direction of 3 components, got shape {np.shape(w)}")
     if not np.all(np.isfinite(v)):
         raise ValueError(f"expected a finite sun direction, got {v.tolist()}")
-    n = float(np.linalg.norm(v))
-    if n < 1e-9:
+    scale = float(np.abs(v).max())  # scaled first: the norm of (1e308, 1e308, 0) overflows
+    if scale < 1e-9:
         raise ValueError("expected a non-zero sun direction, got a zero vector")
-    return v / n
+    v = v / scale
+    return v / float(np.linalg.norm(v))
 
 
 def cosine_term(normals: np.ndarray, w: Any) -> np.ndarray:

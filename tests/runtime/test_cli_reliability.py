@@ -309,3 +309,34 @@ def test_sigterm_removes_the_temporary_file(photo, tmp_path) -> None:
     assert proc.returncode == 143, err
     assert "terminated" in err and "Traceback" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png"]
+
+
+# ------------------------------------------------------------------------------------------
+# 11: smaller ones
+
+
+def test_huge_sun_dir_is_not_a_zero_vector(photo, tmp_path) -> None:
+    from outcast_core.runtime.geometry import normalize_sun
+
+    np.testing.assert_allclose(normalize_sun([1e308, 1e308, 0]), [2**-0.5, 2**-0.5, 0])
+    assert main(["shadow", str(photo), "--sun-dir", "1e308,-1e308,1e308", "--mode", "direct",
+                 "-o", str(tmp_path / "s.png"), "-q"]) == 0
+
+
+def test_relight_keeps_the_photos_exif(tmp_path) -> None:
+    from PIL import Image
+
+    exif = Image.Exif()
+    exif[0x0132] = "2024:06:21 12:00:00"  # DateTime
+    gps = {1: "N", 2: (48.0, 51.0, 24.0), 3: "E", 4: (2.0, 21.0, 3.0)}
+    exif[0x8825] = gps
+    path = tmp_path / "p.jpg"
+    rng = np.random.default_rng(0)
+    Image.fromarray((rng.random((30, 40, 3)) * 255).astype(np.uint8)).save(path, exif=exif)
+    out = tmp_path / "r.jpg"
+    assert main(["relight", str(path), "--from", "90,30", "--to", "200,40", "--mode", "physics",
+                 "--shadows", "direct", "-o", str(out), "-q"]) == 0
+    with Image.open(out) as im:
+        got = im.getexif()
+        assert got[0x0132] == "2024:06:21 12:00:00"
+        assert got.get_ifd(0x8825)[1] == "N"
