@@ -51,8 +51,18 @@ class Terminated(KeyboardInterrupt):
     """Raised by the SIGTERM handler so every ``finally`` and context manager cleans up."""
 
 
+#: A sun below the horizon lights nothing directly; OutCast renders sunlight and its cast
+#: shadows, not twilight, so ``--sun``, ``--from`` and ``--to`` refuse it (time-lapse paths that
+#: dip below the horizon render those frames with the sun at the horizon instead).
+BELOW_HORIZON = (
+    "expected a sun at or above the horizon (elevation 0 to 90), got {text!r}: OutCast renders "
+    "sunlight and cast shadows, not twilight; use elevation 0 for the lowest sun"
+)
+
+
 def parse_azel(text: str) -> np.ndarray:
-    """``"AZ,EL"`` in degrees -> camera-space unit sun vector."""
+    """``"AZ,EL"`` in degrees (elevation 0-90: a sun below the horizon is refused) -> camera-space
+    unit sun vector."""
     parts = text.split(",")
     if len(parts) != 2:
         raise ValueError(f"expected AZ,EL in degrees (e.g. 135,40), got {text!r}")
@@ -64,6 +74,8 @@ def parse_azel(text: str) -> np.ndarray:
         raise ValueError(
             f"expected AZ,EL with a finite azimuth and an elevation in [-90, 90], got {text!r}"
         )
+    if el < 0.0:
+        raise ValueError(BELOW_HORIZON.format(text=text))
     return sun_vector(az, el)
 
 

@@ -49,6 +49,16 @@ def _pair(text: str) -> tuple[float, float]:
     return az, el
 
 
+def _sun_pair(text: str) -> tuple[float, float]:
+    """A sun that lights the photo: ``_pair`` at or above the horizon."""
+    from outcast_core.runtime.cli import BELOW_HORIZON
+
+    az, el = _pair(text)
+    if el < 0.0:
+        raise argparse.ArgumentTypeError(BELOW_HORIZON.format(text=text))
+    return az, el
+
+
 def _number(lo: float, hi: float, what: str) -> Callable[[str], float]:
     """An argparse type: a finite number in ``[lo, hi]``."""
 
@@ -119,7 +129,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument(
         "--from",
         dest="from_sun",
-        type=_pair,
+        type=_sun_pair,
         required=True,
         metavar="AZ,EL",
         help="the photo's original sun (aligned in the app)",
