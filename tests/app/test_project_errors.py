@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from app.state import Step
 
@@ -52,3 +54,32 @@ def test_gui_started_with_a_nested_project_does_not_abort(tmp_path):
     assert result.returncode == 0, result.stderr[-2000:]
     assert result.stdout.split() == ["1", "True"]
     assert "Traceback" not in result.stderr
+
+
+_JSON = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=10),
+    lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=8), inner,
+                                                                max_size=3),
+    max_leaves=10,
+)
+_TOP = ["image", "image_absolute", "preset", "depth_source", "depth_path", "original_sun",
+        "target_sun", "overlay_opacity", "split", "buffer_view", "timelapse"]
+_TL = ["kind", "sweep_from", "sweep_to", "way", "frames", "easing", "date", "latitude",
+       "longitude", "heading", "start", "end", "utc_offset", "fps", "format", "full_resolution"]
+
+
+@settings(max_examples=200, deadline=1000)
+@given(top=st.dictionaries(st.sampled_from(_TOP), _JSON, max_size=4),
+       timelapse=st.dictionaries(st.sampled_from(_TL), _JSON, max_size=4))
+def test_fuzzed_projects_load_or_raise_one_value_error(top, timelapse):
+    from app.state import ProjectState
+
+    data = {"outcast_project": 1, **top}
+    if timelapse or "timelapse" not in data:
+        data["timelapse"] = timelapse
+    try:
+        state = ProjectState.from_dict(data)
+    except ValueError as exc:
+        assert type(exc) is ValueError and "\n" not in str(exc)
+        return
+    state.timelapse.validate()  # what loads also opens in the time-lapse dialog
