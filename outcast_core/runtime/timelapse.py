@@ -48,6 +48,16 @@ MAX_FPS = 60.0
 VIDEO_SUFFIXES = {".mp4": "mp4", ".m4v": "mp4", ".gif": "gif", ".webp": "webp"}
 #: Suns below this elevation are lifted to it for rendering (a sun under the ground casts nonsense).
 MIN_RENDER_ELEVATION = 0.5
+#: Frame sizes: the working size of the preset (fastest), video sizes by their shorter side
+#: (720p: 720 px, so a 4:3 landscape photo gives 960 x 720), or the photo's full size. A size
+#: is never larger than the photo.
+FRAME_SIZES = ("working", "720p", "1080p", "4k", "full")
+DEFAULT_FRAME_SIZE = "1080p"
+SHORT_SIDES = {"720p": 720, "1080p": 1080, "4k": 2160}
+#: Seconds per output megapixel of one frame, for estimates where nothing was measured:
+#: moving the working-size relighting onto the photo, and encoding (measured on 2 busy cores).
+TRANSFER_SECONDS_PER_MP = 0.22
+ENCODE_SECONDS_PER_MP = 0.03
 
 
 class ExportCancelledError(RuntimeError):
@@ -654,6 +664,88 @@ def export_frames(
         raise
 
 
+def frame_shape(
+    size: str, photo_shape: tuple[int, int], working_shape: tuple[int, int]
+) -> tuple[int, int]:
+    """``(H, W)`` of a time-lapse's frames for one of :data:`FRAME_SIZES`.
+
+    Args:
+        size: ``"working"``, ``"720p"``, ``"1080p"``, ``"4k"`` or ``"full"``.
+        photo_shape: the photo's ``(H, W)``.
+        working_shape: the session's working ``(H, W)``.
+
+    Returns:
+        The frame size; video sizes keep the photo's aspect ratio, with the shorter side 720,
+        1080 or 2160 (even numbers, for H.264), and are never larger than the photo.
+
+    Example:
+        >>> frame_shape("1080p", (3000, 4000), (288, 384))
+        (1080, 1440)
+    """
+    if size not in FRAME_SIZES:
+        raise ValueError(f"expected a frame size in {FRAME_SIZES}, got {size!r}")
+    h, w = photo_shape
+    if size == "working":
+        return tuple(working_shape)  # type: ignore[return-value]
+    if size == "full" or SHORT_SIDES[size] >= min(h, w):
+        return h, w
+    scale = SHORT_SIDES[size] / min(h, w)
+    return max(2, 2 * round(h * scale / 2)), max(2, 2 * round(w * scale / 2))
+
+
+def estimate_seconds(
+    frames: int,
+    shape: tuple[int, int],
+    working_shape: tuple[int, int],
+    timings: dict[str, float] | None = None,
+) -> float:
+    """Rough time to render and write ``frames`` frames of ``shape`` (for the dialog and CLI).
+
+    Per frame: the new sun's shadow and relighting at working size (the session's last measured
+    ``shadow`` and ``relight`` stages, else 0.1 s), moving it onto ``shape`` when that is larger
+    than the working size, and encoding.
+
+    Returns:
+        Seconds (at least 0).
+    """
+    timings = timings or {}
+    per_frame = float(timings.get("shadow", 0.05)) + float(timings.get("relight", 0.05))
+    mp = shape[0] * shape[1] / 1e6
+    if shape[0] * shape[1] > working_shape[0] * working_shape[1]:
+        per_frame += TRANSFER_SECONDS_PER_MP * mp
+    per_frame += ENCODE_SECONDS_PER_MP * mp
+    return max(0.0, frames * per_frame)
+
+
+def describe_seconds(seconds: float) -> str:
+    """``"about 40 s"``, ``"about 3 min"``, ``"about 1 h 5 min"``."""
+    if seconds < 60:
+        return f"about {max(1, round(seconds))} s"
+    minutes = round(seconds / 60)
+    if minutes < 60:
+        return f"about {minutes} min"
+    return f"about {minutes // 60} h {minutes % 60} min"
+
+
+def _frame_renderer(session: Any, size: str) -> Callable[[np.ndarray], np.ndarray]:
+    """``sun -> frame`` at ``size``: the working-size relighting, resized or moved onto the photo
+    at that size (its detail kept), like :meth:`RelightSession.relight_full` at any size."""
+    from outcast_core.runtime.relight import transfer_to_full_resolution
+    from outcast_core.runtime.session import resize
+
+    full = session.full_image_srgb
+    work = session.image_srgb
+    shape = frame_shape(size, full.shape[:2], work.shape[:2])
+    if size == "working" or shape == work.shape[:2]:
+        return session.relight
+    if shape == full.shape[:2]:
+        return session.relight_full
+    if shape[0] * shape[1] <= work.shape[0] * work.shape[1]:
+        return lambda w: resize(session.relight(w), shape)
+    photo = resize(full, shape)  # once: every frame starts from the photo at the frame size
+    return lambda w: transfer_to_full_resolution(photo, work, session.relight(w))
+
+
 def render_timelapse(
     session: Any,
     samples: Sequence[SunSample],
@@ -661,6 +753,7 @@ def render_timelapse(
     *,
     fps: float = DEFAULT_FPS,
     full_resolution: bool = False,
+    size: str | None = None,
     fmt: str | None = None,
     force: bool = False,
     progress: ProgressFn | None = None,
@@ -673,7 +766,9 @@ def render_timelapse(
         samples: the sun path.
         path: output file or folder.
         fps: frames per second.
-        full_resolution: render at the photo's full resolution (slow) instead of the working one.
+        full_resolution: the same as ``size="full"`` (kept for callers of earlier versions).
+        size: one of :data:`FRAME_SIZES` (see :func:`frame_shape`); default ``"working"``, or
+            ``"full"`` with ``full_resolution``.
         fmt: output format; from the extension when None.
         force: overwrite an existing output.
         progress: ``(stage, fraction)`` callback.
@@ -686,8 +781,10 @@ def render_timelapse(
         raise ValueError("expected at least one sun sample, got none")
     if getattr(session, "original_sun", None) is None:
         raise RuntimeError("set the original sun before rendering a time-lapse")
+    if size is None:
+        size = "full" if full_resolution else "working"
     suns = sun_vectors(samples)
-    render = session.relight_full if full_resolution else session.relight
+    render = _frame_renderer(session, size)
     return export_frames(
         lambda i: render(suns[i]),
         len(suns),

@@ -16,11 +16,16 @@ from typing import Any
 from outcast_core.runtime.geometry import sun_vector
 from outcast_core.runtime.timelapse import (
     DEFAULT_FPS,
+    DEFAULT_FRAME_SIZE,
     EASINGS,
+    FRAME_SIZES,
     MAX_FPS,
     MIN_FPS,
     SunSample,
+    describe_seconds,
+    estimate_seconds,
     format_from_path,
+    frame_shape,
     real_sun_path,
     render_timelapse,
     solve_heading,
@@ -161,7 +166,13 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     )
     p.add_argument("--fps", type=_number(MIN_FPS, MAX_FPS, "frames per second"),
                    default=DEFAULT_FPS, help=f"{MIN_FPS:g}..{MAX_FPS:g} (default {DEFAULT_FPS:g})")
-    p.add_argument("--full-res", action="store_true", help="render at the photo's full resolution")
+    p.add_argument(
+        "--size", choices=FRAME_SIZES, default=None,
+        help="frame size: the preset's working size (fastest), 720p / 1080p / 4k (shorter side "
+             "720 / 1080 / 2160 px, never above the photo's) or the photo's full size "
+             f"(default {DEFAULT_FRAME_SIZE})",
+    )  # fmt: skip
+    p.add_argument("--full-res", action="store_true", help="the same as --size full")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
     p.add_argument("--preset", choices=("fast", "balanced", "accurate"), default="balanced")
     p.set_defaults(func=run_timelapse_command, check_output=check_timelapse_output)
@@ -223,12 +234,23 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
         loaded.image_srgb, focal_35mm=getattr(exif, "focal_35mm", None), progress=report
     )
     session.set_original_sun(sun_vector(*args.from_sun))
+    size = args.size or ("full" if args.full_res else DEFAULT_FRAME_SIZE)
+    if args.full_res and size != "full":
+        raise ValueError(f"expected either --full-res or --size, got --full-res --size {size}")
+    work = session.image_srgb.shape[:2]
+    shape = frame_shape(size, session.full_image_srgb.shape[:2], work)
+    guess = estimate_seconds(len(samples), shape, work, dict(session.timings))
+    print(
+        f"\nrendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}), "
+        f"{describe_seconds(guess)}",
+        file=sys.stderr,
+    )
     out = render_timelapse(
         session,
         samples,
         args.output,
         fps=args.fps,
-        full_resolution=args.full_res,
+        size=size,
         force=args.force,
         progress=report,
     )
