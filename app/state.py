@@ -27,6 +27,8 @@ MIN_TIMELAPSE_FPS = 1.0
 MAX_TIMELAPSE_FPS = 60.0
 #: Easing names of :data:`outcast_core.runtime.timelapse.EASINGS` (a test keeps them equal).
 EASING_NAMES = ("linear", "ease-in-out", "ease-in", "ease-out")
+#: Frame sizes of :data:`outcast_core.runtime.timelapse.FRAME_SIZES` (a test keeps them equal).
+FRAME_SIZE_NAMES = ("working", "720p", "1080p", "4k", "full")
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".heic", ".heif", ".webp", ".bmp")
 
 
@@ -92,7 +94,8 @@ class TimelapseSettings:
     utc_offset: float | None = None
     fps: float = 12.0
     format: str = "mp4"
-    full_resolution: bool = False
+    full_resolution: bool = False  # read from older projects (size "full"); ``size`` wins
+    size: str = "1080p"  # one of FRAME_SIZE_NAMES
 
     def validate(self) -> TimelapseSettings:
         """Check every field (type and range); ``ValueError`` naming the first bad one.
@@ -122,12 +125,14 @@ class TimelapseSettings:
             raise ValueError(
                 f"timelapse.full_resolution: expected true or false, got {self.full_resolution!r}"
             )
+        _choice(self.size, FRAME_SIZE_NAMES, "timelapse.size")
         return self
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["sweep_from"] = asdict(self.sweep_from)
         d["sweep_to"] = asdict(self.sweep_to)
+        d["full_resolution"] = self.size == "full"  # for older versions of OutCast
         return d
 
     @classmethod
@@ -137,6 +142,8 @@ class TimelapseSettings:
                 f"timelapse: expected the time-lapse settings as an object, got {type(d).__name__}"
             )
         known = {k: v for k, v in d.items() if k in cls.__dataclass_fields__}
+        if "size" not in known and known.get("full_resolution") is True:  # an older project
+            known["size"] = "full"
         for key in ("sweep_from", "sweep_to"):
             if key in known:
                 known[key] = _named(Sun.from_any, known[key], f"timelapse.{key}")

@@ -45,6 +45,13 @@ from outcast_core.runtime import timelapse as tl
 if TYPE_CHECKING:
     from app.main_window import MainWindow
 
+SIZE_CHOICES = (
+    ("working", "Working size"),
+    ("720p", "720p"),
+    ("1080p", "1080p"),
+    ("4k", "4K"),
+    ("full", "Full resolution"),
+)
 FORMAT_CHOICES = (
     ("mp4", "MP4 video (H.264)", "MP4 video (*.mp4)"),
     ("gif", "Animated GIF", "GIF animation (*.gif)"),
@@ -209,15 +216,25 @@ class TimelapseDialog(QDialog):
         self.format_combo = QComboBox(self)
         for key, text, _ in FORMAT_CHOICES:
             self.format_combo.addItem(text, key)
-        self.full_res_check = QCheckBox("Full resolution (slow)", self)
-        self.full_res_check.setToolTip(
-            "Render every frame at the photo's full size instead of the working size"
+        self.size_combo = QComboBox(self)
+        for key, text in SIZE_CHOICES:
+            self.size_combo.addItem(text, key)
+        self.size_combo.setToolTip(
+            "Frame size. 720p, 1080p and 4K set the shorter side (720, 1080, 2160 px) and keep "
+            "the photo's shape; no size is larger than the photo. Working size is the quality "
+            "preset's own (fastest, small)."
+        )
+        self.estimate_label = QLabel("", self)
+        self.estimate_label.setWordWrap(True)
+        self.estimate_label.setToolTip(
+            "A rough estimate from this photo's last relighting times; a busy computer is slower"
         )
         out_form = QFormLayout()
         out_form.addRow("Frames", self.frames_box)
         out_form.addRow("Frames per second", self.fps_box)
         out_form.addRow("Format", self.format_combo)
-        out_form.addRow("", self.full_res_check)
+        out_form.addRow("Size", self.size_combo)
+        out_form.addRow("", self.estimate_label)
 
         # ---- preview + scrubber
         self.preview = QLabel("Preview", self)
@@ -276,6 +293,7 @@ class TimelapseDialog(QDialog):
         self.frames_box.valueChanged.connect(self._settings_changed)
         for c in (self.easing_combo, self.kind_combo, self.way_combo):
             c.currentIndexChanged.connect(self._settings_changed)
+        self.size_combo.currentIndexChanged.connect(self._update_estimate)
         self.date_edit.dateChanged.connect(self._settings_changed)
         self.start_edit.timeChanged.connect(self._settings_changed)
         self.end_edit.timeChanged.connect(self._settings_changed)
@@ -289,7 +307,7 @@ class TimelapseDialog(QDialog):
                    self.easing_combo, self.frames_box, self.date_edit, self.lat_box,
                    self.lon_box, self.heading_box, self.start_edit, self.end_edit,
                    self.offset_box, self.fps_box, self.format_combo, self.daylight_check,
-                   self.way_combo]  # fmt: skip
+                   self.way_combo, self.size_combo]  # fmt: skip
         for w in widgets:
             w.blockSignals(True)
         try:
@@ -304,7 +322,8 @@ class TimelapseDialog(QDialog):
             self.frames_box.setValue(s.frames)
             self.fps_box.setValue(s.fps)
             self.format_combo.setCurrentIndex(max(0, self.format_combo.findData(s.format)))
-            self.full_res_check.setChecked(s.full_resolution)
+            self._label_sizes()
+            self.size_combo.setCurrentIndex(max(0, self.size_combo.findData(s.size)))
             lat = s.latitude if s.latitude is not None else getattr(exif, "latitude", None)
             lon = s.longitude if s.longitude is not None else getattr(exif, "longitude", None)
             self.lat_box.setValue(lat or 0.0)
@@ -365,8 +384,61 @@ class TimelapseDialog(QDialog):
             utc_offset=self.offset_box.value(),
             fps=self.fps_box.value(),
             format=str(self.format_combo.currentData()),
-            full_resolution=self.full_res_check.isChecked(),
+            full_resolution=self.size() == "full",
+            size=self.size(),
         )
+
+    def size(self) -> str:
+        """The chosen frame size (one of :data:`outcast_core.runtime.timelapse.FRAME_SIZES`)."""
+        return str(self.size_combo.currentData())
+
+    def _shapes(self) -> tuple[tuple[int, int], tuple[int, int]] | None:
+        """``(photo, working)`` sizes ``(H, W)`` of the open photo, if any."""
+        session = self.main.session
+        full = getattr(session, "full_image_srgb", None)
+        work = getattr(session, "image_srgb", None)
+        if full is None or work is None:
+            return None
+        return tuple(full.shape[:2]), tuple(work.shape[:2])  # type: ignore[return-value]
+
+    def frame_shape(self) -> tuple[int, int] | None:
+        """``(H, W)`` of the frames at the chosen size."""
+        shapes = self._shapes()
+        return None if shapes is None else tl.frame_shape(self.size(), *shapes)
+
+    def _label_sizes(self) -> None:
+        """Each size with its pixels for this photo: "1080p · 1440 × 1080"."""
+        shapes = self._shapes()
+        for i, (key, text) in enumerate(SIZE_CHOICES):
+            label = text
+            if shapes is not None:
+                h, w = tl.frame_shape(key, *shapes)
+                label = f"{text} · {w} × {h}"
+                if key != "full" and (h, w) == shapes[0]:
+                    label += " (the photo's size)"
+                elif key == "working":
+                    label += " (fastest)"
+            self.size_combo.setItemText(i, label)
+
+    def estimate(self) -> float | None:
+        """Estimated seconds to export the current path at the chosen size."""
+        shapes, shape = self._shapes(), self.frame_shape()
+        if shapes is None or shape is None or not self._samples:
+            return None
+        timings = dict(getattr(self.main.session, "timings", {}) or {})
+        return tl.estimate_seconds(len(self._samples), shape, shapes[1], timings)
+
+    def _update_estimate(self, *_args: Any) -> None:
+        shape, seconds = self.frame_shape(), self.estimate()
+        if shape is None or seconds is None:
+            self.estimate_label.setText("")
+            return
+        self.estimate_label.setText(
+            f"{len(self._samples)} frames of {shape[1]} × {shape[0]}: "
+            f"{tl.describe_seconds(seconds)} to export"
+        )
+        if self._ready:
+            self.main.timelapse_settings = self.settings()
 
     def samples(self) -> list[tl.SunSample]:
         """The current sun path (ValueError when the settings are incomplete)."""
@@ -384,6 +456,7 @@ class TimelapseDialog(QDialog):
             self._samples = self.samples()
         except ValueError as exc:
             self._samples = []
+            self.estimate_label.setText("")
             self.status.setText(f"⚠ {exc}")
             self.export_button.setEnabled(False)
             return
@@ -399,6 +472,7 @@ class TimelapseDialog(QDialog):
         self.scrubber.setRange(0, len(self._samples) - 1)
         self.scrubber.blockSignals(False)
         self.main.timelapse_settings = self.settings()
+        self._update_estimate()
         self._on_scrub(self.scrubber.value())
 
     # ------------------------------------------------------------------ heading
@@ -486,21 +560,25 @@ class TimelapseDialog(QDialog):
             return None
         fmt = str(self.format_combo.currentData())
         fps = self.fps_box.value()
-        full = self.full_res_check.isChecked()
+        size = self.size()
         if not force and os.path.exists(path):
             self.main.show_error(FileExistsError(f"'{path}' already exists"), "export")
             return None
 
         def job(ctx: JobContext) -> dict[str, Any]:
             out = tl.render_timelapse(
-                session, samples, path, fps=fps, full_resolution=full, fmt=fmt, force=force,
+                session, samples, path, fps=fps, size=size, fmt=fmt, force=force,
                 progress=ctx.progress, cancel=ctx.cancel_event,
             )  # fmt: skip
             return {"path": str(out), "frames": len(samples), "timings": dict(session.timings)}
 
         self._set_exporting(True)
         self.progress.setValue(0)
-        self.status.setText(f"Exporting {len(samples)} frames to {os.path.basename(path)}…")
+        shape = self.frame_shape()
+        pixels = f" of {shape[1]} × {shape[0]}" if shape is not None else ""
+        self.status.setText(
+            f"Exporting {len(samples)} frames{pixels} to {os.path.basename(path)}…"
+        )
         return self.main.runner.submit("tl_export", job, f"Exporting {os.path.basename(path)}")
 
     def cancel_export(self) -> None:

@@ -101,7 +101,7 @@ def run_preset(app, photo: str, preset: str, seconds: float, hz: float, tmp: Pat
           lambda: win.export_still(str(tmp / f"still_{preset}.png"), force=True))  # fmt: skip
     dialog = win.open_timelapse()
     s = dialog.settings()
-    s.kind, s.frames, s.format = "sweep", 12, "mp4"
+    s.kind, s.frames, s.format, s.size = "sweep", 12, "mp4", "working"
     dialog.load_settings(s)
     settle()
     timed("time-lapse 12 frames MP4 (working size)",

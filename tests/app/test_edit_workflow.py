@@ -400,3 +400,63 @@ def test_project_file_follows_the_umask(window, photo, settle):
         os.umask(old)
     assert stat.S_IMODE(os.stat(saved).st_mode) == 0o644
     assert not [n for n in os.listdir(os.path.dirname(saved)) if n.startswith(".")]  # no temp
+
+
+# ---------------------------------------------------------------- defect 3: time-lapse sizes
+def test_timelapse_dialog_offers_sizes_with_pixels_and_an_estimate(window, settle, tmp_path):
+    import av
+
+    from app.state import load_project
+    from tests.app.conftest import make_photo
+
+    big = make_photo(tmp_path / "big.jpg", 1600, 1200)
+    _load(window, big, settle)
+    _confirm(window, settle)
+    dialog = window.open_timelapse()
+    labels = [dialog.size_combo.itemText(i) for i in range(dialog.size_combo.count())]
+    work_h, work_w = window.session.image_srgb.shape[:2]
+    assert labels == [
+        f"Working size · {work_w} × {work_h} (fastest)",
+        "720p · 960 × 720",
+        "1080p · 1440 × 1080",
+        "4K · 1600 × 1200 (the photo's size)",
+        "Full resolution · 1600 × 1200",
+    ]
+    assert dialog.size() == "1080p"  # the default: a video size, not the working size
+    s = dialog.settings()
+    s.kind, s.frames = "sweep", 3
+    dialog.load_settings(s)
+    assert dialog.estimate_label.text().startswith("3 frames of 1440 × 1080: about ")
+    assert dialog.estimate_label.text().endswith(" s to export")
+    seconds_hd = dialog.estimate()
+    dialog.size_combo.setCurrentIndex(dialog.size_combo.findData("working"))
+    assert dialog.estimate() < seconds_hd
+    assert f"frames of {work_w} × {work_h}" in dialog.estimate_label.text()
+    dialog.size_combo.setCurrentIndex(dialog.size_combo.findData("720p"))
+    out = tmp_path / "clip.mp4"
+    dialog.export(str(out))
+    settle()
+    assert dialog.last_result == "finished"
+    with av.open(str(out)) as c:
+        frames = [f.to_ndarray(format="rgb24") for f in c.decode(video=0)]
+    assert len(frames) == 3 and frames[0].shape == (720, 960, 3)
+    saved = window.save_project()
+    assert load_project(saved).timelapse.size == "720p"
+
+
+def test_frame_size_names_match_the_runtime():
+    from app.state import FRAME_SIZE_NAMES
+    from app.timelapse_dialog import SIZE_CHOICES
+    from outcast_core.runtime.timelapse import FRAME_SIZES
+
+    assert FRAME_SIZE_NAMES == FRAME_SIZES == tuple(k for k, _ in SIZE_CHOICES)
+
+
+def test_older_projects_with_full_resolution_open_at_full_size():
+    from app.state import TimelapseSettings
+
+    assert TimelapseSettings.from_dict({"full_resolution": True}).size == "full"
+    assert TimelapseSettings.from_dict({}).size == "1080p"
+    assert TimelapseSettings(size="full").to_dict()["full_resolution"] is True
+    with pytest.raises(ValueError, match="timelapse.size"):
+        TimelapseSettings.from_dict({"size": "8k"})
