@@ -35,6 +35,8 @@ EXPECTED_INPUTS: dict[str, frozenset[str]] = {
     ),
     "relight_pix2pix": frozenset({"image", "normals", "sun_old", "sun_new", "view_dirs"}),
 }
+#: Inputs the runtime also feeds, which some variants use (L on the physics base).
+OPTIONAL_INPUTS: dict[str, frozenset[str]] = {"relight": frozenset({"light_ratio"})}
 #: Largest ``pad_multiple`` / ``input_side`` a manifest may give.
 MAX_PAD_MULTIPLE = 256
 MAX_INPUT_SIDE = 8192
@@ -241,7 +243,8 @@ def check_model_io(name: str, manifest: dict[str, Any], session: Any, path: Path
     """Check a loaded network's inputs and outputs against its manifest and the runtime.
 
     The input and output names must be the manifest's (when it lists them), with the ranks of
-    their shapes; the inputs must be those the runtime feeds a model called ``name``.
+    their shapes; the inputs must be those the runtime feeds a model called ``name``
+    (:data:`EXPECTED_INPUTS`, plus any of :data:`OPTIONAL_INPUTS`).
 
     Raises:
         ModelError: naming the file and the mismatch.
@@ -266,8 +269,11 @@ def check_model_io(name: str, manifest: dict[str, Any], session: Any, path: Path
             raise ModelError(f"model file {path} does not match its manifest: {key[:-1]} "
                              f"'{n}' has {got} dimensions, the manifest says {want}")
     wanted = EXPECTED_INPUTS.get(name)
-    if wanted is not None and set(actual["inputs"]) != wanted:
+    optional = OPTIONAL_INPUTS.get(name, frozenset())
+    got = set(actual["inputs"])
+    if wanted is not None and not wanted <= got <= wanted | optional:
+        extra = f" (optionally also {sorted(optional)})" if optional else ""
         raise ModelError(
-            f"model file {path} is not a '{name}' network: inputs {sorted(actual['inputs'])}, "
-            f"expected {sorted(wanted)}"
+            f"model file {path} is not a '{name}' network: inputs {sorted(got)}, "
+            f"expected {sorted(wanted)}{extra}"
         )
