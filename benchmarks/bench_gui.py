@@ -120,11 +120,19 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--presets", default="fast,balanced")
     p.add_argument("--seconds", type=float, default=4.0)
     p.add_argument("--hz", type=float, default=60.0)
+    p.add_argument("--report", metavar="PATH", help="also write the figures to a Markdown report")
     args = p.parse_args(argv)
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
     from PySide6.QtWidgets import QApplication
 
+    from benchmarks.report import report_to
+
     app = QApplication.instance() or QApplication([])
+    with report_to(args.report, "bench_gui"):
+        return _run(app, args)
+
+
+def _run(app, args: argparse.Namespace) -> int:
     print(
         f"photo: {args.photo}  cpu cores: {os.cpu_count()}  drag: {args.seconds} s at {args.hz} Hz"
     )

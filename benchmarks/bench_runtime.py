@@ -123,11 +123,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--quick", action="store_true", help="smaller sizes, one repeat")
+    ap.add_argument("--report", metavar="PATH", help="also write the tables to a Markdown report")
     args = ap.parse_args()
     rep = 1 if args.quick else args.repeats
-    direct_trade(128 if args.quick else 256, rep)
-    early_exit(128 if args.quick else 256, rep)
-    session_reuse(rep)
+    from benchmarks.report import report_to
+
+    with report_to(args.report, "bench_runtime"):
+        direct_trade(128 if args.quick else 256, rep)
+        early_exit(128 if args.quick else 256, rep)
+        session_reuse(rep)
 
 
 if __name__ == "__main__":

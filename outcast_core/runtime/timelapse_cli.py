@@ -151,7 +151,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument(
         "--heading",
         type=_number(-360.0, 360.0, "a heading"),
-        help="camera compass heading, deg from true north (default: solved from EXIF time + GPS)",
+        help="camera compass heading, deg from true north (default: solved from the --from sun "
+             "and the photo's EXIF capture time and GPS)",
     )
     p.add_argument("--start", type=_hhmm, metavar="HH:MM", help="local start time (sunrise)")
     p.add_argument("--end", type=_hhmm, metavar="HH:MM", help="local end time (sunset)")
