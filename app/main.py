@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -23,6 +24,31 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def quit_on_sigterm(app: Any, window: Any) -> Any:
+    """Make SIGTERM quit like File > Quit without questions, then exit with status 143.
+
+    Running work is cancelled, so an export removes its partial files (``.NAME.part*``) as
+    Ctrl+C does for the command line. Qt's event loop runs in C++, so a Python signal handler
+    only runs when Python gets control: a timer gives it that 5 times a second.
+
+    Returns:
+        The timer (keep a reference).
+    """
+    import signal
+
+    from PySide6.QtCore import QTimer
+
+    def handler(signum: int, frame: object) -> None:
+        window.close_without_asking()
+        app.exit(143)
+
+    signal.signal(signal.SIGTERM, handler)
+    timer = QTimer(window)
+    timer.timeout.connect(lambda: None)
+    timer.start(200)
+    return timer
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Start the application; returns the exit status."""
     args = build_parser().parse_args(argv)
@@ -37,9 +63,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     app.setDesktopFileName("io.github.outcast.OutCast")
     window = MainWindow(preset=args.preset, session_mode="classic" if args.classic else "auto")
     window.show()
+    timer = quit_on_sigterm(app, window)
     if args.path:
         window.open_path(args.path)
-    return int(app.exec())
+    status = int(app.exec())
+    timer.stop()
+    return status
 
 
 if __name__ == "__main__":
