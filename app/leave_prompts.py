@@ -84,7 +84,7 @@ def leave_questions(
                 text=f"OutCast is still exporting {names}.",
                 detail=(
                     f"If you stop it now, nothing is written and the file is not created. "
-                    f"Keep exporting, and {then} when it has finished."
+                    f"Or keep exporting, and {then} when it has finished."
                 ),
                 choices=(
                     Choice(KEEP, "Keep exporting", "reject"),

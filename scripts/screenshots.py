@@ -6,7 +6,8 @@ Usage:
 
 The photo is copied into the output folder first, so project files never land next to the
 samples. Screenshots: empty window, photo loaded, sun aligned, mid-drag preview, relit with the
-before/after split, buffers grid, time-lapse dialog, an error dialog.
+before/after split, the Edit menu (undo), buffers grid, time-lapse dialog with its sizes, the
+prompt when quitting during an export, an error dialog.
 """
 
 from __future__ import annotations
@@ -102,6 +103,23 @@ def main(argv: list[str] | None = None) -> int:
     settle()
     shot(win, "05_relit_split.png")
 
+    # The Edit menu after a few edits: drawn onto the window where it pops up.
+    win.relight_panel.sun_panel.azimuth_box.setValue(230.0)
+    settle()
+    bar = win.menuBar()
+    edit_pos = bar.actionGeometry(win.edit_menu.menuAction()).bottomLeft()
+    win.edit_menu.popup(bar.mapToGlobal(edit_pos))
+    app.processEvents()
+    canvas = win.grab()
+    from PySide6.QtGui import QPainter
+
+    painter = QPainter(canvas)
+    painter.drawPixmap(win.mapFromGlobal(win.edit_menu.pos()), win.edit_menu.grab())
+    painter.end()
+    canvas.save(str(out / "05b_edit_menu.png"))
+    print(f"saved {out / '05b_edit_menu.png'}")
+    win.edit_menu.hide()
+
     win.relight_panel.set_view("all")
     settle()
     shot(win, "06_buffers.png")
@@ -116,6 +134,40 @@ def main(argv: list[str] | None = None) -> int:
     dialog.scrubber.setValue(8)
     settle()
     shot(dialog, "07_timelapse.png")
+    combo = dialog.size_combo
+    combo.showPopup()
+    app.processEvents()
+    popup = combo.view().window()
+    picture = dialog.grab()
+    painter = QPainter(picture)
+    painter.drawPixmap(dialog.mapFromGlobal(popup.pos()), popup.grab())
+    painter.end()
+    picture.save(str(out / "07a_timelapse_sizes.png"))
+    print(f"saved {out / '07a_timelapse_sizes.png'}")
+    combo.hidePopup()
+
+    # Quit (Ctrl+Q) while the time-lapse exports: the real prompt, grabbed, answered "Keep".
+    from app.leave_prompts import KEEP
+
+    def grab_and_keep(question):
+        box = win.question_box(question)
+        box.show()
+        app.processEvents()
+        shot(box, "07b_quit_during_export.png")
+        box.close()
+        return KEEP
+
+    win.ask = grab_and_keep
+    seen = []
+    win.runner.progress.connect(lambda i, ch, st, f: seen.append(f) if ch == "tl_export" else 0)
+    dialog.export(str(work / "timelapse.mp4"), force=True)
+    while len(seen) < 2 and win.runner.busy():
+        app.processEvents()
+        time.sleep(0.01)
+    win.act_quit.trigger()
+    dialog.cancel_export()
+    settle()
+    del win.ask
     dialog.close()
 
     win.save_project()
