@@ -443,6 +443,57 @@ def run_projects(folder: Path, photo: Path) -> tuple[int, list[str]]:
     return len(cases), problems
 
 
+_APP_EXPORT_CHILD = r"""
+import sys
+from PySide6.QtCore import QTimer
+from app import main_window
+from app.main import main
+opened = main_window.MainWindow.open_path
+def when_idle(window, then):
+    def poll():
+        if window.runner.busy():
+            QTimer.singleShot(100, poll)
+        else:
+            then()
+    QTimer.singleShot(100, poll)
+def open_and_export(self, path):
+    opened(self, path)
+    def export():
+        dialog = self.open_timelapse()
+        dialog.frames_box.setValue(2000)
+        dialog.export(sys.argv[2])
+    when_idle(self, lambda: (self.confirm_original_sun(), when_idle(self, export)))
+main_window.MainWindow.open_path = open_and_export
+sys.exit(main([sys.argv[1], "--classic", "--preset", "fast"]))
+"""
+
+
+def run_app_sigterm(folder: Path, photo: Path) -> list[str]:
+    """SIGTERM the app during a time-lapse export: exit 143, no partial file left."""
+    try:
+        import PySide6  # noqa: F401
+    except ImportError:
+        return []
+    out, home = folder / "out", folder / "home"
+    out.mkdir(parents=True)
+    home.mkdir()
+    env = {**os.environ, "PYTHONPATH": str(REPO), "QT_QPA_PLATFORM": "offscreen",
+           "HOME": str(home)}
+    cmd = [sys.executable, "-c", _APP_EXPORT_CHILD, str(photo), str(out / "tl.mp4")]
+    rc, seconds, _, stderr, timed_out = _run_child(cmd, env, out, ".tl.", signal.SIGTERM)
+    problems = []
+    if timed_out:
+        problems.append("hang")
+    if "Traceback" in stderr:
+        problems.append("traceback")
+    if rc != 143:
+        problems.append(f"exit {rc}, expected 143: {stderr.strip().splitlines()[-1:]}")
+    left = sorted(p.name for p in out.iterdir())
+    if left:
+        problems.append(f"left behind: {left}")
+    return problems
+
+
 # --------------------------------------------------------------------------------------------
 
 
@@ -467,12 +518,20 @@ def main(argv: list[str] | None = None) -> int:
         n_projects, project_problems = run_projects(work / "projects", inp / "photo.jpg")
         for line in project_problems:
             print(f"FAIL project {line}")
+        app_problems = run_app_sigterm(work / "app", inp / "photo.jpg")
+        if args.verbose or app_problems:
+            flag = "FAIL" if app_problems else "ok  "
+            print(f"{flag} SIGTERM app time-lapse export  {'; '.join(app_problems)}")
+        n_projects += 1
         bombs = [r for r in results if r.probe.bomb]
         counts = {
             "probes": len(results) + n_projects,
-            "tracebacks": sum("traceback" in r.problems for r in results),
-            "hangs": sum("hang" in r.problems for r in results),
-            "files left behind": sum(bool(r.left) for r in results),
+            "tracebacks": sum("traceback" in r.problems for r in results)
+            + ("traceback" in app_problems),
+            "hangs": sum("hang" in r.problems for r in results) + ("hang" in app_problems),
+            "files left behind": sum(bool(r.left) for r in results)
+            + any(p.startswith("left behind") for p in app_problems),
+            "app SIGTERM failures": len(app_problems),
             "other failures": sum(bool(r.problems) and not r.left
                                   and not {"traceback", "hang"} & set(r.problems)
                                   for r in results),
