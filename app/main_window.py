@@ -115,6 +115,9 @@ class WindowShortcutsWin(QObject):
             exact = QKeySequence.SequenceMatch.ExactMatch
             for seq in self._sequences():
                 if not seq.isEmpty() and pressed.matches(seq) == exact:
+                    box = watched if isinstance(watched, QAbstractSpinBox) else watched.parent()
+                    if isinstance(box, QAbstractSpinBox):
+                        box.interpretText()  # a typed number counts before the action runs
                     event.ignore()  # not claimed by the field: the shortcut map fires the action
                     return True
         return False

@@ -460,3 +460,17 @@ def test_older_projects_with_full_resolution_open_at_full_size():
     assert TimelapseSettings(size="full").to_dict()["full_resolution"] is True
     with pytest.raises(ValueError, match="timelapse.size"):
         TimelapseSettings.from_dict({"size": "8k"})
+
+
+def test_a_typed_number_counts_before_a_shortcut(qtbot, window, photo, settle):
+    _load(window, photo, settle)
+    box = window.align_panel.sun_panel.azimuth_box
+    window.activateWindow()
+    box.setFocus()
+    qtbot.waitUntil(box.hasFocus)
+    box.lineEdit().selectAll()
+    qtbot.keyClicks(box.lineEdit(), "77")  # typed, not yet committed (no Enter)
+    assert window.align_panel.sun_panel.sun()[0] != pytest.approx(77.0)
+    qtbot.keyClick(box, Qt.Key.Key_Return, Qt.KeyboardModifier.ControlModifier)  # confirm
+    settle()
+    assert window.step is Step.RELIGHT and window.original_sun.azimuth == pytest.approx(77.0)
