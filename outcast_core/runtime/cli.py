@@ -340,6 +340,8 @@ def check_output_path(
                        f"{', '.join(extensions)}, got '{path.suffix}'")
     if path.is_dir() and not folder_ok:
         raise CliError(f"cannot write '{output}': it is a folder")
+    if path.exists() and not path.is_dir() and not path.is_file():
+        raise CliError(f"cannot write '{output}': it is not a regular file (a device or pipe)")
     for source in inputs:
         if source and path.exists() and Path(source).exists() and os.path.samefile(path, source):
             raise CliError(f"cannot write '{output}': it is the input file '{source}'; "

@@ -202,6 +202,18 @@ def test_output_equal_to_input_is_refused_even_with_force(photo, tmp_path, capsy
     assert photo.read_bytes() == before
 
 
+def test_a_device_is_never_replaced(photo, tmp_path, capsys, no_work) -> None:
+    link = tmp_path / "null.png"
+    link.symlink_to("/dev/null")
+    assert main(["relight", str(photo), "--from", "90,30", "--to", "200,40", "-o", str(link),
+                 "--force"]) == 2
+    _one_line_error(capsys, "not a regular file")
+    assert main(["timelapse", str(photo), "--from", "90,30", "--sweep", "1,2:3,4", "--frames",
+                 "2", "-o", "/dev/null", "--force"]) == 2
+    _one_line_error(capsys, "not a regular file")
+    assert Path("/dev/null").is_char_device() and link.is_symlink()
+
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
 def test_read_only_folder_is_refused_before_the_work(photo, tmp_path, capsys, no_work) -> None:
     folder = tmp_path / "ro"
