@@ -517,6 +517,8 @@ def atomic_output(
     path = Path(path)
     if path.is_dir():
         raise IsADirectoryError(f"cannot write '{path}': it is a folder")
+    if path.exists() and not path.is_file():
+        raise ValueError(f"cannot write '{path}': it is not a regular file (a device or pipe)")
     if path.exists() and not force:
         raise FileExistsError(f"'{path}' already exists; use --force to overwrite it")
     parent = path.parent

@@ -706,3 +706,11 @@ def test_non_srgb_icc_profile_is_converted(tmp_path: Path) -> None:
     assert loaded[..., 1].mean() > 0.7 and loaded[..., 0].mean() < 0.1  # red became green
     Image.fromarray(pixels).save(tmp_path / "plain.png")
     assert read_image(tmp_path / "plain.png").image_srgb[..., 0].mean() == pytest.approx(200 / 255)
+
+
+def test_atomic_output_never_replaces_a_device(tmp_path: Path) -> None:
+    link = tmp_path / "null.png"
+    link.symlink_to("/dev/null")
+    with pytest.raises(ValueError, match="not a regular file"):
+        write_image(link, np.zeros((2, 2, 3), np.float32), force=True)
+    assert link.is_symlink() and Path("/dev/null").is_char_device()
