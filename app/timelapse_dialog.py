@@ -576,9 +576,7 @@ class TimelapseDialog(QDialog):
         self.progress.setValue(0)
         shape = self.frame_shape()
         pixels = f" of {shape[1]} × {shape[0]}" if shape is not None else ""
-        self.status.setText(
-            f"Exporting {len(samples)} frames{pixels} to {os.path.basename(path)}…"
-        )
+        self.status.setText(f"Exporting {len(samples)} frames{pixels} to {os.path.basename(path)}…")
         return self.main.runner.submit("tl_export", job, f"Exporting {os.path.basename(path)}")
 
     def cancel_export(self) -> None:

@@ -45,7 +45,8 @@ def test_every_option_is_in_the_synopsis(command):
         if action.dest == "full_res":  # kept for old scripts; --size full says the same
             continue
         assert any(re.search(rf"{re.escape(o)}\b", text) for o in action.option_strings), (
-            command, action.option_strings
+            command,
+            action.option_strings,
         )
 
 
