@@ -68,7 +68,7 @@ _TL = ["kind", "sweep_from", "sweep_to", "way", "frames", "easing", "date", "lat
        "longitude", "heading", "start", "end", "utc_offset", "fps", "format", "full_resolution"]
 
 
-@settings(max_examples=200, deadline=1000)
+@settings(max_examples=200, deadline=10_000)
 @given(top=st.dictionaries(st.sampled_from(_TOP), _JSON, max_size=4),
        timelapse=st.dictionaries(st.sampled_from(_TL), _JSON, max_size=4))
 def test_fuzzed_projects_load_or_raise_one_value_error(top, timelapse):

@@ -165,7 +165,7 @@ ARG_TOKENS = st.sampled_from([
 ])
 
 
-@settings(max_examples=300, deadline=1000)
+@settings(max_examples=300, deadline=10_000)
 @given(argv=st.lists(ARG_TOKENS | st.text(max_size=6), max_size=8))
 def test_cli_argument_parsing(argv: list[str]) -> None:
     """Parsing never raises anything but a clean argparse exit (status 2, or 0 for help)."""
