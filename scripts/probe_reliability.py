@@ -235,7 +235,7 @@ def probes(inp: Path, models: dict[str, Path]) -> list[Probe]:
         Probe("relight keeps EXIF", [*rel, "-o", "{out}/r.jpg"], ok=True, outputs=("r.jpg",)),
         Probe("manifest pad_multiple 0", [*sh, "--mode", "learned", "-o", "{out}/s.png"],
               env={"OUTCAST_MODEL_DIR": str(models["pad0"])}, expect="pad_multiple"),
-        Probe("manifest: no refine.json", [*rel, "--depth", str(inp / "depth_ok.npy"), "-o",
+        Probe("manifest: no refine.json", [*rel, "--refine", "learned", "--depth", str(inp / "depth_ok.npy"), "-o",
                                            "{out}/r.jpg"], ok=True, outputs=("r.jpg",),
               env={"OUTCAST_MODEL_DIR": str(models["norefine"])},
               expect="refinement: guided filter"),

@@ -109,7 +109,7 @@ def _make_session(args: argparse.Namespace, *, shadow_mode: str, relight_mode: s
     thickness = getattr(args, "thickness", math.inf)
     return RelightSession(
         preset=args.preset, shadow_mode=shadow_mode, relight_mode=relight_mode,
-        thickness=thickness,
+        thickness=thickness, refine=getattr(args, "refine", "photo"),
     )
 
 
@@ -173,6 +173,31 @@ def cmd_relight(args: argparse.Namespace) -> int:
     _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows: "
                f"{session.shadow_mode}, refinement: {session.refinement}, "
                f"relighting: {session.relight_mode}, depth: "
+               f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
+         + ")")
+    return 0
+
+
+def cmd_deshadow(args: argparse.Namespace) -> int:
+    from outcast_core.runtime.imageio import write_image, write_shadow_png
+
+    w_from = parse_azel(args.from_sun)
+    if args.mask:  # the main output is checked before the work by _check_output
+        check_output_path(args.mask, extensions=(".png",), force=args.force,
+                          inputs=[args.image, args.depth, args.output])
+    loaded = _load(args.image)
+    session = _make_session(args, shadow_mode="auto")
+    _set_image(session, loaded, args)
+    session.set_original_sun(w_from)
+    out = session.deshadow_full()
+    bit_depth = 16 if Path(args.output).suffix.lower() in {".tif", ".tiff"} else 8
+    write_image(args.output, out, bit_depth=bit_depth, force=args.force,
+                exif=loaded.exif_bytes)
+    if args.mask:
+        write_shadow_png(args.mask, session.shadow_probability, force=args.force)
+    t = session.timings
+    _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows found at the "
+               f"photo's sun with {session.shadow_mode} S as the prior, depth: "
                f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
          + ")")
     return 0
@@ -244,11 +269,23 @@ def build_parser(
     p.add_argument("--to", dest="to_sun", required=True, metavar="AZ,EL", help="the new sun")
     p.add_argument("--mode", choices=["auto", "physics", "learned"], default="auto",
                    help="learned relighting (default when installed) or physics ratios")
+    p.add_argument("--refine", choices=["photo", "learned"], default="photo",
+                   help="how the photo's own shadows are found at its sun: from the photo with "
+                   "the predicted shadows as the prior (default), or the learned R network")
     p.add_argument("--shadows", choices=["auto", "direct", "learned"], default="auto",
                    help="shadow method (default: learned when installed, else Direct)")
     p.add_argument("--thickness", default=math.inf, type=_thickness, help=argparse.SUPPRESS)
     _add_common(p)
     p.set_defaults(func=cmd_relight)
+
+    p = sub.add_parser("deshadow", help="lift the photo's own shadows (found at its sun)")
+    p.add_argument("image")
+    p.add_argument("--from", dest="from_sun", required=True, metavar="AZ,EL",
+                   help="the photo's sun (the shadows are found where it can cast them)")
+    p.add_argument("--mask", default="",
+                   help="also write the found shadows as a 16-bit grey PNG (white = shadow)")
+    _add_common(p)
+    p.set_defaults(func=cmd_deshadow)
 
     p = sub.add_parser("depth", help="estimate depth with the depth model")
     p.add_argument("image")
@@ -308,7 +345,7 @@ def _output_extensions(command: str) -> tuple[str, ...] | None:
     from outcast_core.runtime.imageio import DEPTH_EXTENSIONS, WRITE_EXTENSIONS
 
     return {"shadow": (".png",), "relight": tuple(WRITE_EXTENSIONS),
-            "depth": tuple(DEPTH_EXTENSIONS)}.get(command)
+            "deshadow": tuple(WRITE_EXTENSIONS), "depth": tuple(DEPTH_EXTENSIONS)}.get(command)
 
 
 def check_output_path(

@@ -29,6 +29,7 @@ from outcast_core.runtime.depth_post import postprocess_z, run_depth_model
 from outcast_core.runtime.geometry import (
     DEFAULT_FOV_DEG,
     Camera,
+    cosine_term,
     focal_from_35mm,
     network_depth,
     normalize_sun,
@@ -36,6 +37,12 @@ from outcast_core.runtime.geometry import (
     view_directions,
 )
 from outcast_core.runtime.models import ModelError, ModelRegistry
+from outcast_core.runtime.photo_shadows import (
+    LIT_FLOOR,
+    deshadow,
+    original_shadow_from_photo,
+    photo_shadow_probability,
+)
 from outcast_core.runtime.raymarch import RaySampler
 from outcast_core.runtime.relight import (
     LightEstimate,
@@ -152,6 +159,10 @@ class RelightSession:
         shadow_mode: overrides ``mode`` for shadows: ``auto``, ``learned`` or ``direct``.
         relight_mode: overrides ``mode`` for relighting: ``auto``, ``learned`` or ``physics``.
         thickness: Direct mode's occluder thickness (relative to depth; ``inf`` = solid).
+        refine: how the original shadow ``S_o`` is found at "Confirm sun": ``photo`` (the
+            photo's own shadows, with ``S`` as the prior: :mod:`~outcast_core.runtime.
+            photo_shadows`; measured best on real photos) or ``learned`` (the ``R`` network
+            where installed, else ``S`` snapped to the photo's edges).
         depth_mode: ``auto`` (a given depth, else the depth model when installed, else the
             ground-plane prior), ``model`` (the depth model; :class:`ModelError` if missing) or
             ``prior`` (never the model: for when it is broken).
@@ -173,9 +184,13 @@ class RelightSession:
         relight_mode: str | None = None,
         thickness: float = math.inf,
         depth_mode: str = "auto",
+        refine: str = "photo",
     ) -> None:
         if depth_mode not in {"auto", "model", "prior"}:
             raise ValueError(f"expected depth mode auto, model or prior, got {depth_mode!r}")
+        if refine not in {"photo", "learned"}:
+            raise ValueError(f"expected refine photo or learned, got {refine!r}")
+        self.refine = refine
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
         shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
@@ -203,6 +218,7 @@ class RelightSession:
         self.depth_source = "none"
         self.original_sun: np.ndarray | None = None
         self.original_shadow: np.ndarray | None = None
+        self.shadow_probability: np.ndarray | None = None
         self._reset_working()
 
     # ------------------------------------------------------------------ set-up
@@ -231,6 +247,8 @@ class RelightSession:
         self._shadow_cache = _LRU()
         self._relight_cache = _LRU()
         self._light: LightEstimate | None = None
+        self._deshadowed: np.ndarray | None = None
+        self.shadow_probability = None
 
     def _time(self, stage: str, t0: float) -> None:
         self.timings[stage] = time.perf_counter() - t0
@@ -437,7 +455,11 @@ class RelightSession:
             self._require_image()
             t0 = time.perf_counter()
             s = self.shadow(wv)
-            if self.refinement == "learned":
+            prob = None
+            if self.refinement == "photo":
+                prob = photo_shadow_probability(self.image_srgb, self.sky, s)
+                s = original_shadow_from_photo(prob, cosine_term(self.normals, wv), self.sky)
+            elif self.refinement == "learned":
                 model = self.registry.load("refine")
                 out = model.run({
                     "shadow": s[None, None],
@@ -447,19 +469,52 @@ class RelightSession:
                 s = np.clip(_first(out)[0, 0], 0.0, 1.0)
             else:
                 s = snap_shadow_to_photo(s, self.image_srgb)
+            if prob is None:  # the photo's shadows as S_o describes them
+                lit = np.maximum(cosine_term(self.normals, wv), LIT_FLOOR)
+                prob = np.where(self.sky, 0.0, np.clip(1.0 - s / lit, 0.0, 1.0))
             self.original_sun = wv
             self.original_shadow = s.astype(np.float32)
+            self.shadow_probability = prob.astype(np.float32)
             self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self.sky)
             self._relight_cache.clear()
+            self._deshadowed = None
             self._time("original_sun", t0)
             return self.original_shadow
 
     @property
     def refinement(self) -> str:
-        """How ``S_o`` is refined: ``"learned"`` (the R network, with learned shadows and
-        ``refine.json`` installed) or ``"guided filter"`` (said, not dropped silently)."""
+        """How ``S_o`` is refined: ``"photo"`` (the photo's own shadows, ``refine="photo"``),
+        ``"learned"`` (the R network, with learned shadows and ``refine.json`` installed) or
+        ``"guided filter"`` (said, not dropped silently)."""
+        if self.refine == "photo":
+            return "photo"
         learned = self.shadow_mode == "learned" and self.registry.available("refine")
         return "learned" if learned else "guided filter"
+
+    def deshadow(self) -> np.ndarray:
+        """The photo with its own shadows lifted, at working resolution (``H x W x 3`` sRGB).
+
+        Needs :meth:`set_original_sun` (the shadows are found at the photo's sun).
+        """
+        with self._lock:
+            self._require_image()
+            if self.shadow_probability is None:
+                raise RuntimeError("set_original_sun() must be called before deshadow()")
+            if self._deshadowed is None:
+                t0 = time.perf_counter()
+                self._deshadowed = deshadow(self.image_srgb, self.shadow_probability, self.sky)
+                self._time("deshadow", t0)
+            return self._deshadowed
+
+    def deshadow_full(self) -> np.ndarray:
+        """:meth:`deshadow` at the photo's full resolution (the lift, upsampled, applied to the
+        full-resolution photo, so its own detail survives)."""
+        out = self.deshadow()
+        t0 = time.perf_counter()
+        with self._lock:
+            full = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, out)
+        self._time("deshadow_full", t0)
+        return full
 
     @property
     def light_estimate(self) -> LightEstimate | None:

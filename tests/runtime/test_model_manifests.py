@@ -102,15 +102,18 @@ def test_missing_refine_is_said_not_dropped_silently(tmp_path, capsys, monkeypat
     for name in ("shadow", "relight"):
         _install(models, name)
     registry = ModelRegistry(models)
-    session = RelightSession(registry=registry, shadow_mode="learned", relight_mode="learned")
+    session = RelightSession(registry=registry, shadow_mode="learned", relight_mode="learned",
+                             refine="learned")
     assert session.shadow_mode == "learned" and session.refinement == "guided filter"
     _install(models, "refine")
-    assert RelightSession(registry=ModelRegistry(models)).refinement == "learned"
+    assert RelightSession(registry=ModelRegistry(models), refine="learned").refinement == "learned"
+    assert RelightSession(registry=ModelRegistry(models)).refinement == "photo"
     (models / "refine.json").unlink()
     monkeypatch.setenv("OUTCAST_MODEL_DIR", str(models))
     photo = tmp_path / "p.png"
     write_image(photo, np.full((24, 32, 3), 0.5, np.float32))
-    assert main(["relight", str(photo), "--from", "90,30", "--to", "200,40", "--depth",
+    assert main(["relight", str(photo), "--from", "90,30", "--to", "200,40", "--refine", "learned",
+                 "--depth",
                  str(_flat_depth(tmp_path)), "-o", str(tmp_path / "r.png")]) == 0
     err = capsys.readouterr().err
     assert "shadows: learned, refinement: guided filter" in err
