@@ -18,7 +18,12 @@ photo and on average (DESIGN.md, "Real photographs: how we measure"):
 * ``deshadow_in`` / ``deshadow_out`` (photos with a shadow-free twin ``NAME_free.*``): the
   de-shadowed photo's RMSE in CIE Lab against the twin inside the mask, as a ratio to the
   unchanged input's, and outside the mask the excess over the input's own RMSE;
-* ``seconds``: wall time for the photo (depth, 24 suns, confirmation).
+* ``relit_chroma`` / ``relit_sky``: relit to the sun :data:`RELIGHT_TURN` degrees of azimuth
+  away (same elevation), the mean change of chroma (Lab ``a*, b*`` distance) over the pixels
+  lit under both suns (``S_o`` and ``S_n`` both above :data:`LIT_BOTH`), and the mean Lab change
+  on the sky when neither sun is in the frame (brightness may follow the new shading, colour may
+  not; the sky stays as it is);
+* ``seconds``: wall time for the photo (depth, 24 suns, confirmation, de-shadowing, one relight).
 
 Masks are compared at the mask's size: shadow images are resized to it (bilinear) before the
 threshold. The numbers are for notes and ``models/EVAL.md``; pictures made from a research data
@@ -46,6 +51,9 @@ SHADOW_THRESHOLD = 0.15
 SWEEP_SUNS: tuple[tuple[float, float], ...] = tuple(
     (float(az), float(el)) for el in (20, 45) for az in range(0, 360, 30)
 )
+#: Azimuth turn of the relighting check, and the shadow level above which a pixel counts as lit.
+RELIGHT_TURN = 120.0
+LIT_BOTH = 0.3
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp")
 
 Progress = Callable[[str, float], None]
@@ -158,6 +166,8 @@ class PhotoResult:
     shuffled_ber: float = float("nan")
     deshadow_in: float | None = None
     deshadow_out: float | None = None
+    relit_chroma: float | None = None
+    relit_sky: float | None = None
     extra: dict[str, float] = field(default_factory=dict)
 
 
@@ -231,11 +241,38 @@ def evaluate_photo(
         res.deshadow_out = (lab_rmse(deshadowed, free, ~truth)
                             - lab_rmse(loaded.image_srgb, free, ~truth))
         res.extra["input_lab_rmse_in"] = base_in
+    if hasattr(session, "relight"):
+        _relight_checks(session, res, az, el)
     res.seconds = time.perf_counter() - t0
     if keep is not None:
         keep.update(image=loaded.image_srgb, truth=truth, overlay=overlay, refined=refined,
                     deshadowed=deshadowed)
     return res
+
+
+def sun_in_frame(w: np.ndarray, camera: Any) -> bool:
+    """Whether the sun direction ``w`` projects inside the image."""
+    from outcast_core.runtime.geometry import project
+
+    u, v = project(np.asarray(w, np.float64), camera)
+    return bool(np.isfinite(u) and 0 <= u < camera.width and 0 <= v < camera.height)
+
+
+def _relight_checks(session: Any, res: PhotoResult, az: float, el: float) -> None:
+    """``relit_chroma`` and ``relit_sky`` of :class:`PhotoResult` (module docstring)."""
+    w_o, w_n = sun_vector(az, el), sun_vector((az + RELIGHT_TURN) % 360.0, el)
+    relit = session.relight(w_n)
+    image = session.image_srgb
+    lab_a = cv2.cvtColor(np.clip(image, 0, 1).astype(np.float32), cv2.COLOR_RGB2Lab)
+    lab_b = cv2.cvtColor(np.clip(relit, 0, 1).astype(np.float32), cv2.COLOR_RGB2Lab)
+    lit = (session.original_shadow > LIT_BOTH) & (session.shadow(w_n) > LIT_BOTH) & ~session.sky
+    if lit.any():
+        d = lab_b[lit, 1:] - lab_a[lit, 1:]
+        res.relit_chroma = float(np.mean(np.hypot(d[:, 0], d[:, 1])))
+    if session.sky.any() and not (sun_in_frame(w_o, session.camera)
+                                  or sun_in_frame(w_n, session.camera)):
+        d = lab_b[session.sky] - lab_a[session.sky]
+        res.relit_sky = float(np.mean(np.sqrt(np.sum(d * d, axis=-1))))
 
 
 def shuffled_control(
@@ -256,7 +293,7 @@ def shuffled_control(
 
 SUMMARY_KEYS = ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuffled_ber",
                 "sky_claim", "overlay_fraction", "shadow_fraction", "seconds",
-                "deshadow_in", "deshadow_out")
+                "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky")
 
 
 def summarize(results: Sequence[PhotoResult]) -> dict[str, float]:
@@ -365,8 +402,8 @@ def _write_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
 def render_table(report: dict[str, Any]) -> str:
     """The per-photo results and their means as a Markdown table."""
     head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | Shuffled | Sky claim |"
-            " De-shadow in / out | s |")
-    lines = [head, "|---|---|---|---|---|---|---|---|---|---|"]
+            " De-shadow in / out | Relit chroma / sky | s |")
+    lines = [head, "|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(v: Any, d: int = 3) -> str:
         return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{d}f}"
@@ -378,14 +415,15 @@ def render_table(report: dict[str, Any]) -> str:
             f"| {r['name']} | {r['best_sun'][0]:.0f},{r['best_sun'][1]:.0f} | "
             f"{f(r['overlay_ber'])} | {f(r['opposite_ber'])} | {f(r['refined_ber'])} | "
             f"{f(r['otsu_ber'])} | {f(r['shuffled_ber'])} | {f(r['sky_claim'])} | {ds} | "
-            f"{f(r['seconds'], 1)} |")
+            f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} | {f(r['seconds'], 1)} |")
     m = report["mean"]
     ds = ("-" if "deshadow_in" not in m
           else f"{f(m['deshadow_in'], 2)} / {f(m.get('deshadow_out'), 2)}")
     lines.append(
         f"| **mean ({int(m['photos'])})** | | **{f(m.get('overlay_ber'))}** | "
         f"{f(m.get('opposite_ber'))} | **{f(m.get('refined_ber'))}** | {f(m.get('otsu_ber'))} | "
-        f"{f(m.get('shuffled_ber'))} | {f(m.get('sky_claim'))} | {ds} | {f(m.get('seconds'), 1)} |")
+        f"{f(m.get('shuffled_ber'))} | {f(m.get('sky_claim'))} | {ds} | "
+        f"{f(m.get('relit_chroma'), 2)} / {f(m.get('relit_sky'), 2)} | {f(m.get('seconds'), 1)} |")
     return "\n".join(lines)
 
 

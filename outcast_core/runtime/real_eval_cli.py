@@ -112,7 +112,8 @@ def _summary_line(preset: str, report: dict[str, Any]) -> str:
 def render_trade(reports: dict[str, Any]) -> str:
     """One row per preset: the mean figures beside the time per photo."""
     lines = ["| Preset | Overlay BER | Opposite | S_o BER | Otsu | Shuffled | Sky claim | "
-             "De-shadow in / out | s / photo |", "|---|---|---|---|---|---|---|---|---|"]
+             "De-shadow in / out | Relit chroma / sky | s / photo |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(m: dict[str, float], k: str, d: int = 3) -> str:
         return f"{m[k]:.{d}f}" if k in m else "-"
@@ -123,5 +124,6 @@ def render_trade(reports: dict[str, Any]) -> str:
               else f"{f(m, 'deshadow_in', 2)} / {f(m, 'deshadow_out', 2)}")
         lines.append(f"| {preset} | {f(m, 'overlay_ber')} | {f(m, 'opposite_ber')} | "
                      f"{f(m, 'refined_ber')} | {f(m, 'otsu_ber')} | {f(m, 'shuffled_ber')} | "
-                     f"{f(m, 'sky_claim')} | {ds} | {f(m, 'seconds', 2)} |")
+                     f"{f(m, 'sky_claim')} | {ds} | {f(m, 'relit_chroma', 2)} / "
+                     f"{f(m, 'relit_sky', 2)} | {f(m, 'seconds', 2)} |")
     return "\n".join(lines)

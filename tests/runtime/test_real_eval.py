@@ -148,6 +148,8 @@ def test_cli_eval_real_on_a_tiny_folder(tmp_path: Path, capsys: pytest.CaptureFi
                     "sky_claim"):
             assert 0.0 <= p[key] <= 1.0, key
         assert p["otsu_ber"] < 0.05
+        assert p["relit_chroma"] is not None and 0.0 <= p["relit_chroma"] < 50.0
+    assert photos[1]["deshadow_in"] is not None and photos[0]["deshadow_in"] is None
     assert (tmp_path / "sheet_fast.png").is_file() and (tmp_path / "sheet_balanced.png").is_file()
     # Nothing overwritten silently.
     assert main(["eval", "real", str(data), "--mode", "classic", "--json", str(out_json),
