@@ -10,6 +10,9 @@ import numpy as np
 
 #: Tint of predicted shadows over the photo (a cool blue that reads against warm and green scenes).
 OVERLAY_RGB = (40, 110, 255)
+#: Tint of the shadows found in the photo (step 2's "Shadows found" view): magenta, so it is not
+#: taken for step 1's predicted shadows.
+FOUND_RGB = (235, 50, 200)
 #: Overlay strength on surfaces turned away from the sun (attached shadow), relative to cast ones.
 ATTACHED_STRENGTH = 0.35
 BUFFER_TITLES = {
@@ -78,6 +81,39 @@ def shadow_overlay_rgba(
     out = np.empty(s.shape + (4,), np.uint8)  # H x W x 4
     out[..., 0], out[..., 1], out[..., 2] = colour
     out[..., 3] = (np.clip(dark, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    return out
+
+
+def found_shadow_overlay_rgba(
+    probability: np.ndarray,
+    sky: np.ndarray | None = None,
+    colour: tuple[int, int, int] = FOUND_RGB,
+) -> np.ndarray:
+    """Tinted overlay of the shadows found in the photo (what de-shadowing lifts).
+
+    Args:
+        probability: ``H x W`` float in [0, 1], the session's ``shadow_probability``.
+        sky: ``H x W`` bool, never tinted.
+        colour: tint RGB.
+
+    Returns:
+        ``H x W x 4`` uint8 RGBA (straight alpha): alpha is the probability.
+
+    Example:
+        >>> found_shadow_overlay_rgba(np.array([[0.0, 1.0]]))[..., 3].tolist()
+        [[0, 255]]
+    """
+    p = np.asarray(probability, dtype=np.float32)
+    if p.ndim != 2:
+        raise ValueError(f"expected a shadow probability of shape H x W, got {p.shape}")
+    p = np.clip(np.nan_to_num(p, nan=0.0), 0.0, 1.0)
+    if sky is not None:
+        if sky.shape != p.shape:
+            raise ValueError(f"expected a sky mask of shape {p.shape}, got {sky.shape}")
+        p = np.where(sky, 0.0, p)
+    out = np.empty(p.shape + (4,), np.uint8)  # H x W x 4
+    out[..., 0], out[..., 1], out[..., 2] = colour
+    out[..., 3] = (p * 255.0 + 0.5).astype(np.uint8)
     return out
 
 

@@ -5,7 +5,11 @@ functions capture plain values and never touch widgets. Results come back as sig
 this window, in the GUI thread. Channels (one pending job each, latest wins):
 
 ``load``, ``preset``, ``shadow`` (step-1 overlay), ``confirm``, ``relight`` (step-2 view),
-``export_still``, ``tl_preview``, ``tl_export``.
+``export_still``, ``export_shadows_removed``, ``tl_preview``, ``tl_export``.
+
+The step-2 views "Shadows removed" and "Shadows found" do not depend on the new sun: their
+images are computed once per photo, original sun and preset (on the ``relight`` channel, so the
+latest view choice wins) and kept, so dragging the new sun there costs nothing.
 """
 
 from __future__ import annotations
@@ -81,10 +85,16 @@ STAGE_WORDS = {
     "confirm": "Refining the original shadows",
     "relight": "Relighting",
     "export_still": "Exporting still",
+    "export_shadows_removed": "Exporting shadows removed",
     "tl_preview": "Rendering time-lapse frame",
     "tl_export": "Exporting time-lapse",
 }
-EXPORT_CHANNELS = ("export_still", "tl_export")
+#: Exports of one image at full resolution (same progress, cancel and safe writing).
+IMAGE_EXPORT_CHANNELS = ("export_still", "export_shadows_removed")
+EXPORT_CHANNELS = (*IMAGE_EXPORT_CHANNELS, "tl_export")
+#: Step-2 views of the photo's own shadows (independent of the new sun), and those with a split.
+DESHADOW_VIEWS = ("shadows_removed", "shadows_found")
+SPLIT_VIEWS = ("output", "shadows_removed")
 DEFAULT_SUN = (135.0, 45.0)  # behind-right of the camera, half-way up: where a new photo starts
 ICON_PATH = Path(__file__).resolve().parent / "resources" / "outcast.svg"
 STILL_FILTERS = "PNG image (*.png);;JPEG image (*.jpg *.jpeg);;16-bit TIFF (*.tif *.tiff)"
@@ -160,6 +170,11 @@ class MainWindow(QMainWindow):
         self._timelapse_dialog: Any = None
         self._last_load: tuple[Any, ...] | None = None
         self._after_label = "Relit"
+        # The deshadow views' images: (load, original sun, preset) -> (photo, overlay).
+        self._loads = 0  # counts loaded sessions
+        self._deshadow_key: tuple[Any, ...] | None = None
+        self._deshadow_images: tuple[QImage, QImage] | None = None
+        self._deshadow_job: tuple[tuple[Any, ...], int] | None = None  # (key, id) being computed
         # Undo/redo (app/history.py): the last recorded state, and a reload's state to restore.
         self.undo_stack = QUndoStack(self)
         self._edit_state: EditState | None = None
@@ -217,6 +232,13 @@ class MainWindow(QMainWindow):
         self.act_save_as.triggered.connect(self.save_project_dialog)
         self.act_export = QAction("&Export still…", self, shortcut=QKeySequence("Ctrl+E"))
         self.act_export.triggered.connect(self.export_still_dialog)
+        self.act_export_deshadow = QAction(
+            "Export shadows &removed…", self, shortcut=QKeySequence("Ctrl+Shift+E")
+        )
+        self.act_export_deshadow.setToolTip(
+            "Save the photo with its own shadows removed, at full resolution (Ctrl+Shift+E)"
+        )
+        self.act_export_deshadow.triggered.connect(self.export_shadows_removed_dialog)
         self.act_depth = QAction("Load &depth map…", self)
         self.act_depth.setToolTip(
             "Use a depth map from elsewhere (a phone's depth, another estimator): .npy, 16-bit "
@@ -261,6 +283,7 @@ class MainWindow(QMainWindow):
         file_menu.addAction(self.act_save_as)
         file_menu.addSeparator()
         file_menu.addAction(self.act_export)
+        file_menu.addAction(self.act_export_deshadow)
         file_menu.addAction(self.act_timelapse)
         file_menu.addSeparator()
         file_menu.addAction(self.act_quit)
@@ -348,8 +371,9 @@ class MainWindow(QMainWindow):
     def _window_shortcuts(self) -> list[QKeySequence]:
         """Shortcuts that reach the window even while a number field has focus."""
         acts = (
-            self.act_export, self.act_timelapse, self.act_confirm, self.act_save, self.act_open,
-            self.act_quit, self.act_undo, self.act_redo, self.act_keys,
+            self.act_export, self.act_export_deshadow, self.act_timelapse, self.act_confirm,
+            self.act_save, self.act_open, self.act_quit, self.act_undo, self.act_redo,
+            self.act_keys,
         )  # fmt: skip
         return [seq for act in acts for seq in act.shortcuts()]
 
@@ -372,7 +396,7 @@ class MainWindow(QMainWindow):
         self.align_panel.setEnabled(has_photo)
         for act in (self.act_save, self.act_save_as, self.act_depth):
             act.setEnabled(has_photo)
-        for act in (self.act_export, self.act_timelapse):
+        for act in (self.act_export, self.act_export_deshadow, self.act_timelapse):
             act.setEnabled(step is Step.RELIGHT)
         self.act_confirm.setEnabled(step is Step.ALIGN)
         if step is Step.RELIGHT:
@@ -482,7 +506,7 @@ class MainWindow(QMainWindow):
             "Keyboard shortcuts",
             "Sun dial (click it first): arrow keys move the sun 1°, Shift 10°, Ctrl 0.1°.\n"
             "Ctrl+O open · Ctrl+S save project · Ctrl+Return confirm the sun · Ctrl+E export still"
-            " · Ctrl+T time-lapse\n"
+            " · Ctrl+Shift+E export shadows removed · Ctrl+T time-lapse\n"
             "Canvas: mouse wheel zooms, drag pans, double-click or Ctrl+0 fits, Ctrl+1 actual "
             "pixels.",
         )
@@ -583,6 +607,8 @@ class MainWindow(QMainWindow):
             self.recent.add(self.image_path)
             self._save_recent()
         self._photo_qimage = qimage_from_array(result["photo"])
+        self._deshadow_key = self._deshadow_images = None
+        self._loads += 1
         self.canvas.set_image(self._photo_qimage)
         self.original_sun = None
         cam = getattr(self.session, "camera", None)
@@ -840,13 +866,15 @@ class MainWindow(QMainWindow):
             self.request_relight(az, el, True)
 
     def _on_view_changed(self, _index: int) -> None:
-        self.relight_panel.split_slider.setEnabled(self.relight_panel.view() == "output")
+        self.relight_panel.split_slider.setEnabled(self.relight_panel.view() in SPLIT_VIEWS)
         self.request_relight(preview=False)
 
     def _on_split_changed(self, value: int) -> None:
-        self.relight_panel.split_slider.setEnabled(self.relight_panel.view() == "output")
-        if self.step is Step.RELIGHT and self.relight_panel.view() == "output":
-            self.canvas.set_split(value / 100.0, ("Original", self._after_label))
+        view = self.relight_panel.view()
+        self.relight_panel.split_slider.setEnabled(view in SPLIT_VIEWS)
+        if self.step is Step.RELIGHT and view in SPLIT_VIEWS:
+            after = self._after_label if view == "output" else "Shadows removed"
+            self.canvas.set_split(value / 100.0, ("Original", after))
 
     def request_relight(
         self, az: float | None = None, el: float | None = None, preview: bool = False
@@ -855,9 +883,11 @@ class MainWindow(QMainWindow):
         session = self.session
         if session is None or self.step is not Step.RELIGHT:
             return None
+        view = self.relight_panel.view()
+        if view in DESHADOW_VIEWS:
+            return self.request_deshadow()
         if az is None or el is None:
             az, el = self.relight_panel.sun_panel.sun()
-        view = self.relight_panel.view()
 
         def job(ctx: JobContext) -> dict[str, Any]:
             w = sun_vector(az, el)
@@ -875,13 +905,81 @@ class MainWindow(QMainWindow):
 
         return self.runner.submit("relight", job, "Relighting")
 
+    def request_deshadow(self) -> int | None:
+        """Show the photo with its own shadows removed, or the shadows found (step-2 views).
+
+        Computed in the worker once per photo, original sun and preset, at full resolution;
+        later requests show the kept images at once.
+
+        Returns:
+            The job's id, or ``None`` when nothing had to be computed.
+        """
+        session, key = self.session, self._deshadow_key_now()
+        if session is None or key is None or self.step is not Step.RELIGHT:
+            return None
+        view = self.relight_panel.view()
+        if key == self._deshadow_key and self._deshadow_images is not None:
+            self._show_deshadow(view)
+            return None
+        if self._deshadow_job is not None and self._deshadow_job[0] == key:
+            job_id = self._deshadow_job[1]
+            waiting = self.runner.latest("relight") == job_id
+            if waiting and any(i == job_id for i, _, _ in self.runner.active()):
+                return job_id  # already on its way (the new sun moved: nothing else to do)
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            ctx.progress("removing shadows", 0.1)
+            image = display.to_uint8_rgb(session.deshadow_full())
+            overlay = display.found_shadow_overlay_rgba(session.shadow_probability, session.sky)
+            return {"view": view, "key": key, "image": image, "overlay": overlay,
+                    "timings": _timings(session)}  # fmt: skip
+
+        job_id = self.runner.submit("relight", job, "Removing the photo's shadows")
+        self._deshadow_job = (key, job_id)
+        return job_id
+
+    def _deshadow_key_now(self) -> tuple[Any, ...] | None:
+        """What the deshadow views' images depend on: the session, the original sun, the preset."""
+        if self.session is None or self.original_sun is None:
+            return None
+        return self._loads, self.original_sun.as_tuple(), self.preset
+
+    def _show_deshadow(self, view: str) -> None:
+        """Put the kept de-shadowed photo (split with the original) or the found shadows up."""
+        if self._deshadow_images is None:
+            return
+        image, overlay = self._deshadow_images
+        if self.canvas.before() is not self._photo_qimage and self._photo_qimage is not None:
+            self.canvas.set_image(self._photo_qimage, fit=False)
+        if view == "shadows_removed":
+            self.canvas.set_overlay(None)
+            self.canvas.set_after(image)
+            self._on_split_changed(self.relight_panel.split_slider.value())
+        else:
+            self.canvas.set_after(None)
+            self.canvas.set_split(None)
+            self.canvas.set_overlay(overlay)
+
     def _on_relit(self, result: dict[str, Any]) -> None:
         if self.step is not Step.RELIGHT:
             return
         view = result["view"]
+        if view != self.relight_panel.view():
+            return  # the user chose another view since; its own request is on the way
+        if view in DESHADOW_VIEWS:
+            if result["key"] != self._deshadow_key_now():
+                return  # for a photo, sun or preset that has changed since
+            self._deshadow_key = result["key"]
+            self._deshadow_images = (
+                qimage_from_array(result["image"]),
+                qimage_from_array(result["overlay"]),
+            )
+            self._show_deshadow(view)
+            return
         if view == "output":
             if self.canvas.before() is not self._photo_qimage and self._photo_qimage is not None:
                 self.canvas.set_image(self._photo_qimage, fit=False)
+            self.canvas.set_overlay(None)
             self.canvas.set_after(qimage_from_array(result["image"]))
             self._after_label = "Relit · preview" if result.get("preview") else "Relit"
             self._on_split_changed(self.relight_panel.split_slider.value())
@@ -931,10 +1029,57 @@ class MainWindow(QMainWindow):
 
     def export_still(self, path: str, force: bool = False) -> int | None:
         """Relight at full resolution and write PNG, JPEG or 16-bit TIFF (atomic)."""
-        session, loaded = self.session, self.loaded
+        session = self.session
         if session is None or self.step is not Step.RELIGHT:
             return None
-        az, el = self.relight_panel.sun_panel.sun()
+        w = sun_vector(*self.relight_panel.sun_panel.sun())
+        return self._export_image(
+            "export_still", path, force, lambda: session.relight_full(w),
+            "relighting at full resolution",
+        )  # fmt: skip
+
+    def export_shadows_removed_dialog(self) -> None:
+        """Ask where to write the photo with its own shadows removed, then export it."""
+        if self.step is not Step.RELIGHT:
+            return
+        stem = Path(self.image_path).stem
+        suggestion = str(Path(self.image_path).with_name(f"{stem}_shadows_removed.png"))
+        # As for the still: the file dialog asks before replacing an existing file.
+        path, _ = QFileDialog.getSaveFileName(
+            self, "Export shadows removed", suggestion, STILL_FILTERS
+        )
+        if path:
+            self.export_shadows_removed(path, force=True)
+
+    def export_shadows_removed(self, path: str, force: bool = False) -> int | None:
+        """Write the photo with its own shadows removed at full resolution (as the still)."""
+        session = self.session
+        if session is None or self.step is not Step.RELIGHT:
+            return None
+        return self._export_image(
+            "export_shadows_removed", path, force, session.deshadow_full,
+            "removing shadows at full resolution",
+        )  # fmt: skip
+
+    def _export_image(
+        self, channel: str, path: str, force: bool, render: Callable[[], np.ndarray], stage: str
+    ) -> int | None:
+        """Render one full-resolution image in the worker and write it atomically.
+
+        PNG and JPEG keep the photo's EXIF; ``.tif`` is 16-bit. Without ``force`` an existing
+        file is refused (here at once, and again by the writer).
+
+        Args:
+            channel: one of :data:`IMAGE_EXPORT_CHANNELS`.
+            path: the output file.
+            force: replace an existing file (the user confirmed it).
+            render: returns the ``H x W x 3`` sRGB image; runs in the worker.
+            stage: progress text while ``render`` runs.
+
+        Returns:
+            The job's id, or ``None`` when the file exists and ``force`` is off.
+        """
+        session, loaded = self.session, self.loaded
         if not force and os.path.exists(path):
             self.show_error(FileExistsError(f"'{path}' already exists"), "export")
             return None
@@ -942,8 +1087,8 @@ class MainWindow(QMainWindow):
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.imageio import write_image
 
-            ctx.progress("relighting at full resolution", 0.1)
-            img = session.relight_full(sun_vector(az, el))
+            ctx.progress(stage, 0.1)
+            img = render()
             ctx.progress("writing", 0.8)
             suffix = Path(path).suffix.lower()
             sixteen = suffix in (".tif", ".tiff")
@@ -953,7 +1098,7 @@ class MainWindow(QMainWindow):
             )
             return {"path": path, "timings": _timings(session)}
 
-        return self.runner.submit("export_still", job, f"Exporting {os.path.basename(path)}")
+        return self.runner.submit(channel, job, f"Exporting {os.path.basename(path)}")
 
     # ================================================================== time-lapse
     def open_timelapse(self) -> Any:
@@ -1036,7 +1181,7 @@ class MainWindow(QMainWindow):
     @Slot(int, str, str)
     def _on_job_started(self, job_id: int, channel: str, description: str) -> None:
         self.stage_label.setText(f"{description or STAGE_WORDS.get(channel, channel)}…")
-        if channel in ("load", "preset", "confirm", "export_still", "tl_export"):
+        if channel in ("load", "preset", "confirm", *EXPORT_CHANNELS):
             self.progress_bar.setRange(0, 0 if channel == "confirm" else 100)
             self.progress_bar.setValue(0)
             self.progress_bar.show()
@@ -1045,7 +1190,7 @@ class MainWindow(QMainWindow):
     def _on_job_progress(self, job_id: int, channel: str, stage: str, fraction: float) -> None:
         if channel in EXPORT_CHANNELS:
             self._job_fraction[job_id] = fraction
-        if channel in ("load", "preset", "export_still", "tl_export"):
+        if channel in ("load", "preset", *EXPORT_CHANNELS):
             self.progress_bar.setRange(0, 100)
             self.progress_bar.setValue(round(100 * fraction))
             base = STAGE_WORDS.get(channel, channel)
@@ -1074,12 +1219,12 @@ class MainWindow(QMainWindow):
             self._on_confirmed(result)
         elif channel == "relight":
             self._on_relit(result)
-        elif channel == "export_still":
+        elif channel in IMAGE_EXPORT_CHANNELS:
             self.last_export = result["path"]
         elif channel in ("tl_preview", "tl_export") and self._timelapse_dialog is not None:
             self._timelapse_dialog.on_job_finished(channel, result)
         if not self.runner.busy():
-            if channel == "export_still":
+            if channel in IMAGE_EXPORT_CHANNELS:
                 text = f"Saved {os.path.basename(result['path'])} in {seconds:.1f} s"
             elif channel == "tl_export":
                 text = f"Saved time-lapse {os.path.basename(str(result['path']))}"
@@ -1099,7 +1244,7 @@ class MainWindow(QMainWindow):
                 self._save_recent()
         if channel in ("tl_export", "tl_preview") and self._timelapse_dialog is not None:
             self._timelapse_dialog.on_job_failed(channel, exc)
-        action = {"load": "open", "export_still": "export", "tl_export": "export"}.get(channel, "")
+        action = "export" if channel in EXPORT_CHANNELS else {"load": "open"}.get(channel, "")
         last = self._last_load
         restore = last[2] if channel == "load" and last is not None else None
         if restore is not None and restore.depth_path != self.depth_path:
@@ -1124,7 +1269,7 @@ class MainWindow(QMainWindow):
     def _on_job_cancelled(self, job_id: int, channel: str) -> None:
         if channel == "tl_export" and self._timelapse_dialog is not None:
             self._timelapse_dialog.on_export_cancelled()
-        if channel in ("tl_export", "export_still", "load"):
+        if channel in (*EXPORT_CHANNELS, "load"):
             self.progress_bar.hide()
             self.stage_label.setText(f"{STAGE_WORDS.get(channel, channel)}: cancelled")
 

@@ -19,6 +19,8 @@ from app.qt_sun_dial import SunDialPanel
 
 VIEW_CHOICES = (
     ("output", "Relit photo"),
+    ("shadows_removed", "Shadows removed"),
+    ("shadows_found", "Shadows found"),
     ("depth", "Depth"),
     ("normals", "Normals"),
     ("original_shadow", "Original shadow"),
@@ -121,7 +123,10 @@ class RelightPanel(QWidget):
         self.view_combo = QComboBox(self)
         for key, text in VIEW_CHOICES:
             self.view_combo.addItem(text, key)
-        self.view_combo.setToolTip("What the canvas shows: the relit photo or its buffers")
+        self.view_combo.setToolTip(
+            "What the canvas shows: the relit photo, the photo with its own shadows removed, "
+            "the shadows found in it (tinted), or the buffers"
+        )
         self.split_slider = _percent_slider(50, self)
         self.split_slider.setToolTip("Before/after split: left of the line is the original photo")
         self.export_button = QPushButton("Export still…", self)

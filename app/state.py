@@ -19,7 +19,11 @@ from typing import Any
 PROJECT_SUFFIX = ".outcast.json"
 PROJECT_VERSION = 1
 PRESET_NAMES = ("fast", "balanced", "accurate")
-BUFFER_VIEWS = ("output", "depth", "normals", "original_shadow", "new_shadow", "all")
+#: The step-2 views (:data:`app.panels.VIEW_CHOICES`; a test keeps them equal).
+BUFFER_VIEWS = (
+    "output", "shadows_removed", "shadows_found", "depth", "normals", "original_shadow",
+    "new_shadow", "all",
+)  # fmt: skip
 MAX_PROJECT_BYTES = 1_000_000  # project files are a few kB
 #: Time-lapse ranges: the dialog's spin boxes (a project outside them does not load).
 MAX_TIMELAPSE_FRAMES = 2000
