@@ -1229,7 +1229,10 @@ class MainWindow(QMainWindow):
             elif channel == "tl_export":
                 text = f"Saved time-lapse {os.path.basename(str(result['path']))}"
             else:
-                text = f"Ready · {STAGE_WORDS.get(channel, channel).lower()} took {seconds:.2f} s"
+                words = STAGE_WORDS.get(channel, channel)
+                if isinstance(result, dict) and result.get("view") in DESHADOW_VIEWS:
+                    words = "Removing shadows"
+                text = f"Ready · {words.lower()} took {seconds:.2f} s"
             self.stage_label.setText(text)
 
     @Slot(int, str, object)

@@ -6,8 +6,9 @@ Usage:
 
 The photo is copied into the output folder first, so project files never land next to the
 samples. Screenshots: empty window, photo loaded, sun aligned, mid-drag preview, relit with the
-before/after split, the Edit menu (undo), buffers grid, time-lapse dialog with its sizes, the
-prompt when quitting during an export, an error dialog.
+before/after split, the Edit menu (undo), the photo with its shadows removed and the shadows
+found, buffers grid, time-lapse dialog with its sizes, the prompt when quitting during an
+export, an error dialog.
 """
 
 from __future__ import annotations
@@ -119,6 +120,14 @@ def main(argv: list[str] | None = None) -> int:
     canvas.save(str(out / "05b_edit_menu.png"))
     print(f"saved {out / '05b_edit_menu.png'}")
     win.edit_menu.hide()
+
+    # The photo's own shadows: lifted (split with the photo), then the shadows found, tinted.
+    win.relight_panel.set_view("shadows_removed")
+    settle()
+    shot(win, "05c_shadows_removed.png")
+    win.relight_panel.set_view("shadows_found")
+    settle()
+    shot(win, "05d_shadows_found.png")
 
     win.relight_panel.set_view("all")
     settle()
