@@ -216,6 +216,10 @@ class RelightSession:
         self._given_depth: np.ndarray | None = None
         self._focal_full: float | None = None
         self.depth_source = "none"
+        #: Optional depth source used instead of the depth model (not instead of a given
+        #: depth): ``(image_srgb, camera) -> (depth, sky)`` with a ``name`` shown as "depth: ...";
+        #: see :mod:`~outcast_core.runtime.depth_models` (phone maps, ONNX depth models).
+        self.depth_provider: Any = None
         self.original_sun: np.ndarray | None = None
         self.original_shadow: np.ndarray | None = None
         self.shadow_probability: np.ndarray | None = None
@@ -359,6 +363,10 @@ class RelightSession:
             sky = resize(sky_src.astype(np.uint8), (cam.height, cam.width), nearest=True) > 0
             self.depth_source = "given"
             return np.where(sky, np.inf, depth).astype(np.float32), sky
+        if self.depth_provider is not None:
+            depth, sky = self.depth_provider(self.image_srgb, cam)
+            self.depth_source = str(self.depth_provider.name)
+            return depth, sky
         if self.depth_mode != "prior" and self.registry.available("depth"):
             # Z at the scale it was trained at, then the sky prior, edge-aware smoothing and
             # the ground plane for real photos (runtime.depth_post).
