@@ -207,7 +207,11 @@ def run_eval(args: argparse.Namespace) -> int:
             for k, c in enumerate(r["contrast"]):
                 md.append(f"| `{r['file']}` | {k + 1} {r['to'][k]} | {c['new_shadow_frac']} | "
                           f"{c['relit_contrast']} | {c['photo_contrast']} |")
-    out.write_text("\n".join(md) + "\n")
+    from outcast_core.runtime.real_eval import real_section
+
+    # The real-photo section (``outcast eval real --report``) is measured by another command.
+    kept = real_section(out.read_text(encoding="utf-8")) if out.exists() else ""
+    out.write_text("\n".join(md) + "\n" + (f"\n{kept}\n" if kept else ""))
     if not args.no_manifest_update:
         from outcast_core.export.cards import update_readme
 

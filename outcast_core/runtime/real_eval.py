@@ -427,6 +427,32 @@ def render_table(report: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+REPORT_BEGIN = ("<!-- real-photos: written by `outcast eval real --report`; "
+                "kept by `outcast eval` -->")
+REPORT_END = "<!-- real-photos: end -->"
+
+
+def real_section(text: str) -> str:
+    """The real-photo section of a report (markers included), or ``""``."""
+    i, j = text.find(REPORT_BEGIN), text.find(REPORT_END)
+    return text[i: j + len(REPORT_END)] if 0 <= i < j else ""
+
+
+def update_report(path: str | Path, section: str) -> Path:
+    """Put ``section`` between :data:`REPORT_BEGIN` / :data:`REPORT_END` in the Markdown file
+    ``path`` (replacing the previous one, or appended; the file is created if missing)."""
+    path = Path(path)
+    text = path.read_text(encoding="utf-8") if path.exists() else ""
+    block = f"{REPORT_BEGIN}\n{section.strip()}\n{REPORT_END}"
+    old = real_section(text)
+    before = text.rstrip("\n") + ("\n\n" if text else "")
+    text = text.replace(old, block) if old else before + block
+    tmp = path.with_name(f".{path.name}.part")
+    tmp.write_text(text + ("" if text.endswith("\n") else "\n"), encoding="utf-8")
+    tmp.replace(path)
+    return path
+
+
 def write_json(path: str | Path, report: dict[str, Any]) -> None:
     """The report as JSON (NaN written as null)."""
     def clean(v: Any) -> Any:
@@ -453,7 +479,9 @@ __all__ = [
     "lab_rmse",
     "read_mask",
     "otsu_shadow_mask",
+    "real_section",
     "render_table",
+    "update_report",
     "shadow_mask",
     "shuffled_control",
     "summarize",

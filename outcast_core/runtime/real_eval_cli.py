@@ -47,6 +47,9 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--sheet", default="",
                    help="write a contact sheet (PNG/JPEG) here: photo, human mask (green), "
                    "overlay (red), refined shadow (blue), de-shadowed; keep it out of git")
+    p.add_argument("--report", default="",
+                   help="write the tables into this Markdown file's real-photo section (e.g. "
+                   "models/EVAL.md; the rest of the file is kept)")
     p.add_argument("--force", action="store_true", help="overwrite existing JSON / sheet files")
     p.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     p.set_defaults(func=run_command)
@@ -64,6 +67,7 @@ def run_command(args: argparse.Namespace) -> int:
         evaluate_real,
         find_items,
         render_table,
+        update_report,
         write_json,
     )
     from outcast_core.runtime.session import RelightSession
@@ -97,9 +101,38 @@ def run_command(args: argparse.Namespace) -> int:
     if len(reports) > 1:
         print("\n## Speed / accuracy\n")
         print(render_trade(reports))
+    if args.report:
+        update_report(args.report, render_report(reports, args))
     if args.json_out:
         write_json(args.json_out, reports if len(reports) > 1 else next(iter(reports.values())))
     return 0
+
+
+def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
+    """The real-photo section of ``models/EVAL.md``: command, date, trade table, per-photo
+    table of the first preset. Only numbers: no picture of the photos."""
+    import datetime as dt
+    import shlex
+
+    argv = ["outcast", "eval", "real", args.folder, "--preset", ",".join(reports),
+            "--mode", args.mode] + (["--limit", str(args.limit)] if args.limit else [])
+    first = next(iter(reports.values()))
+    from outcast_core.runtime.real_eval import render_table
+
+    return "\n".join([
+        "## Real photographs", "",
+        f"Produced by `{' '.join(shlex.quote(a) for a in argv)} --report ...` on "
+        f"{dt.datetime.now(dt.UTC).isoformat(timespec='minutes')} (this 2-core CPU, shared, so "
+        "times are noisy). Protocol: DESIGN.md, \"Real photographs: how we measure\"; BER = "
+        "balanced error rate against the human masks (0 perfect, 0.5 chance), at each photo's "
+        "best of 24 suns; de-shadow in = Lab RMSE inside the mask against the shadow-free twin "
+        "over the unchanged input's; out = excess over the input's own RMSE outside the mask; "
+        "relit chroma = mean a*b* change where lit under both suns (sun 120 deg away), sky = mean "
+        "Lab change on the sky when no sun is in frame. The photos are research data kept "
+        "outside the repository; only these numbers are here.", "",
+        "### Speed / accuracy", "", render_trade(reports), "",
+        f"### Per photo ({first['preset']})", "", render_table(first),
+    ])
 
 
 def _summary_line(preset: str, report: dict[str, Any]) -> str:

@@ -161,3 +161,17 @@ def test_cli_eval_real_rejects_a_folder_without_masks(tmp_path: Path,
                                                        capsys: pytest.CaptureFixture) -> None:
     assert main(["eval", "real", str(tmp_path)]) == 2
     assert "NAME_mask.png" in capsys.readouterr().err
+
+
+def test_report_section_is_replaced_and_the_rest_kept(tmp_path: Path) -> None:
+    from outcast_core.runtime.real_eval import real_section, update_report
+
+    report = tmp_path / "EVAL.md"
+    report.write_text("# Synthetic\n\nTable 1\n")
+    update_report(report, "## Real photographs\n\nBER 0.3")
+    update_report(report, "## Real photographs\n\nBER 0.2")
+    text = report.read_text()
+    assert text.startswith("# Synthetic\n\nTable 1\n")
+    assert "BER 0.2" in text and "BER 0.3" not in text
+    assert text.count("## Real photographs") == 1
+    assert "BER 0.2" in real_section(text)
