@@ -113,12 +113,38 @@ def _make_session(args: argparse.Namespace, *, shadow_mode: str, relight_mode: s
     )
 
 
+def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:
+    """Give the session ``--depth-model``, else the photo's own depth map (unless
+    ``--no-phone-depth``); a broken embedded map is said in one line and the depth model used."""
+    if getattr(args, "depth", None):
+        return  # a depth file replaces every estimate
+    if getattr(args, "depth_model", None):
+        from outcast_core.runtime.depth_models import ModelDepthSource, load_depth_model
+
+        session.depth_provider = ModelDepthSource(load_depth_model(args.depth_model))
+        return
+    if getattr(args, "no_phone_depth", False):
+        return
+    from outcast_core.runtime.depth_models import PhoneDepthSource
+    from outcast_core.runtime.phone_depth import PhoneDepthError, read_phone_depth
+
+    width, height = loaded.original_size
+    try:
+        phone = read_phone_depth(loaded.path, (height, width))
+    except (PhoneDepthError, OSError) as exc:
+        _say(args, f"note: the photo's own depth map is not used: {exc}; using the depth model")
+        return
+    if phone is not None:
+        session.depth_provider = PhoneDepthSource(phone)
+
+
 def _set_image(session, loaded, args: argparse.Namespace) -> None:
     depth = None
     if getattr(args, "depth", None):
         from outcast_core.runtime.imageio import read_depth
 
         depth = read_depth(args.depth)
+    _set_depth_source(session, loaded, args)
     focal35 = None if args.fov is not None else loaded.exif.focal_35mm
     session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth)
 
@@ -209,22 +235,32 @@ def cmd_depth(args: argparse.Namespace) -> int:
     from outcast_core.runtime.session import PRESETS, RelightSession
 
     registry = ModelRegistry()
-    registry.load("depth")  # ModelError naming the file when the model is missing or corrupt
     preset = PRESETS[args.preset]
     loaded = _load(args.image, max_pixels=4 * preset.working_size**2)
     session = RelightSession(registry=registry, preset=args.preset, shadow_mode="direct",
                              relight_mode="physics")
-    session.set_image(loaded.image_srgb, fov_deg=args.fov)
+    _set_depth_source(session, loaded, args)
+    if session.depth_provider is None:
+        registry.load("depth")  # ModelError naming the file when the model is missing or corrupt
+    focal35 = None if args.fov is not None else loaded.exif.focal_35mm
+    session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35)
     depth = np.where(session.sky, np.inf, session.depth).astype(np.float32)
     write_depth(args.output, depth, force=args.force)
-    _say(args, f"wrote {args.output} ({depth.shape[1]}x{depth.shape[0]}, sky = inf)")
+    _say(args, f"wrote {args.output} ({depth.shape[1]}x{depth.shape[0]}, sky = inf; depth: "
+               f"{session.depth_source}, {session.timings.get('depth', 0.0):.2f} s)")
     return 0
 
 
 def _add_common(p: argparse.ArgumentParser, *, depth: bool = True) -> None:
+    g = p.add_mutually_exclusive_group()
     if depth:
-        p.add_argument("--depth", help="depth map (.npy float32 H x W, 16-bit PNG or .exr) "
+        g.add_argument("--depth", help="depth map (.npy float32 H x W, 16-bit PNG or .exr) "
                                        "to use instead of the depth model")
+    g.add_argument("--depth-model", metavar="MODEL.onnx",
+                   help="a monocular ONNX depth model to use instead of the shipped one "
+                        "(Depth Anything, MiDaS, ...; settings in MODEL.onnx.json)")
+    p.add_argument("--no-phone-depth", action="store_true",
+                   help="ignore a depth map stored inside the photo (phone portrait photos)")
     p.add_argument("--fov", type=_fov, default=None,
                    help="horizontal field of view in degrees (default: EXIF, else 60)")
     p.add_argument("--preset", choices=["fast", "balanced", "accurate"],
@@ -287,7 +323,8 @@ def build_parser(
     _add_common(p)
     p.set_defaults(func=cmd_deshadow)
 
-    p = sub.add_parser("depth", help="estimate depth with the depth model")
+    p = sub.add_parser("depth", help="estimate depth (the photo's own map, --depth-model or the "
+                                     "shipped depth model)")
     p.add_argument("image")
     _add_common(p, depth=False)
     p.set_defaults(func=cmd_depth)
@@ -413,7 +450,8 @@ def _check_output(args: argparse.Namespace) -> None:
     extensions = _output_extensions(args.command)
     if isinstance(output, str) and output and extensions is not None:
         check_output_path(output, extensions=extensions, force=args.force,
-                          inputs=[getattr(args, "image", None), getattr(args, "depth", None)])
+                          inputs=[getattr(args, "image", None), getattr(args, "depth", None),
+                                  getattr(args, "depth_model", None)])
 
 
 def _on_sigterm(signum: int, frame: object) -> None:
