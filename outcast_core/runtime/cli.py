@@ -118,24 +118,16 @@ def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:
     ``--no-phone-depth``); a broken embedded map is said in one line and the depth model used."""
     if getattr(args, "depth", None):
         return  # a depth file replaces every estimate
-    if getattr(args, "depth_model", None):
-        from outcast_core.runtime.depth_models import ModelDepthSource, load_depth_model
-
-        session.depth_provider = ModelDepthSource(load_depth_model(args.depth_model))
-        return
-    if getattr(args, "no_phone_depth", False):
-        return
-    from outcast_core.runtime.depth_models import PhoneDepthSource
-    from outcast_core.runtime.phone_depth import PhoneDepthError, read_phone_depth
+    from outcast_core.runtime.depth_models import pick_depth_source
 
     width, height = loaded.original_size
-    try:
-        phone = read_phone_depth(loaded.path, (height, width))
-    except (PhoneDepthError, OSError) as exc:
-        _say(args, f"note: the photo's own depth map is not used: {exc}; using the depth model")
-        return
-    if phone is not None:
-        session.depth_provider = PhoneDepthSource(phone)
+    provider, note = pick_depth_source(
+        loaded.path, (height, width), model_path=getattr(args, "depth_model", None),
+        use_phone=not getattr(args, "no_phone_depth", False),
+    )
+    if note:
+        _say(args, f"note: {note}; using the depth model")
+    session.depth_provider = provider
 
 
 def _set_image(session, loaded, args: argparse.Namespace) -> None:

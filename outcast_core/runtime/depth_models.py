@@ -570,3 +570,49 @@ class PhoneDepthSource:
             depth = np.where(sky, float(depth[~sky].max()) if (~sky).any() else depth,
                              depth).astype(np.float32)
         return depth, sky
+
+
+def pick_depth_source(
+    photo_path: str | os.PathLike[str],
+    photo_hw: tuple[int, int] | None = None,
+    *,
+    model_path: str | os.PathLike[str] | None = None,
+    use_phone: bool = True,
+    strict: bool = True,
+) -> tuple[DepthProvider | None, str]:
+    """The depth source for a photo: a depth model when given, else the photo's own depth map.
+
+    Args:
+        photo_path: the photo (its embedded depth map is read from it).
+        photo_hw: the upright photo's ``(height, width)`` (default: from its header).
+        model_path: an ONNX depth model to use, or None.
+        use_phone: read the photo's own depth map when there is no model.
+        strict: a model that cannot be loaded raises (the command line); False: it is noted
+            and the photo's own map or the shipped model is used (the app's remembered model).
+
+    Returns:
+        ``(provider, note)``: the provider (None: the session's depth model) and a one-line
+        note saying what was not used and why ("" when nothing was dropped).
+
+    Raises:
+        ModelError, ValueError: with ``strict``, a model that is missing, corrupt or not a
+            monocular depth model.
+    """
+    note = ""
+    if model_path:
+        try:
+            return ModelDepthSource(load_depth_model(model_path)), ""
+        except (ModelError, ValueError) as exc:
+            if strict:
+                raise
+            note = f"the depth model is not used: {exc}"
+    if not use_phone:
+        return None, note
+    from outcast_core.runtime.phone_depth import PhoneDepthError, read_phone_depth
+
+    try:
+        phone = read_phone_depth(photo_path, photo_hw)
+    except (PhoneDepthError, OSError) as exc:
+        more = f"the photo's own depth map is not used: {exc}"
+        return None, f"{note}; {more}" if note else more
+    return (PhoneDepthSource(phone) if phone is not None else None), note

@@ -191,3 +191,24 @@ def test_session_uses_the_depth_source_and_says_so(tmp_path: Path) -> None:
     assert (s.sky == ~np.isfinite(truth)).mean() > 0.97
     s.set_image(image, fov_deg=60.0, depth=np.ones((48, 64), np.float32))
     assert s.depth_source == "given"  # a depth file the user gives wins
+
+
+def test_pick_depth_source_model_then_phone(tmp_path: Path) -> None:
+    from outcast_core.runtime.depth_models import pick_depth_source
+    from outcast_core.runtime.imageio import write_image
+
+    truth, _ = outdoor_scene()
+    image, _ = encode_inverse_image(truth)
+    photo = tmp_path / "p.png"
+    write_image(photo, image)
+    assert pick_depth_source(photo) == (None, "")  # no model, no embedded map: Z
+    bad = tmp_path / "bad.onnx"
+    bad.write_bytes(b"x")
+    with pytest.raises(ModelError):
+        pick_depth_source(photo, model_path=bad)
+    provider, note = pick_depth_source(photo, model_path=bad, strict=False)
+    assert provider is None and note.startswith("the depth model is not used: ")
+    good = tiny_depth_model(tmp_path / "m.onnx", input_name="x", output_name="y", size=None,
+                            block=None, gain=1.0, offset=0.0)
+    provider, note = pick_depth_source(photo, model_path=good)
+    assert isinstance(provider, ModelDepthSource) and note == ""
