@@ -34,12 +34,21 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
 
     Args:
         exc: the exception.
-        action: one of ``"open"``, ``"depth"``, ``"export"``, ``"project"``, or anything else.
+        action: one of ``"open"``, ``"depth"``, ``"depth-model"``, ``"export"``, ``"project"``,
+            or anything else.
 
     Returns:
         A :class:`UserMessage`.
     """
     detail = _one_line(exc)
+    if action == "depth-model":
+        return UserMessage(
+            "Could not use the depth model",
+            detail,
+            "A depth model is an ONNX file with one image input (N x 3 x H x W) and one output, "
+            "such as Depth Anything or MiDaS (README: Depth from phones and other estimators). "
+            "The photo's depth is unchanged.",
+        )
     if isinstance(exc, ModelError):
         return UserMessage(
             "A model file is missing or damaged",

@@ -156,6 +156,8 @@ class MainWindow(QMainWindow):
         self.session_mode = session_mode
         self.depth_mode = "auto"
         self.depth_path = ""
+        #: An ONNX depth model the user chose (remembered in the settings); "" = the shipped Z.
+        self.depth_model = str(self.settings.value("depth_model", "") or "")
         self.preset = preset if preset in PRESET_NAMES else "balanced"
         self.step = Step.EMPTY
         self.original_sun: Sun | None = None
@@ -245,6 +247,16 @@ class MainWindow(QMainWindow):
             "PNG or .exr"
         )
         self.act_depth.triggered.connect(self.load_depth_dialog)
+        self.act_depth_model = QAction("Use depth &model…", self)
+        self.act_depth_model.setToolTip(
+            "Estimate depth with an ONNX depth model of your own (Depth Anything, MiDaS, ...) "
+            "instead of OutCast's; remembered for the next photos"
+        )
+        self.act_depth_model.triggered.connect(self.choose_depth_model_dialog)
+        self.act_builtin_depth = QAction("Use OutCast's depth model", self)
+        self.act_builtin_depth.setToolTip("Forget the chosen ONNX depth model")
+        self.act_builtin_depth.triggered.connect(lambda: self.set_depth_model(""))
+        self.act_builtin_depth.setEnabled(bool(self.depth_model))
         self.act_timelapse = QAction("&Time-lapse…", self, shortcut=QKeySequence("Ctrl+T"))
         self.act_timelapse.triggered.connect(self.open_timelapse)
         self.act_quit = QAction("&Quit", self, shortcut=QKeySequence.StandardKey.Quit)
@@ -278,6 +290,8 @@ class MainWindow(QMainWindow):
         self.recent_menu = QMenu("Open &recent", self)
         file_menu.addMenu(self.recent_menu)
         file_menu.addAction(self.act_depth)
+        file_menu.addAction(self.act_depth_model)
+        file_menu.addAction(self.act_builtin_depth)
         file_menu.addSeparator()
         file_menu.addAction(self.act_save)
         file_menu.addAction(self.act_save_as)
@@ -570,8 +584,10 @@ class MainWindow(QMainWindow):
         mode = self.session_mode
         depth_mode = self.depth_mode
         depth_path = project.depth_path if project is not None else ""
+        depth_model = self.depth_model
 
         def job(ctx: JobContext) -> dict[str, Any]:
+            from outcast_core.runtime.depth_models import pick_depth_source
             from outcast_core.runtime.imageio import read_depth, read_image
             from outcast_core.runtime.session import RelightSession
 
@@ -579,12 +595,18 @@ class MainWindow(QMainWindow):
             loaded = read_image(path)
             depth = read_depth(depth_path) if depth_path else None
             session = RelightSession(preset=preset, mode=mode, depth_mode=depth_mode)
+            note = ""
+            if depth is None:  # a chosen model, else the photo's own depth map, else Z
+                width, height = loaded.original_size
+                session.depth_provider, note = pick_depth_source(
+                    path, (height, width), model_path=depth_model or None, strict=False
+                )
             focal = loaded.exif.focal_35mm if loaded.exif else None
             session.set_image(loaded.image_srgb, focal_35mm=focal or None, depth=depth,
                               progress=ctx.progress)
             photo = display.to_uint8_rgb(loaded.image_srgb)
             return {"path": path, "loaded": loaded, "session": session, "photo": photo,
-                    "depth_path": depth_path}
+                    "depth_path": depth_path, "depth_note": note}
 
         self._pending_project = project
         self._pending_restore = restore
@@ -630,11 +652,15 @@ class MainWindow(QMainWindow):
                 "Depth comes from OutCast's small depth network, trained on synthetic scenes "
                 "only: on real photos it is rough, and so are the predicted shadows. For "
                 "accurate shadows load a depth map from your phone or another estimator "
-                "(File \u25b8 Load depth map\u2026)."
+                "(File \u25b8 Load depth map\u2026) or use a depth model of your own "
+                "(File \u25b8 Use depth model\u2026)."
             )
         else:
             notice = ""
-        self.align_panel.show_notice(notice)
+        note = str(result.get("depth_note", ""))  # a depth source that could not be used
+        if note:
+            notice = f"{note[:1].upper()}{note[1:]}. " + notice
+        self.align_panel.show_notice(notice.strip())
         self.align_panel.exif_button.setEnabled(self.exif_sun() is not None)
         self._set_step(Step.ALIGN)
         exif_sun = None
@@ -1123,6 +1149,38 @@ class MainWindow(QMainWindow):
         )
         if path:
             self.load_depth(path)
+
+    def choose_depth_model_dialog(self) -> None:
+        """Pick an ONNX depth model (remembered) and use it for the open photo."""
+        start = os.path.dirname(self.depth_model or self.image_path or "")
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Use depth model", start, "ONNX depth models (*.onnx);;All files (*)"
+        )
+        if path:
+            self.set_depth_model(path)
+
+    def set_depth_model(self, path: str) -> None:
+        """Use the ONNX depth model at ``path`` ("" = OutCast's own), remember it, and re-run the
+        open photo's depth (suns and step kept; a settings change, not an undoable edit).
+
+        A model that cannot be loaded is refused here with a message, and nothing changes.
+        """
+        if path:
+            from outcast_core.runtime.depth_models import load_depth_model
+            from outcast_core.runtime.models import ModelError
+
+            try:
+                load_depth_model(path)
+            except (ModelError, ValueError) as exc:
+                self.show_error(exc, "depth-model")
+                return
+            path = os.path.abspath(path)
+        self.depth_model = path
+        self.settings.setValue("depth_model", path)
+        self.act_builtin_depth.setEnabled(bool(path))
+        current = self.edit_state()
+        if current is not None and not self.depth_path:  # a loaded depth map still wins
+            self._reload(current)
 
     def load_depth(self, path: str) -> None:
         """Use ``path`` as the photo's depth (suns, step and settings are kept; undoable)."""
