@@ -67,6 +67,10 @@ SHADE_SIGMA = 0.25
 #: :func:`same_material`: the shade's expected shift in ``log B/G`` and the chromaticity
 #: distance (log units) at which a dark pixel stops counting as shadow (0 turns it off).
 SHADE_BLUE = 0.2
+#: Log luminance by which a pixel may be darker than the photo's typical shade (relative to
+#: the lit surface around it) and still be lifted fully, and the fall-off beyond it.
+DARKER_MARGIN = 0.5
+DARKER_WIDTH = 0.3
 CHROMA_TOL = 1.0
 LOCAL_MAX = 1.5
 
@@ -229,7 +233,12 @@ def deshadow_log_gain(
     # Lit surfaces nearby may be another material: never lift far beyond the photo's own
     # sun/shade ratio.
     gain = np.clip(gain, 0.0, np.minimum(MAX_LIFT_LOG, LOCAL_MAX * np.maximum(glob, 0.0)))
-    return (gain * p[..., None]).astype(np.float32)
+    # A pixel far darker than shade is here (black railings, navy cushions, foliage gaps) is a
+    # dark material or a deep cavity: lifting it by the shade's ratio would turn it grey.
+    lum = np.array([0.2126, 0.7152, 0.0722], np.float32)
+    excess = (mu_lit @ lum - log_c @ lum) - float(np.maximum(glob, 0.0) @ lum) - DARKER_MARGIN
+    keep = np.exp(-0.5 * (np.maximum(excess, 0.0) / DARKER_WIDTH) ** 2)
+    return (gain * (p * keep)[..., None]).astype(np.float32)
 
 
 def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray) -> np.ndarray:

@@ -42,6 +42,10 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    "measure the speed/accuracy trade")
     p.add_argument("--mode", choices=["auto", "learned", "classic"], default="auto",
                    help="learned networks (default when installed) or Direct + physics")
+    p.add_argument("--relight", choices=["auto", "learned", "physics"], default="auto",
+                   help="relighting method for the relighting checks (default: the app's)")
+    p.add_argument("--refine", choices=["photo", "learned"], default="photo",
+                   help="how the photo's own shadows are found (default: the app's)")
     p.add_argument("--limit", type=int, default=0, help="first N photos only (0: all)")
     p.add_argument("--json", dest="json_out", default="", help="write the results as JSON here")
     p.add_argument("--sheet", default="",
@@ -91,7 +95,9 @@ def run_command(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         report = evaluate_real(
             args.folder, limit=args.limit, progress=progress, sheet=sheet,
-            session_factory=lambda preset=preset: RelightSession(preset=preset, mode=args.mode),
+            session_factory=lambda preset=preset: RelightSession(
+                preset=preset, mode=args.mode, relight_mode=None if args.relight == "auto"
+                else args.relight, refine=args.refine),
         )
         report["preset"] = preset
         report["wall_s"] = time.perf_counter() - t0
@@ -115,7 +121,8 @@ def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
     import shlex
 
     argv = ["outcast", "eval", "real", args.folder, "--preset", ",".join(reports),
-            "--mode", args.mode] + (["--limit", str(args.limit)] if args.limit else [])
+            "--mode", args.mode, "--relight", args.relight, "--refine", args.refine]
+    argv += ["--limit", str(args.limit)] if args.limit else []
     first = next(iter(reports.values()))
     from outcast_core.runtime.real_eval import render_table
 

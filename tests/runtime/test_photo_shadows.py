@@ -144,3 +144,17 @@ def test_cli_deshadow(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert read_shadow_png(mask)[35:45, 25:55].mean() > 0.8
     assert main(args) == 2  # nothing overwritten without --force
     assert "exists" in capsys.readouterr().err
+
+
+def test_deshadow_keeps_black_things_in_the_shade_black() -> None:
+    """Black railings in a shadow are far darker than shade is here: they are not lifted to
+    grey with the shade around them."""
+    img, mask = _shadowed()
+    rails = np.zeros_like(mask)
+    rails[30:50, 30:32] = rails[30:50, 44:46] = True
+    img[rails] = 0.03
+    sky = np.zeros((H, W), bool)
+    out = deshadow(img, photo_shadow_probability(img, sky), sky)
+    shade = mask & ~rails
+    assert out[shade].mean() > 1.3 * img[shade].mean()  # the shade is lifted
+    assert out[rails].mean() < 0.08  # the rails stay black
