@@ -1,6 +1,7 @@
-"""Depth maps that phones store inside photos: Google's GDepth XMP (JPEG) and HEIF depth images.
+"""Depth maps that phones store inside photos: Google's GDepth XMP and Dynamic Depth (JPEG) and
+HEIF depth images.
 
-Two containers are read, each to its published field definitions:
+Three containers are read, each to its published field definitions:
 
 * **JPEG with GDepth XMP** (Google's depth map metadata, namespace
   ``http://ns.google.com/photos/1.0/depthmap/``): ``GDepth:Format`` (``RangeInverse`` or
@@ -20,6 +21,11 @@ Two containers are read, each to its published field definitions:
   The map is stored like the photo's pixels (before the EXIF orientation) and is "stretched to
   fit" the photo, so it is turned upright with the photo's EXIF orientation and may have
   another size than the photo (never another aspect ratio beyond a few percent).
+* **JPEG with Dynamic Depth** (Google's newer container; namespaces
+  ``http://ns.google.com/photos/dd/1.0/...``): a ``DepthMap`` element with the same ``Format``,
+  ``Near``, ``Far``, ``Units`` and ``MeasureType`` fields and a ``DepthURI`` naming an item of the
+  ``Device:Container`` directory; the items (``Item:Mime``, ``Item:Length``, ``Item:Padding``)
+  are files appended after the photo, in order (:func:`dynamic_depth`).
 * **HEIF/HEIC depth images** (iPhone portrait photos), read with pillow-heif: the primary
   image's ``info["depth_images"]``, each with libheif's depth representation info in
   ``info["metadata"]``: ``representation_type`` (0 uniform inverse Z, 1 uniform disparity,
@@ -72,6 +78,10 @@ ASPECT_TOLERANCE = 0.03
 #: Unit names (GDepth:Units) -> metres per unit.
 UNITS_TO_METRES = {"m": 1.0, "meters": 1.0, "metres": 1.0, "mm": 1e-3, "millimeters": 1e-3,
                    "cm": 1e-2, "centimeters": 1e-2}
+#: Dynamic Depth namespaces (a depth map appended after the photo in a container).
+DD_DEPTHMAP_NS = "http://ns.google.com/photos/dd/1.0/depthmap/"
+DD_CONTAINER_NS = "http://ns.google.com/photos/dd/1.0/container/"
+DD_ITEM_NS = "http://ns.google.com/photos/dd/1.0/item/"
 #: libheif's depth representation types.
 HEIF_INVERSE_Z, HEIF_DISPARITY, HEIF_Z, HEIF_NONUNIFORM_DISPARITY = 0, 1, 2, 3
 
@@ -352,23 +362,30 @@ def decode_gdepth(props: dict[str, str]) -> PhoneDepth:
     Raises:
         PhoneDepthError: a required field is missing or malformed, or the data is not an image.
     """
-    fmt = props.get("Format", "RangeInverse")
     missing = [k for k in ("Near", "Far", "Data") if not props.get(k)]
     if missing:
         raise PhoneDepthError(f"the photo's GDepth metadata lacks {', '.join(missing)}")
     try:
-        near, far = float(props["Near"]), float(props["Far"])
-    except ValueError as exc:
-        raise PhoneDepthError(f"expected numbers for GDepth Near and Far, got "
-                              f"{props['Near']!r} and {props['Far']!r}") from exc
-    mime = props.get("Mime", "image/jpeg").lower()
-    if mime not in ("image/jpeg", "image/png"):
-        raise PhoneDepthError(f"expected GDepth Mime image/jpeg or image/png, got {mime!r}")
-    try:
         raw = base64.b64decode("".join(props["Data"].split()), validate=True)
     except (binascii.Error, ValueError) as exc:
         raise PhoneDepthError("the photo's GDepth Data is not valid base64") from exc
-    values, bits = _decode_grey(raw, "GDepth")
+    return _decode_range_map(props, raw, "GDepth", props.get("Mime", "image/jpeg"))
+
+
+def _decode_range_map(props: dict[str, str], raw: bytes, container: str, mime: str
+                      ) -> PhoneDepth:
+    """A RangeInverse / RangeLinear map (GDepth or Dynamic Depth fields) -> depth."""
+    fmt = {"rangeinverse": "RangeInverse", "rangelinear": "RangeLinear"}.get(
+        props.get("Format", "RangeInverse").strip().lower(), props.get("Format", ""))
+    try:
+        near, far = float(props["Near"]), float(props["Far"])
+    except (KeyError, ValueError) as exc:
+        raise PhoneDepthError(f"expected numbers for {container} Near and Far, got "
+                              f"{props.get('Near')!r} and {props.get('Far')!r}") from exc
+    mime = mime.strip().lower()
+    if mime not in ("image/jpeg", "image/png"):
+        raise PhoneDepthError(f"expected {container} Mime image/jpeg or image/png, got {mime!r}")
+    values, bits = _decode_grey(raw, container)
     depth = gdepth_to_depth(values / float(2**bits - 1), fmt, near, far)
     units = props.get("Units", "m").strip().lower()
     scale = UNITS_TO_METRES.get(units)
@@ -376,10 +393,99 @@ def decode_gdepth(props: dict[str, str]) -> PhoneDepth:
         depth = depth * np.float32(scale)
     measure = props.get("MeasureType", "OpticalAxis")
     if measure not in ("OpticalAxis", "OpticRay", "OpticalRay"):
-        raise PhoneDepthError(f"expected GDepth MeasureType OpticalAxis or OpticRay, "
+        raise PhoneDepthError(f"expected {container} MeasureType OpticalAxis or OpticRay, "
                               f"got {measure!r}")
-    return PhoneDepth(depth, f"GDepth {fmt}", scale is not None,
+    return PhoneDepth(depth, f"{container} {fmt}", scale is not None,
                       "axis" if measure == "OpticalAxis" else "ray")
+
+
+# --------------------------------------------------------------------------------------------
+# JPEG: Dynamic Depth (the depth map is a file appended after the photo)
+
+
+def _element_props(element: ET.Element, namespace: str) -> dict[str, str]:
+    """An element's properties of ``namespace``, as attributes or as child elements."""
+    prefix = "{" + namespace + "}"
+    props = {k[len(prefix):]: v for k, v in element.attrib.items() if k.startswith(prefix)}
+    for child in element:
+        if isinstance(child.tag, str) and child.tag.startswith(prefix) and len(child) == 0:
+            props.setdefault(child.tag[len(prefix):], (child.text or "").strip())
+    return props
+
+
+def _primary_end(data: bytes) -> int:
+    """Where the first JPEG image of ``data`` ends (after its first EOI following a scan)."""
+    pos = 2
+    while pos + 4 <= len(data) and data[pos] == 0xFF:
+        marker = data[pos + 1]
+        if marker == 0xFF:
+            pos += 1
+            continue
+        if marker == 0xDA:
+            end = data.find(b"\xff\xd9", pos)  # entropy-coded data never holds FF D9
+            return len(data) if end < 0 else end + 2
+        if 0xD0 <= marker <= 0xD7 or marker == 0x01:
+            pos += 2
+            continue
+        (length,) = struct.unpack(">H", data[pos + 2:pos + 4])
+        pos += 2 + length
+    return len(data)
+
+
+def dynamic_depth(data: bytes, packets: list[bytes]) -> PhoneDepth | None:
+    """The depth map of a Dynamic Depth JPEG, or None when the XMP describes none.
+
+    The XMP (``Device:Container``) lists the files appended after the photo in order
+    (``Item:Mime``, ``Item:Length``, ``Item:Padding``, ``Item:DataURI``; the first is the photo
+    itself); a ``DepthMap`` element (``Format``, ``Near``, ``Far``, ``Units``, ``MeasureType``,
+    ``DepthURI``) names the item that holds the depth image.
+
+    Args:
+        data: the JPEG file's bytes.
+        packets: its XMP packets (standard and extended).
+
+    Raises:
+        PhoneDepthError: the depth item is missing or lies outside the file.
+    """
+    depth_props: dict[str, str] = {}
+    items: list[dict[str, str]] = []
+    for packet in packets:
+        try:
+            root = ET.fromstring(packet.strip(b"\x00 \t\r\n"))
+        except ET.ParseError as exc:
+            raise PhoneDepthError(f"the photo's XMP metadata is not well-formed XML "
+                                  f"({exc})") from exc
+        for element in root.iter():
+            if element.tag == "{" + DD_CONTAINER_NS + "}Item":
+                items.append(_element_props(element, DD_ITEM_NS))
+            props = _element_props(element, DD_DEPTHMAP_NS)
+            if (not depth_props and "DepthURI" in props
+                    and props.get("ItemSemantic", "Depth") == "Depth"):
+                depth_props = props
+    if not depth_props:
+        return None
+    uri = depth_props["DepthURI"]
+    try:
+        sizes = [(int(it.get("Length", "0") or 0), int(it.get("Padding", "0") or 0))
+                 for it in items]
+    except ValueError as exc:
+        raise PhoneDepthError("expected whole numbers for the Dynamic Depth item lengths") from exc
+    index = next((i for i, it in enumerate(items) if it.get("DataURI") == uri), None)
+    if index is None or index == 0 or any(n < 0 or p < 0 for n, p in sizes):
+        raise PhoneDepthError(f"the photo's Dynamic Depth container has no item {uri!r}")
+    length = sizes[index][0]
+    # Items follow the photo in order, each followed by its padding; where the photo ends is
+    # found from its EOI, and checked against the end of the file (the last item ends there).
+    starts = [_primary_end(data) + sizes[0][1] + sum(n + p for n, p in sizes[1:index])]
+    starts.append(len(data) - sum(n + p for n, p in sizes[index:]))
+    for start in starts:
+        raw = data[start:start + length]
+        if length > 0 and start >= 0 and len(raw) == length and (
+                raw.startswith(b"\x89PNG") or raw.startswith(b"\xff\xd8")):
+            return _decode_range_map(depth_props, raw, "Dynamic Depth",
+                                     items[index].get("Mime", "image/jpeg"))
+    raise PhoneDepthError(f"the photo's Dynamic Depth item {uri!r} ({length} bytes) is not "
+                          "where the container says")
 
 
 def _decode_grey(raw: bytes, what: str) -> tuple[np.ndarray, int]:
@@ -460,9 +566,15 @@ def read_phone_depth(path: str | os.PathLike[str], photo_hw: tuple[int, int] | N
     if head[:2] == b"\xff\xd8":
         data = path.read_bytes()
         props = gdepth_properties(data)
-        if not props:
-            return None
-        found = decode_gdepth(props)
+        if props:
+            found = decode_gdepth(props)
+        else:
+            standard, extended = jpeg_xmp_packets(data)
+            packets = ([standard] if standard else []) + list(extended.values())
+            dd = dynamic_depth(data, packets) if packets else None
+            if dd is None:
+                return None
+            found = dd
         orientation = _jpeg_orientation(path)
         stored = True
     elif head[4:8] == b"ftyp":

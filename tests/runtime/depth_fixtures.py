@@ -165,3 +165,39 @@ def finite_corr(a: np.ndarray, b: np.ndarray, mask: np.ndarray) -> float:
     """Pearson correlation of ``a`` and ``b`` on ``mask``."""
     x, y = np.asarray(a, np.float64)[mask], np.asarray(b, np.float64)[mask]
     return float(np.corrcoef(x, y)[0, 1]) if x.size > 2 else math.nan
+
+
+def dynamic_depth_jpeg(path: Path, photo: np.ndarray, depth_png: bytes, *, fmt: str,
+                       near: float, far: float, units: str = "Meters",
+                       padding: int = 0) -> Path:
+    """A Dynamic Depth JPEG: the photo with a ``Device:Container`` directory (the photo, then
+    the depth PNG appended after it) and a camera's ``DepthMap`` naming the PNG's item."""
+    buf = io.BytesIO()
+    Image.fromarray((np.clip(photo, 0, 1) * 255).round().astype(np.uint8)).save(
+        buf, "JPEG", quality=95)
+    jpeg = buf.getvalue()
+    xmp = (
+        '<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF '
+        'xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">'
+        '<rdf:Description rdf:about="" '
+        'xmlns:Device="http://ns.google.com/photos/dd/1.0/device/" '
+        'xmlns:Container="http://ns.google.com/photos/dd/1.0/container/" '
+        'xmlns:Item="http://ns.google.com/photos/dd/1.0/item/" '
+        'xmlns:Camera="http://ns.google.com/photos/dd/1.0/camera/" '
+        'xmlns:DepthMap="http://ns.google.com/photos/dd/1.0/depthmap/">'
+        "<Device:Container><Container:Directory><rdf:Seq>"
+        '<rdf:li rdf:parseType="Resource"><Container:Item Item:Mime="image/jpeg" '
+        f'Item:Length="0" Item:Padding="{padding}" Item:DataURI="primary_image"/></rdf:li>'
+        '<rdf:li rdf:parseType="Resource"><Container:Item Item:Mime="image/png" '
+        f'Item:Length="{len(depth_png)}" Item:DataURI="android/depthmap"/></rdf:li>'
+        "</rdf:Seq></Container:Directory></Device:Container>"
+        "<Device:Cameras><rdf:Seq><rdf:li rdf:parseType=\"Resource\"><Camera:Camera>"
+        f'<Camera:DepthMap DepthMap:Format="{fmt}" DepthMap:Near="{near}" '
+        f'DepthMap:Far="{far}" DepthMap:Units="{units}" DepthMap:MeasureType="OpticalAxis" '
+        'DepthMap:DepthURI="android/depthmap" DepthMap:ItemSemantic="Depth"/>'
+        "</Camera:Camera></rdf:li></rdf:Seq></Device:Cameras>"
+        "</rdf:Description></rdf:RDF></x:xmpmeta>"
+    )
+    primary = jpeg[:2] + _segment(0xE1, XMP_SIG + xmp.encode()) + jpeg[2:]
+    path.write_bytes(primary + b"\0" * padding + depth_png)
+    return path

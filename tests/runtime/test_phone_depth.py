@@ -23,6 +23,7 @@ from outcast_core.runtime.phone_depth import (
     read_phone_depth,
 )
 from tests.runtime.depth_fixtures import (
+    dynamic_depth_jpeg,
     finite_corr,
     gdepth_jpeg,
     png_bytes,
@@ -81,6 +82,27 @@ def test_gdepth_jpeg_depth_is_turned_upright_with_the_photo(tmp_path: Path) -> N
     found = read_phone_depth(path)
     assert found is not None and found.depth.shape == (32, 24)
     np.testing.assert_allclose(found.depth, np.rot90(depth, k=-1), rtol=1e-3)
+
+
+@pytest.mark.parametrize("padding", [0, 16])
+def test_dynamic_depth_jpeg_gives_back_its_depth(tmp_path: Path, padding: int) -> None:
+    depth = _scene()
+    q = np.round(range_inverse(depth, 1.0, 50.0) * 65535).astype(np.uint16)
+    path = dynamic_depth_jpeg(tmp_path / "dd.jpg", _photo(), png_bytes(q), fmt="RangeInverse",
+                              near=1.0, far=50.0, padding=padding)
+    found = read_phone_depth(path)
+    assert found is not None and found.container == "Dynamic Depth RangeInverse" and found.metric
+    assert finite_corr(found.depth, depth, np.ones(depth.shape, bool)) >= 0.99
+    np.testing.assert_allclose(found.depth, depth, rtol=1e-3)
+
+
+def test_dynamic_depth_item_out_of_place_is_refused(tmp_path: Path) -> None:
+    q = np.zeros((24, 32), np.uint8)
+    path = dynamic_depth_jpeg(tmp_path / "dd.jpg", _photo(), png_bytes(q), fmt="RangeLinear",
+                              near=1.0, far=5.0)
+    path.write_bytes(path.read_bytes()[:-10])  # truncated: the PNG is not all there
+    with pytest.raises(PhoneDepthError, match="Dynamic Depth item"):
+        read_phone_depth(path)
 
 
 def test_plain_photos_have_no_phone_depth(tmp_path: Path) -> None:
