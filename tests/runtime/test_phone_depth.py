@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from PIL import Image
 
 from outcast_core.runtime import phone_depth
@@ -249,3 +251,40 @@ def test_orientation_and_ray_helpers() -> None:
     np.testing.assert_allclose(phone_depth_at(phone, cam), 2.0, rtol=1e-5)
     ray = phone_depth.PhoneDepth(np.full((6, 8), 2.0, np.float32), "x", True, "ray")
     assert phone_depth_at(ray, cam).max() < 2.0
+
+
+# ------------------------------------------------------------------------------------- fuzz
+
+_FUZZ = settings(max_examples=60, deadline=10_000,
+                 suppress_health_check=[HealthCheck.too_slow,
+                                        HealthCheck.function_scoped_fixture])
+
+
+def _valid_phone_jpegs(tmp_path: Path) -> list[bytes]:
+    q = np.round(range_linear(_scene(), 1.0, 50.0) * 255).astype(np.uint8)
+    a = gdepth_jpeg(tmp_path / "a.jpg", _photo(24, 32), png_bytes(q), fmt="RangeLinear",
+                    near=1.0, far=50.0, chunk=300)
+    b = dynamic_depth_jpeg(tmp_path / "b.jpg", _photo(24, 32), png_bytes(q),
+                           fmt="RangeInverse", near=1.0, far=50.0)
+    return [a.read_bytes(), b.read_bytes()]
+
+
+@_FUZZ
+@given(which=st.integers(0, 1), edits=st.lists(
+    st.tuples(st.floats(0, 1), st.integers(0, 255)), min_size=1, max_size=8),
+    cut=st.floats(0.05, 1.0))
+def test_damaged_phone_jpegs_give_a_result_or_a_clear_error(tmp_path: Path, which, edits,
+                                                            cut) -> None:
+    data = bytearray(_valid_phone_jpegs(tmp_path)[which])
+    for where, value in edits:
+        data[min(len(data) - 1, int(where * len(data)))] = value
+    data = data[:max(4, int(cut * len(data)))]
+    path = tmp_path / "fuzz.jpg"
+    path.write_bytes(bytes(data))
+    try:
+        found = read_phone_depth(path, (24, 32))
+    except PhoneDepthError as exc:
+        assert "\n" not in str(exc)
+        return
+    if found is not None:
+        assert found.depth.ndim == 2 and np.isfinite(found.depth).all()
