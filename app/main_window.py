@@ -158,6 +158,8 @@ class MainWindow(QMainWindow):
         self.depth_path = ""
         #: An ONNX depth model the user chose (remembered in the settings); "" = the shipped Z.
         self.depth_model = str(self.settings.value("depth_model", "") or "")
+        #: Whether a phone photo's own depth map is used (remembered in the settings).
+        self.use_phone_depth = str(self.settings.value("phone_depth", "true")).lower() != "false"
         self.preset = preset if preset in PRESET_NAMES else "balanced"
         self.step = Step.EMPTY
         self.original_sun: Sun | None = None
@@ -257,6 +259,13 @@ class MainWindow(QMainWindow):
         self.act_builtin_depth.setToolTip("Forget the chosen ONNX depth model")
         self.act_builtin_depth.triggered.connect(lambda: self.set_depth_model(""))
         self.act_builtin_depth.setEnabled(bool(self.depth_model))
+        self.act_phone_depth = QAction("Use the photo's own depth map", self, checkable=True)
+        self.act_phone_depth.setToolTip(
+            "Phone portrait photos carry a depth map (GDepth or Dynamic Depth JPEG, HEIC depth "
+            "image): use it when there is one"
+        )
+        self.act_phone_depth.setChecked(self.use_phone_depth)
+        self.act_phone_depth.toggled.connect(self.set_use_phone_depth)
         self.act_timelapse = QAction("&Time-lapse…", self, shortcut=QKeySequence("Ctrl+T"))
         self.act_timelapse.triggered.connect(self.open_timelapse)
         self.act_quit = QAction("&Quit", self, shortcut=QKeySequence.StandardKey.Quit)
@@ -292,6 +301,7 @@ class MainWindow(QMainWindow):
         file_menu.addAction(self.act_depth)
         file_menu.addAction(self.act_depth_model)
         file_menu.addAction(self.act_builtin_depth)
+        file_menu.addAction(self.act_phone_depth)
         file_menu.addSeparator()
         file_menu.addAction(self.act_save)
         file_menu.addAction(self.act_save_as)
@@ -585,6 +595,7 @@ class MainWindow(QMainWindow):
         depth_mode = self.depth_mode
         depth_path = project.depth_path if project is not None else ""
         depth_model = self.depth_model
+        use_phone = self.use_phone_depth
 
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.depth_models import pick_depth_source
@@ -599,7 +610,8 @@ class MainWindow(QMainWindow):
             if depth is None:  # a chosen model, else the photo's own depth map, else Z
                 width, height = loaded.original_size
                 session.depth_provider, note = pick_depth_source(
-                    path, (height, width), model_path=depth_model or None, strict=False
+                    path, (height, width), model_path=depth_model or None, use_phone=use_phone,
+                    strict=False,
                 )
             focal = loaded.exif.focal_35mm if loaded.exif else None
             session.set_image(loaded.image_srgb, focal_35mm=focal or None, depth=depth,
@@ -1180,6 +1192,22 @@ class MainWindow(QMainWindow):
         self.act_builtin_depth.setEnabled(bool(path))
         current = self.edit_state()
         if current is not None and not self.depth_path:  # a loaded depth map still wins
+            self._reload(current)
+
+    def set_use_phone_depth(self, use: bool) -> None:
+        """Use (or not) a phone photo's own depth map, remember it, and re-run the open photo's
+        depth when that changes it (a settings change, not an undoable edit)."""
+        use = bool(use)
+        if self.act_phone_depth.isChecked() != use:
+            self.act_phone_depth.setChecked(use)  # calls back here once
+            return
+        changed = use != self.use_phone_depth
+        self.use_phone_depth = use
+        self.settings.setValue("phone_depth", "true" if use else "false")
+        current = self.edit_state()
+        if not changed or current is None or self.depth_path or self.depth_model:
+            return  # a loaded depth map or a chosen model wins over the photo's own
+        if use or getattr(self.session, "depth_source", "") == "phone":
             self._reload(current)
 
     def load_depth(self, path: str) -> None:

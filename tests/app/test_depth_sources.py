@@ -97,3 +97,25 @@ def test_a_bad_depth_model_is_refused_and_a_vanished_one_noted(window, photo, se
     settle()
     assert window.step is Step.ALIGN and len(errors) == 1
     assert "The depth model is not used" in window.align_panel.notice.text()
+
+
+def test_the_photos_own_depth_can_be_turned_off_and_it_is_remembered(qtbot, window, settle,
+                                                                     settings, tmp_path):
+    from app.main_window import MainWindow
+
+    photo, _ = _scene_photo(tmp_path)
+    window.open_path(photo)
+    settle()
+    assert window.session.depth_source == "phone"
+    window.act_phone_depth.trigger()  # off
+    settle()
+    assert window.session.depth_source != "phone" and settings.value("phone_depth") == "false"
+    other = MainWindow(settings=settings, preset="fast")
+    qtbot.addWidget(other)
+    try:
+        assert not other.act_phone_depth.isChecked()
+    finally:
+        other.runner.shutdown()
+    window.set_use_phone_depth(True)
+    settle()
+    assert window.session.depth_source == "phone" and window.act_phone_depth.isChecked()
