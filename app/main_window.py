@@ -611,7 +611,7 @@ class MainWindow(QMainWindow):
                 width, height = loaded.original_size
                 session.depth_provider, note = pick_depth_source(
                     path, (height, width), model_path=depth_model or None, use_phone=use_phone,
-                    strict=False,
+                    strict=False, photo_srgb=loaded.image_srgb,
                 )
             focal = loaded.exif.focal_35mm if loaded.exif else None
             session.set_image(loaded.image_srgb, focal_35mm=focal or None, depth=depth,

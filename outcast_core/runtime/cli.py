@@ -123,7 +123,7 @@ def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:
     width, height = loaded.original_size
     provider, note = pick_depth_source(
         loaded.path, (height, width), model_path=getattr(args, "depth_model", None),
-        use_phone=not getattr(args, "no_phone_depth", False),
+        use_phone=not getattr(args, "no_phone_depth", False), photo_srgb=loaded.image_srgb,
     )
     if note:
         _say(args, f"note: {note}; using the depth model")

@@ -418,8 +418,9 @@ class OnnxDepthModel:
         x = (small - np.float32(self.spec.mean)) / np.float32(self.spec.std)
         return np.ascontiguousarray(x.transpose(2, 0, 1)[None], np.float32)  # 1 x 3 x h x w
 
-    def run(self, image_srgb: np.ndarray) -> np.ndarray:
-        """The model's raw output for an ``H x W x 3`` sRGB photo, resized to ``H x W``."""
+    def run(self, image_srgb: np.ndarray, out_hw: tuple[int, int] | None = None) -> np.ndarray:
+        """The model's raw output for an ``H x W x 3`` sRGB photo, resized to ``H x W`` (or to
+        ``out_hw``)."""
         image = np.asarray(image_srgb, np.float32)
         if image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) < 1:
             raise ValueError(f"expected an H x W x 3 image, got shape {image.shape}")
@@ -447,18 +448,23 @@ class OnnxDepthModel:
                              f"{np.asarray(out).shape} from '{self.path}'")
         if not np.isfinite(pred).all():
             raise ValueError(f"the depth model '{self.path}' gave non-finite values")
-        pred = cv2.resize(pred, (image.shape[1], image.shape[0]), interpolation=cv2.INTER_LINEAR)
+        h, w = out_hw if out_hw is not None else image.shape[:2]
+        pred = cv2.resize(pred, (w, h), interpolation=cv2.INTER_AREA if h < pred.shape[0]
+                          else cv2.INTER_LINEAR)
         self.last_seconds = time.perf_counter() - t0
         return pred
 
     def estimate(self, image_srgb: np.ndarray, camera: Camera,
-                 camera_height: float = CAMERA_HEIGHT) -> tuple[np.ndarray, np.ndarray]:
+                 camera_height: float = CAMERA_HEIGHT, photo_srgb: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
         """Depth (finite, > 0) and sky of a photo at the camera's size.
 
         Args:
             image_srgb: ``H x W x 3`` sRGB in ``[0, 1]``, the camera's size.
             camera: its intrinsics.
             camera_height: metres above the ground, for relative outputs.
+            photo_srgb: the same photo at a higher resolution, if at hand: the model sees it
+                (resized straight to its input) instead of the working image.
 
         Returns:
             ``(depth, sky)``: ``H x W`` float32 and bool.
@@ -467,7 +473,12 @@ class OnnxDepthModel:
             raise ValueError(f"expected an image of the camera's size "
                              f"{(camera.height, camera.width)}, got "
                              f"{np.asarray(image_srgb).shape[:2]}")
-        pred = self.run(image_srgb)
+        src = image_srgb
+        if photo_srgb is not None:
+            ph, pw = np.asarray(photo_srgb).shape[:2]
+            if abs(pw / ph - camera.width / camera.height) <= 0.02 * camera.width / camera.height:
+                src = photo_srgb
+        pred = self.run(src, (camera.height, camera.width))
         return model_output_to_depth(pred, self.spec.output, camera, camera_height, image_srgb)
 
 
@@ -545,13 +556,17 @@ def load_depth_model(path: str | os.PathLike[str], threads: int | None = None
 class ModelDepthSource:
     """A session depth provider running an :class:`OnnxDepthModel`; its name has the time."""
 
-    def __init__(self, model: OnnxDepthModel, camera_height: float = CAMERA_HEIGHT) -> None:
+    def __init__(self, model: OnnxDepthModel, camera_height: float = CAMERA_HEIGHT,
+                 photo_srgb: np.ndarray | None = None) -> None:
         self.model = model
         self.camera_height = camera_height
+        #: The full-resolution photo, if at hand: the model sees it rather than the working image.
+        self.photo_srgb = photo_srgb
         self.name = f"model {model.name}"
 
     def __call__(self, image_srgb: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-        depth, sky = self.model.estimate(image_srgb, camera, self.camera_height)
+        depth, sky = self.model.estimate(image_srgb, camera, self.camera_height,
+                                         self.photo_srgb)
         self.name = f"model {self.model.name} ({self.model.last_seconds:.2f} s)"
         return depth, sky
 
@@ -579,6 +594,7 @@ def pick_depth_source(
     model_path: str | os.PathLike[str] | None = None,
     use_phone: bool = True,
     strict: bool = True,
+    photo_srgb: np.ndarray | None = None,
 ) -> tuple[DepthProvider | None, str]:
     """The depth source for a photo: a depth model when given, else the photo's own depth map.
 
@@ -589,6 +605,7 @@ def pick_depth_source(
         use_phone: read the photo's own depth map when there is no model.
         strict: a model that cannot be loaded raises (the command line); False: it is noted
             and the photo's own map or the shipped model is used (the app's remembered model).
+        photo_srgb: the decoded photo at full resolution, for the model to see.
 
     Returns:
         ``(provider, note)``: the provider (None: the session's depth model) and a one-line
@@ -601,7 +618,7 @@ def pick_depth_source(
     note = ""
     if model_path:
         try:
-            return ModelDepthSource(load_depth_model(model_path)), ""
+            return ModelDepthSource(load_depth_model(model_path), photo_srgb=photo_srgb), ""
         except (ModelError, ValueError) as exc:
             if strict:
                 raise

@@ -212,3 +212,18 @@ def test_pick_depth_source_model_then_phone(tmp_path: Path) -> None:
                             block=None, gain=1.0, offset=0.0)
     provider, note = pick_depth_source(photo, model_path=good)
     assert isinstance(provider, ModelDepthSource) and note == ""
+
+
+def test_the_model_sees_the_full_resolution_photo(tmp_path: Path) -> None:
+    truth, cam = outdoor_scene()
+    big, _ = encode_inverse_image(outdoor_scene(96, 128)[0])
+    small = np.zeros((48, 64, 3), np.float32)  # a working image the model must not see
+    small[..., 1:] = 0.5, 0.9  # (sky-coloured: the far region is the sky wherever it is)
+    path = tiny_depth_model(tmp_path / "da.onnx", input_name="pixel_values",
+                            output_name="predicted_depth", size=None, block=14, gain=7.0,
+                            offset=0.3)
+    source = ModelDepthSource(load_depth_model(path), photo_srgb=big)
+    depth, sky = source(small, cam)
+    _check_depth(depth, sky, truth, scale=True)
+    with pytest.raises(ValueError, match="camera's size"):
+        source(small[:10], cam)
