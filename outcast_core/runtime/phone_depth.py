@@ -538,6 +538,13 @@ def heif_depth_images(path: str | os.PathLike[str]) -> tuple[list[Any], int]:
 
     info = pillow_heif.open_heif(os.fspath(path), convert_hdr_to_8bit=False).info  # primary
     orientation = int(info.get("original_orientation") or 1)
+    if info.get("exif") and "original_orientation" not in info:
+        exif = Image.Exif()
+        try:
+            exif.load(info["exif"])
+            orientation = int(exif.get(0x0112, 1) or 1)
+        except Exception:  # a broken EXIF block: no turn
+            orientation = 1
     return list(info.get("depth_images") or []), orientation
 
 

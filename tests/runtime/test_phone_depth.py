@@ -288,3 +288,14 @@ def test_damaged_phone_jpegs_give_a_result_or_a_clear_error(tmp_path: Path, whic
         return
     if found is not None:
         assert found.depth.ndim == 2 and np.isfinite(found.depth).all()
+
+
+def test_heic_orientation_is_read_from_its_exif(tmp_path: Path) -> None:
+    import pillow_heif
+
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    path = tmp_path / "o.heic"
+    pillow_heif.from_pillow(Image.fromarray(np.zeros((48, 64, 3), np.uint8))).save(
+        path, exif=exif.tobytes(), quality=80)
+    assert phone_depth.heif_depth_images(path) == ([], 6)

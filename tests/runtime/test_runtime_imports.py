@@ -14,6 +14,8 @@ MODULES = [
     "outcast_core.runtime.models",
     "outcast_core.runtime.imageio",
     "outcast_core.runtime.cli",
+    "outcast_core.runtime.phone_depth",
+    "outcast_core.runtime.depth_models",
 ]
 
 
