@@ -245,8 +245,13 @@ def evaluate_photo(
         _relight_checks(session, res, az, el)
     res.seconds = time.perf_counter() - t0
     if keep is not None:
+        if deshadowed is None and hasattr(session, "deshadow"):
+            deshadowed = session.deshadow()  # working resolution is enough for a thumbnail
         keep.update(image=loaded.image_srgb, truth=truth, overlay=overlay, refined=refined,
                     deshadowed=deshadowed)
+        if hasattr(session, "relight"):  # two relit suns, +-RELIGHT_TURN (cached in the session)
+            keep["relit"] = [session.relight(sun_vector((az + turn) % 360.0, el))
+                             for turn in (RELIGHT_TURN, -RELIGHT_TURN)]
     return res
 
 
@@ -361,15 +366,13 @@ _THUMB = 160
 
 
 def _thumb(img: np.ndarray) -> np.ndarray:
+    """A thumbnail :data:`_THUMB` pixels high (grey images made RGB)."""
     img = np.asarray(img, np.float32)
     if img.ndim == 2:
         img = np.repeat(img[..., None], 3, axis=2)
     h, w = img.shape[:2]
-    s = _THUMB / max(h, w)
-    t = cv2.resize(img, (max(1, round(w * s)), max(1, round(h * s))), interpolation=cv2.INTER_AREA)
-    out = np.zeros((_THUMB, _THUMB, 3), np.float32)
-    out[: t.shape[0], : t.shape[1]] = t
-    return out
+    size = (max(1, round(w * _THUMB / h)), _THUMB)
+    return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
 
 
 def _tint(image: np.ndarray, mask: np.ndarray, colour: tuple[float, float, float]) -> np.ndarray:
@@ -385,17 +388,19 @@ def _sheet_row(keep: dict[str, Any]) -> list[np.ndarray]:
            _thumb(_tint(img, keep["refined"], (0.0, 0.3, 1.0)))]
     if keep.get("deshadowed") is not None:
         row.append(_thumb(keep["deshadowed"]))
+    row += [_thumb(r) for r in keep.get("relit", [])]
     return row
 
 
 def _write_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
-    """Rows of thumbnails: photo, human mask (green), overlay (red), S_o (blue)[, de-shadowed]."""
+    """Rows of thumbnails: photo, human mask (green), overlay (red), S_o (blue), de-shadowed,
+    relit at azimuth +-:data:`RELIGHT_TURN`."""
     from outcast_core.runtime.imageio import write_image
 
-    cols = max(len(r) for r in rows)
-    blank = np.zeros((_THUMB, _THUMB, 3), np.float32)
+    lines = [np.concatenate(r, axis=1) for r in rows]
+    width = max(line.shape[1] for line in lines)
     grid = np.concatenate(
-        [np.concatenate(r + [blank] * (cols - len(r)), axis=1) for r in rows], axis=0)
+        [np.pad(line, ((0, 2), (0, width - line.shape[1]), (0, 0))) for line in lines], axis=0)
     write_image(path, grid, force=True)
 
 
