@@ -168,6 +168,7 @@ class PhotoResult:
     deshadow_out: float | None = None
     relit_chroma: float | None = None
     relit_sky: float | None = None
+    depth_source: str = ""
     extra: dict[str, float] = field(default_factory=dict)
 
 
@@ -230,6 +231,7 @@ def evaluate_photo(
         overlay_fraction=float(overlay.mean()),
         seconds=0.0,
     )
+    res.depth_source = str(getattr(session, "depth_source", ""))
     deshadowed = None
     if item.free is not None and hasattr(session, "deshadow_full"):
         free = read_image(item.free).image_srgb

@@ -46,6 +46,9 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    help="relighting method for the relighting checks (default: the app's)")
     p.add_argument("--refine", choices=["photo", "learned"], default="photo",
                    help="how the photo's own shadows are found (default: the app's)")
+    p.add_argument("--depth-model", default="",
+                   help="an ONNX monocular depth model to use instead of the shipped Z "
+                   "(README: depth from other estimators)")
     p.add_argument("--limit", type=int, default=0, help="first N photos only (0: all)")
     p.add_argument("--json", dest="json_out", default="", help="write the results as JSON here")
     p.add_argument("--sheet", default="",
@@ -58,6 +61,20 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="print only the summary")
     p.set_defaults(func=run_command)
     return p
+
+
+def _session(args: argparse.Namespace, preset: str) -> Any:
+    """The app's session for one preset, with the options of ``outcast eval real``."""
+    from outcast_core.runtime.session import RelightSession
+
+    session = RelightSession(
+        preset=preset, mode=args.mode, refine=args.refine,
+        relight_mode=None if args.relight == "auto" else args.relight)
+    if args.depth_model:
+        from outcast_core.runtime.depth_models import ModelDepthSource, load_depth_model
+
+        session.depth_provider = ModelDepthSource(load_depth_model(args.depth_model))
+    return session
 
 
 def _check_out(path: str, force: bool) -> None:
@@ -74,7 +91,6 @@ def run_command(args: argparse.Namespace) -> int:
         update_report,
         write_json,
     )
-    from outcast_core.runtime.session import RelightSession
 
     if args.limit < 0:
         raise ValueError(f"expected --limit >= 0, got {args.limit}")
@@ -95,9 +111,7 @@ def run_command(args: argparse.Namespace) -> int:
         t0 = time.perf_counter()
         report = evaluate_real(
             args.folder, limit=args.limit, progress=progress, sheet=sheet,
-            session_factory=lambda preset=preset: RelightSession(
-                preset=preset, mode=args.mode, relight_mode=None if args.relight == "auto"
-                else args.relight, refine=args.refine),
+            session_factory=lambda preset=preset: _session(args, preset),
         )
         report["preset"] = preset
         report["wall_s"] = time.perf_counter() - t0
@@ -122,6 +136,7 @@ def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
 
     argv = ["outcast", "eval", "real", args.folder, "--preset", ",".join(reports),
             "--mode", args.mode, "--relight", args.relight, "--refine", args.refine]
+    argv += ["--depth-model", args.depth_model] if args.depth_model else []
     argv += ["--limit", str(args.limit)] if args.limit else []
     first = next(iter(reports.values()))
     from outcast_core.runtime.real_eval import render_table

@@ -175,3 +175,24 @@ def test_report_section_is_replaced_and_the_rest_kept(tmp_path: Path) -> None:
     assert "BER 0.2" in text and "BER 0.3" not in text
     assert text.count("## Real photographs") == 1
     assert "BER 0.2" in real_section(text)
+
+
+def test_cli_eval_real_with_a_depth_model(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    pytest.importorskip("onnx")
+    from tests.runtime.depth_fixtures import tiny_depth_model
+
+    data = tmp_path / "data"
+    data.mkdir()
+    img, mask = _photo_with_shadow()
+    _write_item(data, "p0", img, mask)
+    model = tiny_depth_model(tmp_path / "da.onnx", input_name="pixel_values",
+                             output_name="predicted_depth", size=None, block=14, gain=7.0,
+                             offset=0.3)
+    out_json = tmp_path / "r.json"
+    assert main(["eval", "real", str(data), "--mode", "classic", "--preset", "fast",
+                 "--depth-model", str(model), "--json", str(out_json), "-q"]) == 0
+    rep = json.loads(out_json.read_text())
+    assert rep["photos"][0]["depth_source"].startswith("model da.onnx")
+    assert main(["eval", "real", str(data), "--depth-model", str(tmp_path / "none.onnx"),
+                 "-q"]) == 2
+    assert "none.onnx" in capsys.readouterr().err
