@@ -211,6 +211,17 @@ def project(points: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray]
     return u, v
 
 
+def sun_in_frame(w: Any, camera: Camera) -> bool:
+    """Whether the sun direction ``w`` (camera space, toward the sun) projects inside the image.
+
+    Example:
+        >>> sun_in_frame((0.0, -0.1, 1.0), Camera.from_fov(48, 64, 60.0))
+        True
+    """
+    u, v = project(np.asarray(w, np.float64), camera)
+    return bool(np.isfinite(u) and 0 <= u < camera.width and 0 <= v < camera.height)
+
+
 def view_directions(camera: Camera) -> np.ndarray:
     """The per-pixel unit view direction map ``Psi`` (from the camera through each pixel).
 

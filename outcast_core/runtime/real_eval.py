@@ -43,7 +43,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from outcast_core.runtime.geometry import sun_vector
+from outcast_core.runtime.geometry import sun_in_frame, sun_vector
 
 #: Shadow images below this are "in shadow" (the overlay's display threshold).
 SHADOW_THRESHOLD = 0.15
@@ -255,14 +255,6 @@ def evaluate_photo(
             keep["relit"] = [session.relight(sun_vector((az + turn) % 360.0, el))
                              for turn in (RELIGHT_TURN, -RELIGHT_TURN)]
     return res
-
-
-def sun_in_frame(w: np.ndarray, camera: Any) -> bool:
-    """Whether the sun direction ``w`` projects inside the image."""
-    from outcast_core.runtime.geometry import project
-
-    u, v = project(np.asarray(w, np.float64), camera)
-    return bool(np.isfinite(u) and 0 <= u < camera.width and 0 <= v < camera.height)
 
 
 def _relight_checks(session: Any, res: PhotoResult, az: float, el: float) -> None:

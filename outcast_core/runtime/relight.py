@@ -210,3 +210,55 @@ def transfer_to_full_resolution(
         band = srgb_to_linear(full_srgb[r0:r1])
         out[r0:r1] = linear_to_srgb((band + 1e-3) * g - 1e-3)
     return out
+
+
+#: :func:`keep_photo_colour`: shadow level above which a pixel counts as lit (soft over
+#: +-LIT_SOFT), so only brightness may change there.
+LIT_LEVEL = 0.3
+LIT_SOFT = 0.1
+
+
+def keep_photo_colour(
+    image_srgb: np.ndarray,
+    relit_srgb: np.ndarray,
+    shadow_old: np.ndarray,
+    shadow_new: np.ndarray,
+    sky: np.ndarray,
+    *,
+    keep_sky: bool,
+) -> np.ndarray:
+    """Keep the photo's colour where the relighting should only change brightness.
+
+    * On surfaces lit under both suns (``S_o`` and ``S_n`` above :data:`LIT_LEVEL`, soft) the
+      same sun and sky light the surface before and after; only the sun's share (the cosine
+      term) changes. The relit pixel keeps the photo's chromaticity and takes the relit
+      luminance: ``C * Y_relit / Y_photo`` in linear RGB. A learned ``L`` otherwise tints such
+      surfaces (measured on real photos: ``outcast eval real``, relit chroma).
+    * With ``keep_sky`` (neither sun in the frame) the sky is the photo's.
+
+    Args:
+        image_srgb, relit_srgb: ``H x W x 3`` sRGB; shadow_old, shadow_new: ``H x W`` in [0, 1];
+        sky: ``H x W`` bool.
+
+    Returns:
+        ``H x W x 3`` sRGB float32.
+    """
+    image = np.asarray(image_srgb, np.float32)
+    relit = np.asarray(relit_srgb, np.float32)
+    if relit.shape != image.shape:
+        raise ValueError(f"expected a relit image of shape {image.shape}, got {relit.shape}")
+    _check_pair(image, np.asarray(shadow_old), "shadow_old")
+    _check_pair(image, np.asarray(shadow_new), "shadow_new")
+    lin, lin_r = srgb_to_linear(image), srgb_to_linear(relit)
+    y, y_r = luminance(lin)[..., None], luminance(lin_r)[..., None]
+    same_colour = lin * (y_r + 1e-4) / (y + 1e-4)
+
+    def lit(s: np.ndarray) -> np.ndarray:
+        return np.clip((np.asarray(s, np.float32) - LIT_LEVEL + LIT_SOFT) / (2 * LIT_SOFT), 0, 1)
+
+    weight = (lit(shadow_old) * lit(shadow_new))[..., None]
+    out = weight * same_colour + (1.0 - weight) * lin_r
+    sky = np.asarray(sky, bool)[..., None]
+    if keep_sky:
+        out = np.where(sky, lin, out)
+    return linear_to_srgb(out)

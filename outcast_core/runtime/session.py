@@ -34,6 +34,7 @@ from outcast_core.runtime.geometry import (
     network_depth,
     normalize_sun,
     normals_from_depth,
+    sun_in_frame,
     view_directions,
 )
 from outcast_core.runtime.models import ModelError, ModelRegistry
@@ -47,6 +48,7 @@ from outcast_core.runtime.raymarch import RaySampler
 from outcast_core.runtime.relight import (
     LightEstimate,
     estimate_light,
+    keep_photo_colour,
     physics_relight,
     snap_shadow_to_photo,
     transfer_to_full_resolution,
@@ -191,6 +193,10 @@ class RelightSession:
         if refine not in {"photo", "learned"}:
             raise ValueError(f"expected refine photo or learned, got {refine!r}")
         self.refine = refine
+        #: Learned relighting keeps the photo's colour where both suns light a surface, and its
+        #: sky when no sun is in the frame (:func:`~outcast_core.runtime.relight.
+        #: keep_photo_colour`).
+        self.colour_guard = True
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
         shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
@@ -556,6 +562,11 @@ class RelightSession:
                 "light_ratio": self._light.ratio.astype(np.float32)[None],
             })
             img = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
+            if self.colour_guard:
+                cam = self.camera
+                keep_sky = not (sun_in_frame(self.original_sun, cam) or sun_in_frame(wv, cam))
+                img = keep_photo_colour(self.image_srgb, img, self.original_shadow, s_new,
+                                        self.sky, keep_sky=keep_sky)
         else:
             img = physics_relight(
                 self.image_srgb, self.original_shadow, s_new, self.sky, light=self._light,

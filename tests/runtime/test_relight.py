@@ -89,3 +89,24 @@ def test_light_estimate_on_surfaces_leaves_out_pixels_without_normals() -> None:
     np.testing.assert_allclose(got.ratio, [3.0, 2.0, 1.5], rtol=2e-2)
     with_sky = estimate_light(lin, shadow)
     assert np.abs(with_sky.ratio - got.ratio).max() > 0.1
+
+
+def test_keep_photo_colour_where_both_suns_light_the_surface() -> None:
+    from outcast_core.runtime.relight import keep_photo_colour
+
+    h, w = 8, 12
+    image = np.full((h, w, 3), [0.6, 0.5, 0.4], np.float32)
+    relit = np.full((h, w, 3), [0.8, 0.5, 0.3], np.float32)  # brighter and tinted orange
+    s_old = np.full((h, w), 0.8, np.float32)
+    s_new = np.full((h, w), 0.8, np.float32)
+    s_new[:, 6:] = 0.0  # newly shadowed on the right: the relit colour stands there
+    sky = np.zeros((h, w), bool)
+    sky[0] = True
+    out = keep_photo_colour(image, relit, s_old, s_new, sky, keep_sky=True)
+    chroma = out[4, 2] / out[4, 2].sum()
+    np.testing.assert_allclose(chroma, image[4, 2] / image[4, 2].sum(), atol=0.01)
+    assert out[4, 2].mean() > image[4, 2].mean()  # it took the relit brightness
+    np.testing.assert_allclose(out[4, 9], relit[4, 9], atol=1e-3)
+    np.testing.assert_allclose(out[0], image[0], atol=1e-3)  # the sky is the photo's
+    out = keep_photo_colour(image, relit, s_old, s_new, sky, keep_sky=False)
+    assert not np.allclose(out[0, 9], image[0, 9], atol=1e-2)
