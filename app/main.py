@@ -21,6 +21,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--classic", action="store_true",
         help="use Direct shadows and physics relighting even when learned models are installed",
     )  # fmt: skip
+    # Packaging smoke tests (app/self_test.py): open PATH, align from EXIF, export a still.
+    p.add_argument("--self-test", metavar="OUT.png", default=None, help=argparse.SUPPRESS)
     return p
 
 
@@ -52,7 +54,16 @@ def quit_on_sigterm(app: Any, window: Any) -> Any:
 def main(argv: Sequence[str] | None = None) -> int:
     """Start the application; returns the exit status."""
     args = build_parser().parse_args(argv)
-    from PySide6.QtWidgets import QApplication
+    try:
+        from PySide6.QtWidgets import QApplication
+    except ImportError as exc:
+        print(f"outcast-gui: error: the desktop app needs PySide6 ({exc}); install it with "
+              "pip install 'outcast[gui]'", file=sys.stderr)
+        return 2
+    if args.self_test:
+        from app.self_test import main_self_test
+
+        return main_self_test(args.path, args.self_test, args.preset)
 
     from app.main_window import APP_NAME, MainWindow
 

@@ -3,6 +3,15 @@
 Each model is ``models/<name>.onnx`` with a manifest ``models/<name>.json`` (see
 ``models/README.md``). Loading checks that both exist, that the manifest parses and that the
 file's sha256 matches; anything else raises :class:`ModelError` naming the file.
+
+Where a model is looked up, first match wins:
+
+1. an explicit folder (``ModelRegistry(directory=...)``): every model comes from it;
+2. ``$OUTCAST_MODEL_DIR``: every model comes from it (an empty folder means "no models");
+3. the user's model folder, ``$XDG_DATA_HOME/outcast/models`` (``~/.local/share/outcast/models``),
+   model by model: a ``NAME.json`` there replaces the shipped ``NAME``;
+4. the shipped models: ``outcast_core/shipped_models/`` in an installed wheel (see ``setup.py``),
+   else ``models/`` of the source checkout (editable installs, the PyInstaller bundle).
 """
 
 from __future__ import annotations
@@ -17,8 +26,12 @@ from typing import Any
 
 import numpy as np
 
-#: Where the shipped models live (``models/`` at the top of the source tree).
-DEFAULT_MODEL_DIR = Path(__file__).resolve().parents[2] / "models"
+#: ``models/`` at the top of the source tree (a checkout, an editable install, the bundle).
+SOURCE_MODEL_DIR = Path(__file__).resolve().parents[2] / "models"
+#: The models an installed wheel carries (copied from ``models/`` by ``setup.py``).
+PACKAGED_MODEL_DIR = Path(__file__).resolve().parents[1] / "shipped_models"
+#: Where the shipped models live: the wheel's copy when installed, else the source tree's.
+DEFAULT_MODEL_DIR = PACKAGED_MODEL_DIR if PACKAGED_MODEL_DIR.is_dir() else SOURCE_MODEL_DIR
 #: The model names the runtime knows.
 KNOWN_MODELS = ("depth", "shadow", "refine", "relight", "shadow_2d", "relight_pix2pix")
 
@@ -46,10 +59,35 @@ class ModelError(RuntimeError):
     """A model file is missing, corrupt or does not match its manifest."""
 
 
-def model_dir() -> Path:
-    """The model folder: ``$OUTCAST_MODEL_DIR`` when set, else the shipped ``models/``."""
+def user_model_dir() -> Path:
+    """The user's model folder: ``$XDG_DATA_HOME/outcast/models`` (default
+    ``~/.local/share/outcast/models``); it need not exist."""
+    data = os.environ.get("XDG_DATA_HOME") or os.path.join(os.path.expanduser("~"), ".local",
+                                                           "share")
+    return Path(data) / "outcast" / "models"
+
+
+def model_search_path() -> list[Path]:
+    """The folders models are looked up in, first match wins (see the module docstring).
+
+    Returns:
+        ``[$OUTCAST_MODEL_DIR]`` when that is set (it replaces the others), else the user's
+        model folder followed by the shipped models' folder.
+    """
     env = os.environ.get("OUTCAST_MODEL_DIR")
-    return Path(env) if env else DEFAULT_MODEL_DIR
+    if env:
+        return [Path(env).expanduser()]
+    return [user_model_dir(), DEFAULT_MODEL_DIR]
+
+
+def model_dir() -> Path:
+    """The model folder: ``$OUTCAST_MODEL_DIR`` when set, else the shipped models' folder.
+
+    Single-folder view kept for callers that list or write models; loading looks further
+    (:func:`model_search_path`).
+    """
+    env = os.environ.get("OUTCAST_MODEL_DIR")
+    return Path(env).expanduser() if env else DEFAULT_MODEL_DIR
 
 
 def sha256_file(path: Path) -> str:
@@ -133,18 +171,31 @@ class ModelRegistry:
     """Finds, verifies and lazily loads the shipped models (one ONNX session per model).
 
     Args:
-        directory: model folder (default: :func:`model_dir`).
+        directory: the one folder to load every model from; default: the search path of
+            :func:`model_search_path` (``$OUTCAST_MODEL_DIR``, else the user's folder, then the
+            shipped models).
         threads: intra-op threads for onnxruntime (default: all cores).
     """
 
     def __init__(self, directory: Path | str | None = None, threads: int | None = None) -> None:
-        self.directory = Path(directory) if directory is not None else model_dir()
+        self.search_path = (
+            [Path(directory)] if directory is not None else model_search_path()
+        )
+        #: The last folder searched (the shipped models unless a folder was given).
+        self.directory = self.search_path[-1]
         self.threads = threads
         self._loaded: dict[str, Model] = {}
         self._lock = threading.Lock()
 
+    def directory_for(self, name: str) -> Path:
+        """The first folder of the search path with a manifest ``name.json`` (else the last)."""
+        for folder in self.search_path:
+            if (folder / f"{name}.json").is_file():
+                return folder
+        return self.search_path[-1]
+
     def manifest_path(self, name: str) -> Path:
-        return self.directory / f"{name}.json"
+        return self.directory_for(name) / f"{name}.json"
 
     def available(self, name: str) -> bool:
         """Whether a manifest for ``name`` is present (the file itself is verified on load)."""
@@ -173,7 +224,7 @@ class ModelRegistry:
             if name in self._loaded:
                 return self._loaded[name]
             manifest = self.manifest(name)
-            onnx_path = self.directory / manifest["file"]
+            onnx_path = self.manifest_path(name).parent / manifest["file"]
             if not onnx_path.is_file():
                 raise ModelError(f"model file {onnx_path} is missing (listed in {name}.json)")
             digest = sha256_file(onnx_path)
