@@ -6,12 +6,14 @@ cd "$(dirname "$0")/.."
 
 # Qt (PySide6) needs the first line of shared libraries even offscreen; a real X display (the xcb
 # platform plugin, checked with `ldd .../platforms/libqxcb.so`) needs the xcb ones too; Xvfb runs
-# the test that starts the app on a real (virtual) X server. Install only what is missing.
+# the test that starts the app on a real (virtual) X server; desktop-file-validate and appstreamcli
+# check the packaging files (tests/packaging). Install only what is missing.
 apt_pkgs=(libegl1 libgl1 libxkbcommon0 libfontconfig1 fonts-dejavu-core libdbus-1-3
   libxcb-cursor0 libxcb-icccm4 libxcb-keysyms1 libxcb-image0 libxcb-randr0 libxcb-render-util0
   libxcb-shape0 libxcb-xkb1 libxcb-xfixes0 libxcb-sync1 libxcb-shm0 libxcb-glx0 libx11-xcb1
   libxkbcommon-x11-0
-  xvfb)
+  xvfb
+  desktop-file-utils appstream)
 missing=()
 for p in "${apt_pkgs[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
