@@ -8,8 +8,10 @@ photo, and :func:`run_batch` runs the jobs in one process or several. ``outcast 
 
 Each photo's original sun comes from the first of ``sources`` that has one: ``project`` (the
 app's project file next to it, ``NAME.outcast.json``: the sun the user confirmed), ``exif``
-(GPS, capture time and compass heading, as the app's "Sun from EXIF") or ``given`` (one sun for
-every photo: ``--from``). A row of the targets CSV may also give the photo's original sun.
+(GPS, capture time and compass heading, as the app's "Sun from EXIF"), ``given`` (one sun for
+every photo: ``--from``) or ``auto`` (the automatic sun, :func:`~outcast_core.runtime.auto_sun.
+find_sun`, with the EXIF time and place as its prior; used only when it is confident). A row of
+the targets CSV may also give the photo's original sun.
 
 Example:
     >>> opts = BatchOptions(kind="relight", to_sun=(90.0, 30.0), from_sun=(273.0, 67.0))
@@ -38,7 +40,7 @@ PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp", ".heic", ".
 #: What a batch can make of each photo.
 KINDS = ("relight", "deshadow", "timelapse")
 #: Where an original sun may come from, in the default order.
-SUN_SOURCES = ("project", "exif", "given")
+SUN_SOURCES = ("project", "exif", "given", "auto")
 #: Output formats per kind (the first is the default).
 FORMATS = {"relight": ("jpg", "png", "tif", "webp"), "deshadow": ("jpg", "png", "tif", "webp"),
            "timelapse": ("mp4", "gif", "webp")}
@@ -344,9 +346,21 @@ def exif_sun(exif: Any) -> Sun | None:
 
 
 def original_sun_for(
-    job: BatchJob, options: BatchOptions, exif: Any, project_sun: Sun | None
+    job: BatchJob,
+    options: BatchOptions,
+    exif: Any,
+    project_sun: Sun | None,
+    auto: Callable[[], Sun | None] | None = None,
 ) -> tuple[Sun, str]:
     """The photo's original sun and where it came from (``csv`` or one of ``options.sources``).
+
+    Args:
+        job: the photo (a CSV ``from_sun`` wins).
+        options: ``sources`` in order, and the ``given`` sun.
+        exif: the photo's metadata.
+        project_sun: the project file's confirmed sun.
+        auto: runs the automatic sun (slow: called only when its turn comes); returns None
+            when it is not confident. None: the ``auto`` source is unavailable.
 
     Raises:
         ValueError: none of the sources has a sun (the message lists what was tried).
@@ -362,9 +376,15 @@ def original_sun_for(
                 return sun, "exif"
         if source == "given" and options.from_sun is not None:
             return options.from_sun, "given"
+        if source == "auto" and auto is not None:
+            sun = auto()
+            if sun is not None:
+                return sun, "auto"
     tried = {"project": f"no {Path(job.image).stem}{PROJECT_SUFFIX} with a confirmed sun",
              "exif": "no EXIF GPS, time and heading (or the sun was down)",
-             "given": "no --from"}
+             "given": "no --from",
+             "auto": "the automatic sun is not sure" if auto is not None
+             else "no automatic sun in this version"}
     return_text = "; ".join(tried[s] for s in options.sources)
     raise ValueError(f"no original sun: {return_text}")
 
@@ -435,8 +455,6 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
 
     project_sun, project_target, depth_path = project_suns(job.image)
     loaded = read_image(job.image)
-    sun, source = original_sun_for(job, options, loaded.exif, project_sun)
-    result.from_sun, result.sun_source = sun, source
     to_sun = None
     if options.kind == "relight":  # before the slow part
         to_sun = target_sun_for(job, options, project_target)
@@ -450,6 +468,9 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
             loaded.path, (height, width), model_path=options.depth_model,
             use_phone=options.use_phone_depth, strict=False, photo_srgb=loaded.image_srgb)
     session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm, depth=depth)
+    sun, source = original_sun_for(job, options, loaded.exif, project_sun,
+                                   _auto_sun(session, loaded.exif, result))
+    result.from_sun, result.sun_source = sun, source
     session.set_original_sun(sun_vector(*sun))
     Path(job.output).parent.mkdir(parents=True, exist_ok=True)
     if options.kind == "timelapse":
@@ -459,9 +480,27 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
         sixteen = options.fmt == "tif"
         write_image(job.output, out, bit_depth=16 if sixteen else 8, force=options.force,
                     exif=None if sixteen else loaded.exif_bytes)
-    result.details = {"shadows": session.shadow_mode, "relighting": session.relight_mode,
-                      "depth": session.depth_source,
-                      "timings": {k: round(v, 3) for k, v in session.timings.items()}}
+    result.details.update(shadows=session.shadow_mode, relighting=session.relight_mode,
+                          depth=session.depth_source,
+                          timings={k: round(v, 3) for k, v in session.timings.items()})
+
+
+def _auto_sun(session: Any, exif: Any, result: JobResult) -> Callable[[], Sun | None] | None:
+    """The ``auto`` source for one photo, or None when this version has no automatic sun."""
+    try:
+        from outcast_core.runtime.auto_sun import exif_sun_prior, find_sun
+    except ImportError:
+        return None
+
+    def run() -> Sun | None:
+        fit = find_sun(session, prior=exif_sun_prior(exif))
+        result.details["auto_sun"] = {"azimuth": round(float(fit.azimuth), 2),
+                                      "elevation": round(float(fit.elevation), 2),
+                                      "confidence": round(float(fit.confidence), 3),
+                                      "found": bool(fit.found)}
+        return (float(fit.azimuth), float(fit.elevation)) if fit.found else None
+
+    return run
 
 
 def _render_timelapse(session: Any, loaded: Any, sun: Sun, job: BatchJob,

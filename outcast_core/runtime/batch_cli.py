@@ -94,7 +94,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
         description="Processes every photo in IN_DIR (not its sub-folders) into OUT_DIR/NAME.FMT. "
         "Each photo's original sun comes from the first of --sources that has one: its project "
         "file NAME.outcast.json (the sun confirmed in the app), its EXIF (GPS, time and "
-        "heading) or --from. The new sun is --to, a row of --targets, or the project's. "
+        "heading), --from, or the automatic sun (when it is confident). The new sun is --to, "
+        "a row of --targets, or the project's. "
         "Finished outputs are skipped (run again to resume; --force redoes them); one photo's "
         "failure is reported and the others are done (exit status 2).",
     )
@@ -117,7 +118,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    help="the original sun of photos with no project file or EXIF sun")
     p.add_argument("--sources", type=_sources, default=SUN_SOURCES, metavar="LIST",
                    help="where original suns come from, in order (default "
-                        f"{','.join(SUN_SOURCES)}; 'given' is --from)")
+                        f"{','.join(SUN_SOURCES)}; 'given' is --from, 'auto' the automatic sun)")
     p.add_argument("--format", dest="fmt", default="", metavar="FMT",
                    help="output format: jpg, png, tif (16-bit) or webp for stills (default "
                         "jpg); mp4, gif or webp for time-lapses (default mp4)")

@@ -115,9 +115,10 @@ def test_sun_sources(tmp_path: Path) -> None:
     assert got["aligned.png"].sun_source == "project"
     assert got["aligned.png"].from_sun == (120.0, 35.0)
     assert got["aligned.png"].to_sun == (300.0, 20.0)  # the project's new sun
-    assert got["exif.jpg"].sun_source == "exif"
-    assert got["exif.jpg"].from_sun == pytest.approx(SAMPLE_SUN, abs=0.2)
     assert got["exif.jpg"].status == "failed" and "no new sun" in got["exif.jpg"].message
+    r = run_job(BatchJob(str(exif), str(tmp_path / "o" / "e.png"), to_sun=(90.0, 30.0)), opts)
+    assert (r.status, r.sun_source) == ("done", "exif")
+    assert r.from_sun == pytest.approx(SAMPLE_SUN, abs=0.2)
     assert got["plain.png"].status == "failed"
     assert got["aligned.png"].status == "done"
     with Image.open(tmp_path / "out" / "aligned.jpg") as im:
@@ -221,3 +222,35 @@ def test_command_errors(tmp_path: Path, folder: Path, capsys: pytest.CaptureFixt
     with pytest.raises(SystemExit) as stop:
         main(["batch", str(folder), "-o", str(tmp_path / "o"), "--to", "10,-5"])
     assert stop.value.code == 2 and "horizon" in capsys.readouterr().err
+
+
+def test_automatic_sun_source(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    auto_sun = pytest.importorskip("outcast_core.runtime.auto_sun")
+    from types import SimpleNamespace
+
+    calls = []
+
+    def fake_find_sun(session, *, prior=None, **kwargs):
+        calls.append(prior)
+        sure = len(calls) == 1
+        return SimpleNamespace(azimuth=123.0, elevation=34.0, confidence=0.9 if sure else 0.1,
+                               found=sure)
+
+    monkeypatch.setattr(auto_sun, "find_sun", fake_find_sun)
+    photo = _photo(tmp_path / "a.png", 0)
+    opts = BatchOptions(kind="deshadow", sources=("project", "exif", "auto"), preset="fast",
+                        mode="classic")
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "a.png")), opts)
+    assert (r.status, r.sun_source, r.from_sun) == ("done", "auto", (123.0, 34.0))
+    assert calls == [None] and r.details["auto_sun"]["found"] is True
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "b.png")), opts)  # not confident
+    assert r.status == "failed" and "the automatic sun is not sure" in r.message
+    given_first = replace_sources(opts, ("given", "auto"), from_sun=(10.0, 20.0))
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "c.png")), given_first)
+    assert r.sun_source == "given" and len(calls) == 2  # never ran: --from came first
+
+
+def replace_sources(opts: BatchOptions, sources: tuple[str, ...], **kw: object) -> BatchOptions:
+    from dataclasses import replace
+
+    return replace(opts, sources=sources, **kw)
