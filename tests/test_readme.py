@@ -28,7 +28,7 @@ def test_quick_start_opens_the_app():
     assert "outcast-gui " in quick and "outcast relight " in quick
 
 
-@pytest.mark.parametrize("command", ["relight", "shadow", "depth", "timelapse"])
+@pytest.mark.parametrize("command", ["relight", "shadow", "depth", "timelapse", "batch", "models"])
 def test_every_option_is_in_the_synopsis(command):
     synopsis = README.split("## Command line", 1)[1].split("```", 2)[1]
     lines = [line for line in synopsis.splitlines() if line.strip()]
