@@ -28,6 +28,7 @@ from outcast_core.runtime.geometry import normalize_sun, sun_vector
 OPTIONAL_COMMANDS: list[tuple[str, str]] = [
     ("outcast_core.runtime.timelapse_cli", "register"),
     ("outcast_core.runtime.real_eval_cli", "register"),
+    ("outcast_core.runtime.auto_sun_cli", "register"),
     ("outcast_core.runtime.models_cli", "register"),
     ("outcast_core.runtime.batch_cli", "register"),
     ("outcast_core.data.cli", "register"),

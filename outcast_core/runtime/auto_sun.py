@@ -1,0 +1,576 @@
+"""Automatic sun: find the photo's sun from its own shadows and, where it has them, its EXIF.
+
+:func:`find_sun` searches the visible hemisphere for the sun whose predicted shadows (the
+session's shadow network, or Direct in classic mode) best agree with the shadows found in the
+photo itself (:func:`~outcast_core.runtime.photo_shadows.photo_shadow_probability`, no prior).
+The agreement of a sun is ``1 - BER`` between the overlay's mask (``S < 0.15`` off the sky, as
+the app draws it and ``outcast eval real`` scores it) and the found mask (probability > 0.5):
+1 is a perfect match, 0.5 is chance.
+
+Coarse to fine, cheap where it can be:
+
+1. the light-independent buffers (depth, sky, normals, photo) at :data:`COARSE_SIZE` and
+   :data:`FINE_SIZE` px, made once per call from the session's working buffers;
+2. a coarse grid over the dome (:data:`COARSE_AZIMUTHS` x :data:`COARSE_ELEVATIONS`), all suns
+   in batches through the shadow network at :data:`COARSE_SIZE` px: this is the agreement map
+   the app shows as a heat map;
+3. around the best separated peaks, 3 x 3 patterns at half the grid step (:data:`FINE_PATTERNS`)
+   at :data:`FINE_SIZE` px;
+4. the last :data:`FINAL_CANDIDATES` at the session's working size (cached by the session, so
+   the overlay the app then draws costs nothing).
+
+EXIF: GPS and capture time fix the sun's true elevation above the horizon (astral); with it the
+search runs on that ring only (:class:`SunPrior`), in the camera's frame when its pitch and roll
+are known (given, or from the fitted ground plane). A compass heading also fixes the azimuth:
+the search then only refines it (compasses are off by tens of degrees), and the EXIF sun stands
+when the photo has no clear shadows.
+
+Confidence (:attr:`SunFit.confidence`, 0-1) is the product of how clearly the photo has sun and
+shade (the separation of the two modes of its log luminance, and a shade fraction that is
+neither nothing nor everything) and how clearly one part of the dome explains them (the best
+agreement against the dome's median). Below :data:`CONFIDENT` the fit says so
+(:attr:`SunFit.found` is False) instead of offering a guess.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from outcast_core.runtime.colour import luminance, srgb_to_linear
+from outcast_core.runtime.geometry import (
+    Camera,
+    network_depth,
+    normals_from_depth,
+    sun_angles,
+    sun_vector,
+)
+from outcast_core.runtime.photo_shadows import photo_shadow_probability
+
+#: The overlay's threshold: ``S`` below it is a predicted shadow (as ``real_eval``).
+SHADOW_THRESHOLD = 0.15
+#: Longer side (px) of the coarse grid's and the fine patterns' shadow images.
+COARSE_SIZE = 64
+FINE_SIZE = 128
+#: The coarse grid over the dome (degrees, camera-relative, or in the ground's frame with a
+#: known pitch and roll).
+COARSE_AZIMUTHS: tuple[float, ...] = tuple(float(a) for a in range(0, 360, 20))
+COARSE_ELEVATIONS: tuple[float, ...] = (8.0, 22.0, 36.0, 50.0, 64.0, 78.0)
+#: With an elevation prior: the azimuth step of the ring.
+RING_AZIMUTH_STEP = 10.0
+#: Seeds taken from the coarse grid (local peaks at least :data:`PEAK_SEPARATION` degrees apart)
+#: and candidates checked at the session's working size.
+SEEDS = 4
+PEAK_SEPARATION = 30.0
+FINAL_CANDIDATES = 4
+#: The fine patterns: ``(seeds, step)``: 3 x 3 suns around the best ``seeds`` so far, ``step``
+#: times the coarse grid's step apart.
+FINE_PATTERNS: tuple[tuple[int, float], ...] = ((SEEDS, 0.5),)
+#: The lowest elevation tried (a grazing sun puts the whole ground in shadow).
+MIN_ELEVATION = 5.0
+#: Shadow images per network call.
+BATCH = 36
+#: Below this confidence the photo's shadows do not tell the sun (:attr:`SunFit.found`).
+CONFIDENT = 0.3
+#: Log-luminance mode separation (Fisher ratio of Otsu's two classes) at which the photo starts /
+#: stops counting as clearly sun and shade. A unimodal normal split by Otsu gives about 2.65.
+SEPARATION_LOW = 0.7
+SEPARATION_HIGH = 1.2
+#: Agreement of the best sun above the dome's median at which a peak counts as clear.
+PEAK_CONTRAST = 0.08
+#: Shade fractions (of the surface) below / above which the photo has no usable shadows.
+MIN_SHADE = 0.005
+MAX_SHADE = 0.85
+#: Camera tilts (degrees) from the fitted ground plane beyond which it is not trusted.
+MAX_PLANE_TILT = 25.0
+
+Progress = Callable[[str, float], None]
+
+
+class FindSunCancelledError(RuntimeError):
+    """Raised by :func:`find_sun` when its ``cancel`` callback says so."""
+
+
+@dataclass(frozen=True)
+class SunPrior:
+    """What the photo's EXIF says about its sun.
+
+    Attributes:
+        elevation: the sun's true elevation above the horizon in degrees (GPS + time).
+        azimuth: its azimuth relative to the camera in degrees when a compass heading is known
+            (a full guess), else None.
+        elevation_tolerance: how far (degrees) the search may leave ``elevation``.
+        azimuth_tolerance: how far (degrees) the search may leave ``azimuth``.
+        description: words for the user ("elevation 38° from the photo's time and place").
+    """
+
+    elevation: float
+    azimuth: float | None = None
+    elevation_tolerance: float = 2.0
+    azimuth_tolerance: float = 40.0
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.elevation) and -90.0 <= self.elevation <= 90.0):
+            raise ValueError(f"expected a prior elevation in [-90, 90], got {self.elevation}")
+        if self.azimuth is not None and not math.isfinite(self.azimuth):
+            raise ValueError(f"expected a finite prior azimuth, got {self.azimuth}")
+        for name in ("elevation_tolerance", "azimuth_tolerance"):
+            val = getattr(self, name)
+            if not (math.isfinite(val) and val >= 0.0):
+                raise ValueError(f"expected {name} >= 0, got {val}")
+
+
+def exif_sun_prior(metadata: Any) -> SunPrior | None:
+    """The sun prior of a photo's EXIF (:class:`~outcast_core.runtime.exif.PhotoMetadata`).
+
+    Returns:
+        None without GPS and capture time, or when the sun was below the horizon then; else the
+        true elevation, with the camera-relative azimuth when a compass heading is recorded.
+    """
+    from outcast_core.runtime.timelapse import relative_azimuth, true_sun_position
+
+    when = getattr(metadata, "capture_time", None)
+    lat, lon = getattr(metadata, "latitude", None), getattr(metadata, "longitude", None)
+    if when is None or lat is None or lon is None:
+        return None
+    true_az, el = true_sun_position(when, lat, lon)
+    if el <= 0.0:
+        return None
+    heading = getattr(metadata, "heading_deg", None)
+    if heading is None:
+        return SunPrior(el, description=f"elevation {el:.0f}° from the photo's time and place")
+    az = relative_azimuth(true_az, heading)
+    return SunPrior(el, az, description=f"azimuth {az:.0f}°, elevation {el:.0f}° from the "
+                                        "photo's time, place and compass heading")
+
+
+@dataclass
+class AgreementMap:
+    """Agreement (``1 - BER``, 0.5 = chance) of the coarse suns over the dome.
+
+    Attributes:
+        azimuths: ``(A,)`` degrees.
+        elevations: ``(E,)`` degrees (camera-relative).
+        scores: ``E x A`` in [0, 1]; NaN where no sun was tried.
+    """
+
+    azimuths: np.ndarray
+    elevations: np.ndarray
+    scores: np.ndarray
+
+    def normalised(self) -> np.ndarray:
+        """``E x A`` in [0, 1]: 0 at the dome's median agreement (or below), 1 at its best."""
+        s = self.scores
+        if not np.isfinite(s).any():
+            return np.zeros(s.shape, np.float32)
+        lo, hi = float(np.nanmedian(s)), float(np.nanmax(s))
+        out = np.clip((s - lo) / max(hi - lo, 1e-6), 0.0, 1.0)
+        return np.nan_to_num(out, nan=0.0).astype(np.float32)
+
+
+@dataclass
+class SunFit:
+    """What :func:`find_sun` found.
+
+    Attributes:
+        azimuth: camera-relative azimuth of the best sun (degrees, level camera convention).
+        elevation: camera-relative elevation (degrees, 0-90).
+        w: camera-space unit vector toward it.
+        agreement: ``1 - BER`` of its overlay against the photo's found shadows.
+        confidence: 0-1 (see the module docstring).
+        found: whether the confidence reaches :data:`CONFIDENT`.
+        source: ``"shadows"``, ``"shadows + EXIF elevation"``, ``"shadows + EXIF"`` or
+            ``"EXIF"`` (no clear shadows; the EXIF sun stands).
+        note: one line for the user.
+        map: the coarse agreement map (the dial's heat map).
+        candidates: ``(azimuth, elevation, agreement)`` of the last candidates, best first.
+        true_elevation: the sun's elevation above the ground's horizon (differs from
+            ``elevation`` when the camera is pitched or rolled).
+        pitch: camera pitch used (degrees; 0 without a prior).
+        roll: camera roll used (degrees).
+        evaluations: shadow images computed.
+        seconds: wall time.
+    """
+
+    azimuth: float
+    elevation: float
+    w: np.ndarray
+    agreement: float
+    confidence: float
+    found: bool
+    source: str
+    note: str
+    map: AgreementMap
+    candidates: list[tuple[float, float, float]] = field(default_factory=list)
+    true_elevation: float = 0.0
+    pitch: float = 0.0
+    roll: float = 0.0
+    evaluations: int = 0
+    seconds: float = 0.0
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain values for JSON (the map is left out)."""
+        return {
+            "azimuth": round(self.azimuth, 2), "elevation": round(self.elevation, 2),
+            "confidence": round(self.confidence, 3), "found": self.found,
+            "agreement": round(self.agreement, 4), "source": self.source, "note": self.note,
+            "true_elevation": round(self.true_elevation, 2), "pitch": round(self.pitch, 2),
+            "roll": round(self.roll, 2), "evaluations": self.evaluations,
+            "seconds": round(self.seconds, 3),
+            "candidates": [[round(a, 2), round(e, 2), round(s, 4)] for a, e, s in self.candidates],
+        }  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------- evidence
+def agreement(predicted: np.ndarray, found: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``1 - BER`` of predicted shadow masks against a found mask, over the valid pixels.
+
+    Args:
+        predicted: ``N x H x W`` (or ``H x W``) bool: the overlays' shadow masks.
+        found: ``H x W`` bool: the photo's shadows.
+        valid: ``H x W`` bool: pixels that count (off the sky).
+
+    Returns:
+        ``(N,)`` float64 (a 0-d array for one mask); a class absent from ``found`` counts as
+        fully right on that side, as :func:`~outcast_core.runtime.real_eval.balanced_error_rate`.
+    """
+    pred = np.asarray(predicted, bool)
+    found = np.asarray(found, bool)
+    valid = np.asarray(valid, bool)
+    if pred.shape[-2:] != found.shape or found.shape != valid.shape:
+        raise ValueError(f"expected masks of one size, got {pred.shape}, {found.shape} and "
+                         f"{valid.shape}")
+    pos, neg = (found & valid), (~found & valid)
+    p, n = int(pos.sum()), int(neg.sum())
+    tp = (pred & pos).sum(axis=(-2, -1))
+    tn = (~pred & neg).sum(axis=(-2, -1))
+    tpr = tp / p if p else np.ones(tp.shape)
+    tnr = tn / n if n else np.ones(tn.shape)
+    return 0.5 * (tpr + tnr)
+
+
+def shade_clarity(image_srgb: np.ndarray, sky: np.ndarray, found: np.ndarray) -> float:
+    """How clearly the photo splits into sun and shade (0-1).
+
+    The Fisher separation ``|m1 - m0| / sqrt((v0 + v1) / 2)`` of the surface's log luminance
+    between the found shade and the rest, mapped from :data:`SEPARATION_LOW` (0) to
+    :data:`SEPARATION_HIGH` (1); 0 when the shade covers under :data:`MIN_SHADE` or over
+    :data:`MAX_SHADE` of the surface.
+    """
+    surface = ~np.asarray(sky, bool)
+    if surface.sum() < 16:
+        return 0.0
+    shade = np.asarray(found, bool) & surface
+    lit = ~shade & surface
+    frac = shade.sum() / surface.sum()
+    if not MIN_SHADE <= frac <= MAX_SHADE or lit.sum() < 8 or shade.sum() < 8:
+        return 0.0
+    log_y = np.log(luminance(srgb_to_linear(np.clip(image_srgb, 0.0, 1.0))) + 1e-3)
+    a, b = log_y[shade], log_y[lit]
+    sep = abs(float(b.mean() - a.mean())) / math.sqrt(max(0.5 * (a.var() + b.var()), 1e-8))
+    return float(np.clip((sep - SEPARATION_LOW) / (SEPARATION_HIGH - SEPARATION_LOW), 0.0, 1.0))
+
+
+# ---------------------------------------------------------------------------------- levels
+def _resize(image: np.ndarray, shape: tuple[int, int], *, nearest: bool = False) -> np.ndarray:
+    from outcast_core.runtime.session import resize
+
+    return resize(image, shape, nearest=nearest)
+
+
+class _Level:
+    """The session's light-independent buffers at one small size, and shadows for many suns."""
+
+    def __init__(self, session: Any, longer_side: int, prob: np.ndarray) -> None:
+        from outcast_core.runtime.session import working_shape
+
+        cam: Camera = session.camera
+        h, w = working_shape(cam.height, cam.width, longer_side)
+        self.shape = (h, w)
+        self.camera = cam.resized(h, w)
+        depth_sky = np.where(session.sky, np.inf, session.depth).astype(np.float32)
+        self.depth = _resize(depth_sky, (h, w), nearest=True)  # H x W
+        self.sky = _resize(session.sky.astype(np.uint8), (h, w), nearest=True) > 0
+        self.image = _resize(session.image_srgb, (h, w))  # H x W x 3
+        self.normals = normals_from_depth(self.depth, self.camera)  # H x W x 3
+        self.found = _resize(prob, (h, w)) > 0.5
+        self.valid = ~self.sky
+        self.session = session
+        self._sampler: Any = None
+
+    def shadows(self, suns: np.ndarray) -> np.ndarray:
+        """``N x H x W`` shadow images for ``N x 3`` sun vectors."""
+        s = self.session
+        if s.shadow_mode == "learned":
+            model = s.registry.load("shadow")
+            out = []
+            for i in range(0, len(suns), BATCH):
+                chunk = suns[i:i + BATCH].astype(np.float32)  # B x 3
+                b = len(chunk)
+                res = model.run({
+                    "image": np.repeat(self.image.transpose(2, 0, 1)[None], b, 0),  # B x 3 x H x W
+                    "depth": np.repeat(network_depth(self.depth)[None, None], b, 0),
+                    "normals": np.repeat(self.normals.transpose(2, 0, 1)[None], b, 0),
+                    "sun": chunk,
+                    "focal": np.full((b, 1), self.camera.focal, np.float32),
+                })
+                out.append(np.clip(next(iter(res.values()))[:, 0], 0.0, 1.0))  # B x H x W
+            return np.concatenate(out, axis=0)
+        from outcast_core.runtime.raymarch import RaySampler
+        from outcast_core.runtime.shadows import direct_shadow
+
+        if self._sampler is None:
+            self._sampler = RaySampler(self.depth, self.camera)
+        step = max(float(s.preset.direct_step), 1.0 / max(self.shape))
+        return np.stack([
+            direct_shadow(self.depth, self.camera, w, normals=self.normals, sky=self.sky,
+                          steps=int(math.ceil(1.0 / step)), step=step, thickness=s.thickness,
+                          sampler=self._sampler)
+            for w in suns
+        ])  # fmt: skip
+
+    def score(self, suns: np.ndarray) -> np.ndarray:
+        """Agreement of each sun (``(N,)``)."""
+        if len(suns) == 0:
+            return np.zeros(0)
+        pred = (self.shadows(suns) < SHADOW_THRESHOLD) & self.valid[None]
+        return agreement(pred, self.found, self.valid)
+
+
+# ---------------------------------------------------------------------------------- search
+@dataclass
+class _Frame:
+    """Search coordinates: azimuth/elevation in a (possibly tilted) frame, to camera vectors."""
+
+    pitch: float = 0.0
+    roll: float = 0.0
+
+    def vector(self, az: float, el: float) -> np.ndarray:
+        return sun_vector(az, el, self.pitch, self.roll)
+
+    def vectors(self, points: Sequence[tuple[float, float]]) -> np.ndarray:
+        return np.stack([self.vector(a, e) for a, e in points]) if points else np.zeros((0, 3))
+
+
+def _camera_tilt(session: Any) -> tuple[float, float]:
+    """Camera ``(pitch, roll)`` in degrees from the fitted ground plane; (0, 0) without one."""
+    from outcast_core.runtime.depth_post import fit_ground_plane
+
+    try:
+        plane = fit_ground_plane(session.depth, session.sky, session.camera)
+    except ValueError:
+        return 0.0, 0.0
+    if plane is None:
+        return 0.0, 0.0
+    n = plane.normal  # the ground's up in camera space: R @ (0, -1, 0)
+    pitch = math.degrees(math.asin(max(-1.0, min(1.0, float(n[2])))))
+    roll = math.degrees(math.atan2(-float(n[0]), -float(n[1])))
+    if math.hypot(pitch, roll) > MAX_PLANE_TILT:
+        return 0.0, 0.0
+    return pitch, roll
+
+
+def _angle_between(a: np.ndarray, b: np.ndarray) -> float:
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(np.dot(a, b))))))
+
+
+def _peaks(points: list[tuple[float, float]], scores: np.ndarray, frame: _Frame, k: int,
+           separation: float) -> list[int]:
+    """Indices of the ``k`` best points at least ``separation`` degrees apart."""
+    order = np.argsort(-scores, kind="stable")
+    chosen: list[int] = []
+    vecs = frame.vectors(points)
+    for i in order:
+        if all(_angle_between(vecs[i], vecs[j]) >= separation for j in chosen):
+            chosen.append(int(i))
+        if len(chosen) == k:
+            break
+    return chosen
+
+
+def _pattern(centre: tuple[float, float], d_az: float, d_el: float, el_range: tuple[float, float],
+             ) -> list[tuple[float, float]]:
+    az0, el0 = centre
+    out = []
+    for de in ((-d_el, 0.0, d_el) if d_el > 0 else (0.0,)):
+        for da in (-d_az, 0.0, d_az):
+            el = min(el_range[1], max(el_range[0], el0 + de))
+            out.append(((az0 + da) % 360.0, el))
+    return out
+
+
+def _dedupe(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    seen: set[tuple[float, float]] = set()
+    out = []
+    for a, e in points:
+        key = (round(a % 360.0, 3), round(e, 3))
+        if key not in seen:
+            seen.add(key)
+            out.append((a % 360.0, e))
+    return out
+
+
+def find_sun(
+    session: Any,
+    *,
+    prior: SunPrior | None = None,
+    pitch_roll: tuple[float, float] | None = None,
+    progress: Progress | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> SunFit:
+    """Find the sun whose predicted shadows best agree with the photo's own shadows.
+
+    Args:
+        session: a :class:`~outcast_core.runtime.session.RelightSession` after ``set_image``.
+        prior: the EXIF prior (:func:`exif_sun_prior`); None searches the whole dome.
+        pitch_roll: the camera's ``(pitch, roll)`` in degrees for the prior's frame; None: from
+            the fitted ground plane (level when there is none). Unused without a prior.
+        progress: called with ``(stage, fraction)`` (the app's may raise to cancel).
+        cancel: polled between stages; True raises :class:`FindSunCancelledError`.
+
+    Returns:
+        A :class:`SunFit`.
+
+    Raises:
+        RuntimeError: before ``set_image``.
+
+    Example:
+        >>> fit = find_sun(session)  # doctest: +SKIP
+        >>> fit.azimuth, fit.elevation, fit.confidence  # doctest: +SKIP
+    """
+    if getattr(session, "image_srgb", None) is None or getattr(session, "depth", None) is None:
+        raise RuntimeError("set_image() must be called before find_sun()")
+    if prior is not None and not isinstance(prior, SunPrior):
+        raise ValueError(f"expected a SunPrior or None, got {type(prior).__name__}")
+    t0 = time.perf_counter()
+    report = progress or (lambda stage, frac: None)
+
+    def check(stage: str, frac: float) -> None:
+        if cancel is not None and cancel():
+            raise FindSunCancelledError("finding the sun was cancelled")
+        report(stage, frac)
+
+    check("finding the photo's shadows", 0.02)
+    prob = photo_shadow_probability(session.image_srgb, session.sky)
+    found_full = prob > 0.5
+    clarity = shade_clarity(session.image_srgb, session.sky, found_full)
+    coarse = _Level(session, COARSE_SIZE, prob)
+    fine = _Level(session, FINE_SIZE, prob)
+
+    frame = _Frame()
+    if prior is not None:
+        frame = _Frame(*(pitch_roll if pitch_roll is not None else _camera_tilt(session)))
+
+    # -- the coarse dome (the heat map), camera-relative
+    check("trying suns over the dome", 0.08)
+    grid = [(a, e) for e in COARSE_ELEVATIONS for a in COARSE_AZIMUTHS]
+    dome = coarse.score(_Frame().vectors(grid))
+    evaluations = len(grid)
+    amap = AgreementMap(np.array(COARSE_AZIMUTHS), np.array(COARSE_ELEVATIONS),
+                        dome.reshape(len(COARSE_ELEVATIONS), len(COARSE_AZIMUTHS)))
+    d_az = COARSE_AZIMUTHS[1] - COARSE_AZIMUTHS[0]
+    d_el = COARSE_ELEVATIONS[1] - COARSE_ELEVATIONS[0]
+    el_range = (MIN_ELEVATION, 90.0)
+
+    # -- the search space: the dome, or the prior's ring (and azimuth window)
+    if prior is None:
+        points, scores = grid, dome
+    else:
+        el_range = (prior.elevation - prior.elevation_tolerance,
+                    prior.elevation + prior.elevation_tolerance)
+        d_az, d_el = RING_AZIMUTH_STEP, prior.elevation_tolerance
+        azs = np.arange(0.0, 360.0, RING_AZIMUTH_STEP)
+        if prior.azimuth is not None:
+            off = (azs - prior.azimuth + 180.0) % 360.0 - 180.0
+            azs = azs[np.abs(off) <= prior.azimuth_tolerance]
+            azs = np.unique(np.append(azs, prior.azimuth % 360.0))
+        points = [(float(a), prior.elevation) for a in azs]
+        check("trying suns on the EXIF elevation", 0.3)
+        scores = coarse.score(frame.vectors(points))
+        evaluations += len(points)
+
+    # -- fine patterns around the best separated peaks
+    seeds = [points[i] for i in _peaks(points, scores, frame, SEEDS, PEAK_SEPARATION)]
+    cand: dict[tuple[float, float], float] = {}
+    if not FINE_PATTERNS:
+        cand.update(zip(points, scores.tolist(), strict=True))
+    for level, (k, scale) in enumerate(FINE_PATTERNS):
+        check("refining", 0.4 + 0.4 * level / len(FINE_PATTERNS))
+        pts = _dedupe([p for c in seeds[:k] for p in _pattern(c, d_az * scale, d_el * scale,
+                                                               el_range)])
+        sc = fine.score(frame.vectors(pts))
+        evaluations += len(pts)
+        cand.update(zip(pts, sc.tolist(), strict=True))
+        ranked = sorted(cand, key=lambda p: -cand[p])
+        seeds = ranked
+
+    # -- the last candidates at the session's working size, as the overlay is drawn and scored
+    #    (the shadow network's result depends on the size; cached there for the overlay)
+    check("checking the best suns", 0.85)
+    ranked = sorted(cand, key=lambda p: -cand[p])
+    finalists = [ranked[i] for i in _peaks(ranked, np.array([cand[p] for p in ranked]), frame,
+                                           FINAL_CANDIDATES, 2.0)]
+    finals: list[tuple[float, float, float]] = []
+    for a, e in finalists:
+        w = frame.vector(a, e)
+        s = session.shadow(w)
+        pred = (s < SHADOW_THRESHOLD) & ~session.sky
+        finals.append((a, e, float(agreement(pred, found_full, ~session.sky))))
+        evaluations += 1
+    finals.sort(key=lambda t: -t[2])
+    best_a, best_e, best_score = finals[0]
+    w_best = frame.vector(best_a, best_e)
+
+    # -- confidence
+    contrast = best_score - float(np.nanmedian(dome))
+    peak = float(np.clip(contrast / PEAK_CONTRAST, 0.0, 1.0))
+    confidence = float(clarity * peak)
+    found = confidence >= CONFIDENT
+    source = "shadows"
+    if prior is not None:
+        source = "shadows + EXIF elevation" if prior.azimuth is None else "shadows + EXIF"
+    if prior is not None and prior.azimuth is not None and not found:
+        w_best = frame.vector(prior.azimuth, prior.elevation)
+        best_a, best_e = prior.azimuth % 360.0, prior.elevation
+        source = "EXIF"
+    cam_az, cam_el = sun_angles(w_best)
+    cam_el = min(90.0, max(0.0, cam_el))
+    if found:
+        note = f"sun found from the photo's shadows (confidence {confidence:.2f})"
+        if prior is not None:
+            note += "; " + (prior.description or f"elevation {prior.elevation:.0f}° from EXIF")
+    elif source == "EXIF":
+        note = ("no clear shadows in the photo: the sun is the EXIF sun "
+                f"({prior.description if prior else ''})")
+    else:
+        note = (f"no clear shadows in the photo: its sun cannot be told from them (confidence "
+                f"{confidence:.2f}); set it by eye")
+    report("done", 1.0)
+    return SunFit(
+        azimuth=float(cam_az), elevation=float(cam_el), w=w_best, agreement=best_score,
+        confidence=confidence, found=found, source=source, note=note, map=amap,
+        candidates=[(float(sun_angles(frame.vector(a, e))[0]),
+                     float(max(0.0, sun_angles(frame.vector(a, e))[1])), s)
+                    for a, e, s in finals],
+        true_elevation=float(best_e) if prior is not None else float(cam_el),
+        pitch=frame.pitch, roll=frame.roll, evaluations=evaluations,
+        seconds=time.perf_counter() - t0,
+    )
+
+
+__all__ = [
+    "AgreementMap",
+    "FindSunCancelledError",
+    "SunFit",
+    "SunPrior",
+    "agreement",
+    "exif_sun_prior",
+    "find_sun",
+    "shade_clarity",
+]

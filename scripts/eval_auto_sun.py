@@ -1,0 +1,171 @@
+"""Measure the automatic sun (``outcast_core.runtime.auto_sun.find_sun``).
+
+Real photos with human shadow masks (``NAME_image.*`` + ``NAME_mask.png``, as ``outcast eval
+real``), per photo: the balanced error rate of the overlay at the best of the 24-sun sweep
+(``real_eval.SWEEP_SUNS``, the ideal user), the overlay's BER at the found sun, the gap between
+them, the confidence and the time of ``find_sun`` alone (depth excluded). Summary: the share of
+photos whose gap is at most ``--within`` (issue 17: 0.03 for at least 70 %), mean and median.
+
+The samples (``--samples``: ``samples/`` with ``suns.json``): the angle between the found sun and
+the listed one, and the found elevation against astral's from the EXIF GPS and time, without the
+EXIF prior (shadows only) and with it.
+
+    python scripts/eval_auto_sun.py ../shared/realdev [--every 3] [--limit N] [--json OUT]
+    python scripts/eval_auto_sun.py --samples samples
+
+Numbers only: nothing of a research data set is written anywhere but the optional JSON.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from outcast_core.runtime.auto_sun import exif_sun_prior, find_sun
+from outcast_core.runtime.geometry import sun_vector
+from outcast_core.runtime.imageio import read_image
+from outcast_core.runtime.real_eval import (
+    SWEEP_SUNS,
+    balanced_error_rate,
+    find_items,
+    read_mask,
+    shadow_mask,
+)
+from outcast_core.runtime.session import RelightSession
+
+
+def _session(image: Any, preset: str) -> RelightSession:
+    s = RelightSession(preset=preset)
+    s.set_image(image.image_srgb, focal_35mm=image.exif.focal_35mm)
+    return s
+
+
+def measure_real(folder: str, *, preset: str, every: int, limit: int | None,
+                 within: float, sweep_cache: str = "") -> dict[str, Any]:
+    """The real-photo figures (see the module docstring); ``sweep_cache``: a JSON file keeping
+    each photo's sweep (it does not depend on the search) between runs."""
+    cache: dict[str, list[float]] = {}
+    if sweep_cache and Path(sweep_cache).is_file():
+        cache = json.loads(Path(sweep_cache).read_text())
+    items = find_items(folder)[::every]
+    if limit:
+        items = items[:limit]
+    rows = []
+    for item in items:
+        loaded = read_image(item.image)
+        truth = read_mask(item.mask)
+        session = _session(loaded, preset)
+        key = f"{item.name}:{preset}"
+        sweep = cache.get(key) or [
+            balanced_error_rate(shadow_mask(session.shadow(sun_vector(a, e)), session.sky,
+                                            truth.shape), truth) for a, e in SWEEP_SUNS]
+        cache[key] = sweep
+        if sweep_cache:
+            Path(sweep_cache).write_text(json.dumps(cache))
+        t0 = time.perf_counter()
+        fit = find_sun(session)
+        seconds = time.perf_counter() - t0
+        found = balanced_error_rate(shadow_mask(session.shadow(fit.w), session.sky, truth.shape),
+                                    truth)
+        best = float(min(sweep))
+        row = {"name": item.name, "best_sweep_ber": round(best, 4),
+               "best_sweep_sun": list(SWEEP_SUNS[int(np.argmin(sweep))]),
+               "found_ber": round(found, 4), "gap": round(found - best, 4),
+               "found_sun": [round(fit.azimuth, 1), round(fit.elevation, 1)],
+               "confidence": round(fit.confidence, 3), "seconds": round(seconds, 3)}
+        rows.append(row)
+        print(f"{item.name:10s} sweep {best:.3f}  found {found:.3f}  gap {found - best:+.3f}  "
+              f"sun {fit.azimuth:5.1f},{fit.elevation:4.1f}  conf {fit.confidence:.2f}  "
+              f"{seconds:.2f} s", flush=True)
+    gaps = np.array([r["gap"] for r in rows])
+    secs = np.array([r["seconds"] for r in rows])
+    summary = {
+        "photos": len(rows), "within": within,
+        "share_within": round(float((gaps <= within).mean()), 3),
+        "mean_gap": round(float(gaps.mean()), 4), "median_gap": round(float(np.median(gaps)), 4),
+        "mean_found_ber": round(float(np.mean([r["found_ber"] for r in rows])), 4),
+        "mean_sweep_ber": round(float(np.mean([r["best_sweep_ber"] for r in rows])), 4),
+        "found_better": int((gaps < 0).sum()),
+        "median_seconds": round(float(np.median(secs)), 3),
+        "max_seconds": round(float(secs.max()), 3),
+    }
+    print(json.dumps(summary))
+    return {"rows": rows, "summary": summary}
+
+
+def _angle(a: tuple[float, float], b: tuple[float, float]) -> float:
+    return math.degrees(math.acos(float(np.clip(sun_vector(*a) @ sun_vector(*b), -1.0, 1.0))))
+
+
+def measure_samples(folder: str, *, preset: str) -> dict[str, Any]:
+    """The samples' figures (see the module docstring)."""
+    listed = json.loads((Path(folder) / "suns.json").read_text())
+    rows = []
+    for name, entry in listed.items():
+        if name.startswith("_"):
+            continue
+        loaded = read_image(Path(folder) / name)
+        session = _session(loaded, preset)
+        prior = exif_sun_prior(loaded.exif)
+        row: dict[str, Any] = {"name": name, "listed": entry["from"],
+                               "astral_elevation": None if prior is None
+                               else round(prior.elevation, 2)}
+        for label, p in (("shadows", None), ("exif_elevation", prior and
+                                              type(prior)(prior.elevation,
+                                                          description=prior.description)),
+                         ("exif_full", prior)):
+            if label != "shadows" and p is None:
+                continue
+            t0 = time.perf_counter()
+            fit = find_sun(session, prior=p)
+            sec = time.perf_counter() - t0
+            row[label] = {
+                "sun": [round(fit.azimuth, 1), round(fit.elevation, 1)],
+                "true_elevation": round(fit.true_elevation, 1),
+                "angle_to_listed": round(_angle((fit.azimuth, fit.elevation),
+                                                tuple(entry["from"])), 1),
+                "elevation_minus_astral": None if prior is None
+                else round(fit.true_elevation - prior.elevation, 1),
+                "confidence": round(fit.confidence, 3), "found": fit.found,
+                "source": fit.source, "pitch_roll": [round(fit.pitch, 1), round(fit.roll, 1)],
+                "seconds": round(sec, 2),
+            }
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    return {"samples": rows}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("folder", nargs="?", default="", help="folder of NAME_image.* + NAME_mask.png")
+    ap.add_argument("--samples", default="", help="the samples folder (with suns.json)")
+    ap.add_argument("--preset", default="balanced", choices=["fast", "balanced", "accurate"])
+    ap.add_argument("--every", type=int, default=1, help="take every N-th photo")
+    ap.add_argument("--limit", type=int, default=None, help="at most N photos")
+    ap.add_argument("--within", type=float, default=0.03, help="BER gap counted as a match")
+    ap.add_argument("--json", default="", help="write the figures to this JSON file")
+    ap.add_argument("--sweep-cache", default="", help="JSON file keeping the sweeps between runs")
+    args = ap.parse_args(argv)
+    if not args.folder and not args.samples:
+        ap.error("give a folder of photos with masks, --samples, or both")
+    out: dict[str, Any] = {"preset": args.preset}
+    if args.folder:
+        out["real"] = measure_real(args.folder, preset=args.preset, every=max(1, args.every),
+                                   limit=args.limit, within=args.within,
+                                   sweep_cache=args.sweep_cache)
+    if args.samples:
+        out["samples"] = measure_samples(args.samples, preset=args.preset)
+    if args.json:
+        Path(args.json).write_text(json.dumps(out, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
