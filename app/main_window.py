@@ -4,7 +4,8 @@ Every call into the session runs in the worker thread (:class:`app.workers.TaskR
 functions capture plain values and never touch widgets. Results come back as signals to slots of
 this window, in the GUI thread. Channels (one pending job each, latest wins):
 
-``load``, ``preset``, ``shadow`` (step-1 overlay), ``confirm``, ``relight`` (step-2 view),
+``load``, ``preset``, ``shadow`` (step-1 overlay), ``find_sun`` (step 1's automatic sun),
+``confirm``, ``relight`` (step-2 view),
 ``export_still``, ``export_shadows_removed``, ``tl_preview``, ``tl_export``.
 
 The step-2 views "Shadows removed" and "Shadows found" do not depend on the new sun: their
@@ -82,6 +83,7 @@ STAGE_WORDS = {
     "load": "Opening photo",
     "preset": "Changing quality",
     "shadow": "Predicting shadows",
+    "find_sun": "Finding the sun",
     "confirm": "Refining the original shadows",
     "relight": "Relighting",
     "export_still": "Exporting still",
@@ -164,6 +166,11 @@ class MainWindow(QMainWindow):
         self.step = Step.EMPTY
         self.original_sun: Sun | None = None
         self.timelapse_settings = TimelapseSettings()
+        #: A compass heading typed in step 1 for a photo whose EXIF has none (None: unknown).
+        self.user_heading: float | None = None
+        #: The last automatic sun (``auto_sun.SunFit``) of this photo, or None.
+        self.sun_fit: Any = None
+        self._find_message = ""  # shown once the found sun's overlay is drawn
         self.timings = StageTimings()
         self.recent = RecentFiles([str(p) for p in (self.settings.value("recent", []) or [])])
         self.last_error: str = ""
@@ -282,6 +289,11 @@ class MainWindow(QMainWindow):
             "&Confirm original sun", self, shortcut=QKeySequence("Ctrl+Return")
         )
         self.act_confirm.triggered.connect(self.confirm_original_sun)
+        self.act_find_sun = QAction("&Find sun from shadows", self, shortcut=QKeySequence("Ctrl+F"))
+        self.act_find_sun.setToolTip(
+            "Search the sky for the sun whose shadows match the photo's (Ctrl+F; again to cancel)"
+        )
+        self.act_find_sun.triggered.connect(self.toggle_find_sun)
         self.act_undo = self.undo_stack.createUndoAction(self, "&Undo")
         self.act_undo.setShortcut(QKeySequence.StandardKey.Undo)
         self.act_redo = self.undo_stack.createRedoAction(self, "&Redo")
@@ -318,6 +330,7 @@ class MainWindow(QMainWindow):
         for a in (self.act_fit, self.act_actual, self.act_zoom_in, self.act_zoom_out):
             view_menu.addAction(a)
         sun_menu = self.menuBar().addMenu("&Sun")
+        sun_menu.addAction(self.act_find_sun)
         sun_menu.addAction(self.act_confirm)
         help_menu = self.menuBar().addMenu("&Help")
         help_menu.addAction(self.act_keys)
@@ -377,6 +390,8 @@ class MainWindow(QMainWindow):
         ap.opacity_slider.valueChanged.connect(lambda v: self.canvas.set_overlay_opacity(v / 100.0))
         ap.confirm_clicked.connect(self.confirm_original_sun)
         ap.exif_clicked.connect(self.use_exif_sun)
+        ap.find_sun_clicked.connect(self.toggle_find_sun)
+        ap.heading_changed.connect(self.set_user_heading)
         rp.sun_panel.sun_changed.connect(self._on_target_sun_changed)
         rp.sun_panel.sun_committed.connect(self._on_target_sun_committed)
         rp.split_slider.valueChanged.connect(self._on_split_changed)
@@ -396,8 +411,8 @@ class MainWindow(QMainWindow):
         """Shortcuts that reach the window even while a number field has focus."""
         acts = (
             self.act_export, self.act_export_deshadow, self.act_timelapse, self.act_confirm,
-            self.act_save, self.act_open, self.act_quit, self.act_undo, self.act_redo,
-            self.act_keys,
+            self.act_find_sun, self.act_save, self.act_open, self.act_quit, self.act_undo,
+            self.act_redo, self.act_keys,
         )  # fmt: skip
         return [seq for act in acts for seq in act.shortcuts()]
 
@@ -423,6 +438,7 @@ class MainWindow(QMainWindow):
         for act in (self.act_export, self.act_export_deshadow, self.act_timelapse):
             act.setEnabled(step is Step.RELIGHT)
         self.act_confirm.setEnabled(step is Step.ALIGN)
+        self.act_find_sun.setEnabled(step is Step.ALIGN)
         if step is Step.RELIGHT:
             self.canvas.set_overlay(None)
             self._on_split_changed(self.relight_panel.split_slider.value())
@@ -673,7 +689,12 @@ class MainWindow(QMainWindow):
         if note:
             notice = f"{note[:1].upper()}{note[1:]}. " + notice
         self.align_panel.show_notice(notice.strip())
-        self.align_panel.exif_button.setEnabled(self.exif_sun() is not None)
+        if restore is None:  # another photo: its own heading, no search result yet
+            self.user_heading = None
+            self.align_panel.set_heading(None)
+            self.sun_fit = None
+            self.align_panel.sun_panel.dial.set_heat_map(None)
+        self._update_exif_controls()
         self._set_step(Step.ALIGN)
         exif_sun = None
         if restore is None:  # another photo: nothing of the previous one stays on screen
@@ -727,19 +748,133 @@ class MainWindow(QMainWindow):
         return f"{shadow} · {relight} · depth: {short}"
 
     def exif_sun(self) -> tuple[float, float] | None:
-        """The photo's sun relative to the camera from EXIF GPS, time and compass heading."""
+        """The photo's sun relative to the camera from EXIF GPS, time and compass heading (or
+        the heading typed in step 1 when the EXIF has none)."""
         from outcast_core.runtime import timelapse as tl
 
         exif = getattr(self.loaded, "exif", None)
         when = getattr(exif, "capture_time", None)
         lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
         heading = getattr(exif, "heading_deg", None)
+        if heading is None:
+            heading = self.user_heading
         if when is None or lat is None or lon is None or heading is None:
             return None
         true_az, el = tl.true_sun_position(when, lat, lon)
         if el <= 0:
             return None
         return tl.relative_azimuth(true_az, heading), el
+
+    def exif_prior(self) -> Any:
+        """What the photo's EXIF (and a typed heading) says about its sun: an
+        :class:`~outcast_core.runtime.auto_sun.SunPrior`, or None without GPS and time."""
+        from outcast_core.runtime.auto_sun import SunPrior, exif_sun_prior
+
+        exif = getattr(self.loaded, "exif", None)
+        prior = exif_sun_prior(exif) if exif is not None else None
+        sun = self.exif_sun()
+        if prior is not None and prior.azimuth is None and sun is not None:  # a typed heading
+            prior = SunPrior(prior.elevation, sun[0], description=(
+                f"azimuth {sun[0]:.0f}°, elevation {prior.elevation:.0f}° from the photo's time "
+                "and place and the heading you gave"))
+        return prior
+
+    def exif_note(self) -> str:
+        """Why the EXIF button is greyed out, or what the EXIF gives without a heading."""
+        from outcast_core.runtime import timelapse as tl
+
+        exif = getattr(self.loaded, "exif", None)
+        if exif is None or self.session is None:
+            return ""
+        when = getattr(exif, "capture_time", None)
+        lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
+        if when is None or lat is None or lon is None:
+            missing = " and ".join(n for n, v in (("GPS position", lat), ("capture time", when))
+                                   if v is None)
+            return f"The photo's EXIF has no {missing}: set the sun by eye or find it."
+        _, el = tl.true_sun_position(when, lat, lon)
+        if el <= 0:
+            return ("The sun was below the horizon at the photo's time and place (check the "
+                    "camera's clock): set the sun by eye or find it.")
+        if getattr(exif, "heading_deg", None) is None and self.user_heading is None:
+            return (f"No compass heading in the photo's EXIF: Find sun uses the elevation "
+                    f"{el:.0f}° from the photo's time and place. Type the camera heading below "
+                    "for the full sun.")
+        return ""
+
+    def _update_exif_controls(self) -> None:
+        self.align_panel.exif_button.setEnabled(self.exif_sun() is not None)
+        self.align_panel.set_exif_note(self.exif_note())
+        exif = getattr(self.loaded, "exif", None)
+        has_place = exif is not None and getattr(exif, "has_gps", False) and getattr(
+            exif, "capture_time", None) is not None
+        # A heading only helps with a time and a place; one recorded in the EXIF is used as is.
+        self.align_panel.heading_box.setEnabled(
+            bool(has_place) and getattr(exif, "heading_deg", None) is None)
+
+    def set_user_heading(self, heading: float | None) -> None:
+        """The camera heading typed in step 1 (degrees from true north; None: unknown)."""
+        self.user_heading = None if heading is None else float(heading) % 360.0
+        if self.align_panel.heading() != self.user_heading:
+            self.align_panel.set_heading(self.user_heading)
+        self._update_exif_controls()
+
+    # ---- automatic sun
+    def toggle_find_sun(self) -> None:
+        """Start finding the sun, or cancel the search that runs."""
+        if self.finding_sun():
+            self.runner.cancel("find_sun")
+            return
+        self.find_sun()
+
+    def finding_sun(self) -> bool:
+        """Whether a sun search is waiting or running."""
+        return any(ch == "find_sun" for _, ch, _ in self.runner.active())
+
+    def find_sun(self) -> int | None:
+        """Search for the photo's sun in the worker (progress in the status bar, cancellable);
+        the result moves the sun (undoable) and shows the agreement on the dial."""
+        session = self.session
+        if session is None or self.step is not Step.ALIGN:
+            return None
+        prior = self.exif_prior()
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            from outcast_core.runtime.auto_sun import find_sun
+
+            fit = find_sun(session, prior=prior, progress=ctx.progress)
+            return {"fit": fit, "prior": prior,
+                    "timings": {**_timings(session), "find_sun": fit.seconds}}
+
+        self.align_panel.set_finding(True)
+        return self.runner.submit("find_sun", job, "Finding the sun")
+
+    def _on_found_sun(self, result: dict[str, Any]) -> None:
+        fit = result["fit"]
+        self.sun_fit = fit
+        self.align_panel.set_finding(False)
+        m = fit.map
+        self.align_panel.sun_panel.dial.set_heat_map(
+            m.azimuths.tolist(), m.elevations.tolist(), m.normalised().tolist())
+        if self.step is not Step.ALIGN:
+            return
+        if fit.found or fit.source == "EXIF":
+            self.align_panel.sun_panel.set_sun(fit.azimuth, fit.elevation)
+            self.request_shadow(fit.azimuth, fit.elevation, preview=False)
+            self._record(text="Find sun")
+            text = (f"Sun found: azimuth {fit.azimuth:.1f}°, elevation {fit.elevation:.1f}°, "
+                    f"confidence {fit.confidence:.2f}")
+            if fit.source == "EXIF":
+                text = f"Sun from EXIF: {fit.note}"
+            elif result.get("prior") is not None:
+                text += f" · {result['prior'].description}"
+        else:
+            text = (f"No clear shadows in this photo: its sun cannot be told from them "
+                    f"(confidence {fit.confidence:.2f}). Set it by eye; the dial shows where "
+                    "suns fit best.")
+        self.stage_label.setText(text)
+        self._find_message = text if self.runner.busy() else ""
+        self.align_panel.show_notice(text if not (fit.found or fit.source == "EXIF") else "")
 
     def use_exif_sun(self) -> None:
         sun = self.exif_sun()
@@ -1267,7 +1402,7 @@ class MainWindow(QMainWindow):
     @Slot(int, str, str)
     def _on_job_started(self, job_id: int, channel: str, description: str) -> None:
         self.stage_label.setText(f"{description or STAGE_WORDS.get(channel, channel)}…")
-        if channel in ("load", "preset", "confirm", *EXPORT_CHANNELS):
+        if channel in ("load", "preset", "confirm", "find_sun", *EXPORT_CHANNELS):
             self.progress_bar.setRange(0, 0 if channel == "confirm" else 100)
             self.progress_bar.setValue(0)
             self.progress_bar.show()
@@ -1276,7 +1411,7 @@ class MainWindow(QMainWindow):
     def _on_job_progress(self, job_id: int, channel: str, stage: str, fraction: float) -> None:
         if channel in EXPORT_CHANNELS:
             self._job_fraction[job_id] = fraction
-        if channel in ("load", "preset", *EXPORT_CHANNELS):
+        if channel in ("load", "preset", "find_sun", *EXPORT_CHANNELS):
             self.progress_bar.setRange(0, 100)
             self.progress_bar.setValue(round(100 * fraction))
             base = STAGE_WORDS.get(channel, channel)
@@ -1301,6 +1436,8 @@ class MainWindow(QMainWindow):
             self._on_loaded(result)
         elif channel == "shadow":
             self._on_shadow(result)
+        elif channel == "find_sun":
+            self._on_found_sun(result)
         elif channel == "confirm":
             self._on_confirmed(result)
         elif channel == "relight":
@@ -1309,7 +1446,7 @@ class MainWindow(QMainWindow):
             self.last_export = result["path"]
         elif channel in ("tl_preview", "tl_export") and self._timelapse_dialog is not None:
             self._timelapse_dialog.on_job_finished(channel, result)
-        if not self.runner.busy():
+        if not self.runner.busy() and channel != "find_sun":
             if channel in IMAGE_EXPORT_CHANNELS:
                 text = f"Saved {os.path.basename(result['path'])} in {seconds:.1f} s"
             elif channel == "tl_export":
@@ -1319,11 +1456,15 @@ class MainWindow(QMainWindow):
                 if isinstance(result, dict) and result.get("view") in DESHADOW_VIEWS:
                     words = "Removing shadows"
                 text = f"Ready · {words.lower()} took {seconds:.2f} s"
+                if channel == "shadow" and self._find_message:
+                    text, self._find_message = self._find_message, ""
             self.stage_label.setText(text)
 
     @Slot(int, str, object)
     def _on_job_failed(self, job_id: int, channel: str, exc: Any) -> None:
         self.progress_bar.hide()
+        if channel == "find_sun":
+            self.align_panel.set_finding(False)
         if channel == "load":
             self._pending_project = None
             self._pending_restore = self._pending_record_from = None
@@ -1358,7 +1499,9 @@ class MainWindow(QMainWindow):
     def _on_job_cancelled(self, job_id: int, channel: str) -> None:
         if channel == "tl_export" and self._timelapse_dialog is not None:
             self._timelapse_dialog.on_export_cancelled()
-        if channel in (*EXPORT_CHANNELS, "load"):
+        if channel == "find_sun":
+            self.align_panel.set_finding(False)
+        if channel in (*EXPORT_CHANNELS, "load", "find_sun"):
             self.progress_bar.hide()
             self.stage_label.setText(f"{STAGE_WORDS.get(channel, channel)}: cancelled")
 

@@ -6,6 +6,7 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (
     QComboBox,
+    QDoubleSpinBox,
     QFormLayout,
     QHBoxLayout,
     QLabel,
@@ -50,6 +51,8 @@ class AlignPanel(QWidget):
 
     confirm_clicked = Signal()
     exif_clicked = Signal()
+    find_sun_clicked = Signal()
+    heading_changed = Signal(object)  # float (degrees from north) or None
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -73,6 +76,32 @@ class AlignPanel(QWidget):
         )
         self.exif_button.setEnabled(False)
         self.exif_button.clicked.connect(self.exif_clicked)
+        self.exif_note = QLabel(self)
+        self.exif_note.setWordWrap(True)
+        self.exif_note.setStyleSheet("color: palette(mid); font-size: 9pt;")
+        self.exif_note.hide()
+        self.heading_box = QDoubleSpinBox(self)
+        self.heading_box.setRange(-1.0, 359.9)
+        self.heading_box.setDecimals(1)
+        self.heading_box.setSuffix("°")
+        self.heading_box.setWrapping(False)
+        self.heading_box.setSpecialValueText("unknown")
+        self.heading_box.setValue(-1.0)
+        self.heading_box.setKeyboardTracking(False)
+        self.heading_box.setToolTip(
+            "The camera's compass heading (degrees clockwise from true north) when the photo "
+            "does not record it: with the photo's GPS position and time it gives the full sun"
+        )
+        self.heading_box.valueChanged.connect(
+            lambda v: self.heading_changed.emit(None if v < 0 else float(v))
+        )
+        self.find_button = QPushButton("Find sun from shadows", self)
+        self.find_button.setToolTip(
+            "Search the sky for the sun whose predicted shadows best match the shadows found in "
+            "the photo (uses the photo's GPS and time when it has them; Ctrl+F). The dial shows "
+            "how well each part of the sky fits."
+        )
+        self.find_button.clicked.connect(self.find_sun_clicked)
         self.opacity_slider = _percent_slider(60, self)
         self.opacity_slider.setToolTip("Opacity of the predicted-shadow overlay")
         self.opacity_label = QLabel("60 %", self)
@@ -94,10 +123,38 @@ class AlignPanel(QWidget):
         layout.addWidget(body)
         layout.addWidget(self.notice)
         layout.addWidget(self.sun_panel)
+        layout.addWidget(self.find_button)
         layout.addWidget(self.exif_button)
+        layout.addWidget(self.exif_note)
+        heading_row = QHBoxLayout()
+        heading_row.addWidget(QLabel("Camera heading", self))
+        heading_row.addWidget(self.heading_box, 1)
+        layout.addLayout(heading_row)
         layout.addLayout(row)
         layout.addWidget(self.confirm_button)
         layout.addStretch(1)
+
+    def heading(self) -> float | None:
+        """The heading typed by the user (degrees from north), or None."""
+        v = self.heading_box.value()
+        return None if v < 0 else float(v)
+
+    def set_heading(self, heading: float | None) -> None:
+        """Show a heading without emitting ``heading_changed``."""
+        self.heading_box.blockSignals(True)
+        self.heading_box.setValue(-1.0 if heading is None else float(heading) % 360.0)
+        self.heading_box.blockSignals(False)
+
+    def set_finding(self, running: bool) -> None:
+        """The find button becomes a cancel button while a search runs."""
+        self.find_button.setText("Cancel finding the sun" if running else "Find sun from shadows")
+
+    def set_exif_note(self, text: str) -> None:
+        """Why the EXIF button is greyed out, or what the EXIF gives (hidden when empty)."""
+        self.exif_note.setText(text)
+        self.exif_note.setVisible(bool(text))
+        if text:
+            self.exif_button.setToolTip(text)
 
     def show_notice(self, text: str) -> None:
         """A warning above the dial (hidden when empty)."""

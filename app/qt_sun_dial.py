@@ -1,8 +1,10 @@
 """``QtSunDial``: the sky hemisphere seen from above with a draggable sun, and its panel.
 
 Maths lives in :mod:`app.sun_dial_math`; this module only paints and turns events into angles.
-Painting happens in small overridable steps (``paint_sky``, ``paint_grid``, ``paint_camera``,
-``paint_shadow_ruler``, ``paint_reference``, ``paint_sun``).
+Painting happens in small overridable steps (``paint_sky``, ``paint_heat_map``, ``paint_grid``,
+``paint_camera``, ``paint_shadow_ruler``, ``paint_reference``, ``paint_sun``). The heat map
+(:meth:`QtSunDial.set_heat_map`) shows how well suns over the dome explain the photo's shadows
+("Find sun").
 
 Keyboard (dial focused): Left/Right turn the azimuth, Up/Down raise/lower the sun; 1 degree per
 press, 10 with Shift, 0.1 with Ctrl.
@@ -11,6 +13,7 @@ press, 10 with Shift, 0.1 with Ctrl.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 from PySide6.QtCore import QPointF, QRectF, QSize, Qt, Signal
 from PySide6.QtGui import (
@@ -61,6 +64,8 @@ class QtSunDial(QWidget):
         self._vfov = 45.0
         self._dragging = False
         self._reference: tuple[float, float] | None = None
+        self._heat: list[tuple[int, int, float, float, float, float]] = []
+        self._heat_values: list[list[float]] = []
         self.sun_colour = colour or QColor(255, 196, 40)
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.setMinimumSize(180, 180)
@@ -116,6 +121,28 @@ class QtSunDial(QWidget):
         self._reference = sun
         self.update()
 
+    def set_heat_map(
+        self,
+        azimuths: Sequence[float] | None,
+        elevations: Sequence[float] | None = None,
+        values: Sequence[Sequence[float]] | None = None,
+    ) -> None:
+        """Show an agreement map: ``values[row][col]`` in [0, 1] (0: no colour) at
+        ``elevations[row]``, ``azimuths[col]``; ``None`` clears it."""
+        if azimuths is None or elevations is None or values is None:
+            self._heat, self._heat_values = [], []
+        else:
+            rows = [[float(v) for v in row] for row in values]
+            if len(rows) != len(elevations) or any(len(r) != len(azimuths) for r in rows):
+                raise ValueError(f"expected {len(elevations)} x {len(azimuths)} values, got "
+                                 f"{len(rows)} rows")
+            self._heat = dm.heat_cells(azimuths, elevations)
+            self._heat_values = rows
+        self.update()
+
+    def has_heat_map(self) -> bool:
+        return bool(self._heat)
+
     # ------------------------------------------------------------------ geometry
     def dial_geometry(self) -> tuple[float, float, float]:
         """``(cx, cy, radius)`` of the disc in widget pixels."""
@@ -142,6 +169,7 @@ class QtSunDial(QWidget):
         p.setRenderHint(QPainter.RenderHint.Antialiasing)
         cx, cy, r = self.dial_geometry()
         self.paint_sky(p, cx, cy, r)
+        self.paint_heat_map(p, cx, cy, r)
         self.paint_grid(p, cx, cy, r)
         self.paint_camera(p, cx, cy, r)
         self.paint_shadow_ruler(p, cx, cy, r)
@@ -157,6 +185,31 @@ class QtSunDial(QWidget):
         p.setPen(QPen(QColor(40, 50, 70), 1.5))
         p.setBrush(grad)
         p.drawEllipse(QPointF(cx, cy), r, r)
+
+    def paint_heat_map(self, p: QPainter, cx: float, cy: float, r: float) -> None:
+        """The agreement map: an annular sector per sample, warmer where suns fit better."""
+        if not self._heat:
+            return
+        p.setPen(Qt.PenStyle.NoPen)
+        for row, col, a0, a1, e0, e1 in self._heat:
+            colour = dm.heat_colour(self._heat_values[row][col])
+            if colour[3] == 0:
+                continue
+            outer = r * (90.0 - e0) / 90.0
+            inner = r * (90.0 - e1) / 90.0
+            path = QPainterPath()
+            # Qt angles: counter-clockwise from 3 o'clock; azimuth a sits at 90 - a.
+            path.arcMoveTo(QRectF(cx - outer, cy - outer, 2 * outer, 2 * outer), 90.0 - a0)
+            path.arcTo(QRectF(cx - outer, cy - outer, 2 * outer, 2 * outer), 90.0 - a0,
+                       -(a1 - a0))
+            if inner > 0.5:
+                path.arcTo(QRectF(cx - inner, cy - inner, 2 * inner, 2 * inner), 90.0 - a1,
+                           a1 - a0)
+            else:
+                path.lineTo(QPointF(cx, cy))
+            path.closeSubpath()
+            p.setBrush(QColor(*colour))
+            p.drawPath(path)
 
     def paint_grid(self, p: QPainter, cx: float, cy: float, r: float) -> None:
         p.setBrush(Qt.BrushStyle.NoBrush)

@@ -12,6 +12,7 @@ Screen coordinates have y down, as in Qt.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 MIN_ELEVATION = 0.0
 MAX_ELEVATION = 90.0
@@ -173,3 +174,52 @@ def describe_sun(azimuth: float, elevation: float) -> str:
     else:
         height = "at the horizon"
     return f"{height}, {side}"
+
+
+def heat_cells(
+    azimuths: Sequence[float], elevations: Sequence[float]
+) -> list[tuple[int, int, float, float, float, float]]:
+    """Cells of an agreement map on the dial: one annular sector per (elevation, azimuth) sample.
+
+    Each sample's cell reaches half-way to its neighbours: in azimuth half the (uniform) step
+    either side; in elevation half-way to the next rows, the lowest row down to the horizon and
+    the highest up to the zenith.
+
+    Args:
+        azimuths: ``A`` sample azimuths in degrees, increasing, evenly spaced around the circle.
+        elevations: ``E`` sample elevations in degrees, increasing.
+
+    Returns:
+        ``(row, col, az_from, az_to, el_from, el_to)`` per cell (degrees).
+
+    Example:
+        >>> heat_cells([0.0, 180.0], [45.0])[1]
+        (0, 1, 90.0, 270.0, 0.0, 90.0)
+    """
+    az = [float(a) for a in azimuths]
+    el = [float(e) for e in elevations]
+    if not az or not el:
+        return []
+    if any(not math.isfinite(v) for v in (*az, *el)):
+        raise ValueError("expected finite azimuths and elevations")
+    half = 180.0 if len(az) == 1 else (360.0 / len(az)) / 2.0
+    bounds = [0.0] + [(a + b) / 2.0 for a, b in zip(el, el[1:], strict=False)] + [90.0]
+    return [(r, c, a - half, a + half, clamp_elevation(bounds[r]), clamp_elevation(bounds[r + 1]))
+            for r in range(len(el)) for c, a in enumerate(az)]
+
+
+def heat_colour(value: float) -> tuple[int, int, int, int]:
+    """RGBA of a normalised agreement in [0, 1]: clear below 0.05, then a warm ramp from a faint
+    orange to an opaque red-magenta at the best.
+
+    Example:
+        >>> heat_colour(0.0)[3], heat_colour(1.0)[3] > heat_colour(0.5)[3]
+        (0, True)
+    """
+    if not math.isfinite(value) or value <= 0.05:
+        return (0, 0, 0, 0)
+    v = min(1.0, value)
+    r = 255
+    g = round(200 * (1.0 - v) + 20 * v)
+    b = round(40 * (1.0 - v) + 120 * v)
+    return (r, g, b, round(40 + 170 * v))

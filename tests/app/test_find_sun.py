@@ -1,0 +1,137 @@
+"""Step 1's "Find sun": runs in the worker, moves the sun (undoable), heat map on the dial, says
+when the photo has no clear shadows; the EXIF button explains itself; a typed heading."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+import pytest
+
+from app.state import Step
+from outcast_core.runtime import auto_sun
+from outcast_core.runtime.auto_sun import AgreementMap, SunFit
+from outcast_core.runtime.geometry import sun_vector
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def _fit(az: float, el: float, *, found: bool = True, source: str = "shadows") -> SunFit:
+    azs, els = np.arange(0.0, 360.0, 20.0), np.array([8.0, 22.0, 36.0, 50.0, 64.0, 78.0])
+    scores = np.full((len(els), len(azs)), 0.55)
+    scores[2, 10] = 0.9
+    return SunFit(az, el, sun_vector(az, el), 0.9, 0.8 if found else 0.1, found, source,
+                  "note", AgreementMap(azs, els, scores), [(az, el, 0.9)])
+
+
+def _load(window, photo, settle) -> None:
+    window.open_path(photo)
+    settle()
+    assert window.step is Step.ALIGN
+
+
+def test_find_sun_moves_the_sun_undoably_and_shows_the_heat_map(
+    window, photo, settle, monkeypatch
+):
+    _load(window, photo, settle)
+    panel = window.align_panel.sun_panel
+    before = panel.sun()
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: _fit(200.0, 30.0))
+    window.align_panel.find_button.click()
+    settle()
+    assert panel.sun() == pytest.approx((200.0, 30.0))
+    assert panel.dial.has_heat_map()
+    assert "Sun found" in window.stage_label.text()
+    assert window.undo_stack.undoText() == "Find sun"
+    window.undo_stack.undo()
+    settle()
+    assert panel.sun() == pytest.approx(before)
+    window.undo_stack.redo()
+    settle()
+    assert panel.sun() == pytest.approx((200.0, 30.0))
+
+
+def test_no_clear_shadows_is_said_and_the_sun_stays(window, photo, settle, monkeypatch):
+    _load(window, photo, settle)
+    panel = window.align_panel.sun_panel
+    before = panel.sun()
+    count = window.undo_stack.count()
+    monkeypatch.setattr(auto_sun, "find_sun",
+                        lambda session, **kw: _fit(10.0, 60.0, found=False))
+    window.find_sun()
+    settle()
+    assert panel.sun() == pytest.approx(before)
+    assert window.undo_stack.count() == count
+    assert "No clear shadows" in window.stage_label.text()
+    assert window.align_panel.notice.isVisibleTo(window)
+    assert panel.dial.has_heat_map()
+
+
+def test_find_sun_can_be_cancelled_and_never_blocks(qtbot, window, photo, settle, monkeypatch):
+    _load(window, photo, settle)
+    started = []
+
+    def slow(session, *, prior=None, progress=None, **kw):
+        started.append(True)
+        for i in range(200):
+            time.sleep(0.02)
+            progress("trying", i / 200)  # the worker's progress raises once cancelled
+        return _fit(1.0, 2.0)
+
+    monkeypatch.setattr(auto_sun, "find_sun", slow)
+    before = window.align_panel.sun_panel.sun()
+    window.toggle_find_sun()
+    qtbot.waitUntil(lambda: bool(started), timeout=5000)
+    assert window.finding_sun()
+    assert window.align_panel.find_button.text().startswith("Cancel")
+    t0 = time.perf_counter()
+    window.toggle_find_sun()  # the button again: cancel
+    settle()
+    assert time.perf_counter() - t0 < 2.0
+    assert not window.finding_sun()
+    assert window.align_panel.find_button.text() == "Find sun from shadows"
+    assert window.align_panel.sun_panel.sun() == pytest.approx(before)
+
+
+def test_find_sun_for_real_on_a_small_photo(window, photo, settle):
+    _load(window, photo, settle)
+    window.act_find_sun.trigger()
+    settle(60000)
+    assert window.sun_fit is not None
+    assert window.align_panel.sun_panel.dial.has_heat_map()
+    assert 0.0 <= window.sun_fit.confidence <= 1.0
+    assert "find_sun" in window.timings.summary(limit=50)
+
+
+def test_exif_without_heading_explains_the_grey_button_and_takes_a_heading(
+    window, settle, monkeypatch
+):
+    captured = {}
+
+    def fake(session, *, prior=None, **kw):
+        captured["prior"] = prior
+        return _fit(120.0, prior.elevation if prior else 30.0)
+
+    window.open_path(os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg"))
+    settle()
+    ap = window.align_panel
+    assert not ap.exif_button.isEnabled()
+    note = ap.exif_note.text()
+    assert "No compass heading" in note and "from the photo's time and place" in note
+    assert ap.exif_note.isVisibleTo(window) and ap.exif_button.toolTip() == note
+    assert ap.heading_box.isEnabled()
+    monkeypatch.setattr(auto_sun, "find_sun", fake)
+    window.find_sun()
+    settle()
+    prior = captured["prior"]
+    assert prior is not None and prior.azimuth is None
+    assert f"elevation {prior.elevation:.0f}° from the photo's time and place" in \
+        window.stage_label.text()
+    # A typed heading makes the EXIF sun a full guess.
+    ap.heading_box.setValue(200.0)
+    assert window.user_heading == pytest.approx(200.0)
+    assert ap.exif_button.isEnabled() and not ap.exif_note.isVisibleTo(window)
+    window.find_sun()
+    settle()
+    assert captured["prior"].azimuth is not None
