@@ -30,13 +30,14 @@ def _progress_bar(desc: str):  # noqa: ANN202 - a closure
 
 def _make(
     out: Path, views: int, suns: int, res: int, spp: int, seed: int, workers: int,
-    kind: str | None = None,
+    kind: str | None = None, shard: tuple[int, int] | None = None,
 ) -> int:
-    from outcast_core.data.dataset import make_dataset
+    from outcast_core.data.dataset import make_dataset, shard_range
 
     bar, update = _progress_bar(out.name)
     try:
-        make_dataset(out, views, suns, res, spp, seed, workers, progress=update, kind=kind)
+        make_dataset(out, views, suns, res, spp, seed, workers, progress=update, kind=kind,
+                     shard=shard)
     except DiskFullError as exc:
         bar.close()
         print(
@@ -50,14 +51,21 @@ def _make(
         print(f"error: {exc}", file=sys.stderr)
         return 2
     bar.close()
-    print(f"{views} views x {suns} suns in {out}")
+    part = shard_range(views, shard)
+    if shard is not None and not part:
+        print(f"shard {shard[0]}/{shard[1]}: no views (only {views} for {shard[1]} shards)")
+    elif shard is not None:
+        print(f"shard {shard[0]}/{shard[1]}: views {part.start}..{part.stop - 1} (seeds "
+              f"{seed + part.start}..{seed + part.stop - 1}) of {views} x {suns} suns in {out}")
+    else:
+        print(f"{views} views x {suns} suns in {out}")
     return 0
 
 
 def cmd_make(args: argparse.Namespace) -> int:
     return _make(
         Path(args.out), args.views, args.suns, args.res, args.spp, args.seed, args.workers,
-        args.kind,
+        args.kind, args.shard,
     )
 
 
@@ -65,7 +73,21 @@ def cmd_standard(args: argparse.Namespace) -> int:
     cfg = STANDARD_SETS[args.set]
     out = Path(args.out) if args.out else default_set_dir(args.set)
     views = args.views if args.views else cfg["views"]
-    return _make(out, views, cfg["suns"], cfg["res"], cfg["spp"], cfg["seed"], args.workers)
+    return _make(out, views, cfg["suns"], cfg["res"], cfg["spp"], cfg["seed"], args.workers,
+                 shard=args.shard)
+
+
+def _shard(text: str) -> tuple[int, int]:
+    """``I/N`` with ``0 <= I < N``: this machine's part of the views."""
+    parts = text.split("/")
+    try:
+        i, n = (int(p) for p in parts) if len(parts) == 2 else (-1, 0)
+    except ValueError:
+        i, n = -1, 0
+    if not (n >= 1 and 0 <= i < n):
+        raise argparse.ArgumentTypeError(f"expected --shard I/N with 0 <= I < N (e.g. 0/4), "
+                                         f"got {text!r}")
+    return i, n
 
 
 def cmd_preview(args: argparse.Namespace) -> int:
@@ -130,6 +152,11 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         "--kind", choices=SCENE_KINDS + EXTRA_KINDS, default=None,
         help="only this scene kind (default: the standard street/plaza/close-up mix)",
     )
+    make.add_argument(
+        "--shard", type=_shard, default=None, metavar="I/N",
+        help="render only the I-th of N contiguous seed ranges (0-based), for N machines; "
+             "the views keep their global numbers, so the shards' folders together are the set",
+    )
     make.set_defaults(func=cmd_make)
 
     std = sub.add_parser("standard", help="make a standard set (train / test / dev)")
@@ -142,6 +169,8 @@ def register(subparsers: argparse._SubParsersAction) -> argparse.ArgumentParser:
         help="override the number of views (a prefix of the standard set)",
     )
     std.add_argument("--workers", type=_positive, default=1)
+    std.add_argument("--shard", type=_shard, default=None, metavar="I/N",
+                     help="render only the I-th of N contiguous seed ranges (0-based)")
     std.set_defaults(func=cmd_standard)
 
     prev = sub.add_parser("preview", help="contact sheet PNG of a data set")

@@ -208,6 +208,29 @@ def check_args(views: int, suns: int, res: int, spp: int, seed: int, workers: in
         raise ValueError(f"expected --res <= 4096, got {res}")
 
 
+def shard_range(views: int, shard: tuple[int, int] | None) -> range:
+    """The view indices of shard ``(i, n)``: the ``i``-th of ``n`` contiguous, near-equal ranges
+    of ``0 .. views-1`` (so of seeds ``seed .. seed+views-1``); all of them for ``None``.
+
+    Example:
+        >>> [list(shard_range(10, (i, 3))) for i in range(3)]
+        [[0, 1, 2], [3, 4, 5, 6], [7, 8, 9]]
+    """
+    if shard is None:
+        return range(views)
+    i, n = shard
+    if not (isinstance(n, int) and isinstance(i, int) and n >= 1 and 0 <= i < n):
+        raise ValueError(f"expected a shard I/N with 0 <= I < N, got {i}/{n}")
+    return range(i * views // n, (i + 1) * views // n)
+
+
+def _write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+    """Write JSON via a unique temporary file and a rename (shards may share the folder)."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(data, indent=1, sort_keys=True))
+    os.replace(tmp, path)
+
+
 def make_dataset(
     root: str | Path,
     views: int,
@@ -218,6 +241,7 @@ def make_dataset(
     workers: int = 1,
     progress: Callable[[int, int], None] | None = None,
     kind: str | None = None,
+    shard: tuple[int, int] | None = None,
 ) -> list[int]:
     """Render views ``0 .. views-1`` into ``root``, skipping finished ones.
 
@@ -226,9 +250,13 @@ def make_dataset(
         views: number of views N. suns: suns per view K. res: square image size.
         spp: path-tracing samples per pixel. seed: base seed (view i uses seed + i).
         workers: parallel processes.
-        progress: called as ``progress(done, total)`` after each view.
+        progress: called as ``progress(done, total)`` after each view (of this shard).
         kind: render only this scene kind (recorded in ``dataset.json``); ``None``: the
             standard mix of street, plaza and close-up.
+        shard: ``(i, n)``: render only the ``i``-th of ``n`` contiguous ranges of views
+            (:func:`shard_range`). The views keep their global indices and seeds and
+            ``dataset.json`` is the same for every shard, so ``n`` machines writing into one
+            shared folder, or folders copied together, make the unsharded set: no merge step.
 
     Returns:
         The indices rendered by this call.
@@ -256,7 +284,8 @@ def make_dataset(
                 f"expected {root} to hold a set made with the same arguments, got "
                 f"differences (existing, requested): {diff}"
             )
-    todo = [i for i in range(views) if not (view_dir(root, i) / "view.npz").is_file()]
+    mine = shard_range(views, shard)
+    todo = [i for i in mine if not (view_dir(root, i) / "view.npz").is_file()]
     free = shutil.disk_usage(root).free
     need = len(todo) * bytes_per_view(suns, res)
     if need > free:
@@ -272,10 +301,11 @@ def make_dataset(
             json.loads(info_path.read_text()).get("views", 0) if info_path.is_file() else views,
         ),
     )
-    info_path.write_text(json.dumps(info, indent=1, sort_keys=True))
-    done = views - len(todo)
+    _write_json_atomic(info_path, info)
+    total = len(mine)
+    done = total - len(todo)
     if progress:
-        progress(done, views)
+        progress(done, total)
     jobs = [(str(root), i, suns, res, spp, seed, kind) for i in todo]
     finished: list[int] = []
     if workers == 1:
@@ -283,7 +313,7 @@ def make_dataset(
             finished.append(_worker(job))
             done += 1
             if progress:
-                progress(done, views)
+                progress(done, total)
     else:
         import multiprocessing as mp
 
@@ -292,5 +322,5 @@ def make_dataset(
                 finished.append(idx)
                 done += 1
                 if progress:
-                    progress(done, views)
+                    progress(done, total)
     return finished
