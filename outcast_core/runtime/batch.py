@@ -522,15 +522,27 @@ def _render_timelapse(session: Any, loaded: Any, sun: Sun, job: BatchJob,
 
 
 # -------------------------------------------------------------------------------- many jobs
+class _Stop(BaseException):
+    """Raised in a worker by SIGTERM: unwinds the job (its writers remove partial outputs)."""
+
+
 def _worker_init() -> None:
-    """Workers leave Ctrl+C to the parent, and turn SIGTERM into an exception (so partial
-    outputs are removed by their writers' clean-up)."""
+    """Workers leave Ctrl+C to the parent, and turn SIGTERM into :class:`_Stop`."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
     def stop(signum: int, frame: object) -> None:
-        raise SystemExit(143)
+        raise _Stop()
 
     signal.signal(signal.SIGTERM, stop)
+
+
+def _run_in_worker(job: BatchJob, options: BatchOptions) -> JobResult:
+    """:func:`run_job` in a worker process: stopped by SIGTERM, it cleans up and exits at once
+    (instead of taking the next queued photo)."""
+    try:
+        return run_job(job, options)
+    except _Stop:
+        os._exit(143)
 
 
 def threads_per_worker(workers: int) -> int:
@@ -580,7 +592,7 @@ def run_batch(
                                initializer=_worker_init)
     pending: dict[Future[JobResult], int] = {}
     try:
-        pending = {pool.submit(run_job, job, options): i for i, job in enumerate(jobs)}
+        pending = {pool.submit(_run_in_worker, job, options): i for i, job in enumerate(jobs)}
         while pending:
             finished, _ = wait(pending, return_when=FIRST_COMPLETED)
             for fut in finished:

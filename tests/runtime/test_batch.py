@@ -254,3 +254,31 @@ def replace_sources(opts: BatchOptions, sources: tuple[str, ...], **kw: object) 
     from dataclasses import replace
 
     return replace(opts, sources=sources, **kw)
+
+
+@pytest.mark.slow
+def test_sigterm_stops_the_workers_and_leaves_no_partial_file(tmp_path: Path) -> None:
+    import shutil
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(3):
+        shutil.copy2(SAMPLE, d / f"p{i}.jpg")  # full size: a few seconds each
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "outcast_core.runtime.cli", "batch", str(d), "-o", str(out),
+           "--to", "90,30", "--preset", "fast", "--workers", "2"]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    assert proc.stderr is not None
+    assert proc.stderr.readline().startswith("processing 3 photos")
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    err = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 143 and "outcast batch: terminated" in err
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".")]  # no partial files
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)  # resumed
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["p0.jpg", "p1.jpg", "p2.jpg"]
