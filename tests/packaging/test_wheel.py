@@ -151,3 +151,23 @@ def test_wheel_installs_and_relights(wheel: Path, tmp_path: Path) -> None:
     assert result["exif_sun"] == pytest.approx([273.5, 66.8], abs=0.2)
     assert "learned" in result["mode"] and result["models"].startswith(str(env_dir))
     assert result["size"] == [2016, 1512] and (work / "still.png").is_file()
+
+
+def test_gui_without_pyside6_says_how_to_install_it(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import builtins
+
+    from app.main import main
+
+    real_import = builtins.__import__
+
+    def no_qt(name: str, *args: object, **kwargs: object) -> object:
+        if name.startswith("PySide6"):
+            raise ImportError(f"No module named '{name}'")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_qt)
+    assert main(["photo.jpg"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "pip install 'outcast[gui]'" in err
