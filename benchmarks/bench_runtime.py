@@ -119,6 +119,28 @@ def session_reuse(repeats: int) -> None:
               f"{t_cached:9.5f} {t_full:11.3f}")
 
 
+def find_sun_speed(repeats: int) -> None:
+    """``auto_sun.find_sun`` on a 12 MP photo (the pool sample enlarged), balanced preset, with
+    the models the app uses (issue 17: at most 2 s). Depth is set once and not counted."""
+    import cv2
+
+    from outcast_core.runtime.auto_sun import find_sun
+    from outcast_core.runtime.imageio import read_image
+
+    sample = Path(__file__).resolve().parents[1] / "samples" / "exif_003_th_pool.jpg"
+    img = cv2.resize(read_image(sample).image_srgb, (4000, 3000), interpolation=cv2.INTER_LINEAR)
+    s = RelightSession(preset="balanced")
+    s.set_image(img)
+
+    def run() -> object:
+        s.set_preset("balanced")  # same size: only the per-sun caches are cleared
+        return find_sun(s)
+
+    t, fit = best_of(run, repeats)
+    print(f"\nfind_sun on a 12 MP photo (4000x3000), balanced, {s.shadow_mode} shadows: "
+          f"{t:.2f} s best of {repeats} ({fit.evaluations} suns tried)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=3)
@@ -132,6 +154,7 @@ def main() -> None:
         direct_trade(128 if args.quick else 256, rep)
         early_exit(128 if args.quick else 256, rep)
         session_reuse(rep)
+        find_sun_speed(rep)
 
 
 if __name__ == "__main__":

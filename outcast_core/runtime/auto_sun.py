@@ -21,9 +21,11 @@ Coarse to fine, cheap where it can be:
 
 EXIF: GPS and capture time fix the sun's true elevation above the horizon (astral); with it the
 search runs on that ring only (:class:`SunPrior`), in the camera's frame when its pitch and roll
-are known (given, or from the fitted ground plane). A compass heading also fixes the azimuth:
-the search then only refines it (compasses are off by tens of degrees), and the EXIF sun stands
-when the photo has no clear shadows.
+are known (given, or from the fitted ground plane). A compass heading also gives the azimuth:
+a full guess that pulls the search toward it (:attr:`SunPrior.azimuth_weight`) but loses when
+the shadows clearly say otherwise (compasses are often off, sometimes wildly: the ski-slope
+sample's heading puts the sun 130° from where it is in the frame), and that stands when the
+photo has no clear shadows.
 
 Confidence (:attr:`SunFit.confidence`, 0-1) is the product of how clearly the photo has sun and
 shade (the separation of the two modes of its log luminance, and a shade fraction that is
@@ -105,14 +107,17 @@ class SunPrior:
         azimuth: its azimuth relative to the camera in degrees when a compass heading is known
             (a full guess), else None.
         elevation_tolerance: how far (degrees) the search may leave ``elevation``.
-        azimuth_tolerance: how far (degrees) the search may leave ``azimuth``.
+        azimuth_weight: how much agreement a sun opposite ``azimuth`` gives up in the search
+            (``weight * (1 - cos(deviation)) / 2``): the compass heading decides between suns
+            the shadows fit about equally well, and loses when they clearly disagree (phone
+            compasses are often tens of degrees off, and a wrong heading is not rare).
         description: words for the user ("elevation 38° from the photo's time and place").
     """
 
     elevation: float
     azimuth: float | None = None
     elevation_tolerance: float = 2.0
-    azimuth_tolerance: float = 40.0
+    azimuth_weight: float = 0.05
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -120,7 +125,7 @@ class SunPrior:
             raise ValueError(f"expected a prior elevation in [-90, 90], got {self.elevation}")
         if self.azimuth is not None and not math.isfinite(self.azimuth):
             raise ValueError(f"expected a finite prior azimuth, got {self.azimuth}")
-        for name in ("elevation_tolerance", "azimuth_tolerance"):
+        for name in ("elevation_tolerance", "azimuth_weight"):
             val = getattr(self, name)
             if not (math.isfinite(val) and val >= 0.0):
                 raise ValueError(f"expected {name} >= 0, got {val}")
@@ -467,6 +472,13 @@ def find_sun(
     if prior is not None:
         frame = _Frame(*(pitch_roll if pitch_roll is not None else _camera_tilt(session)))
 
+    def bias(pts: Sequence[tuple[float, float]]) -> np.ndarray:
+        """The compass heading's soft pull (:attr:`SunPrior.azimuth_weight`)."""
+        if prior is None or prior.azimuth is None or not pts:
+            return np.zeros(len(pts))
+        dev = np.radians(np.array([a for a, _ in pts]) - prior.azimuth)
+        return prior.azimuth_weight * (1.0 - np.cos(dev)) / 2.0
+
     # -- the coarse dome (the heat map), camera-relative
     check("trying suns over the dome", 0.08)
     grid = [(a, e) for e in COARSE_ELEVATIONS for a in COARSE_AZIMUTHS]
@@ -487,24 +499,22 @@ def find_sun(
         d_az, d_el = RING_AZIMUTH_STEP, prior.elevation_tolerance
         azs = np.arange(0.0, 360.0, RING_AZIMUTH_STEP)
         if prior.azimuth is not None:
-            off = (azs - prior.azimuth + 180.0) % 360.0 - 180.0
-            azs = azs[np.abs(off) <= prior.azimuth_tolerance]
             azs = np.unique(np.append(azs, prior.azimuth % 360.0))
         points = [(float(a), prior.elevation) for a in azs]
         check("trying suns on the EXIF elevation", 0.3)
-        scores = coarse.score(frame.vectors(points))
+        scores = coarse.score(frame.vectors(points)) - bias(points)
         evaluations += len(points)
 
     # -- fine patterns around the best separated peaks
     seeds = [points[i] for i in _peaks(points, scores, frame, SEEDS, PEAK_SEPARATION)]
     cand: dict[tuple[float, float], float] = {}
     if not FINE_PATTERNS:
-        cand.update(zip(points, scores.tolist(), strict=True))
+        cand.update(zip(points, scores.tolist(), strict=True))  # scores with the pull
     for level, (k, scale) in enumerate(FINE_PATTERNS):
         check("refining", 0.4 + 0.4 * level / len(FINE_PATTERNS))
         pts = _dedupe([p for c in seeds[:k] for p in _pattern(c, d_az * scale, d_el * scale,
                                                                el_range)])
-        sc = fine.score(frame.vectors(pts))
+        sc = fine.score(frame.vectors(pts)) - bias(pts)
         evaluations += len(pts)
         cand.update(zip(pts, sc.tolist(), strict=True))
         ranked = sorted(cand, key=lambda p: -cand[p])
@@ -523,7 +533,8 @@ def find_sun(
         pred = (s < SHADOW_THRESHOLD) & ~session.sky
         finals.append((a, e, float(agreement(pred, found_full, ~session.sky))))
         evaluations += 1
-    finals.sort(key=lambda t: -t[2])
+    pull = dict(zip(finalists, bias(finalists).tolist(), strict=True))
+    finals.sort(key=lambda t: -(t[2] - pull[(t[0], t[1])]))
     best_a, best_e, best_score = finals[0]
     w_best = frame.vector(best_a, best_e)
 
@@ -545,6 +556,11 @@ def find_sun(
         note = f"sun found from the photo's shadows (confidence {confidence:.2f})"
         if prior is not None:
             note += "; " + (prior.description or f"elevation {prior.elevation:.0f}° from EXIF")
+        if prior is not None and prior.azimuth is not None:
+            off = abs((best_a - prior.azimuth + 180.0) % 360.0 - 180.0)
+            if off > 45.0:
+                note += (f"; the shadows put the sun {off:.0f}° away from the EXIF compass "
+                         "heading's")
     elif source == "EXIF":
         note = ("no clear shadows in the photo: the sun is the EXIF sun "
                 f"({prior.description if prior else ''})")
