@@ -804,6 +804,9 @@ class MainWindow(QMainWindow):
 
     def _update_exif_controls(self) -> None:
         self.align_panel.exif_button.setEnabled(self.exif_sun() is not None)
+        prior = self.exif_prior()
+        self.align_panel.sun_panel.dial.set_prior_elevation(
+            None if prior is None else prior.elevation)
         self.align_panel.set_exif_note(self.exif_note())
         exif = getattr(self.loaded, "exif", None)
         has_place = exif is not None and getattr(exif, "has_gps", False) and getattr(

@@ -2,9 +2,10 @@
 
 Maths lives in :mod:`app.sun_dial_math`; this module only paints and turns events into angles.
 Painting happens in small overridable steps (``paint_sky``, ``paint_heat_map``, ``paint_grid``,
-``paint_camera``, ``paint_shadow_ruler``, ``paint_reference``, ``paint_sun``). The heat map
-(:meth:`QtSunDial.set_heat_map`) shows how well suns over the dome explain the photo's shadows
-("Find sun").
+``paint_prior``, ``paint_camera``, ``paint_shadow_ruler``, ``paint_reference``, ``paint_sun``).
+The heat map (:meth:`QtSunDial.set_heat_map`) shows how well suns over the dome explain the
+photo's shadows ("Find sun"); the dashed ring (:meth:`QtSunDial.set_prior_elevation`) is the
+elevation the photo's EXIF time and place give.
 
 Keyboard (dial focused): Left/Right turn the azimuth, Up/Down raise/lower the sun; 1 degree per
 press, 10 with Shift, 0.1 with Ctrl.
@@ -66,6 +67,7 @@ class QtSunDial(QWidget):
         self._reference: tuple[float, float] | None = None
         self._heat: list[tuple[int, int, float, float, float, float]] = []
         self._heat_values: list[list[float]] = []
+        self._prior_elevation: float | None = None
         self.sun_colour = colour or QColor(255, 196, 40)
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.setMinimumSize(180, 180)
@@ -143,6 +145,14 @@ class QtSunDial(QWidget):
     def has_heat_map(self) -> bool:
         return bool(self._heat)
 
+    def set_prior_elevation(self, elevation: float | None) -> None:
+        """A dashed ring at the elevation the photo's time and place give (None hides it)."""
+        self._prior_elevation = None if elevation is None else dm.clamp_elevation(elevation)
+        self.update()
+
+    def prior_elevation(self) -> float | None:
+        return self._prior_elevation
+
     # ------------------------------------------------------------------ geometry
     def dial_geometry(self) -> tuple[float, float, float]:
         """``(cx, cy, radius)`` of the disc in widget pixels."""
@@ -171,6 +181,7 @@ class QtSunDial(QWidget):
         self.paint_sky(p, cx, cy, r)
         self.paint_heat_map(p, cx, cy, r)
         self.paint_grid(p, cx, cy, r)
+        self.paint_prior(p, cx, cy, r)
         self.paint_camera(p, cx, cy, r)
         self.paint_shadow_ruler(p, cx, cy, r)
         self.paint_reference(p, cx, cy, r)
@@ -210,6 +221,15 @@ class QtSunDial(QWidget):
             path.closeSubpath()
             p.setBrush(QColor(*colour))
             p.drawPath(path)
+
+    def paint_prior(self, p: QPainter, cx: float, cy: float, r: float) -> None:
+        """The EXIF elevation (:meth:`set_prior_elevation`): a dashed ring."""
+        if self._prior_elevation is None:
+            return
+        rr = r * (90.0 - self._prior_elevation) / 90.0
+        p.setBrush(Qt.BrushStyle.NoBrush)
+        p.setPen(QPen(QColor(255, 225, 120, 230), 2.0, Qt.PenStyle.DashLine))
+        p.drawEllipse(QPointF(cx, cy), rr, rr)
 
     def paint_grid(self, p: QPainter, cx: float, cy: float, r: float) -> None:
         p.setBrush(Qt.BrushStyle.NoBrush)

@@ -58,7 +58,7 @@ from outcast_core.runtime.photo_shadows import photo_shadow_probability
 SHADOW_THRESHOLD = 0.15
 #: Longer side (px) of the coarse grid's and the fine patterns' shadow images.
 COARSE_SIZE = 64
-FINE_SIZE = 128
+FINE_SIZE = 96
 #: The coarse grid over the dome (degrees, camera-relative, or in the ground's frame with a
 #: known pitch and roll).
 COARSE_AZIMUTHS: tuple[float, ...] = tuple(float(a) for a in range(0, 360, 20))
@@ -67,9 +67,9 @@ COARSE_ELEVATIONS: tuple[float, ...] = (8.0, 22.0, 36.0, 50.0, 64.0, 78.0)
 RING_AZIMUTH_STEP = 10.0
 #: Seeds taken from the coarse grid (local peaks at least :data:`PEAK_SEPARATION` degrees apart)
 #: and candidates checked at the session's working size.
-SEEDS = 4
+SEEDS = 3
 PEAK_SEPARATION = 30.0
-FINAL_CANDIDATES = 4
+FINAL_CANDIDATES = 3
 #: The fine patterns: ``(seeds, step)``: 3 x 3 suns around the best ``seeds`` so far, ``step``
 #: times the coarse grid's step apart.
 FINE_PATTERNS: tuple[tuple[int, float], ...] = ((SEEDS, 0.5),)

@@ -121,6 +121,8 @@ def test_exif_without_heading_explains_the_grey_button_and_takes_a_heading(
     assert "No compass heading" in note and "from the photo's time and place" in note
     assert ap.exif_note.isVisibleTo(window) and ap.exif_button.toolTip() == note
     assert ap.heading_box.isEnabled()
+    el = window.align_panel.sun_panel.dial.prior_elevation()
+    assert el is not None and 0.0 < el < 90.0  # the EXIF elevation's ring on the dial
     monkeypatch.setattr(auto_sun, "find_sun", fake)
     window.find_sun()
     settle()
