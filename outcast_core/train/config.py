@@ -77,6 +77,10 @@ class TrainConfig:
         max_views: use at most this many views of the data folder (0 = all).
         reload_every: every this many steps, add views that appeared in the data folder since
             the start (training while the data set is still being generated); 0 = never.
+        device: ``auto`` (CUDA when available, else the CPU), ``cpu``, ``cuda`` (under
+            ``torchrun``: ``cuda:LOCAL_RANK``) or ``cuda:I``. Under ``torchrun`` ``batch`` is
+            the global batch, split evenly over the processes (see
+            :mod:`outcast_core.train.distributed`).
     """
 
     run: str
@@ -115,6 +119,7 @@ class TrainConfig:
     max_views: int = 0
     reload_every: int = 0
     extra_data: list[str] = field(default_factory=list)
+    device: str = "auto"
 
     def __post_init__(self) -> None:
         if self.stage not in STAGES:
@@ -150,6 +155,10 @@ class TrainConfig:
             raise ValueError(f"expected resume_from to name another run, got {self.run!r}")
         if self.stage == "relight" and not self.shadow_checkpoint:
             raise ValueError("expected a shadow_checkpoint for the relight stage, got none")
+        if self.device not in ("auto", "cpu", "cuda") and not (
+            self.device.startswith("cuda:") and self.device[5:].isdigit()
+        ):
+            raise ValueError(f"expected device auto, cpu, cuda or cuda:I, got {self.device!r}")
         self.data = str(Path(self.data).expanduser())
         if isinstance(self.extra_data, str) or not all(
             isinstance(d, str) for d in self.extra_data

@@ -266,15 +266,17 @@ def find_views(root: str | Path) -> list[Path]:
 def load_prepared(
     root: str | Path, size: int, max_views: int = 0,
     loader: Callable[[Path], dict[str, Any]] | None = None, skip: set[Path] | None = None,
-    allow_empty: bool = False,
+    allow_empty: bool = False, paths: list[Path] | None = None,
 ) -> list[Prepared]:
     """Load and resize every view of ``root`` (at most ``max_views`` when > 0).
 
     ``skip`` holds paths already loaded (they are left out, and the new ones are added to it).
+    ``paths`` replaces :func:`find_views`'s listing of ``root`` (distributed training lists the
+    folder once, on rank 0, so that every rank loads the same views while a data set grows).
     """
     if loader is None:
         from outcast_core.data import load_view as loader  # type: ignore[no-redef]
-    paths = find_views(root)
+    paths = find_views(root) if paths is None else [Path(p) for p in paths]
     if max_views > 0:
         paths = paths[:max_views]
     if skip is not None:

@@ -58,8 +58,22 @@ def structural_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return (pred - target).abs().mean() + dssim(pred, target).mean()
 
 
+def change_weight(vis_old: torch.Tensor, vis_new: torch.Tensor) -> torch.Tensor:
+    """:func:`change_loss`'s per-pixel weight: ``|vis_old - vis_new|`` dilated by one pixel.
+
+    Shape:
+        ``(B, 1, H, W)`` x 2 -> ``(B, 1, H, W)``.
+    """
+    if vis_old.shape != vis_new.shape or vis_old.dim() != 4 or vis_old.shape[1] != 1:
+        raise ValueError(
+            f"expected two B x 1 x H x W visibility maps, got {vis_old.shape}, {vis_new.shape}"
+        )
+    return F.max_pool2d((vis_old - vis_new).abs(), 3, stride=1, padding=1)
+
+
 def change_loss(
     pred: torch.Tensor, target: torch.Tensor, vis_old: torch.Tensor, vis_new: torch.Tensor,
+    weight_sum: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """L1 of ``pred`` against ``target`` on the pixels whose sun visibility changed.
 
@@ -69,16 +83,16 @@ def change_loss(
     visibility changed the term is 0. Whole-image losses are dominated by the
     global change of light; this one is paid only where a shadow appears or disappears.
 
+    ``weight_sum`` replaces the batch's weight sum as the normaliser (distributed training
+    passes the sum over the whole global batch divided by the number of processes, so that the
+    processes' mean is the one-process loss).
+
     Shape:
         pred, target ``(B, C, H, W)``; vis_old, vis_new ``(B, 1, H, W)`` -> scalar.
     """
-    if vis_old.shape != vis_new.shape or vis_old.shape[1] != 1:
-        raise ValueError(
-            f"expected two B x 1 x H x W visibility maps, got {vis_old.shape}, {vis_new.shape}"
-        )
-    wgt = F.max_pool2d((vis_old - vis_new).abs(), 3, stride=1, padding=1)
+    wgt = change_weight(vis_old, vis_new)
     err = ((pred - target).abs() * wgt).sum() / pred.shape[1]
-    return err / wgt.sum().clamp_min(1.0)
+    return err / (wgt.sum().clamp_min(1.0) if weight_sum is None else weight_sum)
 
 
 def lsgan_d_loss(real: torch.Tensor, fake: torch.Tensor) -> torch.Tensor:

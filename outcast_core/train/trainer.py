@@ -21,6 +21,9 @@ our stand-in for the paper's E-LPIPS. Checkpoints (``last.pt``: networks, optimi
 step, wall time) live in ``~/.cache/outcast/runs/<run>/``; a rerun with the same config resumes,
 and a new run with ``resume_from`` continues another run's checkpoint (recorded as
 ``branched_from``).
+
+Under ``torchrun`` the same loop runs on every process with DistributedDataParallel and gives
+the result of one process with the same global batch (:mod:`outcast_core.train.distributed`).
 """
 
 from __future__ import annotations
@@ -42,9 +45,16 @@ from torch import nn
 from outcast_core.nets import build
 from outcast_core.nets.depth import scale_invariant_log_loss
 from outcast_core.nets.geometry_torch import normals_from_depth
+from outcast_core.train import distributed
 from outcast_core.train.config import TrainConfig, run_dir
-from outcast_core.train.data import PairSampler, Prepared, load_prepared
-from outcast_core.train.losses import change_loss, lsgan_d_loss, lsgan_g_loss, structural_loss
+from outcast_core.train.data import PairSampler, Prepared, find_views, load_prepared
+from outcast_core.train.losses import (
+    change_loss,
+    change_weight,
+    lsgan_d_loss,
+    lsgan_g_loss,
+    structural_loss,
+)
 
 #: Networks trained by each stage (``critic`` included where there is a GAN term).
 STAGE_NETS: dict[str, tuple[str, ...]] = {
@@ -114,13 +124,15 @@ def _postprocessed(
 
     ds, ss = [], []
     h, w = depth.shape[-2:]
+    dev = depth.device
+    depth, sky, image = depth.cpu(), sky.cpu(), image.cpu()
     for b in range(depth.shape[0]):
         cam = None if focal is None else Camera(h, w, float(focal[b].reshape(-1)[0]))
         d, s = postprocess_z(depth[b, 0].numpy(), sky[b, 0].numpy(),
                              image[b].permute(1, 2, 0).numpy(), cam)
         ds.append(torch.from_numpy(np.where(s, 0.0, d).astype(np.float32)))
         ss.append(torch.from_numpy(s.astype(np.float32)))
-    return torch.stack(ds)[:, None], torch.stack(ss)[:, None]
+    return torch.stack(ds)[:, None].to(dev), torch.stack(ss)[:, None].to(dev)
 
 
 def light_ratios(
@@ -134,31 +146,52 @@ def light_ratios(
     from outcast_core.runtime.relight import estimate_light_on_surfaces
 
     out = [
-        estimate_light_on_surfaces(image[b].detach().permute(1, 2, 0).numpy(),
-                                   shadow_old[b, 0].detach().numpy(),
-                                   normals[b].detach().permute(1, 2, 0).numpy()).ratio
+        estimate_light_on_surfaces(image[b].detach().cpu().permute(1, 2, 0).numpy(),
+                                   shadow_old[b, 0].detach().cpu().numpy(),
+                                   normals[b].detach().cpu().permute(1, 2, 0).numpy()).ratio
         for b in range(image.shape[0])
     ]
-    return torch.from_numpy(np.stack(out).astype(np.float32))
+    return torch.from_numpy(np.stack(out).astype(np.float32)).to(image.device)
+
+
+class _ShadowLogits(nn.Module):
+    """``S``'s :meth:`logits` as ``forward``, so DistributedDataParallel (which hooks
+    ``forward``) can wrap it; its parameters are the wrapped network's."""
+
+    def __init__(self, net: nn.Module) -> None:
+        super().__init__()
+        self.net = net
+
+    def forward(self, *args: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.net.logits(*args)
 
 
 class Trainer:
     """Runs one :class:`TrainConfig` to completion (or to its time limit), resuming if possible.
 
+    Under ``torchrun`` every process builds one (same config, same seed): ``cfg.batch`` is the
+    global batch, of which each rank trains on its part; rank 0 writes checkpoints and logs.
+
     Args:
         cfg: the run's configuration.
         views: prepared views (loaded from ``cfg.data`` when omitted; tests pass tiny ones).
-        progress: show a tqdm bar.
+        progress: show a tqdm bar (rank 0 only).
+        command: the command line, recorded in checkpoints.
+        dist: the process's place in a distributed run (default: :func:`distributed.setup`,
+            which joins ``torchrun``'s process group, or is one process without it).
     """
 
     def __init__(
         self, cfg: TrainConfig, views: list[Prepared] | None = None, progress: bool = True,
-        command: str = "",
+        command: str = "", dist: distributed.DistContext | None = None,
     ) -> None:
         self.cfg = cfg
         self.command = command
-        self.progress = progress
         torch.set_num_threads(max(1, cfg.threads))
+        self.dist = dist if dist is not None else distributed.setup(cfg.device)
+        self.dist.check_batch(cfg.batch)
+        self.device = self.dist.device
+        self.progress = progress and self.dist.is_main
         seed_everything(cfg.seed)
         self.dir = run_dir(cfg.run)
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -180,7 +213,7 @@ class Trainer:
             if kind == "relight" and cfg.relight_base != "photo":
                 kw["base"] = cfg.relight_base
             self.net_kwargs[kind] = kw
-            self.nets[kind] = build(kind, **kw).train()
+            self.nets[kind] = build(kind, **kw).to(self.device).train()
         gen = [p for k, n in self.nets.items() if k != "critic" for p in n.parameters()]
         betas = (0.5, 0.999) if "critic" in self.nets else (0.9, 0.999)  # GAN: pix2pix's beta1
         self.opt_g = torch.optim.Adam(gen, lr=cfg.lr, betas=betas)
@@ -190,13 +223,15 @@ class Trainer:
         )
         self.depth_net = None
         if cfg.depth_checkpoint:
-            self.depth_net = load_checkpoint_nets(cfg.depth_checkpoint)[0]["depth"]
+            self.depth_net = load_checkpoint_nets(cfg.depth_checkpoint)[0]["depth"].to(
+                self.device)
         self.shadow_net = None
         if cfg.shadow_checkpoint:
             nets, _ = load_checkpoint_nets(cfg.shadow_checkpoint)
             self.shadow_net = nets.get("shadow") or nets.get("shadow_2d")
             if self.shadow_net is None:
                 raise ValueError(f"expected a shadow network in {cfg.shadow_checkpoint}, got none")
+            self.shadow_net.to(self.device)
             for p in self.shadow_net.parameters():
                 p.requires_grad_(False)
         self.step = 0
@@ -207,6 +242,15 @@ class Trainer:
         self._resume()
         if not self.lr_history or (not cfg.lr_final and self.lr_history[-1][1] != cfg.lr):
             self.lr_history.append((self.step, cfg.lr))
+        # What the steps call: the networks themselves in one process; under torchrun the same
+        # networks wrapped in DistributedDataParallel (after the resume: DDP's start-up
+        # broadcast then copies nothing new). The critic's wrapper serves its own step only;
+        # the generator's adversarial term calls the bare critic with its parameters frozen.
+        self._ddp: dict[str, nn.Module] = {}
+        if self.dist.enabled:
+            for kind, net in self.nets.items():
+                self._ddp[kind] = self.dist.wrap(
+                    _ShadowLogits(net) if kind in ("shadow", "shadow_2d") else net)
 
     # -- checkpoints -------------------------------------------------------------------------
     def _load_new_views(self, first: bool = False) -> list[Prepared]:
@@ -214,9 +258,14 @@ class Trainer:
         counted per folder. ``data`` must hold some on the ``first`` call."""
         out: list[Prepared] = []
         folders = [(self.cfg.data, self.cfg.max_views)] + [(d, 0) for d in self.cfg.extra_data]
-        for folder, most in folders:
+        # Under torchrun rank 0 lists the folders, so every rank loads the same views even
+        # while a data set is still being written.
+        listings: list[list[Path] | None] = [None] * len(folders)
+        if self.dist.enabled:
+            listings = self.dist.on_main(lambda: [find_views(f) for f, _ in folders])
+        for (folder, most), paths in zip(folders, listings, strict=True):
             got = load_prepared(folder, self.cfg.size, most, skip=self._loaded,
-                                allow_empty=not first or folder != self.cfg.data)
+                                allow_empty=not first or folder != self.cfg.data, paths=paths)
             self.views_by_folder[folder] = self.views_by_folder.get(folder, 0) + len(got)
             out += got
         return out
@@ -225,9 +274,10 @@ class Trainer:
     def checkpoint_path(self) -> Path:
         return self.dir / "last.pt"
 
-    def _resume(self) -> None:
+    def _resume_checkpoint(self) -> tuple[Path, dict[str, Any] | None]:
+        """The checkpoint to resume from (this run's, else ``resume_from``'s) and its content,
+        or ``None`` when the run starts afresh."""
         path = self.checkpoint_path
-        self.branched_from: dict[str, Any] | None = None
         if not path.exists() and self.cfg.resume_from:
             path = run_dir(self.cfg.resume_from) / "last.pt"
             if not path.exists():
@@ -235,9 +285,16 @@ class Trainer:
                     f"expected a checkpoint of run {self.cfg.resume_from!r} to resume from at "
                     f"{path}, found none"
                 )
-        if not path.exists():
+        return path, load_checkpoint(path) if path.exists() else None
+
+    def _resume(self) -> None:
+        self.branched_from: dict[str, Any] | None = None
+        # Under torchrun rank 0 reads the checkpoint it wrote and hands it to every rank (the
+        # other machines of a multi-node run need no shared run folder).
+        path, ckpt = (self.dist.on_main(self._resume_checkpoint) if self.dist.enabled
+                      else self._resume_checkpoint())
+        if ckpt is None:
             return
-        ckpt = load_checkpoint(path)
         if path != self.checkpoint_path:
             self.branched_from = {"run": self.cfg.resume_from, "step": int(ckpt["step"]),
                                   "wall_time_s": round(float(ckpt["wall_time_s"]), 1),
@@ -278,7 +335,9 @@ class Trainer:
         self.history = ckpt.get("history", [])
 
     def save(self) -> Path:
-        """Write ``last.pt`` atomically."""
+        """Write ``last.pt`` atomically (rank 0 only; the others return its path)."""
+        if not self.dist.is_main:
+            return self.checkpoint_path
         ckpt = {
             "config": self.cfg.to_dict(),
             "stage": self.cfg.stage,
@@ -296,6 +355,7 @@ class Trainer:
             "command": self.command,
             "lr_history": self.lr_history,
             "branched_from": self.branched_from,
+            "processes": self.dist.world,
         }
         tmp = self.checkpoint_path.with_suffix(".tmp")
         torch.save(ckpt, tmp)
@@ -304,8 +364,27 @@ class Trainer:
 
     # -- one step ----------------------------------------------------------------------------
     def _tensors(self) -> dict[str, torch.Tensor]:
-        b = self.sampler.batch(self.cfg.batch)
-        return {k: torch.from_numpy(v) for k, v in b.items()}
+        """This process's part of the step's global batch, as tensors on its device.
+
+        Every rank draws the whole global batch from the same generator (the draws of one
+        process) and keeps its own slice.
+        """
+        b = self.dist.shard(self.sampler.batch(self.cfg.batch), self.cfg.batch)
+        return {k: torch.from_numpy(v).to(self.device) for k, v in b.items()}
+
+    def _forward(self, kind: str) -> Any:
+        """What a step calls to run net ``kind``: the network (``S``: its ``logits``), or under
+        torchrun its DistributedDataParallel wrapper, whose backward averages the gradients."""
+        if kind in self._ddp:
+            return self._ddp[kind]
+        net = self.nets[kind]
+        return net.logits if kind in ("shadow", "shadow_2d") else net
+
+    def _global_count(self, count: torch.Tensor) -> torch.Tensor:
+        """The normaliser of a loss divided by a count over the batch: the count over the whole
+        global batch (at least 1) over the number of ranks, so that the ranks' mean loss and
+        their averaged gradients are the single-process ones."""
+        return self.dist.global_sum(count).clamp_min(1.0) / self.dist.world
 
     def _estimated_geometry(
         self, t: dict[str, torch.Tensor]
@@ -326,11 +405,11 @@ class Trainer:
             return depth, normals_from_depth(depth, t["focal"])
 
     def _step_shadow(self, t: dict[str, torch.Tensor]) -> dict[str, float]:
-        net = self.nets[STAGE_NETS[self.cfg.stage][0]]
+        logits = self._forward(STAGE_NETS[self.cfg.stage][0])
         depth, normals = t["depth"], t["normals"]
         if self.depth_net is not None and self.sampler.rng.random() >= self.cfg.gt_depth_prob:
             depth, normals = self._estimated_geometry(t)
-        logit, cos = net.logits(t["image"], depth, normals, t["sun_new"], t["focal"])
+        logit, cos = logits(t["image"], depth, normals, t["sun_new"], t["focal"])
         pred = torch.sigmoid(logit) * cos
         vis = t["visibility_new"]
         # The target is reachable: the network's own cosine times the true visibility.
@@ -339,7 +418,7 @@ class Trainer:
         # vanish when the sigmoid saturates on the wrong side.
         wgt = (cos > 0.02).to(logit.dtype)
         bce = (F.binary_cross_entropy_with_logits(logit, vis, reduction="none") * wgt).sum() \
-            / wgt.sum().clamp_min(1.0)
+            / self._global_count(wgt.sum())
         loss = self.cfg.weights["shadow"] * (f_s + 0.1 * bce)
         self.opt_g.zero_grad(set_to_none=True)
         loss.backward()
@@ -351,7 +430,7 @@ class Trainer:
                      s_n: torch.Tensor) -> float:
         if self.opt_d is None:
             raise RuntimeError("this stage has no critic")
-        critic = self.nets["critic"]
+        critic = self._forward("critic")
         d_loss = lsgan_d_loss(critic(real, t["image"], s_n), critic(fake.detach(), t["image"], s_n))
         self.opt_d.zero_grad(set_to_none=True)
         d_loss.backward()
@@ -374,11 +453,11 @@ class Trainer:
             with torch.no_grad():  # no gradient from R into S
                 s_o_raw = self.shadow_net(t["image"], depth_o, normals_o, sun_o, t["focal"])
                 s_n = self.shadow_net(t["image"], depth_n, normals_n, t["sun_new"], t["focal"])
-            s_o = self.nets["refine"](s_o_raw, t["image"], sun_o)
+            s_o = self._forward("refine")(s_o_raw, t["image"], sun_o)
             extra = ()
             if self.cfg.relight_base == "physics":
                 extra = (light_ratios(t["image"], s_o.detach(), normals_o),)
-            c_n = self.nets["relight"](
+            c_n = self._forward("relight")(
                 t["image"], s_o, s_n, normals_o, sun_o, t["sun_new"], t["view_dirs"], *extra
             )
             f_r = structural_loss(s_o, t["shadow_old"])
@@ -386,14 +465,16 @@ class Trainer:
             loss_r = w["refine"] * f_r
         else:
             s_n = torch.zeros_like(t["shadow_new"])
-            c_n = self.nets["relight_pix2pix"](
+            c_n = self._forward("relight_pix2pix")(
                 t["image"], normals_o, sun_o, t["sun_new"], t["view_dirs"]
             )
-            loss_r = torch.zeros(())
+            loss_r = torch.zeros((), device=self.device)
         f_l = structural_loss(c_n, t["target"])
         w_change = w.get("change", 0.0)
         if w_change:
-            f_c = change_loss(c_n, t["target"], t["visibility_old"], t["visibility_new"])
+            vis_o, vis_n = t["visibility_old"], t["visibility_new"]
+            f_c = change_loss(c_n, t["target"], vis_o, vis_n, weight_sum=self._global_count(
+                change_weight(vis_o, vis_n).sum()) if self.dist.enabled else None)
             logs["f_change"] = f_c.item()
             loss_r = loss_r + w_change * f_c
         for p in critic.parameters():
@@ -412,7 +493,7 @@ class Trainer:
         return logs
 
     def _step_depth(self, t: dict[str, torch.Tensor]) -> dict[str, float]:
-        depth, sky = self.nets["depth"](t["image"])
+        depth, sky = self._forward("depth")(t["image"])
         valid = torch.isfinite(t["depth"]) & (t["depth"] > 0)
         f_z = scale_invariant_log_loss(depth, t["depth"], valid)
         f_sky = F.binary_cross_entropy(sky.clamp(1e-6, 1 - 1e-6), (~valid).to(sky.dtype))
@@ -431,7 +512,11 @@ class Trainer:
         return cfg.lr_final + 0.5 * (cfg.lr - cfg.lr_final) * (1.0 + math.cos(math.pi * t))
 
     def train_step(self) -> dict[str, float]:
-        """Draw one batch and take one optimiser step; returns the step's losses."""
+        """Draw one batch and take one optimiser step; returns the step's losses (under
+        torchrun averaged over the ranks: the global batch's)."""
+        return self.dist.mean_logs(self._train_step())
+
+    def _train_step(self) -> dict[str, float]:
         if self.cfg.lr_final:
             lr = self.lr_at(self.step)
             for opt in (self.opt_g, self.opt_d):
@@ -463,9 +548,12 @@ class Trainer:
         bar = tqdm(total=self.cfg.steps, initial=self.step, disable=not self.progress,
                    dynamic_ncols=True, mininterval=5.0)
         ema: dict[str, float] = {}
-        log = open(self.dir / "log.jsonl", "a")  # noqa: SIM115
+        log = open(self.dir / "log.jsonl", "a") if self.dist.is_main else None  # noqa: SIM115
+        out_of_time = False
         try:
-            while self.step < self.cfg.steps and not self._stop:
+            # Under torchrun every rank stops at the same step (SIGTERM or the time limit on
+            # any of them), so none is left waiting in a collective.
+            while self.step < self.cfg.steps and not self.dist.any(self._stop or out_of_time):
                 for net in self.nets.values():
                     net.train()
                 logs = self.train_step()
@@ -480,20 +568,22 @@ class Trainer:
                     bar.set_postfix({k: f"{v:.4f}" for k, v in ema.items()})
                     rec = {"step": self.step, "wall_time_s": round(self.wall_time_s, 1), **ema}
                     self.history.append(rec)
-                    log.write(json.dumps(rec) + "\n")
-                    log.flush()
+                    if log is not None:
+                        log.write(json.dumps(rec) + "\n")
+                        log.flush()
                 if self.step % self.cfg.checkpoint_every == 0:
                     self.save()
                 if self._reload and self.step % self.cfg.reload_every == 0:
                     self.sampler.views += self._load_new_views()
                 limit = self.cfg.time_limit_s
-                if limit and time.monotonic() - start >= limit:
-                    break
+                out_of_time = bool(limit) and time.monotonic() - start >= limit
         finally:
             bar.close()
-            log.close()
+            if log is not None:
+                log.close()
             self.save()
             if old is not None:
                 signal.signal(signal.SIGTERM, old)
+        self.dist.barrier()  # the checkpoint is written before any rank goes on
         return {"step": self.step, "wall_time_s": self.wall_time_s, "losses": ema,
                 "checkpoint": str(self.checkpoint_path)}

@@ -1,0 +1,145 @@
+"""Training under torchrun: two CPU processes (gloo) give the one-process result.
+
+The two-process run is a real ``python -m torch.distributed.run --nproc_per_node=2`` of the
+``outcast train`` command on a free port of 127.0.0.1, on a tiny data folder written here.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from outcast_core.train.config import TrainConfig, run_dir
+from outcast_core.train.distributed import DistContext, param_names_without_grad
+from outcast_core.train.trainer import STAGE_NETS, Trainer
+from tests.train.conftest import make_view
+
+REPO = Path(__file__).resolve().parents[2]
+
+#: Largest difference allowed between a weight after N steps of the two-process run and of the
+#: one-process run (lr 1e-3, Adam). Adam moves every weight by about ``lr`` per step whatever
+#: the gradient's size, so a wrong split of the batch, gradients not averaged, or a loss
+#: normalised per rank instead of over the global batch show as differences of order ``lr``:
+#: measured 2e-3 (shadow) and 5e-3 (relight) with the BCE / change-loss counts taken per rank,
+#: 5.5e-3 for one process with half the batch (the control below). When everything is right
+#: only float32 rounding in another order of summation remains (two half-batch sums averaged
+#: by gloo vs one sum): measured at most 1e-7 on S, 4.3e-7 on the critic after 4 steps (Adam's
+#: ``m / sqrt(v)`` amplifies rounding in small gradients, the GAN's most). 1e-5 sits 20x
+#: above the rounding and 200x below the smallest mistake.
+TOLERANCE = 1e-5
+
+
+def _free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _data_folder(root: Path, views: int = 3) -> str:
+    from outcast_core.data.dataset import save_view
+
+    for i in range(views):
+        v = make_view(i, suns=3)
+        v["sun_azel"] = np.zeros((3, 2), np.float32)
+        save_view(root / f"view_{i:06d}", v, {"seed": i})
+    return str(root)
+
+
+def _base(run: str, stage: str, data: str, **kw: object) -> dict:
+    cfg = {"run": run, "stage": stage, "data": data, "size": 32, "batch": 4, "steps": 3,
+           "lr": 1e-3, "checkpoint_every": 2, "threads": 1, "device": "cpu"}
+    if stage == "shadow":
+        cfg["net"] = {"steps": 4}
+    cfg.update(kw)
+    return cfg
+
+
+def _weights(run: str) -> dict:
+    return torch.load(run_dir(run) / "last.pt", weights_only=False)
+
+
+def test_batch_shards_are_disjoint_and_make_the_global_batch() -> None:
+    batch = {"image": np.arange(8 * 3).reshape(8, 3), "sun": np.arange(8)}
+    parts = [DistContext(rank=r, world=4).shard(batch, 8) for r in range(4)]
+    for key, value in batch.items():
+        np.testing.assert_array_equal(np.concatenate([p[key] for p in parts]), value)
+    assert [p["sun"].tolist() for p in parts] == [[0, 1], [2, 3], [4, 5], [6, 7]]
+    assert DistContext().shard(batch, 8) is batch  # one process: the batch itself
+    with pytest.raises(ValueError, match="divisible by the 3 processes"):
+        DistContext(rank=0, world=3).shard(batch, 8)
+    with pytest.raises(ValueError, match="device"):
+        TrainConfig(run="r", stage="depth", data="d", device="gpu")
+
+
+@pytest.mark.parametrize("stage", ["shadow", "shadow_2d", "relight", "relight_pix2pix", "depth"])
+def test_every_trained_parameter_gets_a_gradient(stage: str, fake_views) -> None:
+    """DDP runs without find_unused_parameters: every parameter of every wrapped network takes
+    part in each step (the critic in its own step; d_every = 1 runs one each step)."""
+    from outcast_core.train.data import resize_view
+
+    views = [resize_view(v, 32) for v in fake_views]
+    kw: dict = {"d_every": 1, "steps": 1}
+    if stage == "relight":
+        s = Trainer(TrainConfig(**_base("up", "shadow", "unused", steps=1)), views,
+                    progress=False)
+        s.fit()
+        kw["shadow_checkpoint"] = str(s.checkpoint_path)
+        kw["weights"] = {"shadow": 10.0, "refine": 2.0, "relight": 10.0, "adv": 0.1,
+                         "change": 10.0}
+    tr = Trainer(TrainConfig(**_base(f"g_{stage}", stage, "unused", **kw)), views,
+                 progress=False)
+    tr.train_step()
+    nets = [tr.nets[k] for k in STAGE_NETS[stage]]
+    assert param_names_without_grad(nets) == []
+
+
+def test_two_processes_match_one_with_the_same_global_batch(tmp_path) -> None:
+    """``torchrun --nproc_per_node=2`` (gloo) of ``outcast train`` for the shadow stage and the
+    GAN relight stage (R, L and the critic, the change loss, one critic step per step), the
+    latter stopped after 2 steps and resumed to 4, gives the weights of one process with the
+    same global batch of 4, within :data:`TOLERANCE`."""
+    data = _data_folder(tmp_path / "data")
+    up = Trainer(TrainConfig(**_base("upstream_s", "shadow", data, steps=1)), progress=False)
+    up.fit()
+    relight = {"shadow_checkpoint": str(up.checkpoint_path), "d_every": 1,
+               "weights": {"shadow": 10.0, "refine": 2.0, "relight": 10.0, "adv": 0.1,
+                           "change": 10.0}}
+    configs = [_base("two_s", "shadow", data),
+               _base("two_r", "relight", data, steps=2, **relight),
+               _base("two_r", "relight", data, steps=4, **relight)]
+    paths = []
+    for i, cfg in enumerate(configs):
+        paths.append(tmp_path / f"cfg{i}.json")
+        paths[-1].write_text(json.dumps(cfg))
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(REPO))
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", "--nnodes=1",
+           "--master_addr=127.0.0.1", f"--master_port={_free_port()}",
+           "-m", "outcast_core.runtime.cli", "train", *map(str, paths), "--no-progress"]
+    out = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+    assert out.stdout.count('"step"') == 3  # rank 0 alone reports, once per config
+
+    Trainer(TrainConfig(**_base("one_s", "shadow", data)), progress=False).fit()
+    Trainer(TrainConfig(**_base("one_r", "relight", data, steps=4, **relight)),
+            progress=False).fit()
+    for two, one in (("two_s", "one_s"), ("two_r", "one_r")):
+        a, b = _weights(two), _weights(one)
+        assert (a["step"], a["processes"], b["processes"]) == (b["step"], 2, 1)
+        assert a["numpy_rng"] == b["numpy_rng"]  # every rank drew the one-process batches
+        assert set(a["nets"]) == set(b["nets"])
+        for kind in a["nets"]:
+            for name, w in a["nets"][kind].items():
+                torch.testing.assert_close(w, b["nets"][kind][name], atol=TOLERANCE, rtol=0,
+                                           msg=lambda m, k=kind, n=name: f"{k}.{n}: {m}")
+    # Control: one process with half the batch (what a rank trains on) is far outside it.
+    Trainer(TrainConfig(**_base("half_s", "shadow", data, batch=2)), progress=False).fit()
+    half, two = _weights("half_s")["nets"]["shadow"], _weights("two_s")["nets"]["shadow"]
+    assert max((half[k] - two[k]).abs().max().item() for k in two) > 100 * TOLERANCE
