@@ -143,3 +143,31 @@ def test_two_processes_match_one_with_the_same_global_batch(tmp_path) -> None:
     Trainer(TrainConfig(**_base("half_s", "shadow", data, batch=2)), progress=False).fit()
     half, two = _weights("half_s")["nets"]["shadow"], _weights("two_s")["nets"]["shadow"]
     assert max((half[k] - two[k]).abs().max().item() for k in two) > 100 * TOLERANCE
+
+
+#: Settings a cluster preset may change from the shipped network's config: scale, data,
+#: upstream runs, where it runs. Everything else (stage, size, network, losses, augmentations,
+#: depth recipe) is the shipped recipe.
+_SCALE_KEYS = {"run", "resume_from", "data", "extra_data", "batch", "steps", "lr", "lr_final",
+               "threads", "checkpoint_every", "depth_checkpoint", "shadow_checkpoint", "device"}
+
+
+def test_cluster_presets_are_the_shipped_recipes_at_scale() -> None:
+    from outcast_core.train.config import load_config
+
+    configs = REPO / "outcast_core" / "train" / "configs"
+    cluster = {load_config(p).stage: load_config(p) for p in configs.glob("cluster_*.toml")}
+    assert set(cluster) == {"depth", "shadow", "shadow_2d", "relight", "relight_pix2pix"}
+    runs = {c.run for c in cluster.values()}
+    for manifest in sorted((REPO / "models").glob("*.json")):
+        command = json.loads(manifest.read_text())["training"]["command"]
+        shipped = load_config(REPO / command.split()[2])  # outcast train CONFIG ...
+        preset = cluster[shipped.stage].to_dict()
+        for key, value in shipped.to_dict().items():
+            if key not in _SCALE_KEYS:
+                assert preset[key] == value, (manifest.name, key)
+    for cfg in cluster.values():
+        assert cfg.batch % 8 == 0 and not cfg.resume_from
+        for upstream in (cfg.depth_checkpoint, cfg.shadow_checkpoint):
+            # Each preset trains on the upstream networks of the preset.
+            assert not upstream or Path(upstream).parent.name in runs, (cfg.run, upstream)
