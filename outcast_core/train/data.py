@@ -319,6 +319,32 @@ class PairSampler:
         self.zoom_prob = zoom_prob
         self.zoom_max = zoom_max
 
+    def skip(self) -> tuple[int, int]:
+        """Advance the generator exactly as :meth:`sample` does, without making the pair.
+
+        Distributed training draws every item of a global batch on every process but makes
+        only its own (:meth:`batch`'s ``keep``); the draws here are :meth:`sample`'s, in its
+        order, on stand-ins that cost nothing (none of them depends on pixel values; the
+        cloud and zoom draws depend on the image size only). A test holds the two to the same
+        generator state with every augmentation on.
+
+        Returns:
+            The pair's image size ``(H, W)``.
+        """
+        v = self.views[int(self.rng.integers(len(self.views)))]
+        k = v.rgb.shape[0]
+        i, _ = (int(x) for x in self.rng.integers(k, size=2))
+        tonemap_pair(v.rgb[i][:1, :1], v.rgb[i][:1, :1], self.rng, **self.aug,
+                     base_exposure=v.exposure)
+        if self.cloud_prob > 0 and self.rng.random() < self.cloud_prob:
+            add_clouds((), ~(np.isfinite(v.depth) & (v.depth > 0)), self.rng)
+        if self.flip:
+            self.rng.random()
+        perturb_sun(v.sun[i], self.sun_noise_deg, self.rng)
+        if self.zoom_prob > 0 and self.rng.random() < self.zoom_prob:
+            zoom_crop((v.depth,), float(self.rng.uniform(1.0, self.zoom_max)), self.rng)
+        return int(v.rgb.shape[1]), int(v.rgb.shape[2])
+
     def sample(self) -> dict[str, np.ndarray]:
         """One pair as ``C x H x W`` / vector float32 arrays (keys as in :meth:`batch`)."""
         v = self.views[int(self.rng.integers(len(self.views)))]
@@ -361,15 +387,37 @@ class PairSampler:
             "sun_new": sun_n, "focal": np.array([focal], np.float32),
         }
 
-    def batch(self, n: int) -> dict[str, np.ndarray]:
+    def batch(self, n: int, keep: slice | None = None) -> dict[str, np.ndarray]:
         """``n`` pairs stacked: images ``B x C x H x W``, suns ``B x 3``, focal ``B x 1``.
 
         Views of different sizes cannot share a batch; the pairs are drawn until ``n`` of the
         first one's size are found.
+
+        Args:
+            n: the batch size.
+            keep: make only these items of the batch (e.g. ``slice(4, 8)``: a process's part of
+                a global batch); the others are only drawn (:meth:`skip`), so the kept items
+                are those of the whole batch and the generator ends where it does after it.
         """
-        items = [self.sample()]
-        while len(items) < n:
-            s = self.sample()
-            if s["image"].shape == items[0]["image"].shape:
-                items.append(s)
-        return {key: np.stack([it[key] for it in items]) for key in items[0]}
+        if keep is None:
+            items = [self.sample()]
+            while len(items) < n:
+                s = self.sample()
+                if s["image"].shape == items[0]["image"].shape:
+                    items.append(s)
+            return {key: np.stack([it[key] for it in items]) for key in items[0]}
+        wanted = range(n)[keep]
+        if not wanted:
+            raise ValueError(f"expected some of the {n} items to keep, got {keep}")
+        kept: list[dict[str, np.ndarray]] = []
+        first: tuple[int, ...] | None = None
+        count = 0
+        while count < n:
+            item = self.sample() if count in wanted else None
+            size = tuple(item["image"].shape[1:]) if item is not None else self.skip()
+            first = size if first is None else first
+            if size == first:
+                if item is not None:
+                    kept.append(item)
+                count += 1
+        return {key: np.stack([it[key] for it in kept]) for key in kept[0]}

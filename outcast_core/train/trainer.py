@@ -367,9 +367,11 @@ class Trainer:
         """This process's part of the step's global batch, as tensors on its device.
 
         Every rank draws the whole global batch from the same generator (the draws of one
-        process) and keeps its own slice.
+        process) and makes its own slice of it.
         """
-        b = self.dist.shard(self.sampler.batch(self.cfg.batch), self.cfg.batch)
+        part = self.dist.part(self.cfg.batch)
+        b = self.sampler.batch(self.cfg.batch) if part is None else \
+            self.sampler.batch(self.cfg.batch, keep=part)
         return {k: torch.from_numpy(v).to(self.device) for k, v in b.items()}
 
     def _forward(self, kind: str) -> Any:

@@ -66,15 +66,32 @@ def _weights(run: str) -> dict:
     return torch.load(run_dir(run) / "last.pt", weights_only=False)
 
 
-def test_batch_shards_are_disjoint_and_make_the_global_batch() -> None:
-    batch = {"image": np.arange(8 * 3).reshape(8, 3), "sun": np.arange(8)}
-    parts = [DistContext(rank=r, world=4).shard(batch, 8) for r in range(4)]
-    for key, value in batch.items():
-        np.testing.assert_array_equal(np.concatenate([p[key] for p in parts]), value)
-    assert [p["sun"].tolist() for p in parts] == [[0, 1], [2, 3], [4, 5], [6, 7]]
-    assert DistContext().shard(batch, 8) is batch  # one process: the batch itself
+def test_ranks_make_disjoint_parts_of_the_one_process_batch(fake_views) -> None:
+    """Each of 4 ranks makes its quarter of every global batch, and the quarters are the
+    one-process batch bit for bit, with every augmentation on and views of two sizes (the
+    draws of the items a rank skips are those of :meth:`PairSampler.sample`)."""
+    from outcast_core.train.data import PairSampler, resize_view
+
+    views = [resize_view(v, 32) for v in fake_views] + [resize_view(make_view(9), 16)]
+    kw = {"cloud_prob": 0.5, "zoom_prob": 0.5, "zoom_max": 1.5, "sun_noise_deg": 3.0}
+    one = PairSampler(views, np.random.default_rng(7), **kw)
+    ranks = [PairSampler(views, np.random.default_rng(7), **kw) for _ in range(4)]
+    zoomed = 0
+    for _ in range(6):
+        full = one.batch(8)
+        parts = [s.batch(8, keep=DistContext(rank=r, world=4).part(8))
+                 for r, s in enumerate(ranks)]
+        for key, value in full.items():
+            np.testing.assert_array_equal(np.concatenate([p[key] for p in parts]), value)
+        for s in ranks:
+            assert s.rng.bit_generator.state == one.rng.bit_generator.state
+        zoomed += int((full["focal"][:, 0] > views[0].focal * 1.001).sum())
+    assert zoomed > 0
+    assert DistContext().part(8) is None  # one process: the whole batch
     with pytest.raises(ValueError, match="divisible by the 3 processes"):
-        DistContext(rank=0, world=3).shard(batch, 8)
+        DistContext(rank=0, world=3).part(8)
+    with pytest.raises(ValueError, match="to keep"):
+        one.batch(4, keep=slice(4, 8))
     with pytest.raises(ValueError, match="device"):
         TrainConfig(run="r", stage="depth", data="d", device="gpu")
 
