@@ -108,7 +108,8 @@ def test_ranks_make_disjoint_parts_of_the_one_process_batch(fake_views) -> None:
         TrainConfig(run="r", stage="depth", data="d", device="gpu")
 
 
-@pytest.mark.parametrize("stage", ["shadow", "shadow_2d", "relight", "relight_pix2pix", "depth"])
+@pytest.mark.parametrize(
+    "stage", ["shadow", "shadow_2d", "relight", "relight_physics", "relight_pix2pix", "depth"])
 def test_every_trained_parameter_gets_a_gradient(stage: str, fake_views) -> None:
     """DDP runs without find_unused_parameters: every parameter of every wrapped network takes
     part in each step (the critic in its own step; d_every = 1 runs one each step)."""
@@ -116,6 +117,8 @@ def test_every_trained_parameter_gets_a_gradient(stage: str, fake_views) -> None
 
     views = [resize_view(v, 32) for v in fake_views]
     kw: dict = {"d_every": 1, "steps": 1}
+    if stage == "relight_physics":
+        stage, kw["relight_base"] = "relight", "physics"
     if stage == "relight":
         s = Trainer(TrainConfig(**_base("up", "shadow", "unused", steps=1)), views,
                     progress=False)
