@@ -153,6 +153,8 @@ def test_two_processes_match_one_with_the_same_global_batch(tmp_path) -> None:
         paths.append(tmp_path / f"cfg{i}.json")
         paths[-1].write_text(json.dumps(cfg))
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(REPO))
+    if Path("/sys/class/net/lo").exists():  # gloo on the loopback, whatever the host name says
+        env.setdefault("GLOO_SOCKET_IFNAME", "lo")
     cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", "--nnodes=1",
            "--master_addr=127.0.0.1", f"--master_port={_free_port()}",
            "-m", "outcast_core.runtime.cli", "train", *map(str, paths), "--no-progress"]
