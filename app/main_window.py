@@ -841,12 +841,13 @@ class MainWindow(QMainWindow):
         if session is None or self.step is not Step.ALIGN:
             return None
         prior = self.exif_prior()
+        load = self._loads
 
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.auto_sun import find_sun
 
             fit = find_sun(session, prior=prior, progress=ctx.progress)
-            return {"fit": fit, "prior": prior,
+            return {"fit": fit, "prior": prior, "load": load,
                     "timings": {**_timings(session), "find_sun": fit.seconds}}
 
         self.align_panel.set_finding(True)
@@ -854,8 +855,10 @@ class MainWindow(QMainWindow):
 
     def _on_found_sun(self, result: dict[str, Any]) -> None:
         fit = result["fit"]
-        self.sun_fit = fit
         self.align_panel.set_finding(False)
+        if result.get("load", self._loads) != self._loads:
+            return  # found for a photo that has been replaced since
+        self.sun_fit = fit
         m = fit.map
         self.align_panel.sun_panel.dial.set_heat_map(
             m.azimuths.tolist(), m.elevations.tolist(), m.normalised().tolist())
