@@ -150,7 +150,9 @@ def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
         "best of 24 suns; de-shadow in = Lab RMSE inside the mask against the shadow-free twin "
         "over the unchanged input's; out = excess over the input's own RMSE outside the mask; "
         "relit chroma = mean a*b* change where lit under both suns (sun 120 deg away), sky = mean "
-        "Lab change on the sky when no sun is in frame. The photos are research data kept "
+        "Lab change on the sky when no sun is in frame (learned relighting keeps the photo's "
+        "sky then, so it is 0 by construction; physics relighting never touches the sky). "
+        "The photos are research data kept "
         "outside the repository; only these numbers are here.", "",
         "### Speed / accuracy", "", render_trade(reports), "",
         f"### Per photo ({first['preset']})", "", render_table(first),
