@@ -48,7 +48,10 @@ cores at load 6-8):
   renderer's exact depth (5 % within 15° either way): on small views the masks' agreement is
   nearly flat over wide parts of the dome (a sun 36° off agrees as well as the true one).
   Adding the correlation of ``S`` with the photo's log luminance, or a minimum elevation of
-  15°, did not help.
+  15°, did not help. The search is not what fails: on 12 of those pairs with Direct shadows
+  and exact depth (median 32° off) the found sun agrees with the photo's found shadows better
+  than the true sun in all 12; the photometric mask (attached shade and dark albedo) and the
+  overlay's ``S < 0.15`` do not single out the true sun on such small views.
 * samples, elevation vs astral's: with the EXIF prior within 2° by construction (in the ground
   plane's frame); from the shadows alone -9.8° (pool), -2.9° (ski slope), -31° (field path).
 """
