@@ -171,6 +171,7 @@ class MainWindow(QMainWindow):
         #: The last automatic sun (``auto_sun.SunFit``) of this photo, or None.
         self.sun_fit: Any = None
         self._find_message = ""  # shown once the found sun's overlay is drawn
+        self._load_notice = ""  # the warning above the dial after loading (depth source)
         self.timings = StageTimings()
         self.recent = RecentFiles([str(p) for p in (self.settings.value("recent", []) or [])])
         self.last_error: str = ""
@@ -688,7 +689,8 @@ class MainWindow(QMainWindow):
         note = str(result.get("depth_note", ""))  # a depth source that could not be used
         if note:
             notice = f"{note[:1].upper()}{note[1:]}. " + notice
-        self.align_panel.show_notice(notice.strip())
+        self._load_notice = notice.strip()
+        self.align_panel.show_notice(self._load_notice)
         if restore is None:  # another photo: its own heading, no search result yet
             self.user_heading = None
             self.align_panel.set_heading(None)
@@ -880,7 +882,16 @@ class MainWindow(QMainWindow):
                     "suns fit best.")
         self.stage_label.setText(text)
         self._find_message = text if self.runner.busy() else ""
-        self.align_panel.show_notice(text if not (fit.found or fit.source == "EXIF") else "")
+        notice = text if not (fit.found or fit.source == "EXIF") else ""
+        prior = result.get("prior")
+        if not notice and prior is not None and prior.azimuth is not None:
+            off = abs((fit.azimuth - prior.azimuth + 180.0) % 360.0 - 180.0)
+            if off > 45.0:
+                notice = (f"The photo's shadows put the sun {off:.0f}° away from where the EXIF "
+                          "compass heading puts it: the heading may be wrong (\"Sun from "
+                          "photo's EXIF\" puts the sun there).")
+        # The load's warning (the depth source) stays under what the search says.
+        self.align_panel.show_notice("\n\n".join(t for t in (notice, self._load_notice) if t))
 
     def use_exif_sun(self) -> None:
         sun = self.exif_sun()

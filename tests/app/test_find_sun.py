@@ -137,3 +137,16 @@ def test_exif_without_heading_explains_the_grey_button_and_takes_a_heading(
     window.find_sun()
     settle()
     assert captured["prior"].azimuth is not None
+
+
+def test_a_wrong_compass_heading_is_pointed_out(window, settle, monkeypatch):
+    window.open_path(os.path.join(ROOT, "samples", "exif_003_th_pool.jpg"))
+    settle()
+    prior = window.exif_prior()
+    assert prior is not None and prior.azimuth is not None  # the pool records its heading
+    monkeypatch.setattr(auto_sun, "find_sun",
+                        lambda session, **kw: _fit((prior.azimuth + 150.0) % 360.0, 60.0))
+    window.find_sun()
+    settle()
+    notice = window.align_panel.notice
+    assert notice.isVisibleTo(window) and "compass heading" in notice.text()
