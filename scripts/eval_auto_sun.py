@@ -84,7 +84,8 @@ def measure_real(folder: str, *, preset: str, every: int, limit: int | None,
                "best_sweep_sun": list(SWEEP_SUNS[int(np.argmin(sweep))]),
                "found_ber": round(found, 4), "gap": round(found - best, 4),
                "found_sun": [round(fit.azimuth, 1), round(fit.elevation, 1)],
-               "confidence": round(fit.confidence, 3), "seconds": round(seconds, 3)}
+               "confidence": round(fit.confidence, 3), "found": fit.found,
+               "agreement": round(fit.agreement, 4), "seconds": round(seconds, 3)}
         rows.append(row)
         print(f"{item.name:10s} sweep {best:.3f}  found {found:.3f}  gap {found - best:+.3f}  "
               f"sun {fit.azimuth:5.1f},{fit.elevation:4.1f}  conf {fit.confidence:.2f}  "
@@ -98,6 +99,11 @@ def measure_real(folder: str, *, preset: str, every: int, limit: int | None,
         "mean_found_ber": round(float(np.mean([r["found_ber"] for r in rows])), 4),
         "mean_sweep_ber": round(float(np.mean([r["best_sweep_ber"] for r in rows])), 4),
         "found_better": int((gaps < 0).sum()),
+        "confident": int(sum(r["found"] for r in rows)),
+        "share_within_confident": round(float(np.mean([r["gap"] <= within for r in rows
+                                                       if r["found"]] or [float("nan")])), 3),
+        "share_within_not_confident": round(float(np.mean(
+            [r["gap"] <= within for r in rows if not r["found"]] or [float("nan")])), 3),
         "median_seconds": round(float(np.median(secs)), 3),
         "max_seconds": round(float(secs.max()), 3),
     }

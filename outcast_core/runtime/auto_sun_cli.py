@@ -34,15 +34,16 @@ def cmd_sun(args: argparse.Namespace) -> int:
         out["exif_elevation"] = None if prior is None else round(prior.elevation, 2)
         out["exif_azimuth"] = (None if prior is None or prior.azimuth is None
                                else round(prior.azimuth, 2))
-        print(json.dumps(out, indent=2))
+        print(json.dumps(out, indent=2, ensure_ascii=False))
         return 0
     if sure:
         print(f"azimuth {fit.azimuth:.1f}  elevation {fit.elevation:.1f}  "
               f"confidence {fit.confidence:.2f}")
     else:
-        print(f"no clear shadows in the photo: its sun cannot be told from them "
-              f"(confidence {fit.confidence:.2f}); set it by eye")
-    _say(args, f"{fit.note} · source: {fit.source} · depth: {session.depth_source} · "
+        print(fit.note)
+    said = fit.note if sure else (f"best guess: azimuth {fit.azimuth:.1f}, elevation "
+                                  f"{fit.elevation:.1f}")
+    _say(args, f"{said} · source: {fit.source} · depth: {session.depth_source} · "
                f"{fit.evaluations} suns tried in {fit.seconds:.2f} s")
     return 0
 

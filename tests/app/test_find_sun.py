@@ -21,8 +21,9 @@ def _fit(az: float, el: float, *, found: bool = True, source: str = "shadows") -
     azs, els = np.arange(0.0, 360.0, 20.0), np.array([8.0, 22.0, 36.0, 50.0, 64.0, 78.0])
     scores = np.full((len(els), len(azs)), 0.55)
     scores[2, 10] = 0.9
+    note = "sun found" if found else "no clear shadows in the photo: set it by eye"
     return SunFit(az, el, sun_vector(az, el), 0.9, 0.8 if found else 0.1, found, source,
-                  "note", AgreementMap(azs, els, scores), [(az, el, 0.9)])
+                  note, AgreementMap(azs, els, scores), [(az, el, 0.9)])
 
 
 def _load(window, photo, settle) -> None:
