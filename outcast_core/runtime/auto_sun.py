@@ -42,8 +42,8 @@ cores at load 6-8):
 
 * real dev photos (47, human masks): the found sun's overlay BER within 0.03 of the best of the
   24-sun sweep for 72 % (34), better than it for 22; mean BER 0.317 vs the sweep's 0.307
-  (median gap +0.001). The 44 photos at confidence >= 0.3: 77 % within; the 3 below: none.
-  ``find_sun`` alone: median 2.4 s, 90th percentile 4.2 s; 12 MP photo (``bench_runtime``): 2.2 s.
+  (median gap +0.001). The 38 photos it is confident on (>= 0.3): 82 % within; the 9 others:
+  33 %. ``find_sun`` alone: median 2.2 s, at most 3.1 s; 12 MP photo (``bench_runtime``): 2.2 s.
   Tried on 24 of them: finals at the preview size instead of the working size (the shadow
   network's masks differ between the two: the working size is what the overlay shows):
   56 % within; 4 seeds refined at 128 px: as accurate, 1.5x the time.
