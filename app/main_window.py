@@ -877,8 +877,10 @@ class MainWindow(QMainWindow):
             elif result.get("prior") is not None:
                 text += f" · {result['prior'].description}"
         else:
-            text = (f"{fit.note[:1].upper()}{fit.note[1:]}. The dial shows where suns fit "
-                    "best.")
+            why = ("No clear shadows in this photo" if "no clear shadows" in fit.note
+                   else "No sun makes the predicted shadows fit the photo's (rough depth?)")
+            text = (f"{why}: its sun cannot be told from them (confidence "
+                    f"{fit.confidence:.2f}). Set it by eye; the dial shows where suns fit best.")
         self.stage_label.setText(text)
         self._find_message = text if self.runner.busy() else ""
         notice = text if not (fit.found or fit.source == "EXIF") else ""
