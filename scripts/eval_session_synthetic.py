@@ -42,6 +42,11 @@ CONFIGS: list[tuple[str, dict]] = [
 DARK, LIT = 0.05, 0.3
 
 
+def factor(img: np.ndarray, base: np.ndarray, m: np.ndarray) -> float:
+    """Mean sRGB of ``img`` over the mask ``m``, over the input's (``base``, grey) there."""
+    return float(img.mean(axis=-1)[m].mean() / max(base[m].mean(), 1e-4))
+
+
 def _session(kwargs: dict) -> RelightSession:
     guard = kwargs.pop("colour_guard", True)
     s = RelightSession(preset="fast", shadow_mode="learned", **kwargs)
@@ -80,30 +85,25 @@ def main(argv: list[str] | None = None) -> int:
                 newly_lit = (so < DARK) & (sn > LIT) & ~v["sky"]
                 newly_shd = (so > LIT) & (sn < DARK) & ~v["sky"]
                 base = imgs[i].mean(axis=-1)
-                target = imgs[j].mean(axis=-1)
-
-                def factor(img: np.ndarray, m: np.ndarray) -> float:
-                    return float(img.mean(axis=-1)[m].mean() / max(base[m].mean(), 1e-4))
 
                 if newly_lit.sum() >= 20:
-                    truth_lit.append(factor(imgs[j], newly_lit))
+                    truth_lit.append(factor(imgs[j], base, newly_lit))
                 if newly_shd.sum() >= 20:
-                    truth_shd.append(factor(imgs[j], newly_shd))
+                    truth_shd.append(factor(imgs[j], base, newly_shd))
                 for label, s in sessions:
                     out = s.relight(v["sun"][j])
                     r = rows[label]
                     r["mse"].append(float(np.mean((out - imgs[j]) ** 2)))
                     r["dssim"].append(float(dssim(out, imgs[j])))
                     if newly_lit.sum() >= 20:
-                        r["lit"].append(factor(out, newly_lit))
+                        r["lit"].append(factor(out, base, newly_lit))
                     if newly_shd.sum() >= 20:
-                        r["shd"].append(factor(out, newly_shd))
-                del target
+                        r["shd"].append(factor(out, base, newly_shd))
     n_pairs = len(rows[CONFIGS[0][0]]["mse"])
     print(f"{len(views)} views, {n_pairs} pairs, {time.perf_counter() - t0:.0f} s; truth: newly "
           f"lit x{np.mean(truth_lit):.2f}, newly shadowed x{np.mean(truth_shd):.2f}\n")
-    print("| Pipeline | MSE | DSSIM | Newly lit (truth x%.2f) | Newly shadowed (truth x%.2f) |"
-          % (np.mean(truth_lit), np.mean(truth_shd)))
+    print(f"| Pipeline | MSE | DSSIM | Newly lit (truth x{np.mean(truth_lit):.2f}) | "
+          f"Newly shadowed (truth x{np.mean(truth_shd):.2f}) |")
     print("|---|---|---|---|---|")
     for label, _ in CONFIGS:
         r = rows[label]
