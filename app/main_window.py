@@ -752,20 +752,9 @@ class MainWindow(QMainWindow):
     def exif_sun(self) -> tuple[float, float] | None:
         """The photo's sun relative to the camera from EXIF GPS, time and compass heading (or
         the heading typed in step 1 when the EXIF has none)."""
-        from outcast_core.runtime import timelapse as tl
+        from outcast_core.runtime.timelapse import exif_sun
 
-        exif = getattr(self.loaded, "exif", None)
-        when = getattr(exif, "capture_time", None)
-        lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
-        heading = getattr(exif, "heading_deg", None)
-        if heading is None:
-            heading = self.user_heading
-        if when is None or lat is None or lon is None or heading is None:
-            return None
-        true_az, el = tl.true_sun_position(when, lat, lon)
-        if el <= 0:
-            return None
-        return tl.relative_azimuth(true_az, heading), el
+        return exif_sun(getattr(self.loaded, "exif", None), heading=self.user_heading)
 
     def exif_prior(self) -> Any:
         """What the photo's EXIF (and a typed heading) says about its sun: an

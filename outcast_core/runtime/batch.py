@@ -332,17 +332,9 @@ def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None,
 def exif_sun(exif: Any) -> Sun | None:
     """The photo's sun relative to the camera from EXIF GPS, capture time and compass heading
     (the app's "Sun from EXIF"); None when one is missing or the sun is below the horizon."""
-    from outcast_core.runtime import timelapse as tl
+    from outcast_core.runtime.timelapse import exif_sun as sun_from_exif
 
-    when = getattr(exif, "capture_time", None)
-    lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
-    heading = getattr(exif, "heading_deg", None)
-    if when is None or lat is None or lon is None or heading is None:
-        return None
-    true_az, el = tl.true_sun_position(when, lat, lon)
-    if el <= 0:
-        return None
-    return tl.relative_azimuth(true_az, heading), el
+    return sun_from_exif(exif)
 
 
 def original_sun_for(

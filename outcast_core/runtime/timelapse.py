@@ -167,6 +167,23 @@ def relative_azimuth(true_azimuth: float, heading: float) -> float:
     return (_check_angle("true azimuth", true_azimuth) - _check_angle("heading", heading)) % 360.0
 
 
+def exif_sun(exif: Any, heading: float | None = None) -> tuple[float, float] | None:
+    """The photo's sun ``(azimuth, elevation)`` relative to the camera from its EXIF GPS,
+    capture time and compass heading (``heading`` stands in when the EXIF has none: one typed
+    by the user); None when one is missing or the sun is below the horizon. The one place the
+    app's "Sun from EXIF" and ``outcast batch`` take it from."""
+    when = getattr(exif, "capture_time", None)
+    lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
+    exif_heading = getattr(exif, "heading_deg", None)
+    heading = exif_heading if exif_heading is not None else heading
+    if when is None or lat is None or lon is None or heading is None:
+        return None
+    true_az, el = true_sun_position(when, lat, lon)
+    if el <= 0:
+        return None
+    return relative_azimuth(true_az, heading), el
+
+
 def heading_from_sun(true_azimuth: float, relative_az: float) -> float:
     """Camera compass heading from the sun's true and camera-relative azimuths.
 
