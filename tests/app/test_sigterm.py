@@ -3,13 +3,10 @@
 from __future__ import annotations
 
 import os
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 from tests.app.conftest import make_photo
+from tests.sigterm import terminate_when_ready
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -33,17 +30,9 @@ def test_sigterm_quits_the_app_with_status_143(tmp_path) -> None:
     photo = make_photo(photos / "scene.jpg")
     env = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "HOME": str(home),
            "PYTHONPATH": str(REPO)}
-    proc = subprocess.Popen([sys.executable, "-c", _CHILD, photo, "--classic"], cwd=REPO,
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert proc.stdout.readline().strip() == "opened"
-        time.sleep(0.5)
-        t0 = time.perf_counter()
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=30)
-    finally:
-        proc.kill()
-    assert time.perf_counter() - t0 < 15
-    assert proc.returncode == 143, err
-    assert "Traceback" not in err
+    ended = terminate_when_ready(["-c", _CHILD, photo, "--classic"], "opened", env=env,
+                                 settle=0.5)
+    assert ended.seconds < 15
+    assert ended.returncode == 143, ended.stderr
+    assert "Traceback" not in ended.stderr
     assert sorted(p.name for p in photos.iterdir()) == ["scene.jpg"]

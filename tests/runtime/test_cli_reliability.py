@@ -4,10 +4,6 @@ from __future__ import annotations
 
 import math
 import os
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +13,7 @@ from outcast_core.runtime import cli
 from outcast_core.runtime.cli import main
 from outcast_core.runtime.imageio import ImageReadError, read_depth, write_depth, write_image
 from outcast_core.runtime.session import RelightSession
+from tests.sigterm import terminate_when_ready
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -303,23 +300,17 @@ sys.exit(main(sys.argv[1:]))
 
 def test_sigterm_removes_the_temporary_file(photo, tmp_path) -> None:
     out = tmp_path / "r.jpg"
-    proc = subprocess.Popen(
-        [sys.executable, "-c", _SLOW_WRITER, "relight", str(photo), "--from", "90,30", "--to",
-         "200,40", "--mode", "physics", "--shadows", "direct", "-o", str(out)],
-        cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)}, stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE, text=True,
-    )
-    try:
-        assert proc.stdout.readline().strip() == "writing"
-        assert any(p.name.startswith(".r.") for p in tmp_path.iterdir())  # the temp file
-        t0 = time.perf_counter()
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=30)
-    finally:
-        proc.kill()
-    assert time.perf_counter() - t0 < 10
-    assert proc.returncode == 143, err
-    assert "terminated" in err and "Traceback" not in err
+
+    def temp_file_exists() -> None:
+        assert any(p.name.startswith(".r.") for p in tmp_path.iterdir())
+
+    ended = terminate_when_ready(
+        ["-c", _SLOW_WRITER, "relight", str(photo), "--from", "90,30", "--to", "200,40",
+         "--mode", "physics", "--shadows", "direct", "-o", str(out)],
+        "writing", before=temp_file_exists)
+    assert ended.seconds < 10
+    assert ended.returncode == 143, ended.stderr
+    assert "terminated" in ended.stderr and "Traceback" not in ended.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png"]
 
 

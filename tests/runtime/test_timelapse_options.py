@@ -2,11 +2,6 @@
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +10,7 @@ from PIL import Image
 
 from outcast_core.runtime import timelapse as tl
 from outcast_core.runtime.cli import main
+from tests.sigterm import terminate_when_ready
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -130,19 +126,11 @@ sys.exit(main(sys.argv[1:]))
 
 @pytest.mark.parametrize("name", ["tl.mp4", "frames"])
 def test_sigterm_leaves_no_partial_files(photo, tmp_path, name) -> None:
-    proc = subprocess.Popen(
-        [sys.executable, "-c", _SLOW_RENDER, *_sweep(photo, str(tmp_path / name))],
-        cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)}, stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE, text=True,
-    )
-    try:
-        assert proc.stdout.readline().strip() == "rendering"
-        assert any(p.name.startswith(".") for p in tmp_path.iterdir())  # the partial output
-        t0 = time.perf_counter()
-        proc.send_signal(signal.SIGTERM)
-        _, err = proc.communicate(timeout=30)
-    finally:
-        proc.kill()
-    assert time.perf_counter() - t0 < 10
-    assert proc.returncode == 143, err
+    def partial_output_exists() -> None:
+        assert any(p.name.startswith(".") for p in tmp_path.iterdir())
+
+    ended = terminate_when_ready(["-c", _SLOW_RENDER, *_sweep(photo, str(tmp_path / name))],
+                                 "rendering", before=partial_output_exists)
+    assert ended.seconds < 10
+    assert ended.returncode == 143, ended.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["p.png"]
