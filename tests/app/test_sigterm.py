@@ -2,13 +2,8 @@
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 from tests.app.conftest import make_photo
 from tests.sigterm import terminate_when_ready
-
-REPO = Path(__file__).resolve().parents[2]
 
 _CHILD = """
 import sys
@@ -28,8 +23,7 @@ def test_sigterm_quits_the_app_with_status_143(tmp_path) -> None:
     photos.mkdir()
     home.mkdir()
     photo = make_photo(photos / "scene.jpg")
-    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "HOME": str(home),
-           "PYTHONPATH": str(REPO)}
+    env = {"QT_QPA_PLATFORM": "offscreen", "HOME": str(home)}
     ended = terminate_when_ready(["-c", _CHILD, photo, "--classic"], "opened", env=env,
                                  settle=0.5)
     assert ended.seconds < 15

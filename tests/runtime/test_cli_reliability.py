@@ -15,8 +15,6 @@ from outcast_core.runtime.imageio import ImageReadError, read_depth, write_depth
 from outcast_core.runtime.session import RelightSession
 from tests.sigterm import terminate_when_ready
 
-REPO = Path(__file__).resolve().parents[2]
-
 
 @pytest.fixture
 def photo(tmp_path: Path) -> Path:

@@ -12,8 +12,6 @@ from outcast_core.runtime import timelapse as tl
 from outcast_core.runtime.cli import main
 from tests.sigterm import terminate_when_ready
 
-REPO = Path(__file__).resolve().parents[2]
-
 
 @pytest.fixture
 def photo(tmp_path: Path) -> Path:
