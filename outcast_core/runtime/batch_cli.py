@@ -25,6 +25,7 @@ from outcast_core.runtime.batch import (
     run_batch,
     summarize,
 )
+from outcast_core.runtime.cli import int_in
 
 
 def _sun(text: str) -> tuple[float, float]:
@@ -55,29 +56,6 @@ def _sources(text: str) -> tuple[str, ...]:
     return names
 
 
-def _workers(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if not 1 <= n <= 256:
-        raise argparse.ArgumentTypeError(f"expected a worker count in [1, 256], got {text!r}")
-    return n
-
-
-def _frames(text: str) -> int:
-    from outcast_core.runtime.timelapse_cli import MAX_FRAMES
-
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if not 2 <= n <= MAX_FRAMES:
-        raise argparse.ArgumentTypeError(f"expected a frame count in [2, {MAX_FRAMES}], got "
-                                         f"{text!r}")
-    return n
-
-
 def register(subparsers: Any) -> argparse.ArgumentParser:
     """Add ``outcast batch`` to an argparse sub-parser set.
 
@@ -88,6 +66,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
         The ``batch`` parser.
     """
     from outcast_core.runtime.timelapse import EASINGS, FRAME_SIZES
+    from outcast_core.runtime.timelapse_cli import frame_count
 
     p = subparsers.add_parser(
         "batch", help="relight, de-shadow or time-lapse every photo of a folder",
@@ -122,7 +101,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--format", dest="fmt", default="", metavar="FMT",
                    help="output format: jpg, png, tif (16-bit) or webp for stills (default "
                         "jpg); mp4, gif or webp for time-lapses (default mp4)")
-    p.add_argument("--frames", type=_frames, default=48, help="time-lapse frames (default 48)")
+    p.add_argument("--frames", type=frame_count, default=48, help="time-lapse frames (default 48)")
     p.add_argument("--easing", choices=EASINGS, default="ease-in-out",
                    help="time-lapse sweep easing")
     p.add_argument("--fps", type=float, default=12.0, help="time-lapse frames per second")
@@ -136,7 +115,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    help="an ONNX depth model to use instead of the shipped one")
     p.add_argument("--no-phone-depth", action="store_true",
                    help="ignore depth maps stored inside the photos")
-    p.add_argument("--workers", type=_workers, default=1,
+    p.add_argument("--workers", type=int_in(1, 256, "worker count"), default=1,
                    help="worker processes (default 1); the cores are shared among them")
     p.add_argument("--report", metavar="REPORT.json", default="",
                    help="also write every photo's result (sun, source, time, error) as JSON")

@@ -343,6 +343,25 @@ def _thickness(text: str) -> float:
         raise argparse.ArgumentTypeError(str(exc)) from exc
 
 
+def int_in(low: int, high: int, what: str) -> Callable[[str], int]:
+    """An argparse ``type`` accepting an integer in ``[low, high]``, or saying the range.
+
+    Example:
+        >>> int_in(1, 4, "worker count")("3")
+        3
+    """
+    def parse(text: str) -> int:
+        try:
+            n = int(text)
+        except ValueError:
+            n = low - 1
+        if not low <= n <= high:
+            raise argparse.ArgumentTypeError(f"expected a {what} in [{low}, {high}], got {text!r}")
+        return n
+
+    return parse
+
+
 def _positive_int(text: str) -> int:
     try:
         n = int(text)

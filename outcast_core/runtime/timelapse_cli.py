@@ -13,6 +13,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
+from outcast_core.runtime.cli import int_in
 from outcast_core.runtime.geometry import sun_vector
 from outcast_core.runtime.timelapse import (
     DEFAULT_FPS,
@@ -79,16 +80,8 @@ def _number(lo: float, hi: float, what: str) -> Callable[[str], float]:
     return parse
 
 
-def _frames(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        n = 0
-    if not 2 <= n <= MAX_FRAMES:
-        raise argparse.ArgumentTypeError(
-            f"expected a frame count in [2, {MAX_FRAMES}], got {text!r}"
-        )
-    return n
+#: ``--frames``: an integer in [2, MAX_FRAMES] (``outcast batch`` takes the same).
+frame_count = int_in(2, MAX_FRAMES, "frame count")
 
 
 def _sweep(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -140,7 +133,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
         help="the photo's original sun (aligned in the app)",
     )
     p.add_argument("--sweep", type=_sweep, metavar="AZ1,EL1:AZ2,EL2", help="sweep the sun A -> B")
-    p.add_argument("--frames", type=_frames, default=None,
+    p.add_argument("--frames", type=frame_count, default=None,
                    help=f"frame count, 2..{MAX_FRAMES} (sweep: required)")
     p.add_argument("--easing", choices=EASINGS, default="ease-in-out")
     p.add_argument("--date", type=_date, metavar="YYYY-MM-DD", help="real sun path of this day")

@@ -12,17 +12,8 @@ import numpy as np
 import pytest
 
 from outcast_core.runtime.cli import main, parse_azel, parse_vector
-from outcast_core.runtime.imageio import read_image, read_shadow_png, write_depth, write_image
+from outcast_core.runtime.imageio import read_image, read_shadow_png, write_depth
 from tests.runtime.scenes import box_scene_depth
-
-
-@pytest.fixture
-def photo(tmp_path: Path) -> Path:
-    rng = np.random.default_rng(3)
-    img = np.clip(0.5 + 0.1 * rng.standard_normal((60, 80, 3)), 0, 1).astype(np.float32)
-    path = tmp_path / "photo.png"
-    write_image(path, img)
-    return path
 
 
 @pytest.fixture

@@ -17,15 +17,6 @@ from tests.sigterm import terminate_when_ready
 
 
 @pytest.fixture
-def photo(tmp_path: Path) -> Path:
-    rng = np.random.default_rng(3)
-    img = np.clip(0.5 + 0.1 * rng.standard_normal((60, 80, 3)), 0, 1).astype(np.float32)
-    path = tmp_path / "photo.png"
-    write_image(path, img)
-    return path
-
-
-@pytest.fixture
 def no_work(monkeypatch) -> None:
     """Fail the test if a command gets as far as building a session (the slow part)."""
 

@@ -8,23 +8,11 @@ sunrise and sunset, a sweep) renders those frames with the sun at the horizon.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from outcast_core.runtime.cli import main, parse_azel
-from outcast_core.runtime.imageio import write_image
 from outcast_core.runtime.timelapse import MIN_RENDER_ELEVATION, sun_vectors, sweep_path
-
-
-@pytest.fixture
-def photo(tmp_path: Path) -> Path:
-    rng = np.random.default_rng(3)
-    img = np.clip(0.5 + 0.1 * rng.standard_normal((48, 64, 3)), 0, 1).astype(np.float32)
-    path = tmp_path / "photo.png"
-    write_image(path, img)
-    return path
 
 
 def test_parse_azel_refuses_a_sun_below_the_horizon():

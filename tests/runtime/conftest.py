@@ -1,0 +1,20 @@
+"""Fixtures shared by the runtime tests."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from outcast_core.runtime.imageio import write_image
+
+
+@pytest.fixture
+def photo(tmp_path: Path) -> Path:
+    """A small noisy grey photo, ``tmp_path / "photo.png"`` (60 x 80)."""
+    rng = np.random.default_rng(3)
+    img = np.clip(0.5 + 0.1 * rng.standard_normal((60, 80, 3)), 0, 1).astype(np.float32)
+    path = tmp_path / "photo.png"
+    write_image(path, img)
+    return path
