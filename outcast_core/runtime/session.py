@@ -228,7 +228,6 @@ class RelightSession:
         self.depth_provider: Any = None
         self.original_sun: np.ndarray | None = None
         self.original_shadow: np.ndarray | None = None
-        self.shadow_probability: np.ndarray | None = None
         self._reset_working()
 
     # ------------------------------------------------------------------ set-up
@@ -258,7 +257,8 @@ class RelightSession:
         self._relight_cache = _LRU()
         self._light: LightEstimate | None = None
         self._deshadowed: np.ndarray | None = None
-        self.shadow_probability = None
+        #: Where the photo's own shadows are (``H x W`` in [0, 1]), set by set_original_sun().
+        self.shadow_probability: np.ndarray | None = None
 
     def _time(self, stage: str, t0: float) -> None:
         self.timings[stage] = time.perf_counter() - t0
