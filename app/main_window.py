@@ -906,6 +906,7 @@ class MainWindow(QMainWindow):
         self.align_panel.opacity_slider.setValue(round(project.overlay_opacity * 100))
         self.relight_panel.split_slider.setValue(round(project.split * 100))
         self.relight_panel.set_view(project.buffer_view)
+        self.set_user_heading(project.heading)
         if project.original_sun is not None:
             self.align_panel.sun_panel.set_sun(*project.original_sun.as_tuple())
         if project.target_sun is not None:
@@ -1378,6 +1379,7 @@ class MainWindow(QMainWindow):
             split=self.relight_panel.split_slider.value() / 100.0,
             buffer_view=self.relight_panel.view(),
             timelapse=self.timelapse_settings,
+            heading=self.user_heading,
         )
 
     def save_project(self, path: str | None = None) -> str | None:

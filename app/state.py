@@ -170,6 +170,9 @@ class ProjectState:
     split: float = 0.5
     buffer_view: str = "output"
     timelapse: TimelapseSettings = field(default_factory=TimelapseSettings)
+    #: The camera's compass heading typed in step 1 (degrees from true north), for a photo whose
+    #: EXIF has none; None when not typed.
+    heading: float | None = None
 
     @property
     def step(self) -> Step:
@@ -197,6 +200,7 @@ class ProjectState:
             "split": self.split,
             "buffer_view": self.buffer_view,
             "timelapse": self.timelapse.to_dict(),
+            "heading": self.heading,
         }
 
     @classmethod
@@ -230,7 +234,15 @@ class ProjectState:
             split=_fraction(d.get("split", 0.5), "split"),
             buffer_view=view,
             timelapse=TimelapseSettings.from_dict(d.get("timelapse", {})),
+            heading=_heading(d.get("heading")),
         )
+
+
+def _heading(v: Any) -> float | None:
+    """A project's typed compass heading: None, or degrees in [0, 360] (360 read as 0)."""
+    if v is None:
+        return None
+    return float(_number_in(v, 0.0, 360.0, "heading")) % 360.0
 
 
 def _relative(path: str, base: Path | None) -> str:

@@ -151,3 +151,51 @@ def test_a_wrong_compass_heading_is_pointed_out(window, settle, monkeypatch):
     settle()
     notice = window.align_panel.notice
     assert notice.isVisibleTo(window) and "compass heading" in notice.text()
+
+
+def test_typed_heading_is_saved_in_the_project_and_restored(
+    qtbot, window, settle, settings, tmp_path
+):
+    import shutil
+
+    from app.main_window import MainWindow
+    from app.state import load_project, project_path_for
+
+    photo = tmp_path / "fieldpath.jpg"  # GPS and time, no compass heading
+    shutil.copyfile(os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg"), photo)
+    window.open_path(str(photo))
+    settle()
+    window.align_panel.heading_box.setValue(200.0)
+    assert window.user_heading == pytest.approx(200.0)
+    saved = window.save_project()
+    assert saved == str(project_path_for(photo))
+    assert load_project(saved).heading == pytest.approx(200.0)
+    other = MainWindow(settings=settings, preset="fast")
+    qtbot.addWidget(other)
+    try:
+        other.open_path(saved)
+        qtbot.waitUntil(lambda: other.step is Step.ALIGN and not other.runner.busy(),
+                        timeout=30000)
+        assert other.user_heading == pytest.approx(200.0)
+        assert other.align_panel.heading() == pytest.approx(200.0)
+        assert other.align_panel.exif_button.isEnabled()  # the typed heading completes the sun
+        assert other.exif_prior().azimuth is not None
+        # Opening the photo itself (no project) starts without a heading.
+        other.open_path(str(photo))
+        qtbot.waitUntil(lambda: other.step is Step.ALIGN and not other.runner.busy(),
+                        timeout=30000)
+        assert other.user_heading is None and other.align_panel.heading() is None
+    finally:
+        other.runner.shutdown()
+
+
+def test_project_heading_is_checked():
+    from app.state import ProjectState
+
+    base = ProjectState(image_path="x.jpg").to_dict()
+    assert base["heading"] is None
+    assert ProjectState.from_dict(base).heading is None
+    assert ProjectState.from_dict({**base, "heading": 360.0}).heading == 0.0
+    for bad in (-5.0, 400.0, "north", float("nan"), True):
+        with pytest.raises(ValueError, match="heading"):
+            ProjectState.from_dict({**base, "heading": bad})
