@@ -182,12 +182,14 @@ def cmd_relight(args: argparse.Namespace) -> int:
 
     w_from = parse_azel(args.from_sun)
     w_to = parse_azel(args.to_sun)
-    loaded = _load(args.image)
+    from outcast_core.runtime.imageio import read_image
+
+    bit_depth = 16 if Path(args.output).suffix.lower() in {".tif", ".tiff"} else 8
+    loaded = read_image(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit end to end
     session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
     _set_image(session, loaded, args)
     session.set_original_sun(w_from)
-    out = session.relight_full(w_to)
-    bit_depth = 16 if Path(args.output).suffix.lower() in {".tif", ".tiff"} else 8
+    out = session.relight_full(w_to, dtype=np.uint8 if bit_depth == 8 else np.float32)
     exif = loaded.exif_bytes if bit_depth == 8 else None  # GPS and time, as the app's export
     write_image(args.output, out, bit_depth=bit_depth, force=args.force, exif=exif)
     t = session.timings

@@ -421,7 +421,9 @@ class OnnxDepthModel:
     def run(self, image_srgb: np.ndarray, out_hw: tuple[int, int] | None = None) -> np.ndarray:
         """The model's raw output for an ``H x W x 3`` sRGB photo, resized to ``H x W`` (or to
         ``out_hw``)."""
-        image = np.asarray(image_srgb, np.float32)
+        image = np.asarray(image_srgb)
+        # uint8 photos (read with keep_uint8) are 0..255
+        image = image / np.float32(255.0) if image.dtype == np.uint8 else image.astype(np.float32)
         if image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) < 1:
             raise ValueError(f"expected an H x W x 3 image, got shape {image.shape}")
         t0 = time.perf_counter()

@@ -101,7 +101,8 @@ class LoadedImage:
 
     Attributes:
         image_srgb: float32 ``H x W x 3`` in ``[0, 1]``, sRGB-encoded, upright. At the working
-            resolution when ``max_pixels`` was given.
+            resolution when ``max_pixels`` was given. uint8 (``0..255``) instead when read with
+            ``keep_uint8`` from an 8-bit file (a quarter of the memory, no conversion).
         path: the file it came from.
         original_size: ``(width, height)`` of the full-resolution upright image.
         exif: the parsed metadata.
@@ -134,7 +135,9 @@ class LoadedImage:
 # Reading
 
 
-def read_image(path: str | os.PathLike[str], max_pixels: int | None = None) -> LoadedImage:
+def read_image(
+    path: str | os.PathLike[str], max_pixels: int | None = None, *, keep_uint8: bool = False
+) -> LoadedImage:
     """Read a photo as upright sRGB float32 with its EXIF metadata.
 
     Args:
@@ -142,6 +145,8 @@ def read_image(path: str | os.PathLike[str], max_pixels: int | None = None) -> L
         max_pixels: if given and the image has more pixels, it is loaded at the largest size
             with ``width * height <= max_pixels`` and the original aspect ratio (each side at
             least 1 pixel). ``None`` loads full resolution.
+        keep_uint8: an 8-bit file's pixels stay uint8 (``0..255``; what the session and the
+            full-resolution stages read fastest); deeper files are float32 either way.
 
     Returns:
         A :class:`LoadedImage`.
@@ -180,7 +185,7 @@ def read_image(path: str | os.PathLike[str], max_pixels: int | None = None) -> L
             if bits > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I;16N", "I", "F"):
                 image = _decode_cv2(path, target)
             else:
-                image = _decode_pil(im, target)
+                image = _decode_pil(im, target, keep_uint8=keep_uint8)
     except ImageReadError:
         raise
     except UnidentifiedImageError as exc:
@@ -370,8 +375,11 @@ def _bits_per_sample(im: Image.Image, path: Path) -> int:
     return 8
 
 
-def _decode_pil(im: Image.Image, target: tuple[int, int] | None) -> np.ndarray:
-    """Decode with Pillow to float32 H x W x 3 (8-bit and grey 16/32-bit images)."""
+def _decode_pil(
+    im: Image.Image, target: tuple[int, int] | None, *, keep_uint8: bool = False
+) -> np.ndarray:
+    """Decode with Pillow to float32 H x W x 3 (8-bit and grey 16/32-bit images); uint8 for
+    8-bit images with ``keep_uint8``."""
     if target is not None and im.format in ("JPEG", "MPO"):
         im.draft(None, target)  # libjpeg DCT scaling: decodes at >= target, 1/2..1/8 size
     im.load()
@@ -398,6 +406,9 @@ def _decode_pil(im: Image.Image, target: tuple[int, int] | None) -> np.ndarray:
         im = im.convert("RGB")  # CMYK, YCbCr, LAB, HSV, RGBX
     if target is not None and im.size != target:
         im = im.resize(target, Image.Resampling.LANCZOS, reducing_gap=2.0)
+    if keep_uint8:
+        u8 = np.asarray(im)  # H x W (x 3) uint8
+        return np.repeat(u8[:, :, None], 3, axis=2) if u8.ndim == 2 else u8
     out = np.asarray(im).astype(np.float32)  # H x W (x 3)
     out /= np.float32(255.0)
     if out.ndim == 2:
@@ -589,7 +600,7 @@ def write_image(
     Args:
         path: ``.png``, ``.jpg``/``.jpeg``, ``.tif``/``.tiff`` or ``.webp``.
         image_srgb: float ``H x W x 3`` (or ``H x W`` grey) sRGB values; values outside
-            ``[0, 1]`` are clipped, NaN is an error.
+            ``[0, 1]`` are clipped, NaN is an error. uint8 (``0..255``) is written as it is.
         bit_depth: 8, or 16 for PNG and TIFF.
         force: replace an existing file.
         quality: JPEG/WebP quality, 1..100 (WebP 100 is lossless).
@@ -647,8 +658,14 @@ def _quantise(image: np.ndarray, bit_depth: int) -> np.ndarray:
         raise ValueError(f"expected an H x W x 3 or H x W image, got shape {image.shape}")
     if image.shape[0] < 1 or image.shape[1] < 1:
         raise ValueError(f"expected a non-empty image, got shape {image.shape}")
+    if image.dtype == np.uint8:  # already quantised (8 bits), e.g. relight_full(dtype=uint8)
+        if image.ndim == 3 and image.shape[2] == 1:
+            image = image[:, :, 0]
+        if bit_depth == 16:
+            return np.ascontiguousarray(image.astype(np.uint16) * np.uint16(257))
+        return np.ascontiguousarray(image)
     if not np.issubdtype(image.dtype, np.floating):
-        raise ValueError(f"expected a float image in [0, 1], got dtype {image.dtype}")
+        raise ValueError(f"expected a float image in [0, 1] or uint8, got dtype {image.dtype}")
     if np.isnan(image).any():
         raise ValueError("expected an image without NaN values, got NaN")
     if image.ndim == 3 and image.shape[2] == 1:

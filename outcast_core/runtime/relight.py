@@ -168,48 +168,34 @@ def transfer_to_full_resolution(
     work_before_srgb: np.ndarray,
     work_after_srgb: np.ndarray,
     *,
-    band_rows: int = 1024,
+    band_rows: int | None = None,
+    out_dtype: type | np.dtype = np.float32,
+    threads: int | None = None,
 ) -> np.ndarray:
     """Apply a working-resolution relighting to the full-resolution photo.
 
     The per-pixel linear gain ``after / before`` is computed at working resolution, upsampled
-    (bilinear) and multiplied into the full-resolution photo, so the photo's own detail survives.
-    The full image is processed in bands of rows, so a 100-megapixel photo needs only its own
-    buffers plus a few bands of temporaries.
+    (bilinear, pixel centres aligned) and multiplied into the full-resolution photo, so the
+    photo's own detail survives. The full image is processed in bands of rows, in a few threads
+    (:func:`outcast_core.runtime.fullres.apply_gain`), so a 100-megapixel photo needs only its
+    own buffers plus a few bands of temporaries; the result does not depend on the band size.
 
     Args:
-        full_srgb: ``H x W x 3`` full-resolution photo (sRGB float32).
+        full_srgb: ``H x W x 3`` full-resolution photo (sRGB, uint8 or float32).
         work_before_srgb: ``h x w x 3`` the photo at working resolution (sRGB).
         work_after_srgb: ``h x w x 3`` its relit version (sRGB).
-        band_rows: rows processed at once.
+        band_rows: rows processed at once (default: a cache-sized band).
+        out_dtype: ``np.float32`` (default) or ``np.uint8`` (rounded, written through a table:
+            no full-size float buffer at all for an 8-bit photo).
+        threads: worker threads (default: the machine's cores, at most 4).
 
     Returns:
-        ``H x W x 3`` sRGB float32.
+        ``H x W x 3`` sRGB of ``out_dtype``.
     """
-    if work_before_srgb.shape != work_after_srgb.shape:
-        raise ValueError(
-            f"expected before/after of one shape, got {work_before_srgb.shape} and "
-            f"{work_after_srgb.shape}"
-        )
-    before = srgb_to_linear(work_before_srgb)
-    after = srgb_to_linear(work_after_srgb)
-    # Offset guards dark pixels: where the photo is black, the relit value itself comes through.
-    gain = (after + 1e-3) / (before + 1e-3)  # h x w x 3
-    h, w = full_srgb.shape[:2]
-    gh, gw = gain.shape[:2]
-    out = np.empty((h, w, 3), np.float32)
-    # Bilinear upsampling (pixel-centre aligned) done band by band with cv2.remap.
-    xs = ((np.arange(w, dtype=np.float32) + 0.5) * gw / w - 0.5).astype(np.float32)
-    for r0 in range(0, h, band_rows):
-        r1 = min(h, r0 + band_rows)
-        ys = ((np.arange(r0, r1, dtype=np.float32) + 0.5) * gh / h - 0.5).astype(np.float32)
-        map_x = np.broadcast_to(xs[None, :], (r1 - r0, w))
-        map_y = np.broadcast_to(ys[:, None], (r1 - r0, w))
-        g = cv2.remap(gain, np.ascontiguousarray(map_x), np.ascontiguousarray(map_y),
-                      interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        band = srgb_to_linear(full_srgb[r0:r1])
-        out[r0:r1] = linear_to_srgb((band + 1e-3) * g - 1e-3)
-    return out
+    from outcast_core.runtime.fullres import apply_gain, gain_map
+
+    gain = gain_map(np.asarray(work_before_srgb), np.asarray(work_after_srgb))  # h x w x 3
+    return apply_gain(full_srgb, gain, out_dtype=out_dtype, band_rows=band_rows, threads=threads)
 
 
 #: :func:`keep_photo_colour`: shadow level above which a pixel counts as lit (soft over

@@ -26,6 +26,7 @@ import numpy as np
 
 from outcast_core.runtime.colour import srgb_to_linear
 from outcast_core.runtime.depth_post import postprocess_z, run_depth_model
+from outcast_core.runtime.fullres import resize_to_working
 from outcast_core.runtime.geometry import (
     DEFAULT_FOV_DEG,
     Camera,
@@ -275,7 +276,8 @@ class RelightSession:
         """Set the photo and run every light-independent stage once.
 
         Args:
-            image_srgb: ``H x W x 3`` sRGB float32 in [0, 1] at full resolution.
+            image_srgb: ``H x W x 3`` sRGB at full resolution: float in [0, 1], or uint8 (kept
+                as it is, without a float copy: the full-resolution stages read it in bands).
             fov_deg: horizontal field of view (default 60 deg, or from ``focal_35mm``).
             focal_35mm: EXIF 35 mm equivalent focal length.
             depth: optional ``h x w`` depth from elsewhere (any resolution with the photo's
@@ -285,7 +287,12 @@ class RelightSession:
         img = np.asarray(image_srgb)
         if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] < 1 or img.shape[1] < 1:
             raise ValueError(f"expected an H x W x 3 image, got shape {img.shape}")
-        img = np.clip(np.nan_to_num(img.astype(np.float32), nan=0.0), 0.0, 1.0)
+        if img.dtype == np.uint8:
+            img = np.ascontiguousarray(img)  # kept as it is: a quarter of float32's memory
+        else:
+            img = np.array(img, dtype=np.float32)  # one copy, cleaned in place
+            np.clip(img, 0.0, 1.0, out=img)
+            img[np.isnan(img)] = 0.0
         h, w = img.shape[:2]
         if focal_35mm is not None and fov_deg is None:
             focal = focal_from_35mm(w, h, focal_35mm)
@@ -339,7 +346,7 @@ class RelightSession:
         h, w = working_shape(full.shape[0], full.shape[1], self.preset.working_size)
         self._reset_working()
         t0 = time.perf_counter()
-        self.image_srgb = resize(full, (h, w))
+        self.image_srgb = resize_to_working(full, (h, w))
         self.camera = Camera(h, w, self._focal_full * w / full.shape[1])
         self._time("resize", t0)
         report("depth", 0.1)
@@ -575,12 +582,19 @@ class RelightSession:
         self._time("relight", t0)
         return img.astype(np.float32)
 
-    def relight_full(self, w_new: Any) -> np.ndarray:
-        """The photo relit under ``w_new`` at its full input resolution (detail transfer)."""
+    def relight_full(self, w_new: Any, *, dtype: type | np.dtype = np.float32) -> np.ndarray:
+        """The photo relit under ``w_new`` at its full input resolution (detail transfer).
+
+        Args:
+            w_new: the new sun.
+            dtype: ``np.float32`` (sRGB in [0, 1]) or ``np.uint8`` (for writing 8-bit files:
+                with an 8-bit photo no full-size float buffer is made at all).
+        """
         relit = self.relight(w_new)
         t0 = time.perf_counter()
         with self._lock:
-            out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit)
+            out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit,
+                                              out_dtype=dtype)
         self._time("full_resolution", t0)
         return out
 

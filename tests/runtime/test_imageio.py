@@ -535,7 +535,7 @@ def test_atomic_output_context_manager(tmp_path: Path) -> None:
         ("a.bmp", np.zeros((2, 2, 3), np.float32), {}, "extension"),
         ("a.jpg", np.zeros((2, 2, 3), np.float32), {"bit_depth": 16}, "bit_depth 8"),
         ("a.png", np.zeros((2, 2, 3), np.float32), {"bit_depth": 12}, "bit_depth"),
-        ("a.png", np.zeros((2, 2, 3), np.uint8), {}, "float"),
+        ("a.png", np.zeros((2, 2, 3), np.int32), {}, "float"),  # uint8 is written as it is
         ("a.png", np.zeros((2, 2, 4), np.float32), {}, "shape"),
         ("a.png", np.full((2, 2, 3), np.nan, np.float32), {}, "NaN"),
         ("a.jpg", np.zeros((2, 2, 3), np.float32), {"quality": 0}, "quality"),
