@@ -218,8 +218,26 @@ class ModelRegistry:
         check_manifest(data, path)
         return data
 
-    def load(self, name: str) -> Model:
-        """Load (once) and return a verified model; :class:`ModelError` if missing or corrupt."""
+    def load(self, name: str, *, threads: int | None = None) -> Model:
+        """Load (once) and return a verified model; :class:`ModelError` if missing or corrupt.
+
+        Args:
+            name: the model.
+            threads: intra-op threads for this instance, when it differs from the registry's
+                (a second session of the same file, loaded once too): the session runs its
+                small drag-preview inputs on one thread, which on two shared cores was 2-3x
+                faster than two (``benchmarks/bench_runtime.py``).
+        """
+        if threads is not None and threads != self.threads:
+            with self._lock:
+                key = f"{name}@{threads}"
+                if key in self._loaded:
+                    return self._loaded[key]
+            base = self.load(name)  # verified once, with the registry's threads
+            model = Model(name, base.path, base.manifest,
+                          self._session(base.path, threads))
+            with self._lock:
+                return self._loaded.setdefault(key, model)
         with self._lock:
             if name in self._loaded:
                 return self._loaded[name]
@@ -233,22 +251,26 @@ class ModelRegistry:
                     f"model file {onnx_path} is corrupt: sha256 {digest[:12]}... does not match "
                     f"the manifest's {str(manifest['sha256'])[:12]}...; reinstall the models"
                 )
-            import onnxruntime as ort
-
-            opts = ort.SessionOptions()
-            if self.threads:
-                opts.intra_op_num_threads = self.threads
-            opts.log_severity_level = 3
-            try:
-                sess = ort.InferenceSession(
-                    str(onnx_path), sess_options=opts, providers=["CPUExecutionProvider"]
-                )
-            except Exception as exc:  # onnxruntime raises its own exception types
-                raise ModelError(f"model file {onnx_path} could not be loaded: {exc}") from exc
+            sess = self._session(onnx_path, self.threads)
             check_model_io(name, manifest, sess, onnx_path)
             model = Model(name, onnx_path, manifest, sess)
             self._loaded[name] = model
             return model
+
+    @staticmethod
+    def _session(onnx_path: Path, threads: int | None) -> Any:
+        import onnxruntime as ort
+
+        opts = ort.SessionOptions()
+        if threads:
+            opts.intra_op_num_threads = threads
+        opts.log_severity_level = 3
+        try:
+            return ort.InferenceSession(
+                str(onnx_path), sess_options=opts, providers=["CPUExecutionProvider"]
+            )
+        except Exception as exc:  # onnxruntime raises its own exception types
+            raise ModelError(f"model file {onnx_path} could not be loaded: {exc}") from exc
 
 
 def check_manifest(data: Any, path: Path) -> None:

@@ -26,7 +26,7 @@ import numpy as np
 
 from outcast_core.runtime.colour import srgb_to_linear
 from outcast_core.runtime.depth_post import postprocess_z, run_depth_model
-from outcast_core.runtime.fullres import resize_to_working
+from outcast_core.runtime.fullres import apply_gain, gain_map, resize_to_working
 from outcast_core.runtime.geometry import (
     DEFAULT_FOV_DEG,
     Camera,
@@ -71,6 +71,9 @@ class Preset:
             image side and stops early when no pixel can change.
         preview_size: longer side used while the user drags a sun.
         preview_steps: march steps while dragging.
+        relight_preview_size: longer side at which the new shadow and the relighting network
+            run while the user drags the new sun in step 2; the result is moved onto the
+            working-size photo (its detail kept), like the full-resolution pass.
     """
 
     name: str
@@ -79,15 +82,19 @@ class Preset:
     direct_step: float
     preview_size: int
     preview_steps: int
+    relight_preview_size: int = 128
 
 
 PRESETS: dict[str, Preset] = {
-    "fast": Preset("fast", 256, 16, 1 / 128, 128, 8),
-    "balanced": Preset("balanced", 384, 32, 1 / 256, 192, 16),
-    "accurate": Preset("accurate", 512, 64, 1 / 512, 256, 32),
+    "fast": Preset("fast", 256, 16, 1 / 128, 128, 8, 96),
+    "balanced": Preset("balanced", 384, 32, 1 / 256, 192, 16, 128),
+    "accurate": Preset("accurate", 512, 64, 1 / 512, 256, 32, 192),
 }
 
 _CACHE_SIZE = 16
+#: onnxruntime threads for the step-2 drag preview's small inputs (measured: one thread was
+#: 2-3x faster than two on two shared cores, and leaves a core to the GUI thread).
+PREVIEW_THREADS = 1
 
 
 def working_shape(height: int, width: int, longer_side: int) -> tuple[int, int]:
@@ -254,6 +261,10 @@ class RelightSession:
         self.view_dirs: np.ndarray | None = None
         self._sampler: RaySampler | None = None
         self._preview: dict[str, Any] | None = None
+        self._relight_preview: dict[str, Any] | None = None
+        #: How many times the light-independent inputs of the step-2 drag preview were built
+        #: (once per photo, original sun and preset; tests count it).
+        self.relight_preview_builds = 0
         self._shadow_cache = _LRU()
         self._relight_cache = _LRU()
         self._light: LightEstimate | None = None
@@ -338,6 +349,7 @@ class RelightSession:
                 self._shadow_cache.clear()
                 self._relight_cache.clear()
                 self._preview = None
+                self._relight_preview = None
 
     def _prepare(self, progress: Progress | None) -> None:
         assert self.full_image_srgb is not None and self._focal_full is not None
@@ -543,7 +555,13 @@ class RelightSession:
 
     # ------------------------------------------------------------------ relighting
     def relight(self, w_new: Any, *, preview: bool = False) -> np.ndarray:
-        """The photo relit under ``w_new`` at working resolution (``H x W x 3`` sRGB)."""
+        """The photo relit under ``w_new`` at working resolution (``H x W x 3`` sRGB).
+
+        ``preview=True`` is for dragging the new sun: the new shadow and the relighting run at
+        the preset's ``relight_preview_size`` on inputs prepared once per photo and original sun,
+        and the result is moved onto the working-size photo (sharp, but its shading coarser;
+        quantised to 8 bits, as it is for the screen).
+        """
         key = (_key(w_new), preview, self.preset.name)
         with self._lock:
             self._require_image()
@@ -551,8 +569,92 @@ class RelightSession:
                 raise RuntimeError("set_original_sun() must be called before relight()")
             return self._relight_cache.get_or(key, lambda: self._compute_relight(w_new, preview))
 
+    def _relight_preview_state(self) -> dict[str, Any]:
+        """Everything the step-2 drag preview needs that the new sun does not change, at the
+        preset's ``relight_preview_size``, as the networks take it (``1 x C x h x w``): the
+        photo, ``S_o``, normals, view directions, depth, sky. Built once per photo, original
+        sun and preset."""
+        st = self._relight_preview
+        if st is not None and st["original_shadow"] is self.original_shadow:
+            return st
+        assert self.image_srgb is not None and self.camera is not None
+        assert self.original_shadow is not None and self.depth is not None
+        h, w = working_shape(self.camera.height, self.camera.width,
+                             self.preset.relight_preview_size)
+        cam = self.camera.resized(h, w)
+        depth = resize(np.where(self.sky, np.inf, self.depth).astype(np.float32), (h, w),
+                       nearest=True)
+        sky = resize(self.sky.astype(np.uint8), (h, w), nearest=True) > 0
+        image = resize(self.image_srgb, (h, w))
+        normals = normals_from_depth(depth, cam)
+        s_o = np.clip(resize(self.original_shadow, (h, w)), 0.0, 1.0).astype(np.float32)
+
+        def nchw(a: np.ndarray) -> np.ndarray:
+            a = a[..., None] if a.ndim == 2 else a
+            return np.ascontiguousarray(a.transpose(2, 0, 1)[None], dtype=np.float32)
+
+        self._relight_preview = st = {
+            "original_shadow": self.original_shadow,
+            "camera": cam, "image": image, "sky": sky, "depth": depth, "normals": normals,
+            "shadow_old": s_o, "sampler": RaySampler(depth, cam) if self.shadow_mode != "learned"
+            else None,
+            # The working-size photo in 8 bits: the preview is moved onto it by tables only.
+            "working_u8": np.rint(self.image_srgb * 255.0).astype(np.uint8),
+            "feeds_s": {"image": nchw(image), "depth": nchw(network_depth(depth)),
+                        "normals": nchw(normals),
+                        "focal": np.array([[cam.focal]], np.float32)},
+            "feeds_l": {"image": nchw(image), "shadow_old": nchw(s_o),
+                        "normals": nchw(normals),
+                        "view_dirs": nchw(view_directions(cam)),
+                        "sun_old": self.original_sun.astype(np.float32)[None],
+                        "light_ratio": self._light.ratio.astype(np.float32)[None]},
+        }
+        self.relight_preview_builds += 1
+        return st
+
+    def _compute_relight_preview(self, wv: np.ndarray) -> np.ndarray:
+        """The step-2 drag preview: only what the new sun changes (its shadow, the relighting
+        network) runs, at ``relight_preview_size``; the gain it makes is moved onto the
+        working-size photo (:func:`~outcast_core.runtime.fullres.apply_gain`)."""
+        t0 = time.perf_counter()
+        st = self._relight_preview_state()
+        if self.shadow_mode == "learned":
+            out = self.registry.load("shadow", threads=PREVIEW_THREADS).run({**st["feeds_s"],
+                                                    "sun": wv.astype(np.float32)[None]})
+            s_new = np.clip(_first(out)[0, 0], 0.0, 1.0)
+        else:
+            step = self.preset.direct_step * 2.0
+            s_new = direct_shadow(
+                st["depth"], st["camera"], wv, normals=st["normals"], sky=st["sky"],
+                steps=int(math.ceil(1.0 / step)), step=step, thickness=self.thickness,
+                sampler=st["sampler"],
+            )
+        s_new = s_new.astype(np.float32)
+        t1 = time.perf_counter()
+        self.timings["shadow_preview"] = t1 - t0
+        image = st["image"]
+        if self.relight_mode == "learned":
+            out = self.registry.load("relight", threads=PREVIEW_THREADS).run({
+                **st["feeds_l"], "shadow_new": s_new[None, None],
+                "sun_new": wv.astype(np.float32)[None],
+            })
+            relit = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
+            if self.colour_guard:
+                cam = self.camera
+                keep_sky = not (sun_in_frame(self.original_sun, cam) or sun_in_frame(wv, cam))
+                relit = keep_photo_colour(image, relit, st["shadow_old"], s_new, st["sky"],
+                                          keep_sky=keep_sky)
+        else:
+            relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
+                                    light=self._light, snap=False)
+        out = apply_gain(st["working_u8"], gain_map(image, relit), out_dtype=np.uint8, threads=1)
+        self._time("relight", t1)
+        return out.astype(np.float32) * np.float32(1.0 / 255.0)  # 8 bits: it is for the screen
+
     def _compute_relight(self, w_new: Any, preview: bool) -> np.ndarray:
         wv = normalize_sun(w_new)
+        if preview:
+            return self._compute_relight_preview(wv)
         s_new = self.shadow(wv, preview=preview)
         t0 = time.perf_counter()
         if self.relight_mode == "learned":
