@@ -92,6 +92,9 @@ SHADE_BLUE = 0.2
 DARKER_MARGIN = 0.5
 DARKER_WIDTH = 0.3
 CHROMA_TOL = 1.0
+#: :func:`shade_threshold`: the largest share of a photo's surface that one threshold may call
+#: shade before the split is taken again inside the dark class.
+MAX_SHADE_FRACTION = 0.5
 LOCAL_MAX = 1.5
 
 
@@ -116,6 +119,28 @@ def _otsu_threshold(values: np.ndarray, bins: int = 256) -> float:
                            (total * w0 - m0) ** 2 / (w0 * w1), 0.0)
     best = np.flatnonzero(between >= between.max() * (1.0 - 1e-9))
     return float(edges[1:][best].mean())
+
+
+def shade_threshold(log_luminance: np.ndarray) -> float:
+    """The log luminance that separates shade from sunlit surface in a photo.
+
+    Otsu's threshold (:func:`_otsu_threshold`) splits the two largest modes. In a sunlit photo
+    the lit surface is the larger one; when Otsu leaves less than
+    ``1 - MAX_SHADE_FRACTION`` of the surface above its threshold, that bright class is
+    highlights (a white object, glare, a lit wall in a shaded close-up), and the split that
+    matters lies inside the dark class, so Otsu is taken again there.
+
+    Example:
+        >>> v = np.r_[np.full(300, -3.0), np.full(600, -1.0), np.full(100, 1.0)]
+        >>> -3.0 < shade_threshold(v) < -1.0
+        True
+    """
+    values = np.asarray(log_luminance, np.float64).ravel()
+    t = _otsu_threshold(values)
+    dark = values[values < t]
+    if dark.size > 0.05 * values.size and dark.size > MAX_SHADE_FRACTION * values.size:
+        t = _otsu_threshold(dark)
+    return t
 
 
 def photo_shadow_probability(
@@ -151,7 +176,7 @@ def photo_shadow_probability(
     if surface.sum() < 16:
         return np.zeros((h, w), np.float32)
     log_y = np.log(luminance(srgb_to_linear(img)) + _LOG_EPS).astype(np.float32)
-    t = _otsu_threshold(log_y[surface])
+    t = shade_threshold(log_y[surface])
     p = 1.0 / (1.0 + np.exp(np.clip((log_y - t) / SOFT_LOG, -30.0, 30.0)))
     side = max(h, w)
     radius = max(1, round(EDGE_RADIUS * side))
@@ -265,10 +290,10 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray) -
     """The photo with its shadows lifted (``H x W x 3`` sRGB float32, same size).
 
     Example:
-        >>> img = np.full((16, 16, 3), 0.8, np.float32); img[8:, 8:] *= 0.3
-        >>> p = photo_shadow_probability(img, np.zeros((16, 16), bool))
-        >>> out = deshadow(img, p, np.zeros((16, 16), bool))
-        >>> bool(abs(out[12, 12, 0] - 0.8) < 0.05)
+        >>> img = np.full((32, 32, 3), 0.8, np.float32); img[16:, 16:] *= 0.5
+        >>> p = photo_shadow_probability(img, np.zeros((32, 32), bool))
+        >>> out = deshadow(img, p, np.zeros((32, 32), bool))
+        >>> bool(abs(out[24, 24, 0] - 0.8) < 0.1 and abs(out[4, 4, 0] - 0.8) < 0.01)
         True
     """
     img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
@@ -285,4 +310,5 @@ __all__ = [
     "deshadow_log_gain",
     "original_shadow_from_photo",
     "photo_shadow_probability",
+    "shade_threshold",
 ]

@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from outcast_core.runtime import photo_shadows as ps
 from outcast_core.runtime.cli import main
+from outcast_core.runtime.colour import linear_to_srgb
 from outcast_core.runtime.imageio import read_image, read_shadow_png, write_depth, write_image
 from outcast_core.runtime.photo_shadows import (
     LIT_FLOOR,
@@ -158,3 +160,18 @@ def test_deshadow_keeps_black_things_in_the_shade_black() -> None:
     shade = mask & ~rails
     assert out[shade].mean() > 1.3 * img[shade].mean()  # the shade is lifted
     assert out[rails].mean() < 0.08  # the rails stay black
+
+
+def test_a_small_bright_class_is_highlights_not_the_lit_surface():
+    """A white object in a dim, half-shaded scene: Otsu alone splits white from everything
+    else and calls the lit ground shade; the shade threshold splits again inside the dark class."""
+    lin = np.full((60, 60), math.exp(-3.2), np.float32)  # lit ground, dim
+    lin[:, :18] = math.exp(-4.5)  # shade: 30 %
+    lin[:6, 30:] = 1.0  # a white object: 5 %
+    img = np.repeat(linear_to_srgb(lin)[..., None], 3, axis=-1)
+    sky = np.zeros((60, 60), bool)
+    log_y = np.log(lin.ravel() + 1e-3)
+    assert ps._otsu_threshold(log_y) > -3.0  # Otsu alone takes the lit ground for shade
+    p = ps.photo_shadow_probability(img, sky)
+    assert p[30, 5] > 0.9
+    assert p[30, 45] < 0.1
