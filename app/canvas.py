@@ -68,6 +68,7 @@ class ImageCanvas(QWidget):
         self._dragging_split = False
         self._empty_text = "Open a photo (Ctrl+O) or drop one here"
         self.overlay_updates = 0  # counted for tests and the benchmark
+        self.after_updates = 0  # relit images shown (step 2), counted likewise
         self.setMinimumSize(320, 240)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         self.setMouseTracking(False)
@@ -104,6 +105,7 @@ class ImageCanvas(QWidget):
 
     def set_after(self, image: QImage | None) -> None:
         self._after = image
+        self.after_updates += 1
         self.update()
 
     def set_overlay(self, image: QImage | None) -> None:

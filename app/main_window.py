@@ -620,7 +620,9 @@ class MainWindow(QMainWindow):
             from outcast_core.runtime.session import RelightSession
 
             ctx.progress("reading", 0.02)
-            loaded = read_image(path)
+            # 8-bit photos stay 8-bit: the session keeps this array (no float copy) and the
+            # full-resolution passes read it in bands.
+            loaded = read_image(path, keep_uint8=True)
             depth = read_depth(depth_path) if depth_path else None
             session = RelightSession(preset=preset, mode=mode, depth_mode=depth_mode)
             note = ""
@@ -1018,6 +1020,7 @@ class MainWindow(QMainWindow):
         def job(ctx: JobContext) -> dict[str, Any]:
             ctx.progress("refining", 0.1)
             session.set_original_sun(sun_vector(az, el))
+            session.prepare_relight_preview()  # so the first drag in step 2 is as quick
             return {"sun": (az, el), "keep_target": keep_target, "timings": _timings(session)}
 
         self.runner.cancel("shadow")
@@ -1075,7 +1078,8 @@ class MainWindow(QMainWindow):
             if view == "output":
                 # While dragging: the working-size preview. On release: full resolution, so the
                 # relit side of the split is as sharp as the photo.
-                relit = session.relight(w, preview=True) if preview else session.relight_full(w)
+                relit = (session.relight(w, preview=True) if preview
+                         else session.relight_full(w, dtype=np.uint8))
                 img = display.to_uint8_rgb(relit)
                 return {"view": view, "image": img, "preview": preview,
                         "timings": _timings(session)}  # fmt: skip
@@ -1214,8 +1218,9 @@ class MainWindow(QMainWindow):
         if session is None or self.step is not Step.RELIGHT:
             return None
         w = sun_vector(*self.relight_panel.sun_panel.sun())
+        dtype = np.float32 if Path(path).suffix.lower() in {".tif", ".tiff"} else np.uint8
         return self._export_image(
-            "export_still", path, force, lambda: session.relight_full(w),
+            "export_still", path, force, lambda: session.relight_full(w, dtype=dtype),
             "relighting at full resolution",
         )  # fmt: skip
 

@@ -4,11 +4,17 @@ Usage:
     QT_QPA_PLATFORM=offscreen python benchmarks/bench_gui.py [PHOTO] [--presets fast,balanced]
         [--seconds 4] [--hz 60]
 
-For each preset it opens the photo in the real main window, drags the original sun's handle with
-simulated mouse events at ``--hz`` for ``--seconds`` (a slow circle: azimuth sweeps 180 degrees,
-elevation 20-60), and counts how many overlays reached the canvas. It then confirms, relights,
-exports a still and a short time-lapse, and prints the session's stage timings and the wall time
-of each GUI step. All figures are measured on this machine at run time; nothing is hard-coded.
+For each preset it opens the photo in the real main window and drags, with simulated mouse
+events at ``--hz`` for ``--seconds`` (a slow arc: azimuth sweeps 180 degrees, elevation 20-60):
+
+* in step 1 the original sun's handle, counting the shadow overlays that reach the canvas (the
+  baseline of the run), then
+* in step 2 the new sun's handle, counting the relit previews that reach the canvas, and prints
+  the step 2 / step 1 ratio of the two rates (compare figures within one run: the machine is
+  shared).
+
+It then relights, exports a still and a short time-lapse, and prints the session's stage timings
+and the wall time of each GUI step. All figures are measured on this machine at run time.
 """
 
 from __future__ import annotations
@@ -26,9 +32,48 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
-def run_preset(app, photo: str, preset: str, seconds: float, hz: float, tmp: Path) -> dict:
-    from PySide6.QtCore import QPoint, QSettings, Qt
+def drag(app, dial, point, seconds: float, hz: float, shown, arrivals: list, label: str,
+         res: dict) -> None:
+    """Drag ``dial``'s handle in a slow arc (azimuth +180 deg, elevation 20-60) with mouse
+    events at ``hz`` for ``seconds``, release, wait for the full-quality result, and record how
+    many images ``shown()`` counts reached the canvas while the mouse moved."""
+    from PySide6.QtCore import Qt
     from PySide6.QtTest import QTest
+
+    from app.main_window import process_until_idle
+
+    win = dial.window()
+    dial.set_sun(90.0, 40.0)
+    QTest.mousePress(dial, Qt.MouseButton.LeftButton, pos=point(90.0, 40.0))
+    n0 = shown()
+    arrivals.clear()
+    moves = int(seconds * hz)
+    t_start = time.perf_counter()
+    for k in range(moves):
+        t = k / max(1, moves - 1)
+        az = 90.0 + 180.0 * t
+        el = 40.0 + 20.0 * math.sin(2 * math.pi * t)
+        QTest.mouseMove(dial, point(az, el))
+        app.processEvents()
+        next_tick = t_start + (k + 1) / hz
+        while time.perf_counter() < next_tick:
+            app.processEvents()
+            time.sleep(0.001)
+    t_drag = time.perf_counter() - t_start
+    during = shown() - n0
+    t_rel = time.perf_counter()
+    QTest.mouseRelease(dial, Qt.MouseButton.LeftButton, pos=point(270.0, 40.0))
+    process_until_idle(win, 300.0)
+    res[f"{label}: images per second while dragging"] = during / t_drag
+    res[f"{label}: images during the drag ({moves} mouse moves, {t_drag:.1f} s)"] = during
+    gaps = [b - a for a, b in zip(arrivals, arrivals[1:], strict=False) if b < t_rel]
+    if gaps:
+        res[f"{label}: median seconds between images"] = statistics.median(gaps)
+    res[f"{label}: release -> full-quality result (s)"] = time.perf_counter() - t_rel
+
+
+def run_preset(app, photo: str, preset: str, seconds: float, hz: float, tmp: Path) -> dict:
+    from PySide6.QtCore import QPoint, QSettings
 
     from app import sun_dial_math as dm
     from app.main_window import MainWindow, process_until_idle
@@ -51,49 +96,36 @@ def run_preset(app, photo: str, preset: str, seconds: float, hz: float, tmp: Pat
     timed("open photo (read + depth + normals + first overlay)", lambda: win.open_path(photo))
     res["session stages after open"] = dict(win.session.timings)
 
-    dial = win.align_panel.sun_panel.dial
+    def pointer(dial):
+        def point(az: float, el: float) -> QPoint:
+            cx, cy, r = dial.dial_geometry()
+            x, y = dm.sun_to_point(az, el, cx, cy, r)
+            return QPoint(round(x), round(y))
+        return point
 
-    def point(az: float, el: float) -> QPoint:
-        cx, cy, r = dial.dial_geometry()
-        x, y = dm.sun_to_point(az, el, cx, cy, r)
-        return QPoint(round(x), round(y))
+    arrivals: list[float] = []
 
-    # Drag: count overlays that reach the canvas while the mouse moves.
-    dial.set_sun(90.0, 40.0)
-    QTest.mousePress(dial, Qt.MouseButton.LeftButton, pos=point(90.0, 40.0))
-    n0 = win.canvas.overlay_updates
-    arrivals = []
-    win.runner.finished.connect(
-        lambda _i, ch, r, s: arrivals.append(time.perf_counter()) if ch == "shadow" else None
-    )
-    moves = int(seconds * hz)
-    t_start = time.perf_counter()
-    for k in range(moves):
-        t = k / max(1, moves - 1)
-        az = 90.0 + 180.0 * t
-        el = 40.0 + 20.0 * math.sin(2 * math.pi * t)
-        QTest.mouseMove(dial, point(az, el))
-        app.processEvents()
-        next_tick = t_start + (k + 1) / hz
-        while time.perf_counter() < next_tick:
-            app.processEvents()
-            time.sleep(0.001)
-    t_drag = time.perf_counter() - t_start
-    during = win.canvas.overlay_updates - n0
-    t_rel = time.perf_counter()
-    QTest.mouseRelease(dial, Qt.MouseButton.LeftButton, pos=point(270.0, 40.0))
-    settle()
-    res["drag seconds"] = t_drag
-    res["mouse moves"] = moves
-    res["overlay updates during drag"] = during
-    res["overlay updates per second while dragging"] = during / t_drag
-    gaps = [b - a for a, b in zip(arrivals, arrivals[1:], strict=False) if a < t_rel]
-    if gaps:
-        res["median seconds between overlays while dragging"] = statistics.median(gaps)
-    res["release -> full-quality overlay (s)"] = time.perf_counter() - t_rel
-    res["session stages after drag"] = dict(win.session.timings)
+    def arrived(_i, channel, result, _s) -> None:
+        if channel in ("shadow", "relight") and isinstance(result, dict) and result.get("preview"):
+            arrivals.append(time.perf_counter())
+
+    win.runner.finished.connect(arrived)
+    # Step 1 (the baseline of this run): shadow overlays while dragging the photo's sun.
+    dial1 = win.align_panel.sun_panel.dial
+    drag(app, dial1, pointer(dial1), seconds, hz, lambda: win.canvas.overlay_updates, arrivals,
+         "step 1 drag (shadow overlay)", res)
+    res["session stages after step 1 drag"] = dict(win.session.timings)
 
     timed("confirm original sun (refine + light estimate)", win.confirm_original_sun)
+    # Step 2: relit previews while dragging the new sun; the full-resolution result on release.
+    dial2 = win.relight_panel.sun_panel.dial
+    drag(app, dial2, pointer(dial2), seconds, hz, lambda: win.canvas.after_updates, arrivals,
+         "step 2 drag (relit preview)", res)
+    one = res["step 1 drag (shadow overlay): images per second while dragging"]
+    two = res["step 2 drag (relit preview): images per second while dragging"]
+    res["step 2 / step 1 rate (same run)"] = two / one if one else float("nan")
+    res["session stages after step 2 drag"] = dict(win.session.timings)
+
     win.relight_panel.sun_panel.set_sun(200.0, 25.0)
     timed("relight preview (working size)", lambda: win.request_relight(preview=True))
     timed("relight full pass (full resolution)", lambda: win.request_relight(preview=False))

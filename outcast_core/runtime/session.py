@@ -86,7 +86,7 @@ class Preset:
 
 
 PRESETS: dict[str, Preset] = {
-    "fast": Preset("fast", 256, 16, 1 / 128, 128, 8, 96),
+    "fast": Preset("fast", 256, 16, 1 / 128, 128, 8, 80),
     "balanced": Preset("balanced", 384, 32, 1 / 256, 192, 16, 128),
     "accurate": Preset("accurate", 512, 64, 1 / 512, 256, 32, 192),
 }
@@ -611,6 +611,20 @@ class RelightSession:
         }
         self.relight_preview_builds += 1
         return st
+
+    def prepare_relight_preview(self) -> None:
+        """Get the step-2 drag preview ready before the first drag: its light-independent
+        inputs and its one-thread network sessions (the app calls this at "Confirm sun")."""
+        with self._lock:
+            self._require_image()
+            if self.original_shadow is None:
+                raise RuntimeError("set_original_sun() must be called before "
+                                   "prepare_relight_preview()")
+            self._relight_preview_state()
+            if self.shadow_mode == "learned":
+                self.registry.load("shadow", threads=PREVIEW_THREADS)
+            if self.relight_mode == "learned":
+                self.registry.load("relight", threads=PREVIEW_THREADS)
 
     def _compute_relight_preview(self, wv: np.ndarray) -> np.ndarray:
         """The step-2 drag preview: only what the new sun changes (its shadow, the relighting

@@ -325,9 +325,9 @@ def test_a_jpeg_as_depth_map_is_refused_at_once_in_plain_words(window, photo, se
     _confirm(window, settle)
     real = window.session.relight_full
 
-    def slow_full(w):
+    def slow_full(w, **kwargs):
         time.sleep(1.0)
-        return real(w)
+        return real(w, **kwargs)
 
     monkeypatch.setattr(window.session, "relight_full", slow_full)
     window.request_relight(preview=False)  # a slow relight in the worker

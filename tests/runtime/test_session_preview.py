@@ -110,3 +110,16 @@ def test_preview_follows_the_full_pass(scene) -> None:
         for w in SUNS[:2]:
             full, prev = s.relight(w), s.relight(w, preview=True)
             assert np.abs(full - prev).mean() < 0.03, mode
+
+
+def test_prepare_relight_preview_builds_before_the_first_drag(scene) -> None:
+    image, depth = scene
+    s = RelightSession(preset="fast", mode="learned")
+    s.set_image(image, depth=depth)
+    with pytest.raises(RuntimeError, match="set_original_sun"):
+        s.prepare_relight_preview()
+    s.set_original_sun(W_O)
+    s.prepare_relight_preview()
+    assert s.relight_preview_builds == 1
+    s.relight(SUNS[0], preview=True)
+    assert s.relight_preview_builds == 1
