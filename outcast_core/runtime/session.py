@@ -17,7 +17,8 @@ import math
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
@@ -671,32 +672,117 @@ class RelightSession:
             return self._compute_relight_preview(wv)
         s_new = self.shadow(wv, preview=preview)
         t0 = time.perf_counter()
+        img = self._relight_from(self._working_inputs(), wv, s_new)
+        self._time("relight", t0)
+        return img
+
+    def _working_inputs(self) -> dict[str, Any]:
+        """The working-size state a relighting reads (a snapshot: set_image and set_preset
+        replace these arrays, they never change them in place)."""
+        return {
+            "image": self.image_srgb, "camera": self.camera, "sky": self.sky,
+            "normals": self.normals, "view_dirs": self.view_dirs, "depth": self.depth,
+            "sampler": self._sampler, "original_sun": self.original_sun,
+            "original_shadow": self.original_shadow, "light": self._light,
+            "preset": self.preset,
+        }
+
+    def _relight_from(
+        self, inp: dict[str, Any], wv: np.ndarray, s_new: np.ndarray, threads: int | None = None
+    ) -> np.ndarray:
+        """The relighting of ``inp`` (:meth:`_working_inputs`) for sun ``wv`` with its shadow."""
+        image, s_o, w_o = inp["image"], inp["original_shadow"], inp["original_sun"]
         if self.relight_mode == "learned":
-            model = self.registry.load("relight")
+            model = self.registry.load("relight", threads=threads)
             out = model.run({
-                "image": self.image_srgb.transpose(2, 0, 1)[None],
-                "shadow_old": self.original_shadow[None, None],
+                "image": image.transpose(2, 0, 1)[None],
+                "shadow_old": s_o[None, None],
                 "shadow_new": s_new[None, None],
-                "normals": self.normals.transpose(2, 0, 1)[None],
-                "sun_old": self.original_sun.astype(np.float32)[None],
+                "normals": inp["normals"].transpose(2, 0, 1)[None],
+                "sun_old": w_o.astype(np.float32)[None],
                 "sun_new": wv.astype(np.float32)[None],
-                "view_dirs": self.view_dirs.transpose(2, 0, 1)[None],
+                "view_dirs": inp["view_dirs"].transpose(2, 0, 1)[None],
                 # Used by L with the physics base only (Model.run feeds a graph's own inputs).
-                "light_ratio": self._light.ratio.astype(np.float32)[None],
+                "light_ratio": inp["light"].ratio.astype(np.float32)[None],
             })
             img = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
             if self.colour_guard:
-                cam = self.camera
-                keep_sky = not (sun_in_frame(self.original_sun, cam) or sun_in_frame(wv, cam))
-                img = keep_photo_colour(self.image_srgb, img, self.original_shadow, s_new,
-                                        self.sky, keep_sky=keep_sky)
+                cam = inp["camera"]
+                keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(wv, cam))
+                img = keep_photo_colour(image, img, s_o, s_new, inp["sky"], keep_sky=keep_sky)
         else:
-            img = physics_relight(
-                self.image_srgb, self.original_shadow, s_new, self.sky, light=self._light,
-                snap=False,
-            )
-        self._time("relight", t0)
+            img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
         return img.astype(np.float32)
+
+    def _shadow_from(self, inp: dict[str, Any], wv: np.ndarray, threads: int | None) -> np.ndarray:
+        """:meth:`shadow` (full quality, working size) of the snapshot ``inp``, for
+        :meth:`relight_stream`'s shadow thread (no lock held, nothing cached)."""
+        depth = np.where(inp["sky"], np.inf, inp["depth"]).astype(np.float32)
+        if self.shadow_mode == "learned":
+            cam = inp["camera"]
+            out = self.registry.load("shadow", threads=threads).run({
+                "image": inp["image"].transpose(2, 0, 1)[None],
+                "depth": network_depth(depth)[None, None],
+                "normals": inp["normals"].transpose(2, 0, 1)[None],
+                "sun": wv.astype(np.float32)[None],
+                "focal": np.array([[cam.focal]], np.float32),
+            })
+            out = np.clip(_first(out)[0, 0], 0.0, 1.0)
+        else:
+            step = inp["preset"].direct_step
+            out = direct_shadow(
+                depth, inp["camera"], wv, normals=inp["normals"], sky=inp["sky"],
+                steps=int(math.ceil(1.0 / step)), step=step, thickness=self.thickness,
+                sampler=inp["sampler"], stats=DirectStats(0, 0, ""),
+            )
+        return out.astype(np.float32)
+
+    def relight_stream(self, suns: Any) -> Iterator[np.ndarray]:
+        """:meth:`relight` for many suns in order (a time-lapse), two stages at once.
+
+        The next sun's shadow is computed in a second thread while this sun's relighting
+        runs, each network on one onnxruntime thread, so the two cores are both busy. Frames
+        are the same as ``[relight(w) for w in suns]`` (tested); suns already cached are
+        taken from the cache.
+
+        Args:
+            suns: ``N x 3`` sun directions (or a sequence of them).
+
+        Yields:
+            ``H x W x 3`` float32 sRGB at working resolution, one per sun.
+        """
+        with self._lock:
+            self._require_image()
+            if self.original_sun is None or self.original_shadow is None:
+                raise RuntimeError("set_original_sun() must be called before relight_stream()")
+            inp = self._working_inputs()
+            preset = self.preset.name
+        suns = [normalize_sun(w) for w in suns]
+
+        def cached(wv: np.ndarray) -> np.ndarray | None:
+            with self._lock:
+                return self._relight_cache.get((_key(wv), False, preset))
+
+        def shadow_of(wv: np.ndarray) -> np.ndarray | None:
+            if cached(wv) is not None:
+                return None
+            with self._lock:
+                hit = self._shadow_cache.get((_key(wv), False, preset))
+            return hit if hit is not None else self._shadow_from(inp, wv, PREVIEW_THREADS)
+
+        if not suns:
+            return
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="outcast-shadow") as pool:
+            pending = pool.submit(shadow_of, suns[0])
+            for i, wv in enumerate(suns):
+                s_new = pending.result()
+                if i + 1 < len(suns):
+                    pending = pool.submit(shadow_of, suns[i + 1])
+                hit = cached(wv)
+                if hit is not None:
+                    yield hit
+                    continue
+                yield self._relight_from(inp, wv, s_new, PREVIEW_THREADS)
 
     def relight_full(self, w_new: Any, *, dtype: type | np.dtype = np.float32) -> np.ndarray:
         """The photo relit under ``w_new`` at its full input resolution (detail transfer).

@@ -58,6 +58,9 @@ SHORT_SIDES = {"720p": 720, "1080p": 1080, "4k": 2160}
 #: moving the working-size relighting onto the photo, and encoding (measured on 2 busy cores).
 TRANSFER_SECONDS_PER_MP = 0.22
 ENCODE_SECONDS_PER_MP = 0.03
+#: x264's speed preset: "veryfast" took 47 ms of CPU per 1440 x 1080 frame against 70 ms for
+#: "faster", for files about 12 % larger at the same CRF (measured on this machine).
+X264_PRESET = "veryfast"
 
 
 class ExportCancelledError(RuntimeError):
@@ -475,7 +478,7 @@ class Mp4Writer(FrameWriter):
             self._container = av.open(str(self._tmp), mode="w", format="mp4")
             rate = dt_fraction(self.fps)
             self._stream = self._container.add_stream(
-                "libx264", rate=rate, options={"crf": str(self.crf), "preset": "faster"}
+                "libx264", rate=rate, options={"crf": str(self.crf), "preset": X264_PRESET}
             )
             self._stream.width = w + (w % 2)
             self._stream.height = h + (h % 2)
@@ -644,8 +647,13 @@ def export_frames(
 ) -> Path:
     """Render and write ``n_frames`` frames; all or nothing.
 
+    Frames are rendered in this thread, in order, and encoded in a second one (write-behind,
+    at most :data:`WRITE_AHEAD` frames waiting), so encoding frame ``i`` overlaps rendering
+    frame ``i + 1``.
+
     Args:
-        render_frame: ``i -> H x W x 3`` sRGB frame (float in [0, 1] or uint8).
+        render_frame: ``i -> H x W x 3`` sRGB frame (float in [0, 1] or uint8), called for
+            ``i = 0, 1, ...`` in order.
         n_frames: number of frames (>= 1).
         path: output file (``.mp4``, ``.gif``, ``.webp``) or folder (PNG sequence).
         fps: frames per second.
@@ -666,19 +674,77 @@ def export_frames(
     if fmt not in WRITERS:
         raise ValueError(f"expected a format in {FORMATS}, got {fmt!r}")
     writer = WRITERS[fmt](path, fps=fps, force=force)
+    behind = _WriteBehind(writer)
     try:
         for i in range(n_frames):
             if _is_cancelled(cancel):
                 raise ExportCancelledError(f"export of {path} cancelled after {i} frames")
-            writer.write(render_frame(i))
+            behind.put(render_frame(i))
             if progress is not None:
                 progress("timelapse", (i + 1) / n_frames)
+        behind.finish()
         if _is_cancelled(cancel):
             raise ExportCancelledError(f"export of {path} cancelled")
         return writer.commit()
     except BaseException:
+        behind.stop()
         writer.abort()
         raise
+
+
+#: Frames a time-lapse's encoder thread may have waiting.
+WRITE_AHEAD = 2
+
+
+class _WriteBehind:
+    """A thread that feeds frames to a :class:`FrameWriter` in order; its errors come back to
+    the caller at the next :meth:`put` or at :meth:`finish`."""
+
+    _DONE = object()
+
+    def __init__(self, writer: FrameWriter) -> None:
+        import queue
+        import threading
+
+        self.writer = writer
+        self._queue: queue.Queue = queue.Queue(maxsize=WRITE_AHEAD)
+        self._error: BaseException | None = None
+        self._stopped = False
+        self._thread = threading.Thread(target=self._run, name="outcast-encode", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            frame = self._queue.get()
+            if frame is self._DONE:
+                return
+            if self._error is not None or self._stopped:
+                continue  # drain: the caller is told at its next call
+            try:
+                self.writer.write(frame)
+            except BaseException as exc:  # handed to the caller's thread
+                self._error = exc
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def put(self, frame: np.ndarray) -> None:
+        self._raise()
+        self._queue.put(frame)
+
+    def finish(self) -> None:
+        """Wait until every frame is written; raise the encoder's error if it had one."""
+        self._queue.put(self._DONE)
+        self._thread.join()
+        self._raise()
+
+    def stop(self) -> None:
+        """Drop what is waiting and end the thread (after an error or a cancel)."""
+        self._stopped = True
+        if self._thread.is_alive():
+            self._queue.put(self._DONE)
+            self._thread.join()
 
 
 def frame_shape(
@@ -763,6 +829,24 @@ def _frame_renderer(session: Any, size: str) -> Callable[[np.ndarray], np.ndarra
     return lambda w: transfer_to_full_resolution(photo, work, session.relight(w))
 
 
+def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray], np.ndarray]:
+    """``working-size relit frame -> frame at size`` (uint8 above the working size): moved
+    onto the photo at the frame's size (its detail kept) with the banded 8-bit transfer, the
+    photo resized to that size once."""
+    from outcast_core.runtime.relight import transfer_to_full_resolution
+    from outcast_core.runtime.session import resize
+
+    full = session.full_image_srgb
+    work = session.image_srgb
+    shape = frame_shape(size, full.shape[:2], work.shape[:2])
+    if size == "working" or shape == work.shape[:2]:
+        return lambda relit: relit
+    if shape[0] * shape[1] <= work.shape[0] * work.shape[1]:
+        return lambda relit: resize(relit, shape)
+    photo = full if shape == full.shape[:2] else resize(full, shape)  # once, uint8 if 8-bit
+    return lambda relit: transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8)
+
+
 def render_timelapse(
     session: Any,
     samples: Sequence[SunSample],
@@ -801,14 +885,32 @@ def render_timelapse(
     if size is None:
         size = "full" if full_resolution else "working"
     suns = sun_vectors(samples)
-    render = _frame_renderer(session, size)
-    return export_frames(
-        lambda i: render(suns[i]),
-        len(suns),
-        path,
-        fps=fps,
-        fmt=fmt,
-        force=force,
-        progress=progress,
-        cancel=cancel,
-    )
+    if hasattr(session, "relight_stream"):
+        # Two stages at once (the next sun's shadow while this one is relit), and each frame
+        # made at its own size from the working-size result (never via full resolution).
+        to_frame = _frame_maker(session, size)
+        stream = session.relight_stream(suns)
+
+        def render_frame(_i: int) -> np.ndarray:
+            return to_frame(next(stream))
+    else:
+        stream = None
+        render = _frame_renderer(session, size)
+
+        def render_frame(i: int) -> np.ndarray:
+            return render(suns[i])
+
+    try:
+        return export_frames(
+            render_frame,
+            len(suns),
+            path,
+            fps=fps,
+            fmt=fmt,
+            force=force,
+            progress=progress,
+            cancel=cancel,
+        )
+    finally:
+        if stream is not None:
+            stream.close()  # a cancelled export: the shadow thread ends here

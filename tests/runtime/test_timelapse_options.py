@@ -106,18 +106,24 @@ def test_png_folder_output_still_works(photo, tmp_path) -> None:
 
 
 _SLOW_RENDER = """
-import sys, time
+import pathlib, sys, time
 from outcast_core.runtime import session
 from outcast_core.runtime.cli import main
-relight = session.RelightSession.relight
+relight = session.RelightSession._relight_from  # one call per frame
 calls = []
 def slow(self, *args, **kwargs):
     calls.append(1)
     if len(calls) == 2:
+        # frame 0 is encoded in another thread: wait until its partial output exists
+        folder = pathlib.Path(sys.argv[sys.argv.index("-o") + 1]).parent
+        for _ in range(200):
+            if any(p.name.startswith(".") for p in folder.iterdir()):
+                break
+            time.sleep(0.05)
         print("rendering", flush=True)
         time.sleep(60)
     return relight(self, *args, **kwargs)
-session.RelightSession.relight = slow
+session.RelightSession._relight_from = slow
 sys.exit(main(sys.argv[1:]))
 """
 
