@@ -216,7 +216,7 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     from outcast_core.runtime.session import RelightSession
 
     check_timelapse_output(args)  # before the slow part
-    loaded = read_image(args.image)
+    loaded = read_image(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit (no float copy)
     exif = getattr(loaded, "exif", None)
     samples = _samples_from_args(args, exif)
     session = RelightSession(preset=args.preset)
