@@ -1,6 +1,10 @@
-"""Runtime benchmark: Direct shadows' speed/accuracy trade and what "set once, query many" saves.
+"""Runtime benchmark: Direct shadows' speed/accuracy trade, what "set once, query many" saves,
+and issue 19's speed goals (full-resolution relight at 12 / 24 / 108 MP with peak memory, the
+step-2 drag preview, a 120-frame 1080p time-lapse: ``benchmarks/speed.py``).
 
-Run: ``python benchmarks/bench_runtime.py`` (about a minute on 2 cores).
+Run: ``python benchmarks/bench_runtime.py`` (several minutes on 2 cores), or
+``python benchmarks/bench_runtime.py --quick`` (about two minutes), or one part:
+``--only speed``.
 
 Everything is measured in this run and printed as ratios against a baseline measured in the same
 run, so the figures compare across machines. Accuracy is measured against an exact ray cast of an
@@ -11,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -141,20 +146,44 @@ def find_sun_speed(repeats: int) -> None:
           f"{t:.2f} s best of {repeats} ({fit.evaluations} suns tried)")
 
 
+SECTIONS = ("direct", "session", "find_sun", "speed")
+
+
 def main() -> None:
+    if len(sys.argv) > 1 and sys.argv[1] == "--child":  # a measured pipeline (benchmarks/speed)
+        from benchmarks.speed import child_main
+
+        sys.exit(child_main(sys.argv[2:]))
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--quick", action="store_true", help="smaller sizes, one repeat")
+    ap.add_argument("--quick", action="store_true",
+                    help="smaller sizes, one repeat, 24 time-lapse frames, no 108 MP baseline")
+    ap.add_argument("--only", default=",".join(SECTIONS),
+                    help=f"comma-separated sections of {', '.join(SECTIONS)} (default: all)")
     ap.add_argument("--report", metavar="PATH", help="also write the tables to a Markdown report")
     args = ap.parse_args()
     rep = 1 if args.quick else args.repeats
+    only = {x.strip() for x in args.only.split(",") if x.strip()}
+    unknown = only - set(SECTIONS)
+    if unknown:
+        ap.error(f"expected sections among {', '.join(SECTIONS)}, got {', '.join(sorted(unknown))}")
     from benchmarks.report import report_to
 
     with report_to(args.report, "bench_runtime"):
-        direct_trade(128 if args.quick else 256, rep)
-        early_exit(128 if args.quick else 256, rep)
-        session_reuse(rep)
-        find_sun_speed(rep)
+        print(f"cpu cores: {os.cpu_count()}, load average at start: "
+              f"{', '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        if "direct" in only:
+            direct_trade(128 if args.quick else 256, rep)
+            early_exit(128 if args.quick else 256, rep)
+        if "session" in only:
+            session_reuse(rep)
+        if "find_sun" in only:
+            find_sun_speed(rep)
+        if "speed" in only:
+            from benchmarks.speed import run
+
+            run(args.quick)
+        print(f"load average at the end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}")
 
 
 if __name__ == "__main__":
