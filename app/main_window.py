@@ -835,11 +835,14 @@ class MainWindow(QMainWindow):
             return None
         prior = self.exif_prior()
         load = self._loads
+        path = self.image_path
 
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.auto_sun import find_sun
+            from outcast_core.runtime.camera_pose import read_camera_pose
 
-            fit = find_sun(session, prior=prior, progress=ctx.progress)
+            pose = read_camera_pose(path) if prior is not None and path else None
+            fit = find_sun(session, prior=prior, pitch_roll=pose, progress=ctx.progress)
             return {"fit": fit, "prior": prior, "load": load,
                     "timings": {**_timings(session), "find_sun": fit.seconds}}
 

@@ -24,6 +24,7 @@ Numbers only: nothing of a research data set is written anywhere but the optiona
 from __future__ import annotations
 
 import argparse
+import ast
 import json
 import math
 import sys
@@ -33,7 +34,10 @@ from typing import Any
 
 import numpy as np
 
-from outcast_core.runtime.auto_sun import exif_sun_prior, find_sun
+from outcast_core.runtime import auto_sun
+from outcast_core.runtime.auto_sun import MEASURE as DEFAULT_MEASURE
+from outcast_core.runtime.auto_sun import MEASURES, exif_sun_prior, find_sun
+from outcast_core.runtime.camera_pose import read_camera_pose
 from outcast_core.runtime.geometry import sun_vector
 from outcast_core.runtime.imageio import read_image
 from outcast_core.runtime.real_eval import (
@@ -44,6 +48,9 @@ from outcast_core.runtime.real_eval import (
     shadow_mask,
 )
 from outcast_core.runtime.session import RelightSession
+
+#: What find_sun ranks by in this run (``--measure``).
+MEASURE = [DEFAULT_MEASURE]
 
 
 def _session(image: Any, preset: str) -> RelightSession:
@@ -75,7 +82,7 @@ def measure_real(folder: str, *, preset: str, every: int, limit: int | None,
         if sweep_cache:
             Path(sweep_cache).write_text(json.dumps(cache))
         t0 = time.perf_counter()
-        fit = find_sun(session)
+        fit = find_sun(session, measure=MEASURE[0])
         seconds = time.perf_counter() - t0
         found = balanced_error_rate(shadow_mask(session.shadow(fit.w), session.sky, truth.shape),
                                     truth)
@@ -127,7 +134,7 @@ def measure_synthetic(folder: str, *, preset: str, limit: int | None,
             depth = np.where(view["sky"], np.inf, view["depth"]) if given_depth else None
             s.set_image(img.astype(np.float32), fov_deg=view["fov_deg"], depth=depth)
             t0 = time.perf_counter()
-            fit = find_sun(s)
+            fit = find_sun(s, measure=MEASURE[0])
             sec = time.perf_counter() - t0
             true = np.asarray(view["sun"][k], np.float64)
             ang = math.degrees(math.acos(float(np.clip(fit.w @ true / np.linalg.norm(true),
@@ -175,7 +182,8 @@ def measure_samples(folder: str, *, preset: str) -> dict[str, Any]:
             if label != "shadows" and p is None:
                 continue
             t0 = time.perf_counter()
-            fit = find_sun(session, prior=p)
+            fit = find_sun(session, prior=p, measure=MEASURE[0],
+                           pitch_roll=read_camera_pose(Path(folder) / name))
             sec = time.perf_counter() - t0
             row[label] = {
                 "sun": [round(fit.azimuth, 1), round(fit.elevation, 1)],
@@ -205,11 +213,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--limit", type=int, default=None, help="at most N photos")
     ap.add_argument("--within", type=float, default=0.03, help="BER gap counted as a match")
     ap.add_argument("--json", default="", help="write the figures to this JSON file")
+    ap.add_argument("--measure", default=DEFAULT_MEASURE, choices=MEASURES,
+                    help="what the search ranks suns by (auto_sun.MEASURES)")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="override an auto_sun constant for this run (a Python literal), e.g. "
+                         "FINE_PATTERNS='((3, 0.5), (2, 0.25))'")
     ap.add_argument("--sweep-cache", default="", help="JSON file keeping the sweeps between runs")
     args = ap.parse_args(argv)
     if not args.folder and not args.samples and not args.synthetic:
         ap.error("give a folder of photos with masks, --samples or --synthetic")
-    out: dict[str, Any] = {"preset": args.preset}
+    MEASURE[0] = args.measure
+    for item in args.set:
+        name, _, value = item.partition("=")
+        if not hasattr(auto_sun, name):
+            ap.error(f"--set: auto_sun has no {name!r}")
+        setattr(auto_sun, name, ast.literal_eval(value))
+    out: dict[str, Any] = {"preset": args.preset, "measure": args.measure, "set": args.set}
     if args.folder:
         out["real"] = measure_real(args.folder, preset=args.preset, every=max(1, args.every),
                                    limit=args.limit, within=args.within,

@@ -96,6 +96,9 @@ RING_AZIMUTH_STEP = 10.0
 SEEDS = 3
 PEAK_SEPARATION = 30.0
 FINAL_CANDIDATES = 3
+#: A candidate more than this behind the best (in the ranking score at the small sizes) is not
+#: checked at the working size.
+FINAL_MARGIN = float("inf")
 #: The fine patterns: ``(seeds, step)``: 3 x 3 suns around the best ``seeds`` so far, ``step``
 #: times the coarse grid's step apart.
 FINE_PATTERNS: tuple[tuple[int, float], ...] = ((SEEDS, 0.5),)
@@ -119,6 +122,13 @@ STRONG_AGREEMENT = 0.7
 #: Shade fractions (of the surface) below / above which the photo has no usable shadows.
 MIN_SHADE = 0.005
 MAX_SHADE = 0.85
+#: What the search ranks suns by (:func:`ranking`): ``"mask"`` (the overlay's agreement with
+#: the photo's found shadows), ``"shading"`` (the correlation of ``S`` with the photo's
+#: luminance) or ``"mask+shading"`` (the agreement plus :data:`SHADING_WEIGHT` times the
+#: correlation).
+MEASURES = ("mask", "shading", "mask+shading")
+MEASURE = "mask"
+SHADING_WEIGHT = 0.5
 #: Camera tilts (degrees) from the fitted ground plane beyond which it is not trusted.
 MAX_PLANE_TILT = 25.0
 
@@ -219,6 +229,9 @@ class SunFit:
         elevation: camera-relative elevation (degrees, 0-90).
         w: camera-space unit vector toward it.
         agreement: ``1 - BER`` of its overlay against the photo's found shadows.
+        shading: the correlation of its ``S`` with the photo's luminance
+            (:func:`shading_agreement`).
+        measure: what the search ranked suns by (:data:`MEASURES`).
         confidence: 0-1 (see the module docstring).
         found: whether the confidence reaches :data:`CONFIDENT`.
         source: ``"shadows"``, ``"shadows + EXIF elevation"``, ``"shadows + EXIF"`` or
@@ -230,8 +243,13 @@ class SunFit:
             ``elevation`` when the camera is pitched or rolled).
         pitch: camera pitch used (degrees; 0 without a prior).
         roll: camera roll used (degrees).
+        pose_source: where ``pitch`` and ``roll`` came from: ``""`` (no prior: not used), the
+            metadata's (e.g. ``"XMP GPano"``, see :mod:`~outcast_core.runtime.camera_pose`),
+            ``"given"``, ``"ground plane"`` or ``"level (no ground plane)"``.
         evaluations: shadow images computed.
         seconds: wall time.
+        stage_seconds: wall time per stage (``photo shadows``, ``dome``, ``ring``, ``refine``,
+            ``finals``).
     """
 
     azimuth: float
@@ -247,18 +265,24 @@ class SunFit:
     true_elevation: float = 0.0
     pitch: float = 0.0
     roll: float = 0.0
+    pose_source: str = ""
+    shading: float = 0.0
+    measure: str = MEASURE
     evaluations: int = 0
     seconds: float = 0.0
+    stage_seconds: dict[str, float] = field(default_factory=dict)
 
     def as_dict(self) -> dict[str, Any]:
         """Plain values for JSON (the map is left out)."""
         return {
             "azimuth": round(self.azimuth, 2), "elevation": round(self.elevation, 2),
             "confidence": round(self.confidence, 3), "found": self.found,
-            "agreement": round(self.agreement, 4), "source": self.source, "note": self.note,
+            "agreement": round(self.agreement, 4), "shading": round(self.shading, 4),
+            "measure": self.measure, "source": self.source, "note": self.note,
             "true_elevation": round(self.true_elevation, 2), "pitch": round(self.pitch, 2),
-            "roll": round(self.roll, 2), "evaluations": self.evaluations,
-            "seconds": round(self.seconds, 3),
+            "roll": round(self.roll, 2), "pose_source": self.pose_source,
+            "evaluations": self.evaluations,
+            "seconds": round(self.seconds, 3), "stage_seconds": self.stage_seconds,
             "candidates": [[round(a, 2), round(e, 2), round(s, 4)] for a, e, s in self.candidates],
         }  # fmt: skip
 
@@ -289,6 +313,49 @@ def agreement(predicted: np.ndarray, found: np.ndarray, valid: np.ndarray) -> np
     tpr = tp / p if p else np.ones(tp.shape)
     tnr = tn / n if n else np.ones(tn.shape)
     return 0.5 * (tpr + tnr)
+
+
+def shading_agreement(shadows: np.ndarray, luminance_: np.ndarray, valid: np.ndarray
+                       ) -> np.ndarray:
+    """Pearson correlation of each predicted shadow image ``S`` with the photo's linear
+    luminance over the valid pixels (``(N,)`` in [-1, 1]).
+
+    A sunlit surface's radiance is its albedo times ``E_sun * S + E_sky``, so under the right
+    sun the photo's luminance rises with ``S``: through the cast shadows *and* the attached
+    shading (the cosine term), without the photo's shadows having to be found first.
+    """
+    s = np.asarray(shadows, np.float32)
+    if s.ndim == 2:
+        s = s[None]
+    valid = np.asarray(valid, bool)
+    x = s[:, valid]  # N x P
+    y = np.asarray(luminance_, np.float32)[valid].astype(np.float64)
+    if x.shape[1] < 2:
+        return np.zeros(len(s))
+    x = x - x.mean(axis=1, keepdims=True)
+    y = y - y.mean()
+    den = np.linalg.norm(x, axis=1) * float(np.linalg.norm(y))
+    return np.where(den > 1e-9, (x @ y) / np.maximum(den, 1e-9), 0.0)
+
+
+def measures(shadows: np.ndarray, found: np.ndarray, valid: np.ndarray, luminance_: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """``(agreement, shading)`` of ``N x H x W`` predicted shadow images: the overlay mask's
+    ``1 - BER`` against the photo's found shadows (:func:`agreement`) and the shading
+    correlation (:func:`shading_agreement`)."""
+    pred = (shadows < SHADOW_THRESHOLD) & valid[None]
+    return agreement(pred, found, valid), shading_agreement(shadows, luminance_, valid)
+
+
+def ranking(agree: np.ndarray, shading: np.ndarray, measure: str) -> np.ndarray:
+    """The score :func:`find_sun` ranks suns by (higher is better), by :data:`MEASURES` name."""
+    if measure == "mask":
+        return np.asarray(agree, np.float64)
+    if measure == "shading":
+        return np.asarray(shading, np.float64)
+    if measure == "mask+shading":
+        return np.asarray(agree, np.float64) + SHADING_WEIGHT * np.asarray(shading, np.float64)
+    raise ValueError(f"expected a measure in {MEASURES}, got {measure!r}")
 
 
 def shade_clarity(image_srgb: np.ndarray, sky: np.ndarray, found: np.ndarray) -> float:
@@ -337,6 +404,7 @@ class _Level:
         self.normals = normals_from_depth(self.depth, self.camera)  # H x W x 3
         self.found = _resize(prob, (h, w)) > 0.5
         self.valid = ~self.sky
+        self.luminance = luminance(srgb_to_linear(np.clip(self.image, 0.0, 1.0)))
         self.session = session
         self._sampler: Any = None
 
@@ -371,12 +439,11 @@ class _Level:
             for w in suns
         ])  # fmt: skip
 
-    def score(self, suns: np.ndarray) -> np.ndarray:
-        """Agreement of each sun (``(N,)``)."""
+    def score(self, suns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(agreement, shading)`` of each sun (``(N,)`` each): see :func:`measures`."""
         if len(suns) == 0:
-            return np.zeros(0)
-        pred = (self.shadows(suns) < SHADOW_THRESHOLD) & self.valid[None]
-        return agreement(pred, self.found, self.valid)
+            return np.zeros(0), np.zeros(0)
+        return measures(self.shadows(suns), self.found, self.valid, self.luminance)
 
 
 # ---------------------------------------------------------------------------------- search
@@ -394,22 +461,41 @@ class _Frame:
         return np.stack([self.vector(a, e) for a, e in points]) if points else np.zeros((0, 3))
 
 
-def _camera_tilt(session: Any) -> tuple[float, float]:
-    """Camera ``(pitch, roll)`` in degrees from the fitted ground plane; (0, 0) without one."""
+def _camera_tilt(session: Any) -> tuple[float, float, str]:
+    """Camera ``(pitch, roll, source)`` in degrees from the fitted ground plane; level without
+    one (or with one tilted more than :data:`MAX_PLANE_TILT`)."""
     from outcast_core.runtime.depth_post import fit_ground_plane
 
+    level = (0.0, 0.0, "level (no ground plane)")
     try:
         plane = fit_ground_plane(session.depth, session.sky, session.camera)
     except ValueError:
-        return 0.0, 0.0
+        return level
     if plane is None:
-        return 0.0, 0.0
+        return level
     n = plane.normal  # the ground's up in camera space: R @ (0, -1, 0)
     pitch = math.degrees(math.asin(max(-1.0, min(1.0, float(n[2])))))
     roll = math.degrees(math.atan2(-float(n[0]), -float(n[1])))
     if math.hypot(pitch, roll) > MAX_PLANE_TILT:
-        return 0.0, 0.0
-    return pitch, roll
+        return level
+    return pitch, roll, "ground plane"
+
+
+def _pose(session: Any, pitch_roll: Any) -> tuple[float, float, str]:
+    """``(pitch, roll, source)``: the given pose (a pair or a
+    :class:`~outcast_core.runtime.camera_pose.CameraPose` with a pitch), else the ground
+    plane's."""
+    if pitch_roll is not None and hasattr(pitch_roll, "pitch_roll"):
+        pair = pitch_roll.pitch_roll()
+        if pair is not None:
+            return float(pair[0]), float(pair[1]), str(pitch_roll.source)
+        return _camera_tilt(session)
+    if pitch_roll is not None:
+        pitch, roll = (float(v) for v in pitch_roll)
+        if not (math.isfinite(pitch) and math.isfinite(roll)):
+            raise ValueError(f"expected a finite camera pitch and roll, got {pitch_roll}")
+        return pitch, roll, "given"
+    return _camera_tilt(session)
 
 
 def _angle_between(a: np.ndarray, b: np.ndarray) -> float:
@@ -456,19 +542,24 @@ def find_sun(
     session: Any,
     *,
     prior: SunPrior | None = None,
-    pitch_roll: tuple[float, float] | None = None,
+    pitch_roll: Any = None,
     progress: Progress | None = None,
     cancel: Callable[[], bool] | None = None,
+    measure: str = MEASURE,
 ) -> SunFit:
     """Find the sun whose predicted shadows best agree with the photo's own shadows.
 
     Args:
         session: a :class:`~outcast_core.runtime.session.RelightSession` after ``set_image``.
         prior: the EXIF prior (:func:`exif_sun_prior`); None searches the whole dome.
-        pitch_roll: the camera's ``(pitch, roll)`` in degrees for the prior's frame; None: from
-            the fitted ground plane (level when there is none). Unused without a prior.
+        pitch_roll: the camera's ``(pitch, roll)`` in degrees for the prior's frame, or a
+            :class:`~outcast_core.runtime.camera_pose.CameraPose` from the photo's metadata
+            (:func:`~outcast_core.runtime.camera_pose.read_camera_pose`); None, or a pose
+            without a pitch: from the fitted ground plane (level when there is none). Unused
+            without a prior.
         progress: called with ``(stage, fraction)`` (the app's may raise to cancel).
         cancel: polled between stages; True raises :class:`FindSunCancelledError`.
+        measure: what the search ranks suns by (:data:`MEASURES`, :func:`ranking`).
 
     Returns:
         A :class:`SunFit`.
@@ -484,10 +575,19 @@ def find_sun(
         raise RuntimeError("set_image() must be called before find_sun()")
     if prior is not None and not isinstance(prior, SunPrior):
         raise ValueError(f"expected a SunPrior or None, got {type(prior).__name__}")
+    if measure not in MEASURES:
+        raise ValueError(f"expected a measure in {MEASURES}, got {measure!r}")
     t0 = time.perf_counter()
     report = progress or (lambda stage, frac: None)
 
-    def check(stage: str, frac: float) -> None:
+    stages: dict[str, float] = {}
+    lap = [t0]
+
+    def check(stage: str, frac: float, done: str = "") -> None:
+        if done:  # the stage that has just ended, timed
+            now = time.perf_counter()
+            stages[done] = stages.get(done, 0.0) + now - lap[0]
+            lap[0] = now
         if cancel is not None and cancel():
             raise FindSunCancelledError("finding the sun was cancelled")
         report(stage, frac)
@@ -499,9 +599,10 @@ def find_sun(
     coarse = _Level(session, COARSE_SIZE, prob)
     fine = _Level(session, FINE_SIZE, prob)
 
-    frame = _Frame()
+    frame, pose_source = _Frame(), ""
     if prior is not None:
-        frame = _Frame(*(pitch_roll if pitch_roll is not None else _camera_tilt(session)))
+        pitch, roll, pose_source = _pose(session, pitch_roll)
+        frame = _Frame(pitch, roll)
 
     def bias(pts: Sequence[tuple[float, float]]) -> np.ndarray:
         """The compass heading's soft pull (:attr:`SunPrior.azimuth_weight`)."""
@@ -511,9 +612,10 @@ def find_sun(
         return prior.azimuth_weight * (1.0 - np.cos(dev)) / 2.0
 
     # -- the coarse dome (the heat map), camera-relative
-    check("trying suns over the dome", 0.08)
+    check("trying suns over the dome", 0.08, "photo shadows")
     grid = [(a, e) for e in COARSE_ELEVATIONS for a in COARSE_AZIMUTHS]
-    dome = coarse.score(_Frame().vectors(grid))
+    dome_agree, dome_shading = coarse.score(_Frame().vectors(grid))
+    dome = ranking(dome_agree, dome_shading, measure)
     evaluations = len(grid)
     amap = AgreementMap(np.array(COARSE_AZIMUTHS), np.array(COARSE_ELEVATIONS),
                         dome.reshape(len(COARSE_ELEVATIONS), len(COARSE_AZIMUTHS)))
@@ -532,8 +634,8 @@ def find_sun(
         if prior.azimuth is not None:
             azs = np.unique(np.append(azs, prior.azimuth % 360.0))
         points = [(float(a), prior.elevation) for a in azs]
-        check("trying suns on the EXIF elevation", 0.3)
-        scores = coarse.score(frame.vectors(points)) - bias(points)
+        check("trying suns on the EXIF elevation", 0.3, "dome")
+        scores = ranking(*coarse.score(frame.vectors(points)), measure) - bias(points)
         evaluations += len(points)
 
     # -- fine patterns around the best separated peaks
@@ -542,10 +644,11 @@ def find_sun(
     if not FINE_PATTERNS:
         cand.update(zip(points, scores.tolist(), strict=True))  # scores with the pull
     for level, (k, scale) in enumerate(FINE_PATTERNS):
-        check("refining", 0.4 + 0.4 * level / len(FINE_PATTERNS))
+        check("refining", 0.4 + 0.4 * level / len(FINE_PATTERNS),
+              "dome" if level == 0 and prior is None else "ring" if level == 0 else "refine")
         pts = _dedupe([p for c in seeds[:k] for p in _pattern(c, d_az * scale, d_el * scale,
                                                                el_range)])
-        sc = fine.score(frame.vectors(pts)) - bias(pts)
+        sc = ranking(*fine.score(frame.vectors(pts)), measure) - bias(pts)
         evaluations += len(pts)
         cand.update(zip(pts, sc.tolist(), strict=True))
         ranked = sorted(cand, key=lambda p: -cand[p])
@@ -553,24 +656,27 @@ def find_sun(
 
     # -- the last candidates at the session's working size, as the overlay is drawn and scored
     #    (the shadow network's result depends on the size; cached there for the overlay)
-    check("checking the best suns", 0.85)
+    check("checking the best suns", 0.85, "refine" if FINE_PATTERNS else "dome")
     ranked = sorted(cand, key=lambda p: -cand[p])
     finalists = [ranked[i] for i in _peaks(ranked, np.array([cand[p] for p in ranked]), frame,
                                            FINAL_CANDIDATES, 2.0)]
-    finals: list[tuple[float, float, float]] = []
+    # Early rejection: a candidate far behind the best at the small sizes is not checked.
+    finalists = [p for p in finalists if cand[p] >= cand[finalists[0]] - FINAL_MARGIN]
+    finals: list[tuple[float, float, float, float]] = []  # az, el, agreement, shading
+    y_full = luminance(srgb_to_linear(np.clip(session.image_srgb, 0.0, 1.0)))
     for a, e in finalists:
-        w = frame.vector(a, e)
-        s = session.shadow(w)
-        pred = (s < SHADOW_THRESHOLD) & ~session.sky
-        finals.append((a, e, float(agreement(pred, found_full, ~session.sky))))
+        ag, sh = measures(session.shadow(frame.vector(a, e))[None], found_full, ~session.sky,
+                          y_full)
+        finals.append((a, e, float(ag[0]), float(sh[0])))
         evaluations += 1
     pull = dict(zip(finalists, bias(finalists).tolist(), strict=True))
-    finals.sort(key=lambda t: -(t[2] - pull[(t[0], t[1])]))
-    best_a, best_e, best_score = finals[0]
+    finals.sort(key=lambda t: -(float(ranking(np.array([t[2]]), np.array([t[3]]), measure)[0])
+                                - pull[(t[0], t[1])]))
+    best_a, best_e, best_score, best_shading = finals[0]
     w_best = frame.vector(best_a, best_e)
 
-    # -- confidence
-    contrast = best_score - float(np.nanmedian(dome))
+    # -- confidence (from the overlay's agreement, whatever the search ranked by)
+    contrast = best_score - float(np.nanmedian(dome_agree))
     peak = float(np.clip(contrast / PEAK_CONTRAST, 0.0, 1.0))
     strength = float(np.clip((best_score - WEAK_AGREEMENT)
                              / (STRONG_AGREEMENT - WEAK_AGREEMENT), 0.0, 1.0))
@@ -605,15 +711,18 @@ def find_sun(
         else:
             note = (f"{why}: its sun cannot be told from them (confidence {confidence:.2f}); "
                     "set it by eye")
+    stages["finals"] = time.perf_counter() - lap[0]
     report("done", 1.0)
     return SunFit(
         azimuth=float(cam_az), elevation=float(cam_el), w=w_best, agreement=best_score,
         confidence=confidence, found=found, source=source, note=note, map=amap,
         candidates=[(float(sun_angles(frame.vector(a, e))[0]),
                      float(max(0.0, sun_angles(frame.vector(a, e))[1])), s)
-                    for a, e, s in finals],
+                    for a, e, s, _ in finals],
+        shading=best_shading, measure=measure,
         true_elevation=float(best_e) if prior is not None else float(cam_el),
-        pitch=frame.pitch, roll=frame.roll, evaluations=evaluations,
+        pitch=frame.pitch, roll=frame.roll, pose_source=pose_source, evaluations=evaluations,
+        stage_seconds={k: round(v, 4) for k, v in stages.items()},
         seconds=time.perf_counter() - t0,
     )
 

@@ -16,13 +16,15 @@ from typing import Any
 def cmd_sun(args: argparse.Namespace) -> int:
     """Run :func:`~outcast_core.runtime.auto_sun.find_sun` on one photo and print the result."""
     from outcast_core.runtime.auto_sun import exif_sun_prior, find_sun
+    from outcast_core.runtime.camera_pose import read_camera_pose
     from outcast_core.runtime.cli import _load, _make_session, _say, _set_image
 
     loaded = _load(args.image)
     session = _make_session(args, shadow_mode=args.mode)
     _set_image(session, loaded, args)
     prior = None if args.no_exif else exif_sun_prior(loaded.exif)
-    fit = find_sun(session, prior=prior)
+    pose = None if args.no_exif else read_camera_pose(args.image)
+    fit = find_sun(session, prior=prior, pitch_roll=pose)
     sure = fit.found or fit.source == "EXIF"
     if args.json:
         out: dict[str, Any] = fit.as_dict()
@@ -57,7 +59,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("image")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--no-exif", action="store_true",
-                   help="ignore the photo's GPS, time and heading (shadows only)")
+                   help="ignore the photo's GPS, time, heading and camera pitch/roll (shadows "
+                        "only)")
     p.add_argument("--mode", choices=["auto", "direct", "learned"], default="auto",
                    help="predicted shadows: learned S network (default when installed) or Direct")
     g = p.add_mutually_exclusive_group()

@@ -199,3 +199,25 @@ def test_project_heading_is_checked():
     for bad in (-5.0, 400.0, "north", float("nan"), True):
         with pytest.raises(ValueError, match="heading"):
             ProjectState.from_dict({**base, "heading": bad})
+
+
+def test_find_sun_gets_the_camera_pose_from_the_photo(window, settle, monkeypatch, tmp_path):
+    from PIL import Image
+
+    captured = {}
+
+    def fake(session, *, prior=None, pitch_roll=None, **kw):
+        captured["pose"] = pitch_roll
+        return _fit(120.0, prior.elevation if prior else 30.0)
+
+    photo = tmp_path / "tilted.jpg"  # the field path's GPS and time, and a GPano pose
+    with Image.open(os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg")) as im:
+        im.save(photo, exif=im.info["exif"], xmp=b'<x:xmpmeta><rdf:Description '
+                b'GPano:PosePitchDegrees="-8.5" GPano:PoseRollDegrees="2"/></x:xmpmeta>')
+    window.open_path(str(photo))
+    settle()
+    monkeypatch.setattr(auto_sun, "find_sun", fake)
+    window.find_sun()
+    settle()
+    pose = captured["pose"]
+    assert pose is not None and pose.pitch_roll() == (-8.5, 2.0) and pose.source == "XMP GPano"
