@@ -2,7 +2,7 @@
 
 Usage:
     QT_QPA_PLATFORM=offscreen python benchmarks/bench_gui.py [PHOTO] [--presets fast,balanced]
-        [--seconds 4] [--hz 60]
+        [--seconds 4] [--hz 60] [--memory]
 
 For each preset it opens the photo in the real main window and drags, with simulated mouse
 events at ``--hz`` for ``--seconds`` (a slow arc: azimuth sweeps 180 degrees, elevation 20-60):
@@ -146,12 +146,97 @@ def run_preset(app, photo: str, preset: str, seconds: float, hz: float, tmp: Pat
     return res
 
 
+def memory_child(photo: str, variant: str) -> int:
+    """Open ``photo`` in the main window, confirm, relight at full resolution, export a JPEG;
+    print the wall times and the process's peak resident memory as JSON.
+
+    ``variant`` ``baseline`` is the app's pipeline as it was: the photo decoded to float32
+    (kept by the window and copied by the session) and the full-resolution result in float32
+    before its 8-bit copy for the screen.
+    """
+    import json
+    import resource
+
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from PySide6.QtCore import QSettings
+    from PySide6.QtWidgets import QApplication
+
+    from app.main_window import MainWindow, process_until_idle
+    from outcast_core.runtime import imageio, session
+
+    if variant == "baseline":
+        read = imageio.read_image
+        imageio.read_image = lambda path, max_pixels=None, **_k: read(path, max_pixels)
+        full = session.RelightSession.relight_full
+        session.RelightSession.relight_full = lambda self, w, **_k: full(self, w)
+    app = QApplication.instance() or QApplication([])
+    res: dict = {}
+    with tempfile.TemporaryDirectory() as d:
+        settings = QSettings(str(Path(d) / "settings.ini"), QSettings.Format.IniFormat)
+        win = MainWindow(settings=settings, preset="balanced")
+        win.resize(1280, 800)
+        win.show()
+
+        def timed(label: str, fn) -> None:
+            t0 = time.perf_counter()
+            fn()
+            process_until_idle(win, 600.0)
+            res[label] = time.perf_counter() - t0
+
+        timed("open", lambda: win.open_path(photo))
+        timed("confirm", win.confirm_original_sun)
+        win.relight_panel.sun_panel.set_sun(200.0, 25.0)
+        timed("relight full", lambda: win.request_relight(preview=False))
+        timed("export JPEG", lambda: win.export_still(str(Path(d) / "still.jpg"), force=True))
+        win.close_without_asking()
+        app.processEvents()
+    res["peak GB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2
+    print(json.dumps(res))
+    return 0
+
+
+def memory(args: argparse.Namespace) -> None:
+    """The app with a 12000 x 9000 photo, in a fresh process per pipeline (peak RSS)."""
+    import json
+    import subprocess
+
+    print("\n== the app with a 108 MP photo (12000x9000, synthesized), balanced preset: "
+          "open, confirm, full-resolution relight, export JPEG; one fresh process each")
+    with tempfile.TemporaryDirectory() as d:
+        photo = Path(d) / "photo_12000x9000.jpg"
+        env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_runtime.py"), "--child",
+                        "make", str(photo), "12000", "9000"], check=True, env=env)
+        rows = {}
+        for variant in ("baseline", "now"):
+            r = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child-memory",
+                                str(photo), variant], capture_output=True, text=True, env=env,
+                               check=False)
+            lines = r.stdout.strip().splitlines()
+            if r.returncode != 0 or not lines:
+                print(f"  {variant}: failed ({r.stderr.strip()[-300:]})")
+                continue
+            rows[variant] = json.loads(lines[-1])
+        for variant, r in rows.items():
+            base = rows.get("baseline")
+            ratio = (f"  x baseline: peak {r['peak GB'] / base['peak GB']:.2f}"
+                     if variant == "now" and base else "")
+            print(f"  {variant:>8}: " + ", ".join(
+                f"{k} {v:.2f} {'GB' if k == 'peak GB' else 's'}".replace("peak GB", "peak")
+                for k, v in r.items()) + ratio)
+
+
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["--child-memory"]:
+        return memory_child(argv[1], argv[2])
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("photo", nargs="?", default=str(ROOT / "samples" / "exif_003_th_pool.jpg"))
     p.add_argument("--presets", default="fast,balanced")
     p.add_argument("--seconds", type=float, default=4.0)
     p.add_argument("--hz", type=float, default=60.0)
+    p.add_argument("--memory", action="store_true",
+                   help="also open a synthesized 108 MP photo (peak memory; about a minute)")
     p.add_argument("--report", metavar="PATH", help="also write the figures to a Markdown report")
     args = p.parse_args(argv)
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
@@ -180,6 +265,8 @@ def _run(app, args: argparse.Namespace) -> int:
                     print(f"  {k}: {v:.3f}")
                 else:
                     print(f"  {k}: {v}")
+    if args.memory:
+        memory(args)
     return 0
 
 

@@ -101,7 +101,8 @@ class GainUpsampler:
         wide = cv2.resize(gain, (width, gh), interpolation=cv2.INTER_LINEAR)
         self._wide = wide.reshape(gh, width, self.channels)
         # Row differences, so each output row is wide[y0] + f * diff[y0].
-        diff = np.zeros_like(self._wide)
+        diff = np.empty_like(self._wide)
+        diff[-1] = 0.0
         if gh > 1:
             np.subtract(self._wide[1:], self._wide[:-1], out=diff[:-1])
         self._diff = diff
