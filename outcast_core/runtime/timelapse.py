@@ -55,9 +55,14 @@ FRAME_SIZES = ("working", "720p", "1080p", "4k", "full")
 DEFAULT_FRAME_SIZE = "1080p"
 SHORT_SIDES = {"720p": 720, "1080p": 1080, "4k": 2160}
 #: Seconds per output megapixel of one frame, for estimates where nothing was measured:
-#: moving the working-size relighting onto the photo, and encoding (measured on 2 busy cores).
-TRANSFER_SECONDS_PER_MP = 0.22
+#: moving the working-size relighting onto the photo (the banded 8-bit transfer), and encoding
+#: (both measured on 2 busy cores: 44 ms and 47 ms of CPU for a 1440 x 1080 frame).
+TRANSFER_SECONDS_PER_MP = 0.03
 ENCODE_SECONDS_PER_MP = 0.03
+#: Share of ``shadow + relight`` a frame takes when the next sun's shadow runs beside this
+#: sun's relighting (:meth:`~outcast_core.runtime.session.RelightSession.relight_stream`;
+#: measured 0.64 on 2 busy cores, balanced preset).
+STREAM_SHARE = 0.65
 #: x264's speed preset: "veryfast" took 47 ms of CPU per 1440 x 1080 frame against 70 ms for
 #: "faster", for files about 12 % larger at the same CRF (measured on this machine).
 X264_PRESET = "veryfast"
@@ -785,14 +790,15 @@ def estimate_seconds(
     """Rough time to render and write ``frames`` frames of ``shape`` (for the dialog and CLI).
 
     Per frame: the new sun's shadow and relighting at working size (the session's last measured
-    ``shadow`` and ``relight`` stages, else 0.1 s), moving it onto ``shape`` when that is larger
-    than the working size, and encoding.
+    ``shadow`` and ``relight`` stages, else 0.1 s, the two overlapping: :data:`STREAM_SHARE`),
+    moving it onto ``shape`` when that is larger than the working size, and encoding.
 
     Returns:
         Seconds (at least 0).
     """
     timings = timings or {}
-    per_frame = float(timings.get("shadow", 0.05)) + float(timings.get("relight", 0.05))
+    per_frame = STREAM_SHARE * (float(timings.get("shadow", 0.05))
+                                + float(timings.get("relight", 0.05)))
     mp = shape[0] * shape[1] / 1e6
     if shape[0] * shape[1] > working_shape[0] * working_shape[1]:
         per_frame += TRANSFER_SECONDS_PER_MP * mp
