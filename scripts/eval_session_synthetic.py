@@ -33,7 +33,9 @@ from outcast_core.train.data import auto_exposure, tonemap  # noqa: E402
 #: (label, session keyword arguments): the app's default first.
 CONFIGS: list[tuple[str, dict]] = [
     ("learned L, S_o from the photo, colour guard (app default)", {}),
-    ("learned L, S_o from the photo, no guard", {"colour_guard": False}),
+    ("learned L, S_o from the photo, colour guard, contrast floor", {"contrast_floor": True}),
+    ("learned L, S_o from the photo, no guard, no floor",
+     {"colour_guard": False, "contrast_floor": False}),
     ("learned L, S_o from R", {"refine": "learned"}),
     ("physics, S_o from the photo", {"relight_mode": "physics"}),
     ("physics, S_o from R", {"relight_mode": "physics", "refine": "learned"}),
@@ -49,9 +51,9 @@ def factor(img: np.ndarray, base: np.ndarray, m: np.ndarray) -> float:
 
 def _session(kwargs: dict) -> RelightSession:
     guard = kwargs.pop("colour_guard", True)
+    floor = kwargs.pop("contrast_floor", False)
     s = RelightSession(preset="fast", shadow_mode="learned", **kwargs)
-    s.colour_guard = guard
-    kwargs["colour_guard"] = guard
+    s.colour_guard, s.contrast_floor = guard, floor
     return s
 
 

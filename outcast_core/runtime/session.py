@@ -52,6 +52,7 @@ from outcast_core.runtime.relight import (
     estimate_light,
     keep_photo_colour,
     physics_relight,
+    shadow_contrast_floor,
     snap_shadow_to_photo,
     transfer_to_full_resolution,
 )
@@ -206,6 +207,10 @@ class RelightSession:
         #: sky when no sun is in the frame (:func:`~outcast_core.runtime.relight.
         #: keep_photo_colour`).
         self.colour_guard = True
+        #: Learned relighting brightens newly lit and darkens newly shadowed surfaces at least
+        #: as much as physics does (:func:`~outcast_core.runtime.relight.shadow_contrast_floor`).
+        #: Off: on real photos it turns the rough new shadow's speckle into dark mottling.
+        self.contrast_floor = False
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
         shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
@@ -662,6 +667,10 @@ class RelightSession:
                 keep_sky = not (sun_in_frame(self.original_sun, cam) or sun_in_frame(wv, cam))
                 relit = keep_photo_colour(image, relit, st["shadow_old"], s_new, st["sky"],
                                           keep_sky=keep_sky)
+            if self.contrast_floor:
+                relit = shadow_contrast_floor(image, relit, physics_relight(
+                    image, st["shadow_old"], s_new, st["sky"], light=self._light, snap=False),
+                    st["shadow_old"], s_new)
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=self._light, snap=False)
@@ -733,6 +742,9 @@ class RelightSession:
                 cam = inp["camera"]
                 keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(wv, cam))
                 img = keep_photo_colour(image, img, s_o, s_new, inp["sky"], keep_sky=keep_sky)
+            if self.contrast_floor:
+                img = shadow_contrast_floor(image, img, physics_relight(
+                    image, s_o, s_new, inp["sky"], light=inp["light"], snap=False), s_o, s_new)
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
         return img.astype(np.float32)

@@ -110,3 +110,41 @@ def test_keep_photo_colour_where_both_suns_light_the_surface() -> None:
     np.testing.assert_allclose(out[0], image[0], atol=1e-3)  # the sky is the photo's
     out = keep_photo_colour(image, relit, s_old, s_new, sky, keep_sky=False)
     assert not np.allclose(out[0, 9], image[0, 9], atol=1e-2)
+
+
+def test_shadow_contrast_floor_changes_at_least_as_much_as_physics() -> None:
+    from outcast_core.runtime.colour import luminance, srgb_to_linear
+    from outcast_core.runtime.relight import shadow_contrast_floor
+
+    h, w = 6, 9
+    image = np.full((h, w, 3), [0.5, 0.45, 0.4], np.float32)
+    s_old = np.full((h, w), 0.8, np.float32)
+    s_new = np.full((h, w), 0.8, np.float32)
+    s_old[:, :3] = 0.0  # columns 0-2: newly lit
+    s_new[:, 6:] = 0.0  # columns 6-8: newly shadowed; 3-5 lit under both suns
+    relit = image.copy()
+    relit[:, :3] *= 1.2  # the learned image: a timid change
+    relit[:, 6:] *= 0.9
+    relit[:, 3:6] = [0.55, 0.45, 0.35]  # lit under both suns: left to the other guard
+    physics = image.copy()
+    physics[:, :3] *= 1.8
+    physics[:, 6:] *= 0.4
+    out = shadow_contrast_floor(image, relit, physics, s_old, s_new)
+
+    def y(img: np.ndarray, cols: slice) -> float:
+        return float(luminance(srgb_to_linear(img[:, cols])).mean())
+
+    assert y(out, slice(0, 3)) == pytest.approx(y(physics, slice(0, 3)), rel=1e-3)
+    assert y(out, slice(6, 9)) == pytest.approx(y(physics, slice(6, 9)), rel=1e-2)
+    np.testing.assert_allclose(out[:, 3:6], relit[:, 3:6], atol=1e-4)
+    # The learned colour is kept (chromaticity of the relit pixel).
+    c = srgb_to_linear(out[2, 1]) / srgb_to_linear(out[2, 1]).sum()
+    np.testing.assert_allclose(c, srgb_to_linear(relit[2, 1]) / srgb_to_linear(relit[2, 1]).sum(),
+                               atol=1e-3)
+    # A learned change larger than physics' stays.
+    bold = image.copy()
+    bold[:, 6:] *= 0.2
+    out = shadow_contrast_floor(image, bold, physics, s_old, s_new)
+    np.testing.assert_allclose(out[:, 6:], bold[:, 6:], atol=1e-4)
+    with pytest.raises(ValueError, match="one shape"):
+        shadow_contrast_floor(image, relit[:3], physics, s_old, s_new)
