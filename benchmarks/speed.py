@@ -128,10 +128,12 @@ def _child(*args: str) -> dict | None:
 
 
 # ----------------------------------------------------------------------------- sections
-def full_resolution(folder: Path, quick: bool, preset: str = "balanced") -> Path:
+def full_resolution(folder: Path, quick: bool, repeats: int, preset: str = "balanced") -> Path:
     """Relight at 12, 24 and 108 MP, each pipeline in a fresh process. Returns the 12 MP file."""
     print(f"\nFull-resolution relight, end to end in one process per run ({preset} preset, "
-          "learned models; read JPEG -> set -> confirm sun -> relight -> write JPEG q95).")
+          "learned models loaded before the clock; read JPEG -> set -> confirm sun -> relight ->"
+          f" write JPEG q95). Best total of {repeats} runs (stages of that run; peak GB: the "
+          "highest of the runs); the 108 MP baseline runs once.")
     print("Baseline: the float32 pipeline before the banded 8-bit transfer (same run).")
     cols = ["read", "set image", "original sun", "relight", "full res", "write", "total"]
     print(f"{'size':>7} {'pipeline':>9} " + " ".join(f"{c:>12}" for c in cols)
@@ -147,7 +149,14 @@ def full_resolution(folder: Path, quick: bool, preset: str = "balanced") -> Path
         for variant in ("baseline", "now"):
             if variant == "baseline" and skip_base:
                 continue
-            rows[variant] = _child("relight", str(photo), str(folder / "out.jpg"), variant, preset)
+            n = 1 if (variant == "baseline" and label == "108 MP") else repeats
+            runs = [_child("relight", str(photo), str(folder / "out.jpg"), variant, preset)
+                    for _ in range(n)]
+            runs = [r for r in runs if r is not None]
+            if runs:
+                best = min(runs, key=lambda r: r["total"])
+                rows[variant] = {**best, "peak GB": max(r["peak GB"] for r in runs)}
+                rows[variant]["totals"] = [r["total"] for r in runs]
         for variant, r in rows.items():
             if r is None:
                 continue
@@ -157,7 +166,9 @@ def full_resolution(folder: Path, quick: bool, preset: str = "balanced") -> Path
             secs, gb = GOALS[label]
             goal = f"<= {secs:g} s" + (f", {gb:g} GB" if gb else "") if variant == "now" else ""
             print(f"{label:>7} {variant:>9} " + " ".join(f"{r[c]:12.2f}" for c in cols)
-                  + f" {r['peak GB']:8.2f} {ratio} {goal:>12}")
+                  + f" {r['peak GB']:8.2f} {ratio} {goal:>12}"
+                  + ("  (totals " + ", ".join(f"{x:.2f}" for x in r["totals"]) + ")"
+                     if len(r["totals"]) > 1 else ""))
         if skip_base:
             print(f"{label:>7} {'baseline':>9}  (skipped in --quick: about 40 s and 7 GB)")
     return first
@@ -266,8 +277,8 @@ def timelapse(photo: Path, quick: bool, preset: str = "balanced") -> None:
         print("  goal: 120 frames <= 60 s")
 
 
-def run(quick: bool) -> None:
+def run(quick: bool, repeats: int = 1) -> None:
     with tempfile.TemporaryDirectory(prefix="outcast-bench-") as d:
-        photo12 = full_resolution(Path(d), quick)
+        photo12 = full_resolution(Path(d), quick, repeats)
         drag_preview(quick)
         timelapse(photo12, quick)
