@@ -69,6 +69,9 @@ class ImageCanvas(QWidget):
         self._empty_text = "Open a photo (Ctrl+O) or drop one here"
         self.overlay_updates = 0  # counted for tests and the benchmark
         self.after_updates = 0  # relit images shown (step 2), counted likewise
+        #: Display-size copies of images shown smaller than they are (key: image, size), so a
+        #: repaint (every preview while dragging) blits instead of filtering the whole photo.
+        self._scaled: dict[tuple[int, int, int], QImage] = {}
         self.setMinimumSize(320, 240)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         self.setMouseTracking(False)
@@ -198,8 +201,26 @@ class ImageCanvas(QWidget):
         p.setFont(font)
         p.drawText(self.rect(), Qt.AlignmentFlag.AlignCenter, self._empty_text)
 
+    def display_copy(self, image: QImage, rect: QRectF) -> QImage:
+        """``image`` at the device size of ``rect`` when shown smaller than it is (smoothly
+        scaled once and kept for the next repaints), else ``image`` itself."""
+        dpr = self.devicePixelRatioF()
+        tw, th = round(rect.width() * dpr), round(rect.height() * dpr)
+        if tw < 1 or th < 1 or (tw >= image.width() and th >= image.height()):
+            return image
+        key = (image.cacheKey(), tw, th)
+        scaled = self._scaled.get(key)
+        if scaled is None:
+            scaled = image.scaled(tw, th, Qt.AspectRatioMode.IgnoreAspectRatio,
+                                  Qt.TransformationMode.SmoothTransformation)
+            while len(self._scaled) >= 4:  # the photo and the relit image at one or two zooms
+                self._scaled.pop(next(iter(self._scaled)))
+            self._scaled[key] = scaled
+        return scaled
+
     def paint_before(self, p: QPainter, rect: QRectF) -> None:
-        p.drawImage(rect, self._before)
+        shown = self.display_copy(self._before, rect)
+        p.drawImage(rect, shown, QRectF(shown.rect()))
 
     def paint_overlay(self, p: QPainter, rect: QRectF) -> None:
         if self._overlay is None or self._overlay_opacity <= 0.0:
@@ -212,14 +233,15 @@ class ImageCanvas(QWidget):
     def paint_after(self, p: QPainter, rect: QRectF) -> None:
         if self._after is None:
             return
+        after = self.display_copy(self._after, rect)
         if self._split is None:
-            p.drawImage(rect, self._after)
+            p.drawImage(rect, after, QRectF(after.rect()))
             return
         x = rect.left() + rect.width() * self._split
         right = QRectF(x, rect.top(), rect.right() - x, rect.height())
-        src_x = self._after.width() * self._split
-        src = QRectF(src_x, 0.0, self._after.width() - src_x, self._after.height())
-        p.drawImage(right, self._after, src)
+        src_x = after.width() * self._split
+        src = QRectF(src_x, 0.0, after.width() - src_x, after.height())
+        p.drawImage(right, after, src)
         p.setPen(QPen(QColor(255, 255, 255, 220), 2.0))
         top, bottom = max(rect.top(), 0.0), min(rect.bottom(), float(self.height()))
         p.drawLine(QPointF(x, top), QPointF(x, bottom))

@@ -192,7 +192,7 @@ def test_export_writes_full_resolution(window, settle, errors, tmp_path, name, d
     expected = window.session.deshadow_full()
     rgb = written[..., ::-1].astype(np.float32) / np.iinfo(dtype).max
     assert np.abs(rgb - expected).mean() < 0.02  # the de-shadowed photo, not the relit one
-    src = window.loaded.image_srgb
+    src = window.loaded.image_srgb / 255.0  # 8-bit photos are kept as read (uint8)
     band = (slice(200, 220), slice(110, 190))  # the dark band at 400 x 300
     assert rgb[band].mean() > src[band].mean() + 0.1
     with Image.open(path) as im:
