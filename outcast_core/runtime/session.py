@@ -89,7 +89,7 @@ class Preset:
 
 PRESETS: dict[str, Preset] = {
     "fast": Preset("fast", 256, 16, 1 / 128, 128, 8, 80),
-    "balanced": Preset("balanced", 384, 32, 1 / 256, 192, 16, 128),
+    "balanced": Preset("balanced", 384, 32, 1 / 256, 192, 16, 112),
     "accurate": Preset("accurate", 512, 64, 1 / 512, 256, 32, 192),
 }
 
