@@ -194,6 +194,7 @@ def measure_samples(folder: str, *, preset: str) -> dict[str, Any]:
                 else round(fit.true_elevation - prior.elevation, 1),
                 "confidence": round(fit.confidence, 3), "found": fit.found,
                 "source": fit.source, "pitch_roll": [round(fit.pitch, 1), round(fit.roll, 1)],
+                "pose_source": fit.pose_source,
                 "seconds": round(sec, 2),
             }
         rows.append(row)

@@ -7,21 +7,30 @@ The agreement of a sun is ``1 - BER`` between the overlay's mask (``S < 0.15`` o
 the app draws it and ``outcast eval real`` scores it) and the found mask (probability > 0.5):
 1 is a perfect match, 0.5 is chance.
 
+The search may also rank by the shading (``measure="shading"``, :func:`shading_agreement`: the
+correlation of ``S`` with the photo's linear luminance, attached shading and cast shadows
+together, with no found mask) or by both (``"mask+shading"``); the default stays the mask
+(:data:`MEASURE`), chosen by the numbers below.
+
 Coarse to fine, cheap where it can be:
 
-1. the light-independent buffers (depth, sky, normals, photo) at :data:`COARSE_SIZE` and
-   :data:`FINE_SIZE` px, made once per call from the session's working buffers;
+1. the light-independent buffers (depth, sky, normals, photo, its luminance) at each small size
+   (:data:`COARSE_SIZE`, :data:`FINE_SIZE`), made once per call from the session's working
+   buffers;
 2. a coarse grid over the dome (:data:`COARSE_AZIMUTHS` x :data:`COARSE_ELEVATIONS`), all suns
-   in batches through the shadow network at :data:`COARSE_SIZE` px: this is the agreement map
-   the app shows as a heat map;
-3. around the best separated peaks, 3 x 3 patterns at half the grid step (:data:`FINE_PATTERNS`)
-   at :data:`FINE_SIZE` px;
+   in batches through the shadow network at :data:`COARSE_SIZE` px: this is the map the app
+   shows as a heat map;
+3. around the :data:`SEEDS` best separated peaks, 3 x 3 patterns at half the grid step
+   (:data:`FINE_PATTERNS`; a pattern may name its own size) at :data:`FINE_SIZE` px;
 4. the last :data:`FINAL_CANDIDATES` at the session's working size (cached by the session, so
-   the overlay the app then draws costs nothing).
+   the overlay the app then draws costs nothing), except those more than :data:`FINAL_MARGIN`
+   behind the best at the small size (early rejection).
 
 EXIF: GPS and capture time fix the sun's true elevation above the horizon (astral); with it the
-search runs on that ring only (:class:`SunPrior`), in the camera's frame when its pitch and roll
-are known (given, or from the fitted ground plane). A compass heading also gives the azimuth:
+search runs on that ring only (:class:`SunPrior`), in the camera's frame: its pitch and roll
+from the photo's metadata where it records them (:mod:`~outcast_core.runtime.camera_pose`: XMP
+GPano or DJI gimbal angles, Exif ``CameraElevationAngle``), else from the fitted ground plane
+(:attr:`SunFit.pose_source` says which). A compass heading also gives the azimuth:
 a full guess that pulls the search toward it (:attr:`SunPrior.azimuth_weight`) but loses when
 the shadows clearly say otherwise (compasses are often off, sometimes wildly: the ski-slope
 sample's heading puts the sun 130° from where it is in the frame), and that stands when the
@@ -83,7 +92,7 @@ from outcast_core.runtime.photo_shadows import photo_shadow_probability
 #: The overlay's threshold: ``S`` below it is a predicted shadow (as ``real_eval``).
 SHADOW_THRESHOLD = 0.15
 #: Longer side (px) of the coarse grid's and the fine patterns' shadow images.
-COARSE_SIZE = 64
+COARSE_SIZE = 48
 FINE_SIZE = 96
 #: The coarse grid over the dome (degrees, camera-relative, or in the ground's frame with a
 #: known pitch and roll).
@@ -93,15 +102,15 @@ COARSE_ELEVATIONS: tuple[float, ...] = (8.0, 22.0, 36.0, 50.0, 64.0, 78.0)
 RING_AZIMUTH_STEP = 10.0
 #: Seeds taken from the coarse grid (local peaks at least :data:`PEAK_SEPARATION` degrees apart)
 #: and candidates checked at the session's working size.
-SEEDS = 3
+SEEDS = 2
 PEAK_SEPARATION = 30.0
 FINAL_CANDIDATES = 3
 #: A candidate more than this behind the best (in the ranking score at the small sizes) is not
 #: checked at the working size.
-FINAL_MARGIN = float("inf")
+FINAL_MARGIN = 0.03
 #: The fine patterns: ``(seeds, step)``: 3 x 3 suns around the best ``seeds`` so far, ``step``
 #: times the coarse grid's step apart.
-FINE_PATTERNS: tuple[tuple[int, float], ...] = ((SEEDS, 0.5),)
+FINE_PATTERNS: tuple[tuple[int, float] | tuple[int, float, int], ...] = ((SEEDS, 0.5),)
 #: The lowest elevation tried (a grazing sun puts the whole ground in shadow).
 MIN_ELEVATION = 5.0
 #: Shadow images per network call.
@@ -198,7 +207,8 @@ def exif_sun_prior(metadata: Any) -> SunPrior | None:
 
 @dataclass
 class AgreementMap:
-    """Agreement (``1 - BER``, 0.5 = chance) of the coarse suns over the dome.
+    """The coarse suns' ranking score over the dome (with the default measure the agreement,
+    ``1 - BER``, 0.5 = chance).
 
     Attributes:
         azimuths: ``(A,)`` degrees.
@@ -597,7 +607,12 @@ def find_sun(
     found_full = prob > 0.5
     clarity = shade_clarity(session.image_srgb, session.sky, found_full)
     coarse = _Level(session, COARSE_SIZE, prob)
-    fine = _Level(session, FINE_SIZE, prob)
+    levels = {COARSE_SIZE: coarse}
+
+    def level_of(size: int) -> _Level:
+        if size not in levels:
+            levels[size] = _Level(session, size, prob)
+        return levels[size]
 
     frame, pose_source = _Frame(), ""
     if prior is not None:
@@ -643,13 +658,19 @@ def find_sun(
     cand: dict[tuple[float, float], float] = {}
     if not FINE_PATTERNS:
         cand.update(zip(points, scores.tolist(), strict=True))  # scores with the pull
-    for level, (k, scale) in enumerate(FINE_PATTERNS):
+    last_level: _Level | None = None
+    for level, pattern in enumerate(FINE_PATTERNS):
+        k, scale = int(pattern[0]), float(pattern[1])
+        fine = level_of(int(pattern[2]) if len(pattern) > 2 else FINE_SIZE)  # type: ignore[misc]
         check("refining", 0.4 + 0.4 * level / len(FINE_PATTERNS),
               "dome" if level == 0 and prior is None else "ring" if level == 0 else "refine")
         pts = _dedupe([p for c in seeds[:k] for p in _pattern(c, d_az * scale, d_el * scale,
                                                                el_range)])
         sc = ranking(*fine.score(frame.vectors(pts)), measure) - bias(pts)
         evaluations += len(pts)
+        if fine is not last_level:  # scores at another size do not compare: this level's only
+            cand = {}
+            last_level = fine
         cand.update(zip(pts, sc.tolist(), strict=True))
         ranked = sorted(cand, key=lambda p: -cand[p])
         seeds = ranked
