@@ -32,8 +32,8 @@ from outcast_core.train.data import auto_exposure, tonemap  # noqa: E402
 
 #: (label, session keyword arguments): the app's default first.
 CONFIGS: list[tuple[str, dict]] = [
-    ("learned L, S_o from the photo, colour guard (app default)", {}),
-    ("learned L, S_o from the photo, colour guard, contrast floor", {"contrast_floor": True}),
+    ("learned L, S_o from the photo, colour guard, shade floor (app default)", {}),
+    ("learned L, S_o from the photo, colour guard, no floor", {"contrast_floor": False}),
     ("learned L, S_o from the photo, no guard, no floor",
      {"colour_guard": False, "contrast_floor": False}),
     ("learned L, S_o from R", {"refine": "learned"}),
@@ -51,7 +51,7 @@ def factor(img: np.ndarray, base: np.ndarray, m: np.ndarray) -> float:
 
 def _session(kwargs: dict) -> RelightSession:
     guard = kwargs.pop("colour_guard", True)
-    floor = kwargs.pop("contrast_floor", False)
+    floor = kwargs.pop("contrast_floor", True)
     s = RelightSession(preset="fast", shadow_mode="learned", **kwargs)
     s.colour_guard, s.contrast_floor = guard, floor
     return s

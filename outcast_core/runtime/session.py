@@ -207,10 +207,9 @@ class RelightSession:
         #: sky when no sun is in the frame (:func:`~outcast_core.runtime.relight.
         #: keep_photo_colour`).
         self.colour_guard = True
-        #: Learned relighting brightens newly lit and darkens newly shadowed surfaces at least
-        #: as much as physics does (:func:`~outcast_core.runtime.relight.shadow_contrast_floor`).
-        #: Off: on real photos it turns the rough new shadow's speckle into dark mottling.
-        self.contrast_floor = False
+        #: Learned relighting darkens newly shadowed surfaces at least as much as physics does
+        #: (:func:`~outcast_core.runtime.relight.shadow_contrast_floor`).
+        self.contrast_floor = True
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
         shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
@@ -668,9 +667,8 @@ class RelightSession:
                 relit = keep_photo_colour(image, relit, st["shadow_old"], s_new, st["sky"],
                                           keep_sky=keep_sky)
             if self.contrast_floor:
-                relit = shadow_contrast_floor(image, relit, physics_relight(
-                    image, st["shadow_old"], s_new, st["sky"], light=self._light, snap=False),
-                    st["shadow_old"], s_new)
+                relit = shadow_contrast_floor(image, relit, st["shadow_old"], s_new, st["sky"],
+                                              self._light)
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=self._light, snap=False)
@@ -743,8 +741,7 @@ class RelightSession:
                 keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(wv, cam))
                 img = keep_photo_colour(image, img, s_o, s_new, inp["sky"], keep_sky=keep_sky)
             if self.contrast_floor:
-                img = shadow_contrast_floor(image, img, physics_relight(
-                    image, s_o, s_new, inp["sky"], light=inp["light"], snap=False), s_o, s_new)
+                img = shadow_contrast_floor(image, img, s_o, s_new, inp["sky"], inp["light"])
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
         return img.astype(np.float32)

@@ -112,9 +112,14 @@ def test_keep_photo_colour_where_both_suns_light_the_surface() -> None:
     assert not np.allclose(out[0, 9], image[0, 9], atol=1e-2)
 
 
-def test_shadow_contrast_floor_changes_at_least_as_much_as_physics() -> None:
+def test_shadow_contrast_floor_darkens_new_shadows_at_least_as_physics_does() -> None:
+    from outcast_core.runtime import relight
     from outcast_core.runtime.colour import luminance, srgb_to_linear
-    from outcast_core.runtime.relight import shadow_contrast_floor
+    from outcast_core.runtime.relight import (
+        estimate_light,
+        physics_relight,
+        shadow_contrast_floor,
+    )
 
     h, w = 6, 9
     image = np.full((h, w, 3), [0.5, 0.45, 0.4], np.float32)
@@ -122,29 +127,38 @@ def test_shadow_contrast_floor_changes_at_least_as_much_as_physics() -> None:
     s_new = np.full((h, w), 0.8, np.float32)
     s_old[:, :3] = 0.0  # columns 0-2: newly lit
     s_new[:, 6:] = 0.0  # columns 6-8: newly shadowed; 3-5 lit under both suns
+    s_old[:2, :3] = 0.8  # ... and a lit patch for the light estimate
+    image[2:, :3] *= 0.3
+    light = estimate_light(srgb_to_linear(image), s_old)
     relit = image.copy()
     relit[:, :3] *= 1.2  # the learned image: a timid change
     relit[:, 6:] *= 0.9
     relit[:, 3:6] = [0.55, 0.45, 0.35]  # lit under both suns: left to the other guard
-    physics = image.copy()
-    physics[:, :3] *= 1.8
-    physics[:, 6:] *= 0.4
-    out = shadow_contrast_floor(image, relit, physics, s_old, s_new)
+    sigma, relight.FLOOR_SIGMA = relight.FLOOR_SIGMA, 0.0  # no smoothing on a 9-pixel image
+    try:
+        out = shadow_contrast_floor(image, relit, s_old, s_new, None, light)
+        physics = physics_relight(image, s_old, s_new, None, light=light, snap=False)
+        lifted = shadow_contrast_floor(image, relit, s_old, s_new, None, light, lift=True)
+        bold = image.copy()
+        bold[:, 6:] *= 0.1
+        bold_out = shadow_contrast_floor(image, bold, s_old, s_new, None, light)
+    finally:
+        relight.FLOOR_SIGMA = sigma
 
-    def y(img: np.ndarray, cols: slice) -> float:
-        return float(luminance(srgb_to_linear(img[:, cols])).mean())
+    def y(img: np.ndarray, rows: slice, cols: slice) -> float:
+        return float(luminance(srgb_to_linear(img[rows, cols])).mean())
 
-    assert y(out, slice(0, 3)) == pytest.approx(y(physics, slice(0, 3)), rel=1e-3)
-    assert y(out, slice(6, 9)) == pytest.approx(y(physics, slice(6, 9)), rel=1e-2)
-    np.testing.assert_allclose(out[:, 3:6], relit[:, 3:6], atol=1e-4)
+    new_shd, new_lit = (slice(None), slice(6, 9)), (slice(2, None), slice(0, 3))
+    assert y(physics, *new_shd) < y(relit, *new_shd)  # the case: physics darkens more
+    assert y(out, *new_shd) == pytest.approx(y(physics, *new_shd), rel=1e-2)
+    np.testing.assert_allclose(out[:, :6], relit[:, :6], atol=1e-4)  # no lift by default
+    assert y(physics, *new_lit) > y(relit, *new_lit)
+    assert y(lifted, *new_lit) == pytest.approx(y(physics, *new_lit), rel=1e-2)
     # The learned colour is kept (chromaticity of the relit pixel).
-    c = srgb_to_linear(out[2, 1]) / srgb_to_linear(out[2, 1]).sum()
-    np.testing.assert_allclose(c, srgb_to_linear(relit[2, 1]) / srgb_to_linear(relit[2, 1]).sum(),
+    c = srgb_to_linear(out[3, 7]) / srgb_to_linear(out[3, 7]).sum()
+    np.testing.assert_allclose(c, srgb_to_linear(relit[3, 7]) / srgb_to_linear(relit[3, 7]).sum(),
                                atol=1e-3)
-    # A learned change larger than physics' stays.
-    bold = image.copy()
-    bold[:, 6:] *= 0.2
-    out = shadow_contrast_floor(image, bold, physics, s_old, s_new)
-    np.testing.assert_allclose(out[:, 6:], bold[:, 6:], atol=1e-4)
-    with pytest.raises(ValueError, match="one shape"):
-        shadow_contrast_floor(image, relit[:3], physics, s_old, s_new)
+    # A learned new shadow darker than physics' stays.
+    np.testing.assert_allclose(bold_out[:, 6:], bold[:, 6:], atol=1e-4)
+    with pytest.raises(ValueError, match="relit image"):
+        shadow_contrast_floor(image, relit[:3], s_old, s_new, None, light)
