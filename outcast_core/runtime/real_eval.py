@@ -23,6 +23,10 @@ photo and on average (DESIGN.md, "Real photographs: how we measure"):
   lit under both suns (``S_o`` and ``S_n`` both above :data:`LIT_BOTH`), and the mean Lab change
   on the sky when neither sun is in the frame (brightness may follow the new shading, colour may
   not; the sky stays as it is);
+* ``new_shade``: how dark the relit photo makes the surface the new sun newly shadows
+  (``S_o`` above 0.5, ``S_n`` below the overlay's threshold), as the median change of log
+  luminance there over the photo's own shade (the median log luminance of its found shadows
+  minus that of its lit surface): 1 is as dark as the photo's own shadows, 0 unchanged;
 * ``seconds``: wall time for the photo (depth, 24 suns, confirmation, de-shadowing, one relight).
 
 Masks are compared at the mask's size: shadow images are resized to it (bilinear) before the
@@ -168,6 +172,7 @@ class PhotoResult:
     deshadow_out: float | None = None
     relit_chroma: float | None = None
     relit_sky: float | None = None
+    new_shade: float | None = None
     depth_source: str = ""
     extra: dict[str, float] = field(default_factory=dict)
 
@@ -258,7 +263,8 @@ def evaluate_photo(
 
 
 def _relight_checks(session: Any, res: PhotoResult, az: float, el: float) -> None:
-    """``relit_chroma`` and ``relit_sky`` of :class:`PhotoResult` (module docstring)."""
+    """``relit_chroma``, ``relit_sky`` and ``new_shade`` of :class:`PhotoResult` (module
+    docstring)."""
     w_o, w_n = sun_vector(az, el), sun_vector((az + RELIGHT_TURN) % 360.0, el)
     relit = session.relight(w_n)
     image = session.image_srgb
@@ -272,6 +278,44 @@ def _relight_checks(session: Any, res: PhotoResult, az: float, el: float) -> Non
                                   or sun_in_frame(w_n, session.camera)):
         d = lab_b[session.sky] - lab_a[session.sky]
         res.relit_sky = float(np.mean(np.sqrt(np.sum(d * d, axis=-1))))
+    res.new_shade = new_shade_ratio(image, relit, session.original_shadow, session.shadow(w_n),
+                                    getattr(session, "shadow_probability", None), session.sky)
+
+
+#: Least pixels of each kind :func:`new_shade_ratio` needs.
+MIN_PIXELS = 50
+
+
+def new_shade_ratio(
+    image_srgb: np.ndarray, relit_srgb: np.ndarray, shadow_old: np.ndarray,
+    shadow_new: np.ndarray, probability: np.ndarray | None, sky: np.ndarray,
+) -> float | None:
+    """``new_shade`` (module docstring); None when a photo has too few pixels of a kind.
+
+    Example:
+        >>> img = np.full((10, 20, 3), 0.8, np.float32); img[:, :10] = 0.3
+        >>> so = np.ones((10, 20), np.float32); so[:, :10] = 0.0
+        >>> sn = np.ones((10, 20), np.float32); sn[:, 15:] = 0.0
+        >>> relit = img.copy(); relit[:, 15:] = 0.3
+        >>> p = 1.0 - so; sky = np.zeros((10, 20), bool)
+        >>> round(new_shade_ratio(img, relit, so, sn, p, sky), 2)
+        1.0
+    """
+    from outcast_core.runtime.colour import luminance, srgb_to_linear
+
+    if probability is None:
+        return None
+    surface = ~np.asarray(sky, bool)
+    log_y = np.log(luminance(srgb_to_linear(np.clip(image_srgb, 0, 1))) + 1e-3)
+    log_r = np.log(luminance(srgb_to_linear(np.clip(relit_srgb, 0, 1))) + 1e-3)
+    shade, lit = surface & (probability > 0.5), surface & (probability < 0.5)
+    newly = surface & (shadow_old > 0.5) & (shadow_new < SHADOW_THRESHOLD)
+    if min(shade.sum(), lit.sum(), newly.sum()) < MIN_PIXELS:
+        return None
+    own = float(np.median(log_y[shade]) - np.median(log_y[lit]))
+    if own > -1e-3:
+        return None
+    return float(np.median((log_r - log_y)[newly]) / own)
 
 
 def shuffled_control(
@@ -292,7 +336,7 @@ def shuffled_control(
 
 SUMMARY_KEYS = ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuffled_ber",
                 "sky_claim", "overlay_fraction", "shadow_fraction", "seconds",
-                "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky")
+                "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky", "new_shade")
 
 
 def summarize(results: Sequence[PhotoResult]) -> dict[str, float]:
@@ -401,7 +445,7 @@ def _write_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
 def render_table(report: dict[str, Any]) -> str:
     """The per-photo results and their means as a Markdown table."""
     head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | Shuffled | Sky claim |"
-            " De-shadow in / out | Relit chroma / sky | s |")
+            " De-shadow in / out | Relit chroma / sky / new shade | s |")
     lines = [head, "|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(v: Any, d: int = 3) -> str:
@@ -414,7 +458,8 @@ def render_table(report: dict[str, Any]) -> str:
             f"| {r['name']} | {r['best_sun'][0]:.0f},{r['best_sun'][1]:.0f} | "
             f"{f(r['overlay_ber'])} | {f(r['opposite_ber'])} | {f(r['refined_ber'])} | "
             f"{f(r['otsu_ber'])} | {f(r['shuffled_ber'])} | {f(r['sky_claim'])} | {ds} | "
-            f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} | {f(r['seconds'], 1)} |")
+            f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} / {f(r.get('new_shade'), 2)} | "
+            f"{f(r['seconds'], 1)} |")
     m = report["mean"]
     ds = ("-" if "deshadow_in" not in m
           else f"{f(m['deshadow_in'], 2)} / {f(m.get('deshadow_out'), 2)}")
@@ -422,7 +467,8 @@ def render_table(report: dict[str, Any]) -> str:
         f"| **mean ({int(m['photos'])})** | | **{f(m.get('overlay_ber'))}** | "
         f"{f(m.get('opposite_ber'))} | **{f(m.get('refined_ber'))}** | {f(m.get('otsu_ber'))} | "
         f"{f(m.get('shuffled_ber'))} | {f(m.get('sky_claim'))} | {ds} | "
-        f"{f(m.get('relit_chroma'), 2)} / {f(m.get('relit_sky'), 2)} | {f(m.get('seconds'), 1)} |")
+        f"{f(m.get('relit_chroma'), 2)} / {f(m.get('relit_sky'), 2)} / "
+        f"{f(m.get('new_shade'), 2)} | {f(m.get('seconds'), 1)} |")
     return "\n".join(lines)
 
 

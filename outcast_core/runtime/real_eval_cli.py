@@ -151,7 +151,9 @@ def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
         "over the unchanged input's; out = excess over the input's own RMSE outside the mask; "
         "relit chroma = mean a*b* change where lit under both suns (sun 120 deg away), sky = mean "
         "Lab change on the sky when no sun is in frame (learned relighting keeps the photo's "
-        "sky then, so it is 0 by construction; physics relighting never touches the sky). "
+        "sky then, so it is 0 by construction; physics relighting never touches the sky); "
+        "new shade = median log-luminance change where the new sun newly shadows, over the "
+        "photo's own shade/lit log ratio (1: as dark as the photo's own shadows). "
         "The photos are research data kept "
         "outside the repository; only these numbers are here.", "",
         "### Speed / accuracy", "", render_trade(reports), "",
@@ -169,7 +171,7 @@ def _summary_line(preset: str, report: dict[str, Any]) -> str:
 def render_trade(reports: dict[str, Any]) -> str:
     """One row per preset: the mean figures beside the time per photo."""
     lines = ["| Preset | Overlay BER | Opposite | S_o BER | Otsu | Shuffled | Sky claim | "
-             "De-shadow in / out | Relit chroma / sky | s / photo |",
+             "De-shadow in / out | Relit chroma / sky / new shade | s / photo |",
              "|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(m: dict[str, float], k: str, d: int = 3) -> str:
@@ -182,5 +184,6 @@ def render_trade(reports: dict[str, Any]) -> str:
         lines.append(f"| {preset} | {f(m, 'overlay_ber')} | {f(m, 'opposite_ber')} | "
                      f"{f(m, 'refined_ber')} | {f(m, 'otsu_ber')} | {f(m, 'shuffled_ber')} | "
                      f"{f(m, 'sky_claim')} | {ds} | {f(m, 'relit_chroma', 2)} / "
-                     f"{f(m, 'relit_sky', 2)} | {f(m, 'seconds', 2)} |")
+                     f"{f(m, 'relit_sky', 2)} / {f(m, 'new_shade', 2)} | "
+                     f"{f(m, 'seconds', 2)} |")
     return "\n".join(lines)

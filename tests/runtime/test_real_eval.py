@@ -196,3 +196,25 @@ def test_cli_eval_real_with_a_depth_model(tmp_path: Path, capsys: pytest.Capture
     assert main(["eval", "real", str(data), "--depth-model", str(tmp_path / "none.onnx"),
                  "-q"]) == 2
     assert "none.onnx" in capsys.readouterr().err
+
+
+def test_new_shade_ratio_compares_new_shadows_with_the_photos_own() -> None:
+    from outcast_core.runtime.real_eval import new_shade_ratio
+
+    img = np.full((20, 40, 3), 0.8, np.float32)
+    img[:, :10] = 0.3  # the photo's own shadow
+    so = np.ones((20, 40), np.float32)
+    so[:, :10] = 0.0
+    sn = np.ones((20, 40), np.float32)
+    sn[:, 30:] = 0.0  # the new sun's shadow
+    prob = 1.0 - so
+    sky = np.zeros((20, 40), bool)
+    same = img.copy()
+    same[:, 30:] = 0.3
+    half = img.copy()
+    half[:, 30:] = 0.52
+    assert new_shade_ratio(img, same, so, sn, prob, sky) == pytest.approx(1.0, abs=1e-3)
+    assert 0.3 < new_shade_ratio(img, half, so, sn, prob, sky) < 0.7
+    assert new_shade_ratio(img, img, so, sn, prob, sky) == pytest.approx(0.0, abs=1e-6)
+    assert new_shade_ratio(img, same, so, sn, None, sky) is None
+    assert new_shade_ratio(img, same, so, np.ones_like(sn), prob, sky) is None  # no new shadow
