@@ -89,8 +89,6 @@ def _relight_pipeline(path: str, out: str, variant: str, preset: str) -> dict:
     lap("read")
     session.set_image(loaded.image_srgb)
     lap("set image")
-    if variant == "now":  # as outcast relight does: the new sun's shadow on the second core
-        session.prefetch_shadow(sun_vector(*W_TO))
     session.set_original_sun(sun_vector(*W_FROM))
     lap("original sun")
     relit = session.relight(sun_vector(*W_TO))

@@ -188,7 +188,6 @@ def cmd_relight(args: argparse.Namespace) -> int:
     loaded = read_image(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit end to end
     session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
     _set_image(session, loaded, args)
-    session.prefetch_shadow(w_to)  # the new sun's shadow beside the original sun's work
     session.set_original_sun(w_from)
     out = session.relight_full(w_to, dtype=np.uint8 if bit_depth == 8 else np.float32)
     exif = loaded.exif_bytes if bit_depth == 8 else None  # GPS and time, as the app's export

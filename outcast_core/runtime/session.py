@@ -267,8 +267,6 @@ class RelightSession:
         self._sampler: RaySampler | None = None
         self._preview: dict[str, Any] | None = None
         self._relight_preview: dict[str, Any] | None = None
-        #: Shadows being computed ahead (:meth:`prefetch_shadow`), by cache key.
-        self._prefetched: dict[Any, Any] = {}
         #: How many times the light-independent inputs of the step-2 drag preview were built
         #: (once per photo, original sun and preset; tests count it).
         self.relight_preview_builds = 0
@@ -357,7 +355,6 @@ class RelightSession:
                 self._relight_cache.clear()
                 self._preview = None
                 self._relight_preview = None
-                self._prefetched = {}
 
     def _prepare(self, progress: Progress | None) -> None:
         assert self.full_image_srgb is not None and self._focal_full is not None
@@ -676,30 +673,10 @@ class RelightSession:
         self._time("relight", t1)
         return out.astype(np.float32) * np.float32(1.0 / 255.0)  # 8 bits: it is for the screen
 
-    def prefetch_shadow(self, w: Any) -> None:
-        """Start computing sun ``w``'s full-quality shadow in a background thread, so that a
-        later :meth:`relight` / :meth:`relight_full` for ``w`` finds it ready (the same array
-        :meth:`shadow` gives). ``outcast relight`` calls it before :meth:`set_original_sun`, whose
-        own shadow then runs beside it on the second core."""
-        wv = normalize_sun(w)
-        with self._lock:
-            self._require_image()
-            key = (_key(wv), False, self.preset.name)
-            if key in self._shadow_cache or key in self._prefetched:
-                return
-            inp = self._working_inputs()
-            pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="outcast-prefetch")
-            self._prefetched[key] = pool.submit(self._shadow_from, inp, wv, PREVIEW_THREADS)
-            pool.shutdown(wait=False)
-
     def _compute_relight(self, w_new: Any, preview: bool) -> np.ndarray:
         wv = normalize_sun(w_new)
         if preview:
             return self._compute_relight_preview(wv)
-        key = (_key(wv), False, self.preset.name)
-        ahead = self._prefetched.pop(key, None)
-        if ahead is not None:
-            self._shadow_cache.get_or(key, ahead.result)
         s_new = self.shadow(wv, preview=preview)
         t0 = time.perf_counter()
         img = self._relight_from(self._working_inputs(), wv, s_new)

@@ -124,21 +124,3 @@ def test_prepare_relight_preview_builds_before_the_first_drag(scene) -> None:
     s.relight(SUNS[0], preview=True)
     assert s.relight_preview_builds == 1
 
-
-def test_prefetched_shadow_is_used_once_and_equals_the_plain_one(scene, monkeypatch) -> None:
-    image, depth = scene
-    plain = RelightSession(preset="fast", mode="learned")
-    plain.set_image(image, depth=depth)
-    plain.set_original_sun(W_O)
-    s = RelightSession(preset="fast", mode="learned")
-    s.set_image(image, depth=depth)
-    runs, _ = _count_runs(s, monkeypatch)
-    s.prefetch_shadow(SUNS[1])
-    s.prefetch_shadow(SUNS[1])  # already on its way: nothing more
-    s.set_original_sun(W_O)
-    np.testing.assert_array_equal(s.relight(SUNS[1]), plain.relight(SUNS[1]))
-    np.testing.assert_array_equal(s.shadow(SUNS[1]), plain.shadow(SUNS[1]))
-    assert runs["shadow"] == 2  # the original sun's and the prefetched one, nothing else
-    s.prefetch_shadow(SUNS[2])
-    s.set_image(image, depth=depth)  # another photo: what was prefetched is dropped
-    assert s._prefetched == {}
