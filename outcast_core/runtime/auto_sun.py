@@ -20,8 +20,9 @@ Coarse to fine, cheap where it can be:
 2. a coarse grid over the dome (:data:`COARSE_AZIMUTHS` x :data:`COARSE_ELEVATIONS`), all suns
    in batches through the shadow network at :data:`COARSE_SIZE` px: this is the map the app
    shows as a heat map;
-3. around the :data:`SEEDS` best separated peaks, 3 x 3 patterns at half the grid step
-   (:data:`FINE_PATTERNS`; a pattern may name its own size) at :data:`FINE_SIZE` px;
+3. the :data:`RECHECK` best separated peaks (:data:`PEAK_SEPARATION`) scored again at
+   :data:`RECHECK_SIZE` px, and around the :data:`SEEDS` best of them 3 x 3 patterns at half
+   the grid step at :data:`FINE_SIZE` px (:data:`FINE_PATTERNS`);
 4. the last :data:`FINAL_CANDIDATES` at the session's working size (cached by the session, so
    the overlay the app then draws costs nothing), except those more than :data:`FINAL_MARGIN`
    behind the best at the small size (early rejection).
@@ -47,26 +48,38 @@ offering a guess, and says which: no clear shadows in the photo, or none that an
 predicted shadows fit (rough depth).
 
 Measured on 2026-11-30 (``scripts/eval_auto_sun.py``; shipped models, balanced preset, 2 shared
-cores at load 6-8):
+cores at load 3-10; seconds are under that load; ``models/EVAL.md`` has the table):
 
-* real dev photos (47, human masks): the found sun's overlay BER within 0.03 of the best of the
-  24-sun sweep for 72 % (34), better than it for 22; mean BER 0.317 vs the sweep's 0.307
-  (median gap +0.001). The 38 photos it is confident on (>= 0.3): 82 % within; the 9 others:
-  33 %. ``find_sun`` alone: median 2.2 s, at most 3.1 s; 12 MP photo (``bench_runtime``): 2.2 s.
-  Tried on 24 of them: finals at the preview size instead of the working size (the shadow
-  network's masks differ between the two: the working size is what the overlay shows):
-  56 % within; 4 seeds refined at 128 px: as accurate, 1.5x the time.
-* held-out synthetic views (``outcast data make --seed 1000000``, 30 views x 2 suns, 128 px):
-  median angle to the true sun 68° with the estimated depth (near chance) and 46° with the
-  renderer's exact depth (5 % within 15° either way): on small views the masks' agreement is
-  nearly flat over wide parts of the dome (a sun 36° off agrees as well as the true one).
-  Adding the correlation of ``S`` with the photo's log luminance, or a minimum elevation of
-  15°, did not help. The search is not what fails: on 12 of those pairs with Direct shadows
-  and exact depth (median 32° off) the found sun agrees with the photo's found shadows better
-  than the true sun in all 12; the photometric mask (attached shade and dark albedo) and the
-  overlay's ``S < 0.15`` do not single out the true sun on such small views.
-* samples, elevation vs astral's: with the EXIF prior within 2° by construction (in the ground
-  plane's frame); from the shadows alone -9.8° (pool), -2.9° (ski slope), -31° (field path).
+* real dev photos (47, human masks; ``python scripts/eval_auto_sun.py ../shared/realdev
+  --sweep-cache C [--measure M] [--set NAME=VALUE]``): share of photos whose found sun's
+  overlay BER is within 0.03 of the best of the 24-sun sweep. Ranked by the mask, dome at 64 px,
+  3 seeds refined at 96, all 3 finalists checked (the earlier search, with today's photo
+  shadows): 72.3 % (mean gap +0.007). Ranked by the shading correlation: 29.8 %. Speed variants
+  (mask): dome 48 + finalists more than 0.03 behind skipped: 74.5 %; the same with 2 seeds:
+  74.5 % (mean gap +0.004); margin 0.01: 66.0 %; 2 finalists: 70.2 %; dome 32 and refine at 64:
+  63.8 %; dome 32, two patterns at 64: 59.6 %; dome 32, refine at 96: 68.1 %; **dome 32, the 12
+  best peaks rechecked at 64, 2 refined at 96 (the default): 70.2 % (33), mean gap +0.012,
+  mean BER 0.319 vs the sweep's 0.307**; the same rechecked at 48: 68.1 %. Differences of
+  2-4 points are one or two photos. Its 12 MP time (``bench_runtime --only find_sun``) is
+  about 5-6 working-size shadow images, against 8-8.5 for the earlier search.
+* held-out synthetic views (``outcast data make --seed 1000000``, 128 px; ``--synthetic
+  ~/.cache/outcast/data/test --limit 60 [--given-depth] [--measure shading]``, the first 15
+  views x 4 suns): median angle to the true sun with the default search: 65° with the
+  estimated depth, 39° with the renderer's exact depth (10 % / 15 % within 15°; the earlier
+  search 60° / 44°); ranked by the shading: 43° (estimated) and 30° (exact; 20 % within 15°).
+  4.4 s per view at load 7-10 (depth excluded). Why, from a dense 10° grid of every sun at
+  64 px on 40 pairs (nothing fitted): with the exact depth even the *true* shadow mask
+  (``S_true < 0.15``) as the photo's shadows puts the best sun 18° off (13° with Direct at
+  128 px), the photo's found mask 40°, the shading 28°; with the estimated depth the true mask
+  gives 49°, the found mask 62°, the shading 42°: the estimated geometry is what fails (its
+  normals are 22° off the renderer's, median of 10 views, 3-56°), not the search, the found
+  shadows (BER 0.18 against the true mask) or the azimuth ambiguity (12-16 % of the errors
+  are > 135° in azimuth). Scoring cast shadows only (pixels facing the sun, cos >= 0.15) was
+  worse (62-76°), as was the mask + shading sum (27-63°). The mask stays the default: the
+  shading gains on synthetic views and loses badly on real photos.
+* samples, elevation vs astral's (``--samples samples``): with the EXIF prior -1.0° on all
+  three (in the ground plane's frame, or level where none fits: none of the samples records a
+  pose); from the shadows alone -23.8° (pool), -2.9° (ski slope), -31.1° (field path).
 """
 
 from __future__ import annotations
@@ -91,9 +104,13 @@ from outcast_core.runtime.photo_shadows import photo_shadow_probability
 
 #: The overlay's threshold: ``S`` below it is a predicted shadow (as ``real_eval``).
 SHADOW_THRESHOLD = 0.15
-#: Longer side (px) of the coarse grid's and the fine patterns' shadow images.
-COARSE_SIZE = 48
+#: Longer side (px) of the coarse grid's, the recheck's and the fine patterns' shadow images.
+COARSE_SIZE = 32
+RECHECK_SIZE = 64
 FINE_SIZE = 96
+#: How many separated peaks of the coarse grid are scored again at :data:`RECHECK_SIZE` before
+#: the best :data:`SEEDS` of them are refined (early rejection of the rest of the dome).
+RECHECK = 12
 #: The coarse grid over the dome (degrees, camera-relative, or in the ground's frame with a
 #: known pitch and roll).
 COARSE_AZIMUTHS: tuple[float, ...] = tuple(float(a) for a in range(0, 360, 20))
@@ -108,9 +125,12 @@ FINAL_CANDIDATES = 3
 #: A candidate more than this behind the best (in the ranking score at the small sizes) is not
 #: checked at the working size.
 FINAL_MARGIN = 0.03
-#: The fine patterns: ``(seeds, step)``: 3 x 3 suns around the best ``seeds`` so far, ``step``
-#: times the coarse grid's step apart.
-FINE_PATTERNS: tuple[tuple[int, float] | tuple[int, float, int], ...] = ((SEEDS, 0.5),)
+#: The fine patterns: ``(seeds, step[, size])``: 3 x 3 suns around the best ``seeds`` so far,
+#: ``step`` times the coarse grid's step apart (step 0: the seeds alone), at ``size`` px
+#: (default :data:`FINE_SIZE`). The first pattern's ``seeds`` are the coarse grid's separated
+#: peaks; a pattern at another size than the one before starts a new list of candidates.
+FINE_PATTERNS: tuple[tuple[int, float] | tuple[int, float, int], ...] = (
+    (RECHECK, 0.0, RECHECK_SIZE), (SEEDS, 0.5, FINE_SIZE))
 #: The lowest elevation tried (a grazing sun puts the whole ground in shadow).
 MIN_ELEVATION = 5.0
 #: Shadow images per network call.
@@ -654,7 +674,8 @@ def find_sun(
         evaluations += len(points)
 
     # -- fine patterns around the best separated peaks
-    seeds = [points[i] for i in _peaks(points, scores, frame, SEEDS, PEAK_SEPARATION)]
+    n_seeds = max([SEEDS, *(int(p[0]) for p in FINE_PATTERNS[:1])])
+    seeds = [points[i] for i in _peaks(points, scores, frame, n_seeds, PEAK_SEPARATION)]
     cand: dict[tuple[float, float], float] = {}
     if not FINE_PATTERNS:
         cand.update(zip(points, scores.tolist(), strict=True))  # scores with the pull
