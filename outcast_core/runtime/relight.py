@@ -279,6 +279,69 @@ def shadow_contrast_floor(
     return linear_to_srgb(lin_r * (y / y_r)[..., None])
 
 
+#: :func:`anchor_exposure`: shadow level above which a pixel is lit under a sun, and the least
+#: number of pixels lit under both suns that the anchor needs.
+ANCHOR_LIT = 0.5
+ANCHOR_MIN_PIXELS = 50
+#: :func:`anchor_exposure` leaves exposure differences within this factor to ``L``.
+ANCHOR_TOLERANCE = 1.0
+
+
+def anchor_exposure(
+    image_srgb: np.ndarray,
+    relit_srgb: np.ndarray,
+    shadow_old: np.ndarray,
+    shadow_new: np.ndarray,
+    sky: np.ndarray | None,
+    light: LightEstimate,
+) -> np.ndarray:
+    """Take a learned relighting's exposure from physics on the surfaces both suns light.
+
+    ``L`` shifts a real photo's whole exposure (brighter or darker, often with a cast: a horse
+    washed yellow, a tennis court cyan). On surfaces lit under both suns (``S_o`` and ``S_n``
+    above :data:`ANCHOR_LIT`, off the sky) only the sun's cosine changes, which
+    :func:`physics_relight` models from the photo's own light; one global gain, the median of
+    physics' luminance over the relit one there, brings the relit image (not its sky) to that
+    exposure. Fewer than :data:`ANCHOR_MIN_PIXELS` such pixels: unchanged.
+
+    Measured on the 47 dev photos relit 120 degrees away (fast preset, ``outcast eval real``'s
+    checks): relit chroma 3.35 -> 2.74, new shade 0.84 -> 0.89; by eye the washed-out relit
+    photos (a horse on grass, a fire engine, a girl on a pavement) come back toward the photo's
+    exposure. On synthetic views with true depth ``L`` does not drift, and physics' own error
+    moves it: MSE 0.0176 -> 0.0267 on the dev split (20 views; physics alone 0.0363). With
+    :data:`ANCHOR_TOLERANCE` 1.25 (gains within 25 % left alone): chroma 2.95, MSE 0.0236.
+    The real photos are the judge, so the anchor is on and the tolerance 1.
+
+    Example:
+        >>> img = np.full((10, 10, 3), 0.5, np.float32); ones = np.ones((10, 10), np.float32)
+        >>> light = estimate_light(srgb_to_linear(img), ones)
+        >>> out = anchor_exposure(img, img * 0.6, ones, ones, None, light)
+        >>> bool(np.allclose(out, img, atol=1e-3))
+        True
+    """
+    image = np.asarray(image_srgb, np.float32)
+    relit = np.asarray(relit_srgb, np.float32)
+    if relit.shape != image.shape:
+        raise ValueError(f"expected a relit image of the photo's shape {image.shape}, got "
+                         f"{relit.shape}")
+    s_old = np.asarray(shadow_old, np.float32)
+    s_new = np.asarray(shadow_new, np.float32)
+    _check_pair(image, s_old, "shadow_old")
+    _check_pair(image, s_new, "shadow_new")
+    sky_mask = np.zeros(s_old.shape, bool) if sky is None else np.asarray(sky, bool)
+    both = (s_old > ANCHOR_LIT) & (s_new > ANCHOR_LIT) & ~sky_mask
+    if both.sum() < ANCHOR_MIN_PIXELS:
+        return relit
+    physics = physics_relight(image, s_old, s_new, sky, light=light, snap=False)
+    lin_r = srgb_to_linear(relit)
+    y_r = luminance(lin_r) + 1e-4
+    y_p = luminance(srgb_to_linear(physics)) + 1e-4
+    gain = float(np.median((y_p / y_r)[both]))
+    gain /= min(max(gain, 1.0 / ANCHOR_TOLERANCE), ANCHOR_TOLERANCE)
+    out = np.where(sky_mask[..., None], lin_r, lin_r * np.float32(gain))
+    return linear_to_srgb(out)
+
+
 def _lit(s: np.ndarray) -> np.ndarray:
     """Soft "lit" of a shadow image: 0 below ``LIT_LEVEL - LIT_SOFT``, 1 above ``+ LIT_SOFT``."""
     return np.clip((np.asarray(s, np.float32) - LIT_LEVEL + LIT_SOFT) / (2 * LIT_SOFT), 0, 1)

@@ -49,6 +49,7 @@ from outcast_core.runtime.photo_shadows import (
 from outcast_core.runtime.raymarch import RaySampler
 from outcast_core.runtime.relight import (
     LightEstimate,
+    anchor_exposure,
     estimate_light,
     keep_photo_colour,
     physics_relight,
@@ -210,6 +211,9 @@ class RelightSession:
         #: Learned relighting darkens newly shadowed surfaces at least as much as physics does
         #: (:func:`~outcast_core.runtime.relight.shadow_contrast_floor`).
         self.contrast_floor = True
+        #: Learned relighting takes its exposure from physics on the surfaces both suns light
+        #: (:func:`~outcast_core.runtime.relight.anchor_exposure`).
+        self.exposure_anchor = True
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
         shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
@@ -666,6 +670,9 @@ class RelightSession:
             if self.contrast_floor:
                 relit = shadow_contrast_floor(image, relit, st["shadow_old"], s_new, st["sky"],
                                               self._light)
+            if self.exposure_anchor:
+                relit = anchor_exposure(image, relit, st["shadow_old"], s_new, st["sky"],
+                                        self._light)
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=self._light, snap=False)
@@ -719,6 +726,8 @@ class RelightSession:
                 img = keep_photo_colour(image, img, s_o, s_new, inp["sky"], keep_sky=keep_sky)
             if self.contrast_floor:
                 img = shadow_contrast_floor(image, img, s_o, s_new, inp["sky"], inp["light"])
+            if self.exposure_anchor:
+                img = anchor_exposure(image, img, s_o, s_new, inp["sky"], inp["light"])
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
         return img.astype(np.float32)

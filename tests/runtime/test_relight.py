@@ -162,3 +162,30 @@ def test_shadow_contrast_floor_darkens_new_shadows_at_least_as_physics_does() ->
     np.testing.assert_allclose(bold_out[:, 6:], bold[:, 6:], atol=1e-4)
     with pytest.raises(ValueError, match="relit image"):
         shadow_contrast_floor(image, relit[:3], s_old, s_new, None, light)
+
+
+def test_anchor_exposure_takes_the_exposure_of_physics_on_surfaces_lit_under_both_suns() -> None:
+    from outcast_core.runtime.relight import anchor_exposure, estimate_light, physics_relight
+
+    h, w = 12, 16
+    rng = np.random.default_rng(0)
+    image = np.clip(0.5 + 0.05 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    s_old = np.full((h, w), 0.9, np.float32)
+    s_new = np.full((h, w), 0.9, np.float32)
+    s_new[:, 12:] = 0.0  # a new shadow on the right
+    sky = np.zeros((h, w), bool)
+    sky[0] = True
+    light = estimate_light(srgb_to_linear(image), s_old)
+    physics = physics_relight(image, s_old, s_new, sky, light=light, snap=False)
+    drifted = np.clip(image * 1.4, 0, 1)  # L's exposure drift: everything brighter
+    drifted[0] = [0.2, 0.4, 0.9]  # its sky
+    out = anchor_exposure(image, drifted, s_old, s_new, sky, light)
+    both = ~sky & (s_new > 0.5)
+    ratio = srgb_to_linear(out)[both].mean() / srgb_to_linear(physics)[both].mean()
+    assert ratio == pytest.approx(1.0, abs=0.03)
+    np.testing.assert_allclose(out[0], drifted[0], atol=1e-5)  # the sky is not re-exposed
+    # Too few pixels lit under both suns: unchanged.
+    dark = np.zeros((h, w), np.float32)
+    np.testing.assert_allclose(anchor_exposure(image, drifted, dark, s_new, sky, light), drifted)
+    with pytest.raises(ValueError, match="relit image"):
+        anchor_exposure(image, drifted[:4], s_old, s_new, sky, light)
