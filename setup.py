@@ -3,7 +3,7 @@
 Everything else about the package is in ``pyproject.toml``. The models live at the top of the
 source tree (``models/``, where training exports them); a regular build copies each manifest
 (``*.json``), the ONNX file it names and the model cards into the package folder
-``outcast_core/shipped_models/``, where :mod:`outcast_core.runtime.models` finds them once
+``outcast_core/shipped_models/``, where :mod:`outcast_core.runtime.io.models` finds them once
 installed. An editable install (``pip install -e .``) copies nothing: it reads ``models/`` in the
 checkout.
 """

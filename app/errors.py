@@ -6,8 +6,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from outcast_core.runtime.imageio import DEPTH_EXTENSIONS
-from outcast_core.runtime.models import ModelError
+from outcast_core.runtime.io.imageio import DEPTH_EXTENSIONS
+from outcast_core.runtime.io.models import ModelError
 
 DEPTH_KINDS = "a .npy array (float32, H × W), a 16-bit grayscale PNG or an OpenEXR (.exr) file"
 

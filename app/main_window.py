@@ -75,8 +75,8 @@ from app.state import (
     save_project,
 )
 from app.workers import JobContext, TaskRunner
-from outcast_core.runtime.geometry import cosine_term, sun_vector
-from outcast_core.runtime.models import ModelError
+from outcast_core.runtime.geometry.camera import cosine_term, sun_vector
+from outcast_core.runtime.io.models import ModelError
 
 APP_NAME = "OutCast"
 STAGE_WORDS = {
@@ -615,9 +615,9 @@ class MainWindow(QMainWindow):
         use_phone = self.use_phone_depth
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            from outcast_core.runtime.depth_models import pick_depth_source
-            from outcast_core.runtime.imageio import read_depth, read_image
-            from outcast_core.runtime.session import RelightSession
+            from outcast_core.runtime.io.depth_models import pick_depth_source
+            from outcast_core.runtime.io.imageio import read_depth, read_image
+            from outcast_core.runtime.pipeline.session import RelightSession
 
             ctx.progress("reading", 0.02)
             # 8-bit photos stay 8-bit: the session keeps this array (no float copy) and the
@@ -754,14 +754,14 @@ class MainWindow(QMainWindow):
     def exif_sun(self) -> tuple[float, float] | None:
         """The photo's sun relative to the camera from EXIF GPS, time and compass heading (or
         the heading typed in step 1 when the EXIF has none)."""
-        from outcast_core.runtime.timelapse import exif_sun
+        from outcast_core.runtime.pipeline.timelapse import exif_sun
 
         return exif_sun(getattr(self.loaded, "exif", None), heading=self.user_heading)
 
     def exif_prior(self) -> Any:
         """What the photo's EXIF (and a typed heading) says about its sun: an
-        :class:`~outcast_core.runtime.auto_sun.SunPrior`, or None without GPS and time."""
-        from outcast_core.runtime.auto_sun import SunPrior, exif_sun_prior
+        :class:`~outcast_core.runtime.pipeline.auto_sun.SunPrior`, or None without GPS and time."""
+        from outcast_core.runtime.pipeline.auto_sun import SunPrior, exif_sun_prior
 
         exif = getattr(self.loaded, "exif", None)
         prior = exif_sun_prior(exif) if exif is not None else None
@@ -774,7 +774,7 @@ class MainWindow(QMainWindow):
 
     def exif_note(self) -> str:
         """Why the EXIF button is greyed out, or what the EXIF gives without a heading."""
-        from outcast_core.runtime import timelapse as tl
+        from outcast_core.runtime.pipeline import timelapse as tl
 
         exif = getattr(self.loaded, "exif", None)
         if exif is None or self.session is None:
@@ -838,8 +838,8 @@ class MainWindow(QMainWindow):
         path = self.image_path
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            from outcast_core.runtime.auto_sun import find_sun
-            from outcast_core.runtime.camera_pose import read_camera_pose
+            from outcast_core.runtime.io.camera_pose import read_camera_pose
+            from outcast_core.runtime.pipeline.auto_sun import find_sun
 
             pose = read_camera_pose(path) if prior is not None and path else None
             fit = find_sun(session, prior=prior, pitch_roll=pose, progress=ctx.progress)
@@ -1274,7 +1274,7 @@ class MainWindow(QMainWindow):
             return None
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            from outcast_core.runtime.imageio import write_image
+            from outcast_core.runtime.io.imageio import write_image
 
             ctx.progress(stage, 0.1)
             img = render()
@@ -1329,8 +1329,8 @@ class MainWindow(QMainWindow):
         A model that cannot be loaded is refused here with a message, and nothing changes.
         """
         if path:
-            from outcast_core.runtime.depth_models import load_depth_model
-            from outcast_core.runtime.models import ModelError
+            from outcast_core.runtime.io.depth_models import load_depth_model
+            from outcast_core.runtime.io.models import ModelError
 
             try:
                 load_depth_model(path)

@@ -43,7 +43,7 @@ def run_self_test(photo: str, output: str, preset: str = "fast",
 
     from app.main_window import MainWindow, process_until_idle
     from app.state import Step
-    from outcast_core.runtime.models import ModelRegistry
+    from outcast_core.runtime.io.models import ModelRegistry
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="outcast-self-test-") as tmp:

@@ -29,9 +29,11 @@ MAX_PROJECT_BYTES = 1_000_000  # project files are a few kB
 MAX_TIMELAPSE_FRAMES = 2000
 MIN_TIMELAPSE_FPS = 1.0
 MAX_TIMELAPSE_FPS = 60.0
-#: Easing names of :data:`outcast_core.runtime.timelapse.EASINGS` (a test keeps them equal).
+#: Easing names of :data:`outcast_core.runtime.pipeline.timelapse.EASINGS` (a test keeps them
+#: equal).
 EASING_NAMES = ("linear", "ease-in-out", "ease-in", "ease-out")
-#: Frame sizes of :data:`outcast_core.runtime.timelapse.FRAME_SIZES` (a test keeps them equal).
+#: Frame sizes of :data:`outcast_core.runtime.pipeline.timelapse.FRAME_SIZES` (a test keeps them
+#: equal).
 FRAME_SIZE_NAMES = ("working", "720p", "1080p", "4k", "full")
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".heic", ".heif", ".webp", ".bmp")
 
@@ -337,7 +339,7 @@ def is_project_file(path: str | os.PathLike[str]) -> bool:
 
 def save_project(state: ProjectState, path: str | os.PathLike[str]) -> Path:
     """Write a project file atomically (temp file, then rename), with the umask's permissions."""
-    from outcast_core.runtime.imageio import atomic_output
+    from outcast_core.runtime.io.imageio import atomic_output
 
     path = Path(path)
     data = state.to_dict(relative_to=path.parent)

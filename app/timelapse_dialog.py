@@ -1,6 +1,7 @@
 """The time-lapse dialog: a sun path (sweep or the real sun), a scrubber, and export.
 
-The dialog builds :class:`~outcast_core.runtime.timelapse.SunSample` lists with the runtime's
+The dialog builds :class:`~outcast_core.runtime.pipeline.timelapse.SunSample` lists with the
+runtime's
 time-lapse module (the same code as ``outcast timelapse``) and sends previews and the export to
 the main window's worker: ``tl_preview`` (latest wins) and ``tl_export`` (progress + cancel).
 """
@@ -40,7 +41,7 @@ from app import display
 from app.canvas import qimage_from_array
 from app.state import Sun, TimelapseSettings
 from app.workers import JobContext
-from outcast_core.runtime import timelapse as tl
+from outcast_core.runtime.pipeline import timelapse as tl
 
 if TYPE_CHECKING:
     from app.main_window import MainWindow
@@ -389,7 +390,8 @@ class TimelapseDialog(QDialog):
         )
 
     def size(self) -> str:
-        """The chosen frame size (one of :data:`outcast_core.runtime.timelapse.FRAME_SIZES`)."""
+        """The chosen frame size (one of
+        :data:`outcast_core.runtime.pipeline.timelapse.FRAME_SIZES`)."""
         return str(self.size_combo.currentData())
 
     def _shapes(self) -> tuple[tuple[int, int], tuple[int, int]] | None:

@@ -162,7 +162,7 @@ def memory_child(photo: str, variant: str) -> int:
     from PySide6.QtWidgets import QApplication
 
     from app.main_window import MainWindow, process_until_idle
-    from outcast_core.runtime import imageio, session
+    from outcast_core.runtime.io import imageio, session
 
     if variant == "baseline":
         read = imageio.read_image

@@ -24,9 +24,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from outcast_core.runtime.geometry import Camera, backproject  # noqa: E402
-from outcast_core.runtime.session import PRESETS, RelightSession  # noqa: E402
-from outcast_core.runtime.shadows import DirectStats, direct_visibility  # noqa: E402
+from outcast_core.runtime.geometry.camera import Camera, backproject  # noqa: E402
+from outcast_core.runtime.geometry.shadows import DirectStats, direct_visibility  # noqa: E402
+from outcast_core.runtime.pipeline.session import PRESETS, RelightSession  # noqa: E402
 from tests.runtime.scenes import box_scene_depth, box_scene_visibility  # noqa: E402
 
 GROUND_Z = 60.0
@@ -92,7 +92,7 @@ def early_exit(size: int, repeats: int) -> None:
 
 
 def _full_march(depth: np.ndarray, cam: Camera, w: np.ndarray) -> np.ndarray:
-    from outcast_core.runtime.raymarch import RaySampler
+    from outcast_core.runtime.geometry.raymarch import RaySampler
 
     sampler = RaySampler(depth, cam)
     lit = np.ones(depth.shape, bool)
@@ -102,7 +102,7 @@ def _full_march(depth: np.ndarray, cam: Camera, w: np.ndarray) -> np.ndarray:
 
 
 def session_reuse(repeats: int) -> None:
-    from outcast_core.runtime.imageio import read_image
+    from outcast_core.runtime.io.imageio import read_image
 
     sample = Path(__file__).resolve().parents[1] / "samples" / "exif_003_th_pool.jpg"
     img = read_image(sample).image_srgb
@@ -131,9 +131,9 @@ def find_sun_speed(repeats: int) -> None:
     per stage (best run)."""
     import cv2
 
-    from outcast_core.runtime.auto_sun import find_sun
-    from outcast_core.runtime.geometry import sun_vector
-    from outcast_core.runtime.imageio import read_image
+    from outcast_core.runtime.geometry.camera import sun_vector
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.pipeline.auto_sun import find_sun
 
     sample = Path(__file__).resolve().parents[1] / "samples" / "exif_003_th_pool.jpg"
     img = cv2.resize(read_image(sample).image_srgb, (4000, 3000), interpolation=cv2.INTER_LINEAR)

@@ -36,8 +36,8 @@ GOALS = {"12 MP": (1.5, None), "24 MP": (3.0, 2.0), "108 MP": (12.0, 4.0)}  # se
 
 
 def baseline_transfer(full_srgb, work_before_srgb, work_after_srgb, band_rows: int = 1024):
-    """The full-resolution transfer as it was before ``runtime.fullres`` (float32 only)."""
-    from outcast_core.runtime.colour import linear_to_srgb, srgb_to_linear
+    """The full-resolution transfer as it was before ``runtime.geometry.fullres`` (float32 only)."""
+    from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
 
     before = srgb_to_linear(work_before_srgb)
     after = srgb_to_linear(work_after_srgb)
@@ -68,9 +68,9 @@ def _make_photo(path: str, width: int, height: int) -> None:
 
 
 def _relight_pipeline(path: str, out: str, variant: str, preset: str) -> dict:
-    from outcast_core.runtime.geometry import sun_vector
-    from outcast_core.runtime.imageio import read_image, write_image
-    from outcast_core.runtime.session import RelightSession
+    from outcast_core.runtime.geometry.camera import sun_vector
+    from outcast_core.runtime.io.imageio import read_image, write_image
+    from outcast_core.runtime.pipeline.session import RelightSession
 
     session = RelightSession(preset=preset)
     for name in ("depth", "shadow", "relight"):  # loading the models is not the relighting
@@ -174,8 +174,8 @@ def full_resolution(folder: Path, quick: bool, repeats: int, preset: str = "bala
 
 def _drag_times(img: np.ndarray, preset: str, n: int) -> tuple[float, float, float]:
     """Median seconds per sun: step-1 overlay, step-2 preview as it was, step-2 preview now."""
-    from outcast_core.runtime.geometry import sun_vector
-    from outcast_core.runtime.session import RelightSession
+    from outcast_core.runtime.geometry.camera import sun_vector
+    from outcast_core.runtime.pipeline.session import RelightSession
 
     s = RelightSession(preset=preset)
     s.set_image(img)
@@ -211,7 +211,7 @@ def _drag_times(img: np.ndarray, preset: str, n: int) -> tuple[float, float, flo
 
 def drag_preview(quick: bool) -> None:
     """Step 2's relit preview per sun, beside the preview as it was and the step-1 overlay."""
-    from outcast_core.runtime.imageio import read_image
+    from outcast_core.runtime.io.imageio import read_image
 
     img = read_image(SAMPLE, keep_uint8=True).image_srgb
     n = 10 if quick else 30
@@ -229,10 +229,10 @@ def drag_preview(quick: bool) -> None:
 
 def timelapse(photo: Path, quick: bool, preset: str = "balanced") -> None:
     """A 1080p MP4 time-lapse of a 12 MP photo: now against the sequential baseline."""
-    from outcast_core.runtime import timelapse as tl
-    from outcast_core.runtime.geometry import sun_vector
-    from outcast_core.runtime.imageio import read_image
-    from outcast_core.runtime.session import RelightSession, resize
+    from outcast_core.runtime.geometry.camera import sun_vector
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.pipeline import timelapse as tl
+    from outcast_core.runtime.pipeline.session import RelightSession, resize
 
     frames = 24 if quick else 120
     loaded = read_image(photo, keep_uint8=True)

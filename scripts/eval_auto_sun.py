@@ -1,4 +1,4 @@
-"""Measure the automatic sun (``outcast_core.runtime.auto_sun.find_sun``).
+"""Measure the automatic sun (``outcast_core.runtime.pipeline.auto_sun.find_sun``).
 
 Real photos with human shadow masks (``NAME_image.*`` + ``NAME_mask.png``, as ``outcast eval
 real``), per photo: the balanced error rate of the overlay at the best of the 24-sun sweep
@@ -34,20 +34,20 @@ from typing import Any
 
 import numpy as np
 
-from outcast_core.runtime import auto_sun
-from outcast_core.runtime.auto_sun import MEASURE as DEFAULT_MEASURE
-from outcast_core.runtime.auto_sun import MEASURES, exif_sun_prior, find_sun
-from outcast_core.runtime.camera_pose import read_camera_pose
-from outcast_core.runtime.geometry import sun_vector
-from outcast_core.runtime.imageio import read_image
-from outcast_core.runtime.real_eval import (
+from outcast_core.runtime.geometry.camera import sun_vector
+from outcast_core.runtime.io.camera_pose import read_camera_pose
+from outcast_core.runtime.io.imageio import read_image
+from outcast_core.runtime.pipeline import auto_sun
+from outcast_core.runtime.pipeline.auto_sun import MEASURE as DEFAULT_MEASURE
+from outcast_core.runtime.pipeline.auto_sun import MEASURES, exif_sun_prior, find_sun
+from outcast_core.runtime.pipeline.real_eval import (
     SWEEP_SUNS,
     balanced_error_rate,
     find_items,
     read_mask,
     shadow_mask,
 )
-from outcast_core.runtime.session import RelightSession
+from outcast_core.runtime.pipeline.session import RelightSession
 
 #: What find_sun ranks by in this run (``--measure``).
 MEASURE = [DEFAULT_MEASURE]
@@ -122,7 +122,7 @@ def measure_synthetic(folder: str, *, preset: str, limit: int | None,
                       given_depth: bool) -> dict[str, Any]:
     """The synthetic figures: angle to the true sun per (view, sun) pair."""
     from outcast_core.data.dataset import iter_views
-    from outcast_core.runtime.colour import linear_to_srgb
+    from outcast_core.runtime.geometry.colour import linear_to_srgb
 
     rows = []
     for view in iter_views(folder):

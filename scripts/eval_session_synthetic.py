@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 from outcast_core.data.dataset import list_views, load_view  # noqa: E402
 from outcast_core.eval.metrics import dssim  # noqa: E402
-from outcast_core.runtime.session import RelightSession  # noqa: E402
+from outcast_core.runtime.pipeline.session import RelightSession  # noqa: E402
 from outcast_core.train.data import auto_exposure, tonemap  # noqa: E402
 
 #: (label, session keyword arguments): the app's default first.

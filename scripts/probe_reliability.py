@@ -144,7 +144,7 @@ def make_inputs(folder: Path) -> None:
 
 def make_models(folder: Path) -> dict[str, Path]:
     """Model folders with a broken manifest, no refine.json, and a network under another name."""
-    from outcast_core.runtime.models import DEFAULT_MODEL_DIR, sha256_file
+    from outcast_core.runtime.io.models import DEFAULT_MODEL_DIR, sha256_file
 
     def install(target: Path, name: str, onnx_from: str | None = None, **changes) -> None:
         target.mkdir(parents=True, exist_ok=True)
@@ -298,7 +298,7 @@ def run_probe(probe: Probe, folder: Path, inp: Path) -> Result:
             (folder / name).write_bytes(b"planted")
     argv = [a.replace("{out}", str(folder)) for a in probe.argv]
     env = {**os.environ, "PYTHONPATH": str(REPO), **probe.env}
-    cmd = [sys.executable, "-m", "outcast_core.runtime.cli", *argv]
+    cmd = [sys.executable, "-m", "outcast_core.runtime.cli.main", *argv]
     watch = folder if probe.signal_after else None
     before_inputs = sorted(os.listdir(inp))
     rc, seconds, rss, stderr, timed_out = _run_child(cmd, env, watch, probe.signal_after,

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from outcast_core.runtime.cli import build_parser
+from outcast_core.runtime.cli.main import build_parser
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")

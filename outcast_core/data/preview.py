@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from outcast_core.data.dataset import list_views, load_view
-from outcast_core.runtime.colour import tonemap_aces
+from outcast_core.runtime.geometry.colour import tonemap_aces
 
 COLUMNS = ("rgb sun 0", "rgb sun 1", "depth", "normals", "shadow 0", "shadow 1")
 

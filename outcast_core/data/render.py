@@ -35,7 +35,7 @@ from outcast_core.data.sky import (
     env_to_world_matrix,
     sun_disc_coverage,
 )
-from outcast_core.runtime.geometry import Camera
+from outcast_core.runtime.geometry.camera import Camera
 
 VARIANT = "scalar_rgb"
 MAX_DEPTH = 5  # path length: up to 4 bounces
@@ -343,7 +343,7 @@ def suggest_exposure(rgb: np.ndarray, sky: np.ndarray, key: float = 0.14) -> flo
         rgb: ``K x H x W x 3`` linear radiance. sky: ``H x W`` sky mask (unused pixels none).
 
     Returns:
-        A multiplier for ``rgb`` before :func:`~outcast_core.runtime.colour.tonemap_aces`.
+        A multiplier for ``rgb`` before :func:`~outcast_core.runtime.geometry.colour.tonemap_aces`.
     """
     lum = (rgb @ np.array([0.2126, 0.7152, 0.0722], np.float32)).reshape(-1)  # K*H*W
     lum = lum[np.isfinite(lum)]

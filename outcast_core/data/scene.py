@@ -15,7 +15,7 @@ import numpy as np
 from outcast_core.data import props as pr
 from outcast_core.data import textures as tx
 from outcast_core.data.meshes import Mesh, box, concat, ellipsoid
-from outcast_core.runtime.geometry import camera_rotation, sun_vector
+from outcast_core.runtime.geometry.camera import camera_rotation, sun_vector
 
 SCENE_KINDS = ("street", "plaza", "closeup")
 # Kinds only drawn when asked for (``generate_scene(kind=...)``, ``outcast data make --kind``):

@@ -129,7 +129,8 @@ def run_eval(args: argparse.Namespace) -> int:
         "model cards say which depth they were trained on); Z's time is counted only in "
         "`Ours (Z depth)` and `Direct (Z depth)`. `Ours (Z depth)` runs the "
         "photo-only pipeline of the app: Z's depth and sky of the input photo, post-processed "
-        "as the app does (sky prior, guided filter and ground plane, `runtime/depth_post.py`), "
+        "as the app does (sky prior, guided filter and ground plane, "
+        "`runtime/pipeline/depth_post.py`), "
         "normals from "
         "them; `Direct (Z depth)` is the app's Direct shadow mode on the same depth. "
         "Relighting metrics are on sRGB [0, 1] images tone-mapped with the view's "
@@ -151,7 +152,8 @@ def run_eval(args: argparse.Namespace) -> int:
                "ground-plane prior is what the app uses when no depth model is installed. "
                "`Z + post-processing (app)` is what the app uses: Z's sky combined with the "
                "classical sky prior, and Z's depth smoothed by a guided filter with its ground "
-               "snapped to a fitted plane (`runtime/depth_post.py`). These are for real photos "
+               "snapped to a fitted plane (`runtime/pipeline/depth_post.py`). These are for real "
+               "photos "
                "(clouds Z takes for surfaces, photo texture and ground bumps read as relief); "
                "this row shows what they cost or gain on synthetic views.",
                "",
@@ -207,7 +209,7 @@ def run_eval(args: argparse.Namespace) -> int:
             for k, c in enumerate(r["contrast"]):
                 md.append(f"| `{r['file']}` | {k + 1} {r['to'][k]} | {c['new_shadow_frac']} | "
                           f"{c['relit_contrast']} | {c['photo_contrast']} |")
-    from outcast_core.runtime.real_eval import real_section
+    from outcast_core.runtime.pipeline.real_eval import real_section
 
     # The real-photo section (``outcast eval real --report``) is measured by another command.
     kept = real_section(out.read_text(encoding="utf-8")) if out.exists() else ""

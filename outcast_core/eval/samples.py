@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from outcast_core.eval.table import save_sheet
-from outcast_core.runtime.geometry import sun_vector
+from outcast_core.runtime.geometry.camera import sun_vector
 
 #: Shadow masks of :func:`shadow_contrast`, as fractions of a shadow image's 90th percentile on
 #: the surface (its "fully lit" level, which includes the cosine term): below ``DARK`` is in
@@ -81,9 +81,9 @@ def relight_samples(
         ``(sheet rows, records)``: one row of labelled images and one record (file, suns,
         depth source, shadow and relight modes, seconds) per photo.
     """
-    from outcast_core.runtime.imageio import read_image
-    from outcast_core.runtime.models import ModelRegistry
-    from outcast_core.runtime.session import RelightSession, depth_for_display
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.io.models import ModelRegistry
+    from outcast_core.runtime.pipeline.session import RelightSession, depth_for_display
 
     spec = Path(spec)
     entries = {k: v for k, v in json.loads(spec.read_text()).items() if not k.startswith("_")}

@@ -4,7 +4,8 @@ Table 1 (relighting DSSIM and MSE, shadow MSE, onnxruntime time per image) compa
 
 * ``Pix2Pix-like``: ``relight_pix2pix.onnx`` (no shadow inputs);
 * ``2D``: ``shadow_2d.onnx`` shadows fed to our ``R`` and ``L``;
-* ``Direct``: the runtime's Direct shadows (:func:`outcast_core.runtime.shadows.direct_shadow`)
+* ``Direct``: the runtime's Direct shadows
+(:func:`outcast_core.runtime.geometry.shadows.direct_shadow`)
   fed to our ``R`` and ``L``;
 * ``Physics``: the runtime's non-learned relighting (shading ratios) on Direct shadows, and on
   our ``S`` shadows;
@@ -41,16 +42,16 @@ import numpy as np
 
 from outcast_core.eval.metrics import depth_errors, dssim, iou, mse
 from outcast_core.eval.onnx_models import TimedModel
-from outcast_core.runtime.depth_post import postprocess_z
-from outcast_core.runtime.geometry import (
+from outcast_core.runtime.geometry.camera import (
     Camera,
     network_depth,
     normals_from_depth,
     view_directions,
 )
-from outcast_core.runtime.relight import estimate_light_on_surfaces, physics_relight
-from outcast_core.runtime.session import ground_plane_depth
-from outcast_core.runtime.shadows import direct_shadow
+from outcast_core.runtime.geometry.shadows import direct_shadow
+from outcast_core.runtime.pipeline.depth_post import postprocess_z
+from outcast_core.runtime.pipeline.relight import estimate_light_on_surfaces, physics_relight
+from outcast_core.runtime.pipeline.session import ground_plane_depth
 from outcast_core.train.data import Prepared, auto_exposure, load_prepared, tonemap
 
 
@@ -287,7 +288,7 @@ def _depth_at_scales(
     """Raw ``Z`` on each photo of ``view`` upsampled (bicubic) by each of :data:`DEPTH_SCALES`,
     its log depth shrunk back (area) and scored against the ground truth: how much worse ``Z``
     gets on an image larger than the views it was trained on, which is why the app runs it at
-    its training scale (:func:`outcast_core.runtime.depth_post.run_depth_model`)."""
+    its training scale (:func:`outcast_core.runtime.pipeline.depth_post.run_depth_model`)."""
     gt, valid = view.prep.depth, ~view.sky
     h, w = gt.shape
     for s in range(view.prep.rgb.shape[0]):
@@ -315,7 +316,8 @@ def _depth_from_z(
         scores = depth_errors(depth, gt, ~gt_sky) | {"sky_iou": iou(z_sky, gt_sky), "time_s": t}
         for k, v in scores.items():
             dacc["Z"][k].append(v)
-        # What the app uses: sky prior, smoothing, ground plane (runtime.depth_post.postprocess_z).
+        # What the app uses: sky prior, smoothing, ground plane
+        # (runtime.pipeline.depth_post.postprocess_z).
         t0 = time.perf_counter()
         depth, sky = postprocess_z(d[0, 0], sky_prob[0, 0], view.images[s], view.camera)
         t += time.perf_counter() - t0

@@ -34,13 +34,13 @@ def _card(man: dict[str, Any]) -> list[str]:
         lines.append(
             "- Residual on the physics relighting: the output is the shading-ratio relighting "
             "`C_o (1 + r S_n) / (1 + r S_o)` (linear RGB; `light_ratio` is r, estimated from the "
-            "photo by `runtime.relight.estimate_light`) plus what the network corrects"
+            "photo by `runtime.pipeline.relight.estimate_light`) plus what the network corrects"
         )
     if man.get("input_side"):
         lines.append(
             f"- Run at its training scale: the app shrinks a photo whose longer side exceeds "
             f"{man['input_side']} px to that side before this network and brings its outputs "
-            f"back up (`runtime.depth_post.run_depth_model`)"
+            f"back up (`runtime.pipeline.depth_post.run_depth_model`)"
         )
     if "march_steps" in man:
         lines.append(

@@ -23,7 +23,7 @@ import torch
 from torch import nn
 
 from outcast_core.nets.blocks import count_parameters
-from outcast_core.runtime.models import sha256_file
+from outcast_core.runtime.io.models import sha256_file
 
 OPSET = 17
 PARITY_TOL = 1e-4

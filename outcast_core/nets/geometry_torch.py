@@ -1,4 +1,5 @@
-"""Torch twins of :mod:`outcast_core.runtime.geometry` (pixel grids, Psi, normals from depth).
+"""Torch twins of :mod:`outcast_core.runtime.geometry.camera` (pixel grids, Psi, normals from
+depth).
 
 Every function takes batched ``B x C x H x W`` tensors and builds its pixel grid from the input's
 shape with tensor ops only, so a traced (ONNX) graph keeps a dynamic height and width.

@@ -1,9 +1,10 @@
-"""The epipolar volume builder of the S network: the torch twin of ``runtime.raymarch``.
+"""The epipolar volume builder of the S network: the torch twin of ``runtime.geometry.raymarch``.
 
 The per-step coordinate maths is not re-derived here: it is
-:func:`outcast_core.runtime.raymarch.march_coordinates`, called with ``torch`` as the array
+:func:`outcast_core.runtime.geometry.raymarch.march_coordinates`, called with ``torch`` as the array
 namespace. Samples come from ``F.grid_sample(align_corners=False, padding_mode='border')``,
-which is exactly ``runtime.raymarch.bilinear``. The sun direction and the focal length are tensors,
+which is exactly ``runtime.geometry.raymarch.bilinear``. The sun direction and the focal length are
+tensors,
 so an exported graph takes them as inputs, and the pixel grid is built from the input's shape, so
 height and width stay dynamic.
 """
@@ -14,7 +15,7 @@ import torch
 import torch.nn.functional as F  # noqa: N812  (the universal torch idiom)
 
 from outcast_core.nets.geometry_torch import image_size, pixel_grid, valid_depth
-from outcast_core.runtime.raymarch import EPS_FACTOR, MAX_RATIO, march_coordinates
+from outcast_core.runtime.geometry.raymarch import EPS_FACTOR, MAX_RATIO, march_coordinates
 
 
 def disparity(depth: torch.Tensor) -> torch.Tensor:

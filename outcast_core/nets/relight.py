@@ -6,7 +6,8 @@ returns its base image, and training only has to learn the change. ``L``'s base 
 (``base="photo"``, the paper's form) or the physics relighting of the photo by shading ratios
 (``base="physics"``): ``C_o (1 + r S_n) / (1 + r S_o)`` in linear RGB with the per-channel
 sun/ambient ratio ``r`` as an extra input (``light_ratio``, estimated from the photo by
-:func:`outcast_core.runtime.relight.estimate_light`), so new shadows are already cast and old ones
+:func:`outcast_core.runtime.pipeline.relight.estimate_light`), so new shadows are already cast and
+old ones
 already lifted before the network corrects what the ratio model misses. The shipped ``L`` uses
 the photo base: the physics base was tried (``train/configs/relight_v4.toml``) and scored worse on
 held-out views, as the base paints the shadow networks' errors at full strength.
@@ -28,13 +29,15 @@ def _logit(x: torch.Tensor) -> torch.Tensor:
 
 
 def srgb_to_linear(x: torch.Tensor) -> torch.Tensor:
-    """Torch twin of :func:`outcast_core.runtime.colour.srgb_to_linear` (values clipped first)."""
+    """Torch twin of :func:`outcast_core.runtime.geometry.colour.srgb_to_linear` (values clipped
+    first)."""
     x = x.clamp(0.0, 1.0)
     return torch.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
 
 
 def linear_to_srgb(x: torch.Tensor) -> torch.Tensor:
-    """Torch twin of :func:`outcast_core.runtime.colour.linear_to_srgb` (values clipped first)."""
+    """Torch twin of :func:`outcast_core.runtime.geometry.colour.linear_to_srgb` (values clipped
+    first)."""
     x = x.clamp(0.0, 1.0)
     # The clamp keeps pow's base >= 1e-8 so its gradient stays finite in the unused branch.
     return torch.where(x <= 0.0031308, x * 12.92, 1.055 * x.clamp_min(1e-8) ** (1 / 2.4) - 0.055)
@@ -44,7 +47,8 @@ def physics_base(
     image: torch.Tensor, shadow_old: torch.Tensor, shadow_new: torch.Tensor,
     normals: torch.Tensor, light_ratio: torch.Tensor,
 ) -> torch.Tensor:
-    """The shading-ratio relighting of :func:`outcast_core.runtime.relight.physics_relight`.
+    """The shading-ratio relighting of
+    :func:`outcast_core.runtime.pipeline.relight.physics_relight`.
 
     Pixels without a surface (zero normals: sky, or depth the network had none for) keep the
     photo. ``B x 3 x H x W`` sRGB in, sRGB out; ``light_ratio`` is ``B x 3``.

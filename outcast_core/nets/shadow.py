@@ -24,7 +24,7 @@ from torch import nn
 from outcast_core.nets.blocks import UNet, broadcast_vector, conv_block, up2
 from outcast_core.nets.geometry_torch import cosine_term, image_size
 from outcast_core.nets.raymarch_torch import disparity, march_volume
-from outcast_core.runtime.raymarch import DEFAULT_NET_STEP
+from outcast_core.runtime.geometry.raymarch import DEFAULT_NET_STEP
 
 
 def _check_inputs(

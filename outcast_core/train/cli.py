@@ -20,7 +20,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
         "train", help="train a network from a config file (JSON or TOML)",
         description="Train a network. Checkpoints go to ~/.cache/outcast/runs/<run>/; rerunning "
         "the same config resumes from the last checkpoint. Under torchrun "
-        "(torchrun --nproc_per_node=N -m outcast_core.runtime.cli train CONFIG) every process "
+        "(torchrun --nproc_per_node=N -m outcast_core.runtime.cli.main train CONFIG) every process "
         "trains its part of each global batch with DistributedDataParallel.",
     )
     p.add_argument("config", nargs="+",

@@ -53,10 +53,11 @@ class TrainConfig:
             from ``C_o`` and ``R``'s ``S_o`` as the app does; see
             :class:`outcast_core.nets.relight.RelightNet`).
         postprocess_depth: pass ``Z``'s estimates through the app's post-processing
-            (:func:`outcast_core.runtime.depth_post.postprocess_z`: sky prior, guided smoothing)
+            (:func:`outcast_core.runtime.pipeline.depth_post.postprocess_z`: sky prior, guided
+            smoothing)
             before they feed ``S``, ``R`` and ``L``, so training sees what the app computes.
         snap_ground: with ``postprocess_depth``, also snap the estimate's ground to its plane
-            (:func:`outcast_core.runtime.depth_post.snap_ground`, as the app does since
+            (:func:`outcast_core.runtime.pipeline.depth_post.snap_ground`, as the app does since
             2026-11-22); off by default so that earlier configs train as they did.
         resume_from: when this run has no checkpoint yet, continue the named run's checkpoint
             (networks, optimisers, step, wall time) under this config, e.g. to train longer

@@ -18,14 +18,14 @@ from typing import Any
 
 import numpy as np
 
-from outcast_core.runtime.colour import luminance, tonemap_aces
-from outcast_core.runtime.geometry import (
+from outcast_core.runtime.geometry.camera import (
     Camera,
     focal_from_fov,
     normals_from_depth,
     valid_depth,
     view_directions,
 )
+from outcast_core.runtime.geometry.colour import luminance, tonemap_aces
 
 #: Middle grey the auto exposure maps the original image's mean log luminance to.
 KEY = 0.18

@@ -117,10 +117,11 @@ def _postprocessed(
     depth: torch.Tensor, sky: torch.Tensor, image: torch.Tensor,
     focal: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor]:
-    """:func:`~outcast_core.runtime.depth_post.postprocess_z` on each item of a batch; given the
+    """:func:`~outcast_core.runtime.pipeline.depth_post.postprocess_z` on each item of a batch;
+    given the
     focal lengths (``B x 1``, pixels), with the ground snapped to its plane as the app does."""
-    from outcast_core.runtime.depth_post import postprocess_z
-    from outcast_core.runtime.geometry import Camera
+    from outcast_core.runtime.geometry.camera import Camera
+    from outcast_core.runtime.pipeline.depth_post import postprocess_z
 
     ds, ss = [], []
     h, w = depth.shape[-2:]
@@ -140,10 +141,10 @@ def light_ratios(
 ) -> torch.Tensor:
     """Per-item sun/ambient ratio ``B x 3`` as the app estimates it (no gradient).
 
-    :func:`~outcast_core.runtime.relight.estimate_light` on the photo, the refined original
+    :func:`~outcast_core.runtime.pipeline.relight.estimate_light` on the photo, the refined original
     shadow and the sky of the geometry (pixels with zero normals).
     """
-    from outcast_core.runtime.relight import estimate_light_on_surfaces
+    from outcast_core.runtime.pipeline.relight import estimate_light_on_surfaces
 
     out = [
         estimate_light_on_surfaces(image[b].detach().cpu().permute(1, 2, 0).numpy(),

@@ -118,8 +118,8 @@ def test_new_sun_is_kept_across_a_realignment(qtbot, window, photo, settle):
 
 
 def test_undo_preset_and_depth_map(qtbot, window, photo, settle, tmp_path):
-    from outcast_core.runtime.geometry import Camera
-    from outcast_core.runtime.imageio import write_depth
+    from outcast_core.runtime.geometry.camera import Camera
+    from outcast_core.runtime.io.imageio import write_depth
 
     _load(window, photo, settle)
     window.preset_combo.setCurrentIndex(window.preset_combo.findData("balanced"))
@@ -149,8 +149,8 @@ def test_undo_preset_and_depth_map(qtbot, window, photo, settle, tmp_path):
 
 def test_depth_map_in_step_one_after_a_realignment_stays_in_step_one(window, photo, settle,
                                                                     tmp_path):  # fmt: skip
-    from outcast_core.runtime.geometry import Camera
-    from outcast_core.runtime.imageio import write_depth
+    from outcast_core.runtime.geometry.camera import Camera
+    from outcast_core.runtime.io.imageio import write_depth
 
     _load(window, photo, settle)
     _confirm(window, settle)
@@ -447,7 +447,7 @@ def test_timelapse_dialog_offers_sizes_with_pixels_and_an_estimate(window, settl
 def test_frame_size_names_match_the_runtime():
     from app.state import FRAME_SIZE_NAMES
     from app.timelapse_dialog import SIZE_CHOICES
-    from outcast_core.runtime.timelapse import FRAME_SIZES
+    from outcast_core.runtime.pipeline.timelapse import FRAME_SIZES
 
     assert FRAME_SIZE_NAMES == FRAME_SIZES == tuple(k for k, _ in SIZE_CHOICES)
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from app.state import Step
-from outcast_core.runtime import auto_sun
-from outcast_core.runtime.auto_sun import AgreementMap, SunFit
-from outcast_core.runtime.geometry import sun_vector
+from outcast_core.runtime.geometry.camera import sun_vector
+from outcast_core.runtime.pipeline import auto_sun
+from outcast_core.runtime.pipeline.auto_sun import AgreementMap, SunFit
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 

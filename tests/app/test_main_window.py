@@ -18,7 +18,7 @@ from PySide6.QtGui import QDropEvent, QImage
 
 from app import sun_dial_math as dm
 from app.state import Step, project_path_for
-from outcast_core.runtime.session import ground_plane_depth as _plain_ground
+from outcast_core.runtime.pipeline.session import ground_plane_depth as _plain_ground
 
 
 def _bytes(img: QImage) -> bytes:
@@ -87,7 +87,7 @@ def _ground_with_a_box(camera):
 
 
 def test_drag_sun_updates_overlay_live(qtbot, window, photo, settle, monkeypatch):
-    import outcast_core.runtime.session as session_module
+    import outcast_core.runtime.pipeline.session as session_module
 
     monkeypatch.setattr(session_module, "ground_plane_depth", _ground_with_a_box)
     _load(window, photo, settle)
@@ -318,7 +318,8 @@ def test_command_line_and_no_torch():
     args = build_parser().parse_args(["photo.jpg", "--preset", "fast"])
     assert args.path == "photo.jpg" and args.preset == "fast"
     code = (
-        "import sys, app.main_window, app.timelapse_dialog, outcast_core.runtime.timelapse;"
+        "import sys, app.main_window, app.timelapse_dialog;"
+        "import outcast_core.runtime.pipeline.timelapse;"
         "sys.exit(1 if 'torch' in sys.modules else 0)"
     )
     env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
@@ -401,8 +402,8 @@ def test_drag_split_line_on_canvas(qtbot, window, photo, settle):
 def test_depth_map_from_elsewhere_is_used_and_saved(qtbot, window, photo, settle, settings,
                                                      tmp_path):
     from app.main_window import MainWindow
-    from outcast_core.runtime.geometry import Camera
-    from outcast_core.runtime.imageio import write_depth
+    from outcast_core.runtime.geometry.camera import Camera
+    from outcast_core.runtime.io.imageio import write_depth
 
     _load(window, photo, settle)
     assert window.session.depth_source != "given"  # the depth model, or the prior without one

@@ -209,6 +209,6 @@ def test_valid_timelapse_fields_still_load(tmp_path):
 
 def test_easing_names_match_the_runtime():
     from app.state import EASING_NAMES
-    from outcast_core.runtime.timelapse import EASINGS
+    from outcast_core.runtime.pipeline.timelapse import EASINGS
 
     assert EASING_NAMES == EASINGS

@@ -14,7 +14,7 @@ from outcast_core.data.meshes import Mesh, box  # noqa: E402
 from outcast_core.data.props import Material  # noqa: E402
 from outcast_core.data.render import cull_to_frustum, render_view  # noqa: E402
 from outcast_core.data.scene import CameraPose, SceneSpec, Sun, generate_scene  # noqa: E402
-from outcast_core.runtime.geometry import (  # noqa: E402
+from outcast_core.runtime.geometry.camera import (  # noqa: E402
     Camera,
     backproject,
     cosine_term,

@@ -154,7 +154,7 @@ def test_evaluate_table_runs_every_method_on_a_tiny_test_set(tmp_path) -> None:
     no Z here) changes the photo where a zero-head Pix2Pix-like L returns it."""
     from outcast_core.data.dataset import save_view
     from outcast_core.eval.table import evaluate_table
-    from outcast_core.runtime.geometry import sun_angles
+    from outcast_core.runtime.geometry.camera import sun_angles
     from tests.train.conftest import make_view
 
     data = tmp_path / "test"
@@ -186,7 +186,7 @@ def test_evaluate_table_with_z_adds_the_photo_pipeline_rows(tmp_path) -> None:
     true depth (an untrained Z's depth is not the ground truth)."""
     from outcast_core.data.dataset import save_view
     from outcast_core.eval.table import evaluate_table
-    from outcast_core.runtime.geometry import sun_angles
+    from outcast_core.runtime.geometry.camera import sun_angles
     from tests.train.conftest import make_view
 
     data = tmp_path / "test"
@@ -214,7 +214,7 @@ def test_evaluate_depth_scores_z_alone_on_one_sun_views(tmp_path) -> None:
     (no relighting pairs there) and names the missing model file."""
     from outcast_core.data.dataset import save_view
     from outcast_core.eval.table import DEPTH_SCALES, evaluate_depth
-    from outcast_core.runtime.geometry import sun_angles
+    from outcast_core.runtime.geometry.camera import sun_angles
     from tests.train.conftest import make_view
 
     data = tmp_path / "land"

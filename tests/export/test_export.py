@@ -20,7 +20,7 @@ from outcast_core.export.onnx_export import (
     write_manifest,
 )
 from outcast_core.nets import build
-from outcast_core.runtime.models import sha256_file
+from outcast_core.runtime.io.models import sha256_file
 
 
 @pytest.mark.parametrize("kind", sorted(SPECS))
@@ -49,7 +49,7 @@ def test_export_parity_and_manifest(kind: str, tmp_path) -> None:
 
 
 def test_model_input_side_from_the_manifest_or_its_training_config() -> None:
-    from outcast_core.runtime.models import Model
+    from outcast_core.runtime.io.models import Model
 
     def side(manifest: dict) -> int | None:
         return Model("depth", Path("depth.onnx"), manifest, None).input_side
@@ -80,9 +80,9 @@ def test_export_of_relight_with_the_physics_base_takes_the_light_ratio(tmp_path)
 def test_session_relights_with_a_physics_base_l_as_the_physics_mode_does(tmp_path) -> None:
     """An untrained physics-base L (zero head) is the shading-ratio relighting: the session must
     feed it its own light estimate, shadows and sky exactly as its physics mode uses them."""
-    from outcast_core.runtime.models import ModelRegistry
-    from outcast_core.runtime.relight import physics_relight
-    from outcast_core.runtime.session import RelightSession
+    from outcast_core.runtime.io.models import ModelRegistry
+    from outcast_core.runtime.pipeline.relight import physics_relight
+    from outcast_core.runtime.pipeline.session import RelightSession
     from tests.runtime.scenes import box_scene_depth
 
     net = build("relight", base="physics")
@@ -100,7 +100,7 @@ def test_session_relights_with_a_physics_base_l_as_the_physics_mode_does(tmp_pat
     s.colour_guard = False  # compare L's own output (the guard is tested in test_relight)
     s.set_image(image, depth=depth, fov_deg=30.0)
     # Shade the photo by its own shadows so the session measures its light ratio.
-    from outcast_core.runtime.colour import linear_to_srgb, srgb_to_linear
+    from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
 
     shade = 1.0 + np.array([4.0, 3.0, 2.0], np.float32) * s.shadow((-0.5, -0.3, -0.8))[..., None]
     s.set_image(linear_to_srgb(0.15 * srgb_to_linear(s.image_srgb) * shade), depth=depth,

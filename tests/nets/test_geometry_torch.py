@@ -6,7 +6,7 @@ import numpy as np
 import torch
 
 from outcast_core.nets import geometry_torch as gt
-from outcast_core.runtime import geometry as g
+from outcast_core.runtime.geometry import camera as g
 
 
 def _bumpy_depth(h: int, w: int, seed: int) -> np.ndarray:

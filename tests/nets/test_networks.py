@@ -93,8 +93,8 @@ def test_physics_base_is_the_runtimes_shading_ratio_relighting() -> None:
     import numpy as np
 
     from outcast_core.nets.relight import linear_to_srgb, physics_base, srgb_to_linear
-    from outcast_core.runtime import colour
-    from outcast_core.runtime.relight import LightEstimate, physics_relight
+    from outcast_core.runtime.geometry import colour
+    from outcast_core.runtime.pipeline.relight import LightEstimate, physics_relight
 
     g = torch.Generator().manual_seed(3)
     image = torch.rand(1, 3, 24, 32, generator=g)

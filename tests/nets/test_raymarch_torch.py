@@ -7,8 +7,8 @@ import pytest
 import torch
 
 from outcast_core.nets.raymarch_torch import march_volume
-from outcast_core.runtime.geometry import Camera, sun_vector
-from outcast_core.runtime.raymarch import MAX_RATIO, RaySampler
+from outcast_core.runtime.geometry.camera import Camera, sun_vector
+from outcast_core.runtime.geometry.raymarch import MAX_RATIO, RaySampler
 
 SUNS = {
     "front": (0.0, 35.0),

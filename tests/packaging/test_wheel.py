@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pytest
 
-from outcast_core.runtime.models import SOURCE_MODEL_DIR, sha256_file
+from outcast_core.runtime.io.models import SOURCE_MODEL_DIR, sha256_file
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE = ROOT / "samples" / "exif_003_th_pool.jpg"
@@ -82,7 +82,7 @@ def test_wheel_contents(wheel: Path, tmp_path: Path) -> None:
         assert onnx.is_file(), f"{manifest['file']} is not in the wheel"
         assert sha256_file(onnx) == manifest["sha256"]
     assert (shipped / "README.md").is_file()  # the model cards
-    assert "app/resources/outcast.svg" in names and "outcast_core/runtime/cli.py" in names
+    assert "app/resources/outcast.svg" in names and "outcast_core/runtime/cli/main.py" in names
     base = {re.split(r"[ ;<>=!~\[]", r, maxsplit=1)[0].lower() for r in
             _base_requirements(metadata)}
     assert base and not base & TRAINING_SIDE, base
@@ -90,7 +90,7 @@ def test_wheel_contents(wheel: Path, tmp_path: Path) -> None:
     entry = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
     with zipfile.ZipFile(wheel) as zf:
         points = zf.read(entry).decode()
-    assert "outcast = outcast_core.runtime.cli:main" in points
+    assert "outcast = outcast_core.runtime.cli.main:main" in points
     assert "outcast-gui = app.main:main" in points
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from outcast_core.runtime.imageio import write_image
+from outcast_core.runtime.io.imageio import write_image
 
 
 @pytest.fixture

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from outcast_core.runtime.geometry import Camera
+from outcast_core.runtime.geometry.camera import Camera
 
 XMP_SIG = b"http://ns.adobe.com/xap/1.0/\x00"
 EXT_SIG = b"http://ns.adobe.com/xmp/extension/\x00"

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from outcast_core.runtime.geometry import Camera, normals_from_depth, sun_vector
+from outcast_core.runtime.geometry.camera import Camera, normals_from_depth, sun_vector
 
 
 def make_view(seed: int, size: int = 32, suns: int = 3) -> dict:

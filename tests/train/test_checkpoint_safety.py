@@ -30,7 +30,7 @@ def test_a_checkpoint_that_runs_code_is_refused(tmp_path) -> None:
 
 
 def test_the_export_and_eval_commands_refuse_it_in_one_line(tmp_path, capsys) -> None:
-    from outcast_core.runtime.cli import main
+    from outcast_core.runtime.cli.main import main
 
     marker = tmp_path / "pwned"
     path = tmp_path / "evil.pt"

@@ -157,7 +157,7 @@ def test_two_processes_match_one_with_the_same_global_batch(tmp_path) -> None:
         env.setdefault("GLOO_SOCKET_IFNAME", "lo")
     cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node=2", "--nnodes=1",
            "--master_addr=127.0.0.1", f"--master_port={_free_port()}",
-           "-m", "outcast_core.runtime.cli", "train", *map(str, paths), "--no-progress"]
+           "-m", "outcast_core.runtime.cli.main", "train", *map(str, paths), "--no-progress"]
     out = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     assert out.stdout.count('"step"') == 3  # rank 0 alone reports, once per config

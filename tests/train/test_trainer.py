@@ -222,7 +222,7 @@ def test_relight_physics_base_and_postprocessed_depth_reach_the_step(fake_views)
     forward = tr.nets["relight"].forward
     tr.nets["relight"].forward = lambda *a: args.append(a) or forward(*a)
     calls: list[int] = []
-    import outcast_core.runtime.depth_post as dp
+    import outcast_core.runtime.pipeline.depth_post as dp
 
     real = dp.postprocess_z
     dp.postprocess_z = lambda *a: calls.append(1) or real(*a)
@@ -349,7 +349,7 @@ def test_snap_ground_gives_postprocess_z_each_items_camera(fake_views) -> None:
     views = [dataclasses.replace(v, focal=v.focal * (0.8 + 0.2 * i))  # a focal each
              for i, v in enumerate(views)]
     cams: list = []
-    import outcast_core.runtime.depth_post as dp
+    import outcast_core.runtime.pipeline.depth_post as dp
 
     real = dp.postprocess_z
     dp.postprocess_z = lambda *a: cams.append(a[3] if len(a) > 3 else None) or real(*a)

@@ -1,0 +1,1 @@
+"""The ``outcast`` command line (:mod:`outcast_core.runtime.cli.main`) and its sub-commands."""

@@ -1,0 +1,82 @@
+"""``outcast sun IMAGE [--json]``: the photo's sun from its shadows (and its EXIF).
+
+Prints the sun's azimuth and elevation relative to the camera and a confidence; with no clear
+shadows in the photo it says so instead of guessing (and, with ``--json``, gives the best guess
+under ``best_guess`` with ``azimuth`` and ``elevation`` null), unless the EXIF's compass heading
+gives a full sun. See :mod:`outcast_core.runtime.pipeline.auto_sun`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+
+def cmd_sun(args: argparse.Namespace) -> int:
+    """Run :func:`~outcast_core.runtime.pipeline.auto_sun.find_sun` on one photo and print the
+    result."""
+    from outcast_core.runtime.cli.main import _load, _make_session, _say, _set_image
+    from outcast_core.runtime.io.camera_pose import read_camera_pose
+    from outcast_core.runtime.pipeline.auto_sun import exif_sun_prior, find_sun
+
+    loaded = _load(args.image)
+    session = _make_session(args, shadow_mode=args.mode)
+    _set_image(session, loaded, args)
+    prior = None if args.no_exif else exif_sun_prior(loaded.exif)
+    pose = None if args.no_exif else read_camera_pose(args.image)
+    fit = find_sun(session, prior=prior, pitch_roll=pose)
+    sure = fit.found or fit.source == "EXIF"
+    if args.json:
+        out: dict[str, Any] = fit.as_dict()
+        out["image"] = str(args.image)
+        out["depth_source"] = str(session.depth_source)
+        out["best_guess"] = [out["azimuth"], out["elevation"]]
+        if not sure:
+            out["azimuth"] = out["elevation"] = None
+        out["exif_elevation"] = None if prior is None else round(prior.elevation, 2)
+        out["exif_azimuth"] = (None if prior is None or prior.azimuth is None
+                               else round(prior.azimuth, 2))
+        print(json.dumps(out, indent=2, ensure_ascii=False))
+        return 0
+    if sure:
+        print(f"azimuth {fit.azimuth:.1f}  elevation {fit.elevation:.1f}  "
+              f"confidence {fit.confidence:.2f}")
+    else:
+        print(fit.note)
+    said = fit.note if sure else (f"best guess: azimuth {fit.azimuth:.1f}, elevation "
+                                  f"{fit.elevation:.1f}")
+    _say(args, f"{said} · source: {fit.source} · depth: {session.depth_source} · "
+               f"{fit.evaluations} suns tried in {fit.seconds:.2f} s")
+    return 0
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add ``outcast sun`` to the ``outcast`` command line."""
+    from outcast_core.runtime.cli.main import _fov
+
+    p = sub.add_parser("sun", help="find the photo's sun from its shadows (and its EXIF GPS, "
+                                   "time and heading)")
+    p.add_argument("image")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--no-exif", action="store_true",
+                   help="ignore the photo's GPS, time, heading and camera pitch/roll (shadows "
+                        "only)")
+    p.add_argument("--mode", choices=["auto", "direct", "learned"], default="auto",
+                   help="predicted shadows: learned S network (default when installed) or Direct")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--depth", help="depth map (.npy float32 H x W, 16-bit PNG or .exr) "
+                                   "to use instead of the depth model")
+    g.add_argument("--depth-model", metavar="MODEL.onnx",
+                   help="a monocular ONNX depth model to use instead of the shipped one")
+    p.add_argument("--no-phone-depth", action="store_true",
+                   help="ignore a depth map stored inside the photo (phone portrait photos)")
+    p.add_argument("--fov", type=_fov, default=None,
+                   help="horizontal field of view in degrees (default: EXIF, else 60)")
+    p.add_argument("--preset", choices=["fast", "balanced", "accurate"], default="balanced",
+                   help="speed/accuracy preset")
+    p.add_argument("-q", "--quiet", action="store_true", help="print only the result")
+    p.set_defaults(func=cmd_sun)
+
+
+__all__ = ["cmd_sun", "register"]

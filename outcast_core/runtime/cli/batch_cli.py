@@ -1,0 +1,220 @@
+"""``outcast batch IN_DIR -o OUT_DIR``: relight, de-shadow or time-lapse every photo of a folder.
+
+Registered by :data:`outcast_core.runtime.cli.main.OPTIONAL_COMMANDS`; the work is
+:mod:`outcast_core.runtime.pipeline.batch`. One line per photo as it finishes (``-q``: only
+failures), a
+summary at the end; exit status 0 when every photo is done or was already done, 2 when one
+failed (the rest are still done). Running the same command again resumes a batch.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from outcast_core.runtime.cli.main import int_in
+from outcast_core.runtime.pipeline.batch import (
+    FORMATS,
+    SUN_SOURCES,
+    BatchOptions,
+    JobResult,
+    plan_batch,
+    read_targets_csv,
+    run_batch,
+    summarize,
+)
+
+
+def _sun(text: str) -> tuple[float, float]:
+    """``AZ,EL`` at or above the horizon (the rules of ``outcast relight``)."""
+    from outcast_core.runtime.cli.main import parse_azel
+
+    try:
+        parse_azel(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    az, el = (float(p) for p in text.split(","))
+    return az, el
+
+
+def _sweep(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"expected AZ1,EL1:AZ2,EL2, got {text!r}")
+    return _sun(parts[0]), _sun(parts[1])
+
+
+def _sources(text: str) -> tuple[str, ...]:
+    names = tuple(s.strip() for s in text.split(",") if s.strip())
+    bad = [s for s in names if s not in SUN_SOURCES]
+    if not names or bad:
+        raise argparse.ArgumentTypeError(
+            f"expected sources from {', '.join(SUN_SOURCES)} separated by commas, got {text!r}")
+    return names
+
+
+def register(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``outcast batch`` to an argparse sub-parser set.
+
+    Args:
+        subparsers: the object returned by ``ArgumentParser.add_subparsers()``.
+
+    Returns:
+        The ``batch`` parser.
+    """
+    from outcast_core.runtime.cli.timelapse_cli import frame_count
+    from outcast_core.runtime.pipeline.timelapse import EASINGS, FRAME_SIZES
+
+    p = subparsers.add_parser(
+        "batch", help="relight, de-shadow or time-lapse every photo of a folder",
+        description="Processes every photo in IN_DIR (not its sub-folders) into OUT_DIR/NAME.FMT. "
+        "Each photo's original sun comes from the first of --sources that has one: its project "
+        "file NAME.outcast.json (the sun confirmed in the app), its EXIF (GPS, time and "
+        "heading), --from, or the automatic sun (when it is confident). The new sun is --to, "
+        "a row of --targets, or the project's. "
+        "Finished outputs are skipped (run again to resume; --force redoes them); one photo's "
+        "failure is reported and the others are done (exit status 2).",
+    )
+    p.add_argument("folder", metavar="IN_DIR", help="folder of photos")
+    p.add_argument("-o", "--output", required=True, metavar="OUT_DIR", help="output folder")
+    what = p.add_mutually_exclusive_group()
+    what.add_argument("--deshadow", action="store_true",
+                      help="write each photo with its own shadows removed")
+    what.add_argument("--sweep", type=_sweep, metavar="AZ1,EL1:AZ2,EL2",
+                      help="write a time-lapse of each photo, the sun swept A -> B")
+    what.add_argument("--day", action="store_true",
+                      help="write a time-lapse of each photo along the real sun path of its "
+                           "capture day (needs EXIF GPS and time)")
+    p.add_argument("--to", dest="to_sun", type=_sun, metavar="AZ,EL",
+                   help="the new sun for every photo (relighting)")
+    p.add_argument("--targets", metavar="CSV",
+                   help="a table with columns image,to_az,to_el[,from_az,from_el][,output]: "
+                        "the photos to do and their suns")
+    p.add_argument("--from", dest="from_sun", type=_sun, metavar="AZ,EL",
+                   help="the original sun of photos with no project file or EXIF sun")
+    p.add_argument("--sources", type=_sources, default=SUN_SOURCES, metavar="LIST",
+                   help="where original suns come from, in order (default "
+                        f"{','.join(SUN_SOURCES)}; 'given' is --from, 'auto' the automatic sun)")
+    p.add_argument("--format", dest="fmt", default="", metavar="FMT",
+                   help="output format: jpg, png, tif (16-bit) or webp for stills (default "
+                        "jpg); mp4, gif or webp for time-lapses (default mp4)")
+    p.add_argument("--frames", type=frame_count, default=48, help="time-lapse frames (default 48)")
+    p.add_argument("--easing", choices=EASINGS, default="ease-in-out",
+                   help="time-lapse sweep easing")
+    p.add_argument("--fps", type=float, default=12.0, help="time-lapse frames per second")
+    p.add_argument("--size", choices=FRAME_SIZES, default="1080p",
+                   help="time-lapse frame size (default 1080p)")
+    p.add_argument("--preset", choices=["fast", "balanced", "accurate"], default="balanced",
+                   help="speed/accuracy preset")
+    p.add_argument("--mode", choices=["auto", "learned", "classic"], default="auto",
+                   help="learned networks (default when installed) or Direct + physics")
+    p.add_argument("--depth-model", metavar="MODEL.onnx", default=None,
+                   help="an ONNX depth model to use instead of the shipped one")
+    p.add_argument("--no-phone-depth", action="store_true",
+                   help="ignore depth maps stored inside the photos")
+    p.add_argument("--workers", type=int_in(1, 256, "worker count"), default=1,
+                   help="worker processes (default 1); the cores are shared among them")
+    p.add_argument("--report", metavar="REPORT.json", default="",
+                   help="also write every photo's result (sun, source, time, error) as JSON")
+    p.add_argument("--force", action="store_true", help="redo photos whose output exists")
+    p.add_argument("-q", "--quiet", action="store_true", help="print only failures")
+    p.set_defaults(func=run_batch_command, check_output=check_batch_output)
+    return p
+
+
+def _options(args: argparse.Namespace) -> BatchOptions:
+    kind = "deshadow" if args.deshadow else "timelapse" if (args.sweep or args.day) else "relight"
+    if args.fmt and args.fmt.lower().lstrip(".") not in FORMATS[kind]:
+        raise ValueError(f"expected --format in {', '.join(FORMATS[kind])} for {kind}, got "
+                         f"{args.fmt!r}")
+    if "given" in args.sources and args.from_sun is None and args.sources == ("given",):
+        raise ValueError("expected --from AZ,EL with --sources given")
+    return BatchOptions(
+        kind=kind, sources=args.sources, from_sun=args.from_sun, to_sun=args.to_sun,
+        fmt=args.fmt, preset=args.preset, mode=args.mode, depth_model=args.depth_model,
+        use_phone_depth=not args.no_phone_depth, sweep=args.sweep, day=args.day,
+        frames=args.frames, easing=args.easing, fps=args.fps, size=args.size, force=args.force)
+
+
+def check_batch_output(args: argparse.Namespace) -> None:
+    """Before any work: IN_DIR is a folder, OUT_DIR is not it and can be made or written."""
+    from outcast_core.runtime.cli.main import CliError, check_output_path
+
+    folder, out = Path(args.folder).expanduser(), Path(args.output).expanduser()
+    if not folder.is_dir():
+        raise CliError(f"'{args.folder}' is not a folder")
+    if out.exists() and not out.is_dir():
+        raise CliError(f"cannot write into '{args.output}': it is a file, not a folder")
+    if out.exists() and out.resolve() == folder.resolve():
+        raise CliError("expected an output folder other than the input folder (the outputs "
+                       "have the photos' names)")
+    if args.report:
+        check_output_path(args.report, extensions=(".json",), force=args.force)
+    if args.fps <= 0 or args.fps > 60:
+        raise CliError(f"expected --fps in (0, 60], got {args.fps:g}")
+
+
+def _line(r: JobResult, index: int, total: int) -> str:
+    name = Path(r.image).name
+    head = f"[{index:>{len(str(total))}}/{total}] {name}"
+    if r.status == "failed":
+        return f"{head}: failed: {r.message}"
+    if r.status == "skipped":
+        return f"{head}: skipped: {r.message}"
+    sun = f"sun {r.from_sun[0]:.1f},{r.from_sun[1]:.1f} from {r.sun_source}" if r.from_sun else ""
+    to = f" -> {r.to_sun[0]:g},{r.to_sun[1]:g}" if r.to_sun else ""
+    return f"{head} -> {Path(r.output).name} ({sun}{to}; {r.seconds:.1f} s)"
+
+
+def run_batch_command(args: argparse.Namespace) -> int:
+    """Handler of ``outcast batch``; returns 0, or 2 when a photo failed."""
+    options = _options(args)
+    targets = read_targets_csv(args.targets) if args.targets else None
+    out_dir = Path(args.output).expanduser()
+    jobs, early = plan_batch(args.folder, out_dir, options, targets)
+    total = len(jobs) + len(early)
+    if total == 0:
+        raise ValueError(f"no photos in '{args.folder}' (expected JPEG, PNG, TIFF, WebP, HEIC "
+                         "or BMP files)")
+    if options.kind == "relight" and options.to_sun is None and targets is None and jobs:
+        print("outcast batch: note: no --to or --targets: each photo's project gives the new "
+              "sun", file=sys.stderr)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    count = 0
+    t0 = time.perf_counter()
+
+    def show(r: JobResult) -> None:
+        nonlocal count
+        count += 1
+        if r.status == "failed" or not args.quiet:
+            print(_line(r, count, total), file=sys.stderr, flush=True)
+
+    for r in early:
+        show(r)
+    if jobs and not args.quiet:
+        print(f"processing {len(jobs)} photo{'s' if len(jobs) != 1 else ''} ({options.kind}) "
+              f"with {min(args.workers, len(jobs))} worker(s)", file=sys.stderr, flush=True)
+    results = early + run_batch(jobs, options, workers=args.workers, on_result=show)
+    counts = summarize(results)
+    seconds = time.perf_counter() - t0
+    if args.report:
+        from outcast_core.runtime.io.imageio import atomic_output
+
+        data = {"options": {k: v for k, v in vars(options).items()},
+                "counts": counts, "seconds": round(seconds, 2),
+                "results": [vars(r) for r in results]}
+        with atomic_output(args.report, force=args.force, make_parents=True) as tmp:
+            tmp.write_text(json.dumps(data, indent=2, default=list) + "\n", encoding="utf-8")
+    if not args.quiet or counts["failed"]:
+        print(f"{counts['done']} done, {counts['skipped']} skipped (already done), "
+              f"{counts['failed']} failed in {seconds:.1f} s", file=sys.stderr)
+    if counts["failed"]:
+        failed = [Path(r.image).name for r in results if r.status == "failed"]
+        print(f"outcast batch: error: {counts['failed']} of {total} photos failed: "
+              f"{', '.join(failed[:10])}{' ...' if len(failed) > 10 else ''}", file=sys.stderr)
+        return 2
+    return 0

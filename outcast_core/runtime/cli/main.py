@@ -1,0 +1,530 @@
+"""The ``outcast`` command line.
+
+Runtime commands (``shadow``, ``relight``, ``depth``, ``timelapse``) import only the runtime.
+Commands of the training side (``data``, ``train``, ``export``, ``eval``) are registered from their
+packages only when those import (they need torch / mitsuba, installed with ``.[dev]``).
+Errors exit with status 2 and one readable line on stderr, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import math
+import os
+import signal
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from outcast_core.runtime.geometry.camera import normalize_sun, sun_vector
+
+#: Optional command groups: (module, function adding sub-commands). Missing ones are skipped.
+OPTIONAL_COMMANDS: list[tuple[str, str]] = [
+    ("outcast_core.runtime.cli.timelapse_cli", "register"),
+    ("outcast_core.runtime.cli.real_eval_cli", "register"),
+    ("outcast_core.runtime.cli.auto_sun_cli", "register"),
+    ("outcast_core.runtime.cli.models_cli", "register"),
+    ("outcast_core.runtime.cli.batch_cli", "register"),
+    ("outcast_core.data.cli", "register"),
+    ("outcast_core.train.cli", "register"),
+    ("outcast_core.export.cli", "register"),
+    ("outcast_core.eval.cli", "register"),
+]
+
+#: Working resolution for ``outcast shadow`` / ``depth`` unless ``--size`` says otherwise.
+DEFAULT_CLI_PRESET = "balanced"
+
+
+#: Most Direct march steps ``--steps`` accepts (4 steps per pixel at the accurate preset's
+#: 512 px; 100 000 steps took a minute).
+MAX_DIRECT_STEPS = 2048
+
+
+class CliError(Exception):
+    """A user-facing error: printed as one line, exit status 2."""
+
+
+class Terminated(KeyboardInterrupt):
+    """Raised by the SIGTERM handler so every ``finally`` and context manager cleans up."""
+
+
+#: A sun below the horizon lights nothing directly; OutCast renders sunlight and its cast
+#: shadows, not twilight, so ``--sun``, ``--from`` and ``--to`` refuse it (time-lapse paths that
+#: dip below the horizon render those frames with the sun at the horizon instead).
+BELOW_HORIZON = (
+    "expected a sun at or above the horizon (elevation 0 to 90), got {text!r}: OutCast renders "
+    "sunlight and cast shadows, not twilight; use elevation 0 for the lowest sun"
+)
+
+
+def parse_azel(text: str) -> np.ndarray:
+    """``"AZ,EL"`` in degrees (elevation 0-90: a sun below the horizon is refused) -> camera-space
+    unit sun vector."""
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise ValueError(f"expected AZ,EL in degrees (e.g. 135,40), got {text!r}")
+    try:
+        az, el = (float(p) for p in parts)
+    except ValueError as exc:
+        raise ValueError(f"expected AZ,EL in degrees (e.g. 135,40), got {text!r}") from exc
+    if not (math.isfinite(az) and math.isfinite(el)) or not -90.0 <= el <= 90.0:
+        raise ValueError(
+            f"expected AZ,EL with a finite azimuth and an elevation in [-90, 90], got {text!r}"
+        )
+    if el < 0.0:
+        raise ValueError(BELOW_HORIZON.format(text=text))
+    return sun_vector(az, el)
+
+
+def parse_vector(text: str) -> np.ndarray:
+    """``"X,Y,Z"`` -> normalised camera-space sun vector."""
+    parts = text.split(",")
+    if len(parts) != 3:
+        raise ValueError(f"expected X,Y,Z (camera space, toward the sun), got {text!r}")
+    try:
+        v = [float(p) for p in parts]
+    except ValueError as exc:
+        raise ValueError(f"expected X,Y,Z (camera space, toward the sun), got {text!r}") from exc
+    return normalize_sun(v)
+
+
+def _sun_from_args(args: argparse.Namespace) -> np.ndarray:
+    if args.sun is not None:
+        return parse_azel(args.sun)
+    return parse_vector(args.sun_dir)
+
+
+def _load(path: str, max_pixels: int | None = None):  # -> LoadedImage
+    from outcast_core.runtime.io.imageio import read_image
+
+    return read_image(path, max_pixels=max_pixels)
+
+
+def _make_session(args: argparse.Namespace, *, shadow_mode: str, relight_mode: str = "auto"):
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    thickness = getattr(args, "thickness", math.inf)
+    return RelightSession(
+        preset=args.preset, shadow_mode=shadow_mode, relight_mode=relight_mode,
+        thickness=thickness, refine=getattr(args, "refine", "photo"),
+    )
+
+
+def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:
+    """Give the session ``--depth-model``, else the photo's own depth map (unless
+    ``--no-phone-depth``); a broken embedded map is said in one line and the depth model used."""
+    if getattr(args, "depth", None):
+        return  # a depth file replaces every estimate
+    from outcast_core.runtime.io.depth_models import pick_depth_source
+
+    width, height = loaded.original_size
+    provider, note = pick_depth_source(
+        loaded.path, (height, width), model_path=getattr(args, "depth_model", None),
+        use_phone=not getattr(args, "no_phone_depth", False), photo_srgb=loaded.image_srgb,
+    )
+    if note:
+        _say(args, f"note: {note}; using the depth model")
+    session.depth_provider = provider
+
+
+def _set_image(session, loaded, args: argparse.Namespace) -> None:
+    depth = None
+    if getattr(args, "depth", None):
+        from outcast_core.runtime.io.imageio import read_depth
+
+        depth = read_depth(args.depth)
+    _set_depth_source(session, loaded, args)
+    focal35 = None if args.fov is not None else loaded.exif.focal_35mm
+    session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth)
+
+
+def _say(args: argparse.Namespace, text: str) -> None:
+    if not getattr(args, "quiet", False):
+        print(text, file=sys.stderr)
+
+
+def cmd_shadow(args: argparse.Namespace) -> int:
+    from outcast_core.runtime.io.imageio import write_shadow_png
+    from outcast_core.runtime.pipeline.session import PRESETS
+
+    w = _sun_from_args(args)
+    preset = PRESETS[args.preset]
+    loaded = _load(args.image, max_pixels=4 * preset.working_size**2)
+    session = _make_session(args, shadow_mode=args.mode)
+    if args.steps is not None and session.shadow_mode != "direct":
+        _say(args, f"note: --steps applies to Direct shadows only; {session.shadow_mode} "
+                   f"shadows use the preset's {preset.steps} steps")
+    if args.steps is not None and session.shadow_mode == "direct":
+        from outcast_core.runtime.pipeline.session import Preset
+
+        session.preset = Preset(
+            "custom", preset.working_size, args.steps, 1.0 / args.steps, preset.preview_size,
+            preset.preview_steps,
+        )
+    _set_image(session, loaded, args)
+    t0 = time.perf_counter()
+    shadow = session.shadow(w)
+    write_shadow_png(args.output, shadow, force=args.force)
+    _say(args, f"wrote {args.output} ({shadow.shape[1]}x{shadow.shape[0]}, "
+               f"{session.shadow_mode} shadows, depth: {session.depth_source}, "
+               f"{time.perf_counter() - t0:.2f} s)")
+    return 0
+
+
+def cmd_relight(args: argparse.Namespace) -> int:
+    from outcast_core.runtime.io.imageio import write_image
+
+    w_from = parse_azel(args.from_sun)
+    w_to = parse_azel(args.to_sun)
+    from outcast_core.runtime.io.imageio import read_image
+
+    bit_depth = 16 if Path(args.output).suffix.lower() in {".tif", ".tiff"} else 8
+    loaded = read_image(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit end to end
+    session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
+    _set_image(session, loaded, args)
+    session.set_original_sun(w_from)
+    out = session.relight_full(w_to, dtype=np.uint8 if bit_depth == 8 else np.float32)
+    exif = loaded.exif_bytes if bit_depth == 8 else None  # GPS and time, as the app's export
+    write_image(args.output, out, bit_depth=bit_depth, force=args.force, exif=exif)
+    t = session.timings
+    _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows: "
+               f"{session.shadow_mode}, refinement: {session.refinement}, "
+               f"relighting: {session.relight_mode}, depth: "
+               f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
+         + ")")
+    return 0
+
+
+def cmd_deshadow(args: argparse.Namespace) -> int:
+    from outcast_core.runtime.io.imageio import write_image, write_shadow_png
+
+    w_from = parse_azel(args.from_sun)
+    if args.mask:  # the main output is checked before the work by _check_output
+        check_output_path(args.mask, extensions=(".png",), force=args.force,
+                          inputs=[args.image, args.depth, args.output])
+    loaded = _load(args.image)
+    session = _make_session(args, shadow_mode="auto")
+    _set_image(session, loaded, args)
+    session.set_original_sun(w_from)
+    out = session.deshadow_full()
+    bit_depth = 16 if Path(args.output).suffix.lower() in {".tif", ".tiff"} else 8
+    write_image(args.output, out, bit_depth=bit_depth, force=args.force,
+                exif=loaded.exif_bytes)
+    if args.mask:
+        write_shadow_png(args.mask, session.shadow_probability, force=args.force)
+    t = session.timings
+    _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows found at the "
+               f"photo's sun with {session.shadow_mode} S as the prior, depth: "
+               f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
+         + ")")
+    return 0
+
+
+def cmd_depth(args: argparse.Namespace) -> int:
+    from outcast_core.runtime.io.imageio import write_depth
+    from outcast_core.runtime.io.models import ModelRegistry
+    from outcast_core.runtime.pipeline.session import PRESETS, RelightSession
+
+    registry = ModelRegistry()
+    preset = PRESETS[args.preset]
+    loaded = _load(args.image, max_pixels=4 * preset.working_size**2)
+    session = RelightSession(registry=registry, preset=args.preset, shadow_mode="direct",
+                             relight_mode="physics")
+    _set_depth_source(session, loaded, args)
+    if session.depth_provider is None:
+        registry.load("depth")  # ModelError naming the file when the model is missing or corrupt
+    focal35 = None if args.fov is not None else loaded.exif.focal_35mm
+    session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35)
+    depth = np.where(session.sky, np.inf, session.depth).astype(np.float32)
+    write_depth(args.output, depth, force=args.force)
+    _say(args, f"wrote {args.output} ({depth.shape[1]}x{depth.shape[0]}, sky = inf; depth: "
+               f"{session.depth_source}, {session.timings.get('depth', 0.0):.2f} s)")
+    return 0
+
+
+def _add_common(p: argparse.ArgumentParser, *, depth: bool = True) -> None:
+    g = p.add_mutually_exclusive_group()
+    if depth:
+        g.add_argument("--depth", help="depth map (.npy float32 H x W, 16-bit PNG or .exr) "
+                                       "to use instead of the depth model")
+    g.add_argument("--depth-model", metavar="MODEL.onnx",
+                   help="a monocular ONNX depth model to use instead of the shipped one "
+                        "(Depth Anything, MiDaS, ...; settings in MODEL.onnx.json)")
+    p.add_argument("--no-phone-depth", action="store_true",
+                   help="ignore a depth map stored inside the photo (phone portrait photos)")
+    p.add_argument("--fov", type=_fov, default=None,
+                   help="horizontal field of view in degrees (default: EXIF, else 60)")
+    p.add_argument("--preset", choices=["fast", "balanced", "accurate"],
+                   default=DEFAULT_CLI_PRESET, help="speed/accuracy preset")
+    p.add_argument("-o", "--output", required=True, help="output file")
+    p.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
+
+
+def build_parser(
+    optional: Sequence[tuple[str, str]] = OPTIONAL_COMMANDS,
+) -> argparse.ArgumentParser:
+    """The ``outcast`` argument parser (optional command groups added when importable)."""
+    parser = argparse.ArgumentParser(
+        prog="outcast", description="Relight outdoor photographs with correct cast shadows."
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    p = sub.add_parser(
+        "shadow", help="write the shadow image (16-bit grey PNG at the working resolution)"
+    )
+    p.add_argument("image")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--sun", help="AZ,EL in degrees relative to the camera")
+    g.add_argument("--sun-dir", help="X,Y,Z camera-space vector toward the sun "
+                                     "(write --sun-dir=-X,Y,Z when X is negative)")
+    p.add_argument("--mode", choices=["auto", "direct", "learned"], default="auto",
+                   help="learned S network (default when installed) or Direct ray marching")
+    p.add_argument("--thickness", default=math.inf, type=_thickness,
+                   help="Direct occluder thickness relative to depth, or 'inf' (default)")
+    p.add_argument("--steps", type=_direct_steps, default=None,
+                   help=f"Direct march steps across one image side, 1..{MAX_DIRECT_STEPS} "
+                        "(default: from the preset; --mode direct only)")
+    _add_common(p)
+    p.set_defaults(func=cmd_shadow)
+
+    p = sub.add_parser("relight", help="relight a photo from its original sun to a new one")
+    p.add_argument("image")
+    p.add_argument("--from", dest="from_sun", required=True, metavar="AZ,EL",
+                   help="the photo's original sun")
+    p.add_argument("--to", dest="to_sun", required=True, metavar="AZ,EL", help="the new sun")
+    p.add_argument("--mode", choices=["auto", "physics", "learned"], default="auto",
+                   help="learned relighting (default when installed) or physics ratios")
+    p.add_argument("--refine", choices=["photo", "learned"], default="photo",
+                   help="how the photo's own shadows are found at its sun: from the photo with "
+                   "the predicted shadows as the prior (default), or the learned R network")
+    p.add_argument("--shadows", choices=["auto", "direct", "learned"], default="auto",
+                   help="shadow method (default: learned when installed, else Direct)")
+    p.add_argument("--thickness", default=math.inf, type=_thickness, help=argparse.SUPPRESS)
+    _add_common(p)
+    p.set_defaults(func=cmd_relight)
+
+    p = sub.add_parser("deshadow", help="lift the photo's own shadows (found at its sun)")
+    p.add_argument("image")
+    p.add_argument("--from", dest="from_sun", required=True, metavar="AZ,EL",
+                   help="the photo's sun (the shadows are found where it can cast them)")
+    p.add_argument("--mask", default="",
+                   help="also write the found shadows as a 16-bit grey PNG (white = shadow)")
+    _add_common(p)
+    p.set_defaults(func=cmd_deshadow)
+
+    p = sub.add_parser("depth", help="estimate depth (the photo's own map, --depth-model or the "
+                                     "shipped depth model)")
+    p.add_argument("image")
+    _add_common(p, depth=False)
+    p.set_defaults(func=cmd_depth)
+
+    for module, func in optional:
+        try:
+            mod = importlib.import_module(module)
+        except ImportError:
+            continue
+        register: Callable[[argparse._SubParsersAction], None] = getattr(mod, func)
+        register(sub)
+    return parser
+
+
+def _thickness(text: str) -> float:
+    from outcast_core.runtime.geometry.shadows import parse_thickness
+
+    try:
+        return parse_thickness(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from exc
+
+
+def int_in(low: int, high: int, what: str) -> Callable[[str], int]:
+    """An argparse ``type`` accepting an integer in ``[low, high]``, or saying the range.
+
+    Example:
+        >>> int_in(1, 4, "worker count")("3")
+        3
+    """
+    def parse(text: str) -> int:
+        try:
+            n = int(text)
+        except ValueError:
+            n = low - 1
+        if not low <= n <= high:
+            raise argparse.ArgumentTypeError(f"expected a {what} in [{low}, {high}], got {text!r}")
+        return n
+
+    return parse
+
+
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from exc
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return n
+
+
+def _direct_steps(text: str) -> int:
+    n = _positive_int(text)
+    if n > MAX_DIRECT_STEPS:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_DIRECT_STEPS} steps, got {n}")
+    return n
+
+
+def _fov(text: str) -> float:
+    try:
+        fov = float(text)
+    except ValueError:
+        fov = math.nan
+    if not (math.isfinite(fov) and 0.0 < fov < 180.0):
+        raise argparse.ArgumentTypeError(
+            f"expected a field of view in (0, 180) degrees, got {text!r}"
+        )
+    return fov
+
+
+def _output_extensions(command: str) -> tuple[str, ...] | None:
+    """The extensions ``command`` writes, or None for a command this module does not check."""
+    from outcast_core.runtime.io.imageio import DEPTH_EXTENSIONS, WRITE_EXTENSIONS
+
+    return {"shadow": (".png",), "relight": tuple(WRITE_EXTENSIONS),
+            "deshadow": tuple(WRITE_EXTENSIONS), "depth": tuple(DEPTH_EXTENSIONS)}.get(command)
+
+
+def check_output_path(
+    output: str,
+    *,
+    extensions: Sequence[str] | None,
+    force: bool,
+    inputs: Sequence[str | None] = (),
+    folder_ok: bool = False,
+) -> Path:
+    """Check, before any work, that ``output`` can be written; return it as a ``Path``.
+
+    Args:
+        output: the output file as the user typed it (missing folders are allowed: the
+            caller creates them).
+        extensions: accepted lower-case extensions, or None to accept any.
+        force: whether an existing file may be replaced.
+        inputs: input files; the output may never be one of them, even with ``force``.
+        folder_ok: the output is a folder (PNG frames): an existing folder is like a file.
+
+    Raises:
+        CliError: wrong extension, a folder, an input file, a parent that is a file, or a
+            folder that cannot be written.
+        FileExistsError: the file exists and ``force`` is False.
+    """
+    path = Path(output).expanduser()
+    if extensions is not None and path.suffix.lower() not in extensions:
+        raise CliError(f"cannot write '{output}': expected an extension in "
+                       f"{', '.join(extensions)}, got '{path.suffix}'")
+    if path.is_dir() and not folder_ok:
+        raise CliError(f"cannot write '{output}': it is a folder")
+    if path.exists() and not path.is_dir() and not path.is_file():
+        raise CliError(f"cannot write '{output}': it is not a regular file (a device or pipe)")
+    for source in inputs:
+        if source and path.exists() and Path(source).exists() and os.path.samefile(path, source):
+            raise CliError(f"cannot write '{output}': it is the input file '{source}'; "
+                           "choose another output name")
+    if path.exists() and not force:
+        raise FileExistsError(f"'{output}' already exists; use --force to overwrite it")
+    folder = path.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        raise CliError(f"cannot write '{output}': '{folder}' is a file, not a folder")
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        raise CliError(f"cannot write '{output}': folder '{folder}' is not writable "
+                       f"({exc.strerror or exc})") from exc
+    return path
+
+
+def _check_output(args: argparse.Namespace) -> None:
+    """:func:`check_output_path` for the commands whose outputs this module knows.
+
+    A command registered elsewhere can set its own check with
+    ``parser.set_defaults(check_output=fn)``; ``fn(args)`` then runs instead.
+    """
+    custom = getattr(args, "check_output", None)
+    if custom is not None:
+        custom(args)
+        return
+    output = getattr(args, "output", None)
+    extensions = _output_extensions(args.command)
+    if isinstance(output, str) and output and extensions is not None:
+        check_output_path(output, extensions=extensions, force=args.force,
+                          inputs=[getattr(args, "image", None), getattr(args, "depth", None),
+                                  getattr(args, "depth_model", None)])
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated()
+
+
+def _catch_sigterm() -> object:
+    """Turn SIGTERM into :class:`Terminated` (main thread only); returns the old handler."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _on_sigterm)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``outcast``; returns the exit status.
+
+    While a command runs, SIGTERM raises :class:`Terminated` (a ``KeyboardInterrupt``), so
+    temporary and partial files are removed as on Ctrl+C; the exit status is then 143.
+    """
+    from outcast_core.runtime.io.models import ModelError
+
+    parser = build_parser()
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:2] == ["eval", "real"]:
+        # ``outcast eval real DIR`` (runtime only) beside ``outcast eval`` (synthetic, torch).
+        argv = ["eval-real", *argv[2:]]
+    args = parser.parse_args(argv)
+    previous_sigterm = _catch_sigterm()
+    try:
+        output = getattr(args, "output", None)
+        _check_output(args)  # before the work: extension, existing file, folder, input
+        if isinstance(output, str) and output:
+            # Users name an output folder that may not exist yet (out/relit.jpg): make it.
+            Path(output).expanduser().parent.mkdir(parents=True, exist_ok=True)
+        return int(args.func(args) or 0)
+    except (ValueError, ModelError, FileExistsError, FileNotFoundError, CliError) as exc:
+        print(f"outcast {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"outcast {args.command}: error: out of memory; try --preset fast or a smaller "
+              "image", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        where = exc.filename or getattr(args, "output", None)
+        print(f"outcast {args.command}: error: " + (f"'{where}': " if where else "")
+              + f"{exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except Terminated:
+        print(f"outcast {args.command}: terminated", file=sys.stderr)
+        return 143
+    except KeyboardInterrupt:
+        print(f"outcast {args.command}: interrupted", file=sys.stderr)
+        return 130
+    finally:
+        if previous_sigterm is not None:
+            signal.signal(signal.SIGTERM, previous_sigterm)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

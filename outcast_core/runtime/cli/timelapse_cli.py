@@ -1,0 +1,252 @@
+"""``outcast timelapse``: relight a photo along a sun path from the command line.
+
+The lead's ``outcast_core.runtime.cli.main`` calls :func:`register` with its sub-parser set; the
+handler is :func:`run_timelapse_command` (set as ``args.func``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import math
+import sys
+from collections.abc import Callable
+from typing import Any
+
+from outcast_core.runtime.cli.main import int_in
+from outcast_core.runtime.geometry.camera import sun_vector
+from outcast_core.runtime.pipeline.timelapse import (
+    DEFAULT_FPS,
+    DEFAULT_FRAME_SIZE,
+    EASINGS,
+    FRAME_SIZES,
+    MAX_FPS,
+    MIN_FPS,
+    SunSample,
+    describe_seconds,
+    estimate_seconds,
+    format_from_path,
+    frame_shape,
+    real_sun_path,
+    render_timelapse,
+    solve_heading,
+    sweep_path,
+)
+
+# --------------------------------------------------------------------------------------------
+
+
+#: Most frames a time-lapse renders (the app's dialog offers the same).
+MAX_FRAMES = 2000
+
+
+def _pair(text: str) -> tuple[float, float]:
+    parts = text.split(",")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"expected AZ,EL, got {text!r}")
+    try:
+        az, el = float(parts[0]), float(parts[1])
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected AZ,EL as numbers, got {text!r}") from None
+    if not (math.isfinite(az) and math.isfinite(el)) or not -90.0 <= el <= 90.0:
+        raise argparse.ArgumentTypeError(
+            f"expected AZ,EL with a finite azimuth and an elevation in [-90, 90], got {text!r}"
+        )
+    return az, el
+
+
+def _sun_pair(text: str) -> tuple[float, float]:
+    """A sun that lights the photo: ``_pair`` at or above the horizon."""
+    from outcast_core.runtime.cli.main import BELOW_HORIZON
+
+    az, el = _pair(text)
+    if el < 0.0:
+        raise argparse.ArgumentTypeError(BELOW_HORIZON.format(text=text))
+    return az, el
+
+
+def _number(lo: float, hi: float, what: str) -> Callable[[str], float]:
+    """An argparse type: a finite number in ``[lo, hi]``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and lo <= value <= hi):
+            raise argparse.ArgumentTypeError(f"expected {what} in [{lo:g}, {hi:g}], got {text!r}")
+        return value
+
+    return parse
+
+
+#: ``--frames``: an integer in [2, MAX_FRAMES] (``outcast batch`` takes the same).
+frame_count = int_in(2, MAX_FRAMES, "frame count")
+
+
+def _sweep(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"expected AZ1,EL1:AZ2,EL2, got {text!r}")
+    return _pair(parts[0]), _pair(parts[1])
+
+
+def _date(text: str) -> dt.date:
+    try:
+        return dt.date.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, got {text!r}") from None
+
+
+def _hhmm(text: str) -> dt.time:
+    try:
+        return dt.time.fromisoformat(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected HH:MM, got {text!r}") from None
+
+
+def register(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``outcast timelapse`` to an argparse sub-parser set; the handler is ``args.func(args)``.
+
+    Args:
+        subparsers: the object returned by ``ArgumentParser.add_subparsers()``.
+
+    Returns:
+        The ``timelapse`` parser.
+    """
+    p = subparsers.add_parser(
+        "timelapse",
+        help="relight a photo along a sun path and write a video",
+        description=(
+            "Relight IMAGE along a sun sweep or the real sun path of a day and write MP4, GIF, "
+            "WebP or a PNG folder. Angles are relative to the camera: azimuth 0 = straight ahead, "
+            "90 = right; elevation 0 = horizon."
+        ),
+    )
+    p.add_argument("image", metavar="IMAGE", help="the photo")
+    p.add_argument(
+        "--from",
+        dest="from_sun",
+        type=_sun_pair,
+        required=True,
+        metavar="AZ,EL",
+        help="the photo's original sun (aligned in the app)",
+    )
+    p.add_argument("--sweep", type=_sweep, metavar="AZ1,EL1:AZ2,EL2", help="sweep the sun A -> B")
+    p.add_argument("--frames", type=frame_count, default=None,
+                   help=f"frame count, 2..{MAX_FRAMES} (sweep: required)")
+    p.add_argument("--easing", choices=EASINGS, default="ease-in-out")
+    p.add_argument("--date", type=_date, metavar="YYYY-MM-DD", help="real sun path of this day")
+    p.add_argument("--lat", type=_number(-90.0, 90.0, "a latitude"),
+                   help="latitude (default: EXIF GPS)")
+    p.add_argument("--lon", type=_number(-180.0, 180.0, "a longitude"),
+                   help="longitude (default: EXIF GPS)")
+    p.add_argument(
+        "--heading",
+        type=_number(-360.0, 360.0, "a heading"),
+        help="camera compass heading, deg from true north (default: solved from the --from sun "
+             "and the photo's EXIF capture time and GPS)",
+    )
+    p.add_argument("--start", type=_hhmm, metavar="HH:MM", help="local start time (sunrise)")
+    p.add_argument("--end", type=_hhmm, metavar="HH:MM", help="local end time (sunset)")
+    p.add_argument(
+        "--utc-offset",
+        type=_number(-14.0, 14.0, "a UTC offset (hours)"),
+        default=None,
+        help="local time's offset from UTC in hours (default: from longitude)",
+    )
+    p.add_argument(
+        "-o", "--output", required=True, metavar="OUT", help="OUT.mp4, .gif, .webp or a folder"
+    )
+    p.add_argument("--fps", type=_number(MIN_FPS, MAX_FPS, "frames per second"),
+                   default=DEFAULT_FPS, help=f"{MIN_FPS:g}..{MAX_FPS:g} (default {DEFAULT_FPS:g})")
+    p.add_argument(
+        "--size", choices=FRAME_SIZES, default=None,
+        help="frame size: the preset's working size (fastest), 720p / 1080p / 4k (shorter side "
+             "720 / 1080 / 2160 px, never above the photo's) or the photo's full size "
+             f"(default {DEFAULT_FRAME_SIZE})",
+    )  # fmt: skip
+    p.add_argument("--full-res", action="store_true", help="the same as --size full")
+    p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+    p.add_argument("--preset", choices=("fast", "balanced", "accurate"), default="balanced")
+    p.set_defaults(func=run_timelapse_command, check_output=check_timelapse_output)
+    return p
+
+
+def _samples_from_args(args: argparse.Namespace, exif: Any) -> list[SunSample]:
+    if (args.sweep is None) == (args.date is None):
+        raise ValueError("expected exactly one of --sweep or --date")
+    if args.sweep is not None:
+        if args.frames is None:
+            raise ValueError("expected --frames N with --sweep")
+        return sweep_path(args.sweep[0], args.sweep[1], args.frames, args.easing)
+    lat = args.lat if args.lat is not None else getattr(exif, "latitude", None)
+    lon = args.lon if args.lon is not None else getattr(exif, "longitude", None)
+    if lat is None or lon is None:
+        raise ValueError("expected --lat and --lon (the photo has no GPS position)")
+    heading = args.heading
+    if heading is None:
+        when = getattr(exif, "capture_time", None)
+        if when is None:
+            raise ValueError("expected --heading (the photo has no capture time to solve it from)")
+        heading = solve_heading(when, lat, lon, args.from_sun[0], args.utc_offset)
+        print(
+            f"camera heading solved from the photo's time and GPS: {heading:.1f} deg",
+            file=sys.stderr,
+        )
+    frames = 48 if args.frames is None else args.frames
+    return real_sun_path(
+        args.date, lat, lon, heading, frames, args.start, args.end, args.utc_offset
+    )
+
+
+def check_timelapse_output(args: argparse.Namespace) -> None:
+    """Check ``-o`` before any work: a known extension (or none: PNG folder), not the photo,
+    not an existing file without ``--force``, a folder that can be written."""
+    from outcast_core.runtime.cli.main import check_output_path
+
+    fmt = format_from_path(args.output)  # ValueError for out.avi
+    check_output_path(args.output, extensions=None, force=args.force, inputs=[args.image],
+                      folder_ok=fmt == "png")
+
+
+def run_timelapse_command(args: argparse.Namespace) -> int:
+    """Handler of ``outcast timelapse``; returns the process exit code."""
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    check_timelapse_output(args)  # before the slow part
+    loaded = read_image(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit (no float copy)
+    exif = getattr(loaded, "exif", None)
+    samples = _samples_from_args(args, exif)
+    session = RelightSession(preset=args.preset)
+
+    def report(stage: str, fraction: float) -> None:
+        print(f"\r{stage}: {100.0 * fraction:5.1f} %", end="", file=sys.stderr, flush=True)
+
+    session.set_image(
+        loaded.image_srgb, focal_35mm=getattr(exif, "focal_35mm", None), progress=report
+    )
+    session.set_original_sun(sun_vector(*args.from_sun))
+    size = args.size or ("full" if args.full_res else DEFAULT_FRAME_SIZE)
+    if args.full_res and size != "full":
+        raise ValueError(f"expected either --full-res or --size, got --full-res --size {size}")
+    work = session.image_srgb.shape[:2]
+    shape = frame_shape(size, session.full_image_srgb.shape[:2], work)
+    guess = estimate_seconds(len(samples), shape, work, dict(session.timings))
+    print(
+        f"\nrendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}), "
+        f"{describe_seconds(guess)}",
+        file=sys.stderr,
+    )
+    out = render_timelapse(
+        session,
+        samples,
+        args.output,
+        fps=args.fps,
+        size=size,
+        force=args.force,
+        progress=report,
+    )
+    print(f"\nwrote {len(samples)} frames to {out}", file=sys.stderr)
+    return 0

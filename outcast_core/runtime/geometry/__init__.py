@@ -1,0 +1,1 @@
+"""Cameras, colour, ray marching and Direct shadows, the full-resolution transfer."""

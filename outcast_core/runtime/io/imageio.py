@@ -1,0 +1,893 @@
+"""Image, shadow and depth files: reading photos, writing results atomically.
+
+Reading (:func:`read_image`) turns any supported photo into ``image_srgb``, a float32
+``H x W x 3`` array in ``[0, 1]``, upright (EXIF orientation applied), plus its metadata
+(:class:`~outcast_core.runtime.io.exif.PhotoMetadata`):
+
+* Formats: JPEG (and MPO, the multi-picture JPEG phones write), PNG 8/16 bit, TIFF 8/16 bit,
+  WebP, BMP, HEIC/HEIF (``pillow-heif``). 16-bit PNG/TIFF colour images are decoded with OpenCV so
+  the 16 bits survive (Pillow would truncate them to 8); 16-bit grey images with Pillow (``I;16``).
+* Grey images become 3 equal channels; palette, CMYK and YCbCr images are converted to RGB.
+  **Alpha is composited onto white.** An embedded ICC profile other than sRGB (Display P3,
+  Adobe RGB, CMYK press profiles) is converted to sRGB with LittleCMS (8-bit images only; a
+  16-bit file's profile is ignored, and so is a profile LittleCMS cannot parse).
+* ``max_pixels`` loads at a working resolution (area ``<= max_pixels``, aspect kept) without
+  materialising the full-size float32 array: JPEG is decoded at 1/2, 1/4 or 1/8 scale by libjpeg
+  (``Image.draft``), other formats are decoded at 8 (or 16) bits and reduced before the float
+  conversion.
+* Pillow's decompression-bomb guard (about 89 MP warns, 179 MP fails) would reject real photos
+  from large sensors; it is replaced by :data:`MAX_DECODE_PIXELS` (160 MP), checked from the
+  header before any pixel is decoded (a PNG's EXIF is found by walking its chunks, not by
+  decoding it), so a decompression bomb costs milliseconds and no memory.
+* Every failure is an :class:`ImageReadError` (a ``ValueError``) with a one-line message;
+  the library exception is chained as ``__cause__``.
+
+Writing is atomic: :func:`atomic_output` yields a temporary path in the destination folder and
+renames it over the destination only when the writer succeeded; an existing file is only
+replaced with ``force=True``.
+
+Depth files (:func:`read_depth`, :func:`write_depth`), float32 ``H x W``, invalid/sky ``+inf``:
+
+* ``.npy``: float32 array, stored as is (``inf`` included).
+* ``.exr``: one float32 channel ``Z`` (read: ``Z``, else ``Y``, else ``R``, else the only
+  channel), stored as is.
+* ``.png``: 16-bit grey. A valid pixel stores ``round(depth / max_depth * 65535)`` (at least 1),
+  where ``max_depth`` is the largest finite positive depth; 0 marks invalid/sky pixels (read back
+  as ``+inf``). ``max_depth`` is kept in a ``outcast:depth_scale`` text chunk so reading restores
+  the original scale (error <= 0.5 / 65535 of ``max_depth``; depths below one step are stored as
+  the smallest code, 1). A 16-bit PNG without that
+  chunk (written by another tool) reads as relative depth ``value / 65535``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import io
+import os
+import tempfile
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pillow_heif
+from PIL import Image, ImageCms, PngImagePlugin, UnidentifiedImageError
+
+from outcast_core.runtime.io.exif import TAG_ORIENTATION, PhotoMetadata, metadata_from_exif
+
+pillow_heif.register_heif_opener()
+
+MAX_DECODE_PIXELS = 160_000_000
+"""Largest image (in pixels) :func:`read_image` agrees to decode.
+
+Sized to what the full-resolution pipeline holds: ``outcast relight`` peaks at about 60 bytes
+per pixel (6.4 GB for a 108 MP photo), so about 10 GB here; the largest camera sensors (151 MP)
+fit. Checked from the header, before any pixel is decoded."""
+
+READ_FORMATS = frozenset({"JPEG", "MPO", "PNG", "TIFF", "WEBP", "HEIF", "BMP"})
+"""Pillow format names :func:`read_image` accepts."""
+
+WRITE_EXTENSIONS = {
+    ".png": "PNG",
+    ".jpg": "JPEG",
+    ".jpeg": "JPEG",
+    ".tif": "TIFF",
+    ".tiff": "TIFF",
+    ".webp": "WEBP",
+}
+"""File extensions :func:`write_image` understands, and the format each selects."""
+
+DEPTH_EXTENSIONS = (".npy", ".png", ".exr")
+DEPTH_SCALE_KEY = "outcast:depth_scale"
+
+_RAW_EXTENSIONS = frozenset(
+    {".cr2", ".cr3", ".nef", ".nrw", ".arw", ".srf", ".sr2", ".dng", ".raf", ".orf", ".rw2",
+     ".pef", ".srw", ".x3f", ".3fr", ".iiq", ".raw", ".rwl"}
+)
+_READABLE_NAMES = "JPEG, PNG, TIFF, WebP, HEIC/HEIF or BMP"
+_PIL_LIMIT_LOCK = threading.Lock()
+
+
+class ImageReadError(ValueError):
+    """A file could not be read as an image (or depth map); the message says why, in one line."""
+
+
+@dataclass
+class LoadedImage:
+    """A photo as read from disk.
+
+    Attributes:
+        image_srgb: float32 ``H x W x 3`` in ``[0, 1]``, sRGB-encoded, upright. At the working
+            resolution when ``max_pixels`` was given. uint8 (``0..255``) instead when read with
+            ``keep_uint8`` from an 8-bit file (a quarter of the memory, no conversion).
+        path: the file it came from.
+        original_size: ``(width, height)`` of the full-resolution upright image.
+        exif: the parsed metadata.
+        exif_bytes: the raw EXIF block with its orientation reset to 1 (the pixels are upright),
+            for copying into an output file; ``None`` when the file had no EXIF.
+        format: Pillow's format name (``"JPEG"``, ``"PNG"``, ...).
+        bit_depth: bits per sample in the file (8 or 16; 32 for float TIFF).
+    """
+
+    image_srgb: np.ndarray
+    path: Path
+    original_size: tuple[int, int]
+    exif: PhotoMetadata = field(default_factory=PhotoMetadata)
+    exif_bytes: bytes | None = None
+    format: str = ""
+    bit_depth: int = 8
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """``(width, height)`` of ``image_srgb``."""
+        return int(self.image_srgb.shape[1]), int(self.image_srgb.shape[0])
+
+    @property
+    def scale(self) -> float:
+        """Working width over original width (1.0 at full resolution)."""
+        return self.size[0] / self.original_size[0]
+
+
+# --------------------------------------------------------------------------------------------
+# Reading
+
+
+def read_image(
+    path: str | os.PathLike[str], max_pixels: int | None = None, *, keep_uint8: bool = False
+) -> LoadedImage:
+    """Read a photo as upright sRGB float32 with its EXIF metadata.
+
+    Args:
+        path: the image file.
+        max_pixels: if given and the image has more pixels, it is loaded at the largest size
+            with ``width * height <= max_pixels`` and the original aspect ratio (each side at
+            least 1 pixel). ``None`` loads full resolution.
+        keep_uint8: an 8-bit file's pixels stay uint8 (``0..255``; what the session and the
+            full-resolution stages read fastest); deeper files are float32 either way.
+
+    Returns:
+        A :class:`LoadedImage`.
+
+    Shape:
+        ``image_srgb``: ``H x W x 3`` float32.
+
+    Raises:
+        ImageReadError: missing, empty, truncated or corrupt file, not an image, an unsupported
+            format, or an image larger than :data:`MAX_DECODE_PIXELS`.
+        ValueError: ``max_pixels`` is not a positive integer.
+
+    Example:
+        >>> photo = read_image("samples/exif_001_cz_fieldpath.jpg", max_pixels=256 * 192)
+        >>> photo.image_srgb.shape, photo.original_size
+        ((192, 255, 3), (1012, 759))
+    """
+    if max_pixels is not None and (not isinstance(max_pixels, int | np.integer) or max_pixels < 1):
+        raise ValueError(f"expected max_pixels to be a positive int or None, got {max_pixels!r}")
+    path = Path(path)
+    _check_input_file(path)
+    try:
+        with _open_pil(path) as im:
+            fmt = im.format or "unknown"
+            if fmt not in READ_FORMATS:
+                raise ImageReadError(
+                    f"cannot read image '{path}': unsupported format {fmt}; "
+                    f"expected {_READABLE_NAMES}"
+                )
+            stored_w, stored_h = im.size
+            _check_pixel_count(path, stored_w, stored_h)
+            exif, exif_bytes = _exif_of(im, path)
+            meta = metadata_from_exif(exif)
+            target = _fit_size(stored_w, stored_h, max_pixels)
+            bits = _bits_per_sample(im, path)
+            if bits > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I;16N", "I", "F"):
+                image = _decode_cv2(path, target)
+            else:
+                image = _decode_pil(im, target, keep_uint8=keep_uint8)
+    except ImageReadError:
+        raise
+    except UnidentifiedImageError as exc:
+        raise ImageReadError(
+            f"cannot read image '{path}': not an image file, or a format OutCast cannot read "
+            f"(expected {_READABLE_NAMES})"
+        ) from exc
+    except MemoryError as exc:
+        raise ImageReadError(
+            f"cannot read image '{path}': not enough memory; load it with a smaller max_pixels"
+        ) from exc
+    except Exception as exc:  # Pillow/OpenCV/libheif raise many types for broken files
+        raise ImageReadError(
+            f"cannot read image '{path}': the file is truncated or corrupt ({_one_line(exc)})"
+        ) from exc
+    image = _apply_orientation(image, meta.orientation)
+    original = (stored_h, stored_w) if meta.orientation >= 5 else (stored_w, stored_h)
+    return LoadedImage(
+        image_srgb=image,
+        path=path,
+        original_size=original,
+        exif=meta,
+        exif_bytes=exif_bytes,
+        format=fmt,
+        bit_depth=bits,
+    )
+
+
+def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
+    """``(width, height)`` of the upright image, from the header only (no pixel decoding).
+
+    Raises:
+        ImageReadError: as :func:`read_image`, for problems visible in the header.
+    """
+    path = Path(path)
+    _check_input_file(path)
+    try:
+        with _open_pil(path) as im:
+            if im.format not in READ_FORMATS:
+                raise ImageReadError(
+                    f"cannot read image '{path}': unsupported format {im.format}; "
+                    f"expected {_READABLE_NAMES}"
+                )
+            w, h = im.size
+            _check_pixel_count(path, w, h)
+            exif, _ = _exif_of(im, path)
+            orientation = metadata_from_exif(exif).orientation
+    except ImageReadError:
+        raise
+    except UnidentifiedImageError as exc:
+        raise ImageReadError(f"cannot read image '{path}': not an image file") from exc
+    except Exception as exc:
+        raise ImageReadError(f"cannot read image '{path}': {_one_line(exc)}") from exc
+    return (h, w) if orientation >= 5 else (w, h)
+
+
+def _check_input_file(path: Path) -> None:
+    if not path.exists():
+        raise ImageReadError(f"cannot read '{path}': file not found")
+    if path.is_dir():
+        raise ImageReadError(f"cannot read '{path}': it is a folder, not a file")
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise ImageReadError(f"cannot read '{path}': {_one_line(exc)}") from exc
+    if size == 0:
+        raise ImageReadError(f"cannot read '{path}': the file is empty")
+    suffix = path.suffix.lower()
+    if suffix in _RAW_EXTENSIONS:
+        raise ImageReadError(
+            f"cannot read '{path}': camera RAW files are not supported; "
+            f"export a JPEG, PNG or 16-bit TIFF first"
+        )
+    if suffix in (".exr", ".hdr", ".pfm", ".npy"):
+        raise ImageReadError(
+            f"cannot read '{path}' as a photo: {suffix} is not a supported photo format; "
+            f"expected {_READABLE_NAMES}"
+        )
+    if not os.access(path, os.R_OK):
+        raise ImageReadError(f"cannot read '{path}': permission denied")
+
+
+@contextlib.contextmanager
+def _open_pil(path: Path) -> Iterator[Image.Image]:
+    """``Image.open`` with Pillow's bomb guard replaced by :data:`MAX_DECODE_PIXELS`."""
+    with _PIL_LIMIT_LOCK:
+        previous = Image.MAX_IMAGE_PIXELS
+        Image.MAX_IMAGE_PIXELS = None  # our own limit is checked by the callers
+        try:
+            im = Image.open(path)
+        finally:
+            Image.MAX_IMAGE_PIXELS = previous
+    try:
+        yield im
+    finally:
+        im.close()
+
+
+def _check_pixel_count(path: Path, width: int, height: int) -> None:
+    """Refuse an image larger than :data:`MAX_DECODE_PIXELS` (from its header size)."""
+    if width * height > MAX_DECODE_PIXELS:
+        raise ImageReadError(
+            f"cannot read '{path}': {width}x{height} is larger than the "
+            f"{MAX_DECODE_PIXELS / 1e6:.0f} MP limit"
+        )
+
+
+def _exif_of(im: Image.Image, path: Path) -> tuple[Image.Exif | None, bytes | None]:
+    """The image's EXIF and its bytes with orientation 1; (None, None) when absent/corrupt.
+
+    Never decodes pixels: Pillow's ``PngImageFile.getexif`` decodes the whole image to find an
+    ``eXIf`` chunk stored after the pixel data, so for PNG the chunks are walked instead.
+    """
+    try:
+        if im.format == "PNG" and "exif" not in im.info:
+            exif = Image.Exif()
+            data = _png_exif_chunk(path)
+            if data:
+                exif.load(data)
+        else:
+            exif = im.getexif()
+    except Exception:  # corrupt EXIF must not stop reading the pixels
+        return None, None
+    if len(exif) == 0:
+        return exif, None
+    try:
+        upright = Image.Exif()
+        upright.load(exif.tobytes())
+        upright[TAG_ORIENTATION] = 1
+        data = upright.tobytes()
+    except Exception:
+        data = None
+    return exif, data
+
+
+def _png_exif_chunk(path: Path, max_chunks: int = 10_000) -> bytes | None:
+    """The data of a PNG's ``eXIf`` chunk, found by seeking from chunk to chunk (no decoding).
+
+    Returns None when there is none, the file is truncated, or after ``max_chunks`` chunks.
+    """
+    with open(path, "rb") as f:
+        if f.read(8) != b"\x89PNG\r\n\x1a\n":
+            return None
+        for _ in range(max_chunks):
+            head = f.read(8)
+            if len(head) < 8:
+                return None
+            length = int.from_bytes(head[:4], "big")
+            kind = head[4:]
+            if kind == b"eXIf":
+                data = f.read(length)
+                return data if len(data) == length else None
+            if kind == b"IEND":
+                return None
+            f.seek(length + 4, os.SEEK_CUR)  # chunk data and CRC
+    return None
+
+
+def _fit_size(width: int, height: int, max_pixels: int | None) -> tuple[int, int] | None:
+    """The largest size with the same aspect and area <= max_pixels, or None if it fits."""
+    if max_pixels is None or width * height <= max_pixels:
+        return None
+    scale = (max_pixels / (width * height)) ** 0.5
+    w = max(1, int(width * scale))
+    h = max(1, int(height * scale))
+    while w * h > max_pixels and (w > 1 or h > 1):  # float rounding guard
+        if w >= h:
+            w -= 1
+        else:
+            h -= 1
+    return w, h
+
+
+def _bits_per_sample(im: Image.Image, path: Path) -> int:
+    if im.mode in ("I;16", "I;16B", "I;16L", "I;16N"):
+        return 16
+    if im.mode in ("I", "F"):
+        return 32
+    if im.format == "PNG":
+        with open(path, "rb") as f:
+            header = f.read(25)
+        return header[24] if len(header) == 25 and header[12:16] == b"IHDR" else 8
+    if im.format == "TIFF":
+        bits = getattr(im, "tag_v2", {}).get(258, (8,))
+        bits = bits if isinstance(bits, tuple) else (bits,)
+        return int(max(bits))
+    return 8
+
+
+def _decode_pil(
+    im: Image.Image, target: tuple[int, int] | None, *, keep_uint8: bool = False
+) -> np.ndarray:
+    """Decode with Pillow to float32 H x W x 3 (8-bit and grey 16/32-bit images); uint8 for
+    8-bit images with ``keep_uint8``."""
+    if target is not None and im.format in ("JPEG", "MPO"):
+        im.draft(None, target)  # libjpeg DCT scaling: decodes at >= target, 1/2..1/8 size
+    im.load()
+    im = _convert_icc_to_srgb(im)
+    mode = im.mode
+    if mode in ("I;16", "I;16B", "I;16L", "I;16N", "I", "F"):
+        # native uint16 for I;16 (I;16B is big-endian), float32 for 32-bit int/float
+        grey = np.asarray(im).astype(np.uint16 if mode.startswith("I;16") else np.float32)
+        if target is not None:
+            grey = cv2.resize(grey, target, interpolation=cv2.INTER_AREA)
+        scale = 1.0 if mode == "F" else 65535.0
+        grey = np.clip(grey.astype(np.float32) / np.float32(scale), 0.0, 1.0)
+        return np.repeat(grey[:, :, None], 3, axis=2)
+    if mode == "P":
+        mode_to = "RGBA" if "transparency" in im.info else "RGB"
+        im = im.convert(mode_to)
+    elif mode == "PA":
+        im = im.convert("RGBA")
+    if im.mode in ("RGBA", "LA", "La", "RGBa"):
+        im = _composite_on_white(im)
+    elif im.mode == "1":
+        im = im.convert("L")
+    elif im.mode not in ("RGB", "L"):
+        im = im.convert("RGB")  # CMYK, YCbCr, LAB, HSV, RGBX
+    if target is not None and im.size != target:
+        im = im.resize(target, Image.Resampling.LANCZOS, reducing_gap=2.0)
+    if keep_uint8:
+        u8 = np.asarray(im)  # H x W (x 3) uint8
+        return np.repeat(u8[:, :, None], 3, axis=2) if u8.ndim == 2 else u8
+    out = np.asarray(im).astype(np.float32)  # H x W (x 3)
+    out /= np.float32(255.0)
+    if out.ndim == 2:
+        out = np.repeat(out[:, :, None], 3, axis=2)
+    return out
+
+
+def _convert_icc_to_srgb(im: Image.Image) -> Image.Image:
+    """Convert an RGB/RGBA/CMYK image with a non-sRGB embedded ICC profile to sRGB."""
+    icc = im.info.get("icc_profile")
+    if not icc or im.mode not in ("RGB", "RGBA", "CMYK"):
+        return im
+    try:
+        source = ImageCms.ImageCmsProfile(io.BytesIO(icc))
+        name = ImageCms.getProfileDescription(source).strip().lower().replace(" ", "")
+        if name.startswith("srgb"):
+            return im
+        converted = ImageCms.profileToProfile(
+            im, source, _srgb_profile(), outputMode="RGBA" if im.mode == "RGBA" else "RGB"
+        )
+    except (ImageCms.PyCMSError, OSError, ValueError, TypeError):
+        return im  # an unreadable profile: use the pixels as stored
+    return converted if converted is not None else im
+
+
+@functools.cache
+def _srgb_profile() -> ImageCms.ImageCmsProfile:
+    return ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB"))
+
+
+def _composite_on_white(im: Image.Image) -> Image.Image:
+    rgba = im.convert("RGBA")
+    white = Image.new("RGBA", rgba.size, (255, 255, 255, 255))
+    return Image.alpha_composite(white, rgba).convert("RGB")
+
+
+def _decode_cv2(path: Path, target: tuple[int, int] | None) -> np.ndarray:
+    """Decode a 16-bit colour PNG/TIFF with OpenCV, keeping the precision."""
+    data = np.fromfile(path, dtype=np.uint8)
+    array = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    if array is None:
+        raise ImageReadError(f"cannot read image '{path}': the file is truncated or corrupt")
+    if target is not None:
+        array = cv2.resize(array, target, interpolation=cv2.INTER_AREA)
+    if array.dtype == np.uint16:
+        top = np.float32(65535.0)
+    elif array.dtype == np.uint8:
+        top = np.float32(255.0)
+    else:
+        top = np.float32(1.0)
+    out = array.astype(np.float32)  # H x W (x C), BGR(A) order
+    del array
+    out /= top
+    if out.ndim == 2:
+        out = out[:, :, None]
+    channels = out.shape[2]
+    if channels in (2, 4):  # grey+alpha or BGRA: composite on white
+        alpha = np.clip(out[:, :, -1:], 0.0, 1.0)
+        out = out[:, :, :-1] * alpha + (1.0 - alpha)
+    # grey -> 3 equal channels; BGR -> RGB
+    out = np.repeat(out, 3, axis=2) if out.shape[2] == 1 else out[:, :, 2::-1]
+    return np.ascontiguousarray(np.clip(out, 0.0, 1.0), dtype=np.float32)
+
+
+def _apply_orientation(image: np.ndarray, orientation: int) -> np.ndarray:
+    """Make an image stored with EXIF ``orientation`` upright (same result as exif_transpose)."""
+    if orientation == 2:
+        image = image[:, ::-1]
+    elif orientation == 3:
+        image = image[::-1, ::-1]
+    elif orientation == 4:
+        image = image[::-1]
+    elif orientation == 5:
+        image = image.swapaxes(0, 1)
+    elif orientation == 6:
+        image = np.rot90(image, k=-1)
+    elif orientation == 7:
+        image = image[::-1, ::-1].swapaxes(0, 1)
+    elif orientation == 8:
+        image = np.rot90(image, k=1)
+    return np.ascontiguousarray(image)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+# --------------------------------------------------------------------------------------------
+# Writing
+
+
+@contextlib.contextmanager
+def atomic_output(
+    path: str | os.PathLike[str], force: bool = False, *, make_parents: bool = False
+) -> Iterator[Path]:
+    """Write a file atomically: yield a temporary path next to ``path``, then rename it.
+
+    The temporary file lives in the destination folder (so the final ``os.replace`` is atomic)
+    and has the destination's extension (so writers that pick a format by extension work). If
+    the ``with`` body raises, the temporary file is removed and ``path`` is untouched.
+
+    Args:
+        path: the destination file.
+        force: replace ``path`` if it exists. Without it an existing file raises
+            ``FileExistsError`` (before anything is written).
+        make_parents: create missing parent folders instead of raising ``FileNotFoundError``.
+
+    Yields:
+        The temporary path to write (it exists, empty).
+
+    Example::
+
+        with atomic_output("out.mp4", force=True) as tmp:
+            write_video(tmp, frames)  # any writer that takes a path
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"cannot write '{path}': it is a folder")
+    if path.exists() and not path.is_file():
+        raise ValueError(f"cannot write '{path}': it is not a regular file (a device or pipe)")
+    if path.exists() and not force:
+        raise FileExistsError(f"'{path}' already exists; use --force to overwrite it")
+    parent = path.parent
+    if not parent.is_dir():
+        if not make_parents:
+            raise FileNotFoundError(f"cannot write '{path}': folder '{parent}' does not exist")
+        parent.mkdir(parents=True, exist_ok=True)
+    try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}",
+                                        dir=parent)
+    except OSError as exc:
+        _raise_for_destination(exc, path)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        yield tmp
+        if not tmp.exists():
+            raise FileNotFoundError(f"the writer for '{path}' removed its temporary file")
+        with open(tmp, "rb+") as f:
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o666 & ~_umask())
+        if not force and path.exists():
+            raise FileExistsError(f"'{path}' already exists; use --force to overwrite it")
+        os.replace(tmp, path)
+    except OSError as exc:
+        _raise_for_destination(exc, path)
+    finally:
+        with contextlib.suppress(FileNotFoundError):
+            tmp.unlink()
+
+
+def _raise_for_destination(exc: OSError, path: Path) -> None:
+    """Re-raise ``exc`` naming the destination instead of the hidden temporary file.
+
+    An error with no file name (``No space left on device``) or naming the temporary file or
+    the folder is raised again as the same type naming ``path``; any other error as it is.
+    """
+    name = "" if exc.filename is None else str(exc.filename)
+    ours = name in ("", str(path.parent)) or name.startswith(str(path.parent / f".{path.stem}."))
+    if exc.errno is None or not ours:
+        raise exc
+    raise type(exc)(exc.errno, exc.strerror or os.strerror(exc.errno), str(path)) from exc
+
+
+def _umask() -> int:
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    return 0o022
+
+
+def write_image(
+    path: str | os.PathLike[str],
+    image_srgb: np.ndarray,
+    *,
+    bit_depth: int = 8,
+    force: bool = False,
+    quality: int = 95,
+    exif: bytes | None = None,
+    make_parents: bool = False,
+) -> Path:
+    """Write an sRGB image; the format follows the extension.
+
+    Args:
+        path: ``.png``, ``.jpg``/``.jpeg``, ``.tif``/``.tiff`` or ``.webp``.
+        image_srgb: float ``H x W x 3`` (or ``H x W`` grey) sRGB values; values outside
+            ``[0, 1]`` are clipped, NaN is an error. uint8 (``0..255``) is written as it is.
+        bit_depth: 8, or 16 for PNG and TIFF.
+        force: replace an existing file.
+        quality: JPEG/WebP quality, 1..100 (WebP 100 is lossless).
+        exif: raw EXIF bytes to embed (e.g. ``LoadedImage.exif_bytes``); JPEG, WebP and 8-bit
+            PNG/TIFF only (16-bit files are written by OpenCV without metadata).
+        make_parents: create missing parent folders.
+
+    Returns:
+        The written path.
+
+    Raises:
+        ValueError: unknown extension, bad array, bit depth the format cannot hold.
+        FileExistsError: ``path`` exists and ``force`` is False.
+    """
+    path = Path(path)
+    fmt = WRITE_EXTENSIONS.get(path.suffix.lower())
+    if fmt is None:
+        raise ValueError(
+            f"expected an output extension in {sorted(WRITE_EXTENSIONS)}, got '{path.suffix}'"
+        )
+    if bit_depth not in (8, 16):
+        raise ValueError(f"expected bit_depth 8 or 16, got {bit_depth}")
+    if bit_depth == 16 and fmt not in ("PNG", "TIFF"):
+        raise ValueError(f"expected bit_depth 8 for {fmt} (16 bits: use .png or .tif)")
+    if not 1 <= int(quality) <= 100:
+        raise ValueError(f"expected quality in 1..100, got {quality}")
+    if exif is not None and bit_depth == 16:
+        raise ValueError("expected exif=None for 16-bit output (EXIF is written for 8 bits only)")
+    array = _quantise(image_srgb, bit_depth)
+    with atomic_output(path, force, make_parents=make_parents) as tmp:
+        if bit_depth == 16:
+            bgr = array[:, :, ::-1] if array.ndim == 3 else array
+            _write_cv2(tmp, bgr, path.suffix.lower())
+        else:
+            im = Image.fromarray(array)
+            kwargs: dict[str, object] = {}
+            if exif is not None:
+                kwargs["exif"] = exif
+            if fmt == "JPEG":
+                kwargs.update(quality=int(quality), subsampling=0 if quality >= 90 else 2)
+            elif fmt == "WEBP":
+                kwargs.update(quality=int(quality), lossless=int(quality) == 100, method=4)
+            elif fmt == "PNG":
+                kwargs.update(compress_level=6)
+            elif fmt == "TIFF":
+                kwargs.update(compression="tiff_deflate")
+            im.save(tmp, format=fmt, **kwargs)
+    return path
+
+
+def _quantise(image: np.ndarray, bit_depth: int) -> np.ndarray:
+    """Float [0, 1] -> uint8/uint16, rounded; checks shape and values."""
+    image = np.asarray(image)
+    if image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in (1, 3)):
+        raise ValueError(f"expected an H x W x 3 or H x W image, got shape {image.shape}")
+    if image.shape[0] < 1 or image.shape[1] < 1:
+        raise ValueError(f"expected a non-empty image, got shape {image.shape}")
+    if image.dtype == np.uint8:  # already quantised (8 bits), e.g. relight_full(dtype=uint8)
+        if image.ndim == 3 and image.shape[2] == 1:
+            image = image[:, :, 0]
+        if bit_depth == 16:
+            return np.ascontiguousarray(image.astype(np.uint16) * np.uint16(257))
+        return np.ascontiguousarray(image)
+    if not np.issubdtype(image.dtype, np.floating):
+        raise ValueError(f"expected a float image in [0, 1] or uint8, got dtype {image.dtype}")
+    if np.isnan(image).any():
+        raise ValueError("expected an image without NaN values, got NaN")
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
+    top = 65535.0 if bit_depth == 16 else 255.0
+    dtype = np.uint16 if bit_depth == 16 else np.uint8
+    return np.ascontiguousarray(np.rint(np.clip(image, 0.0, 1.0) * top).astype(dtype))
+
+
+def _write_cv2(path: Path, array: np.ndarray, ext: str) -> None:
+    params: list[int] = []
+    if ext == ".png":
+        params = [cv2.IMWRITE_PNG_COMPRESSION, 6]
+    ok, encoded = cv2.imencode(".tif" if ext == ".tiff" else ext, array, params)
+    if not ok:
+        raise OSError(f"OpenCV could not encode '{path}'")
+    encoded.tofile(path)
+
+
+def write_shadow_png(
+    path: str | os.PathLike[str], shadow: np.ndarray, force: bool = False
+) -> Path:
+    """Write a shadow image as a 16-bit grey PNG (0..1 mapped to 0..65535).
+
+    Args:
+        path: a ``.png`` path.
+        shadow: float ``H x W`` in ``[0, 1]`` (clipped); NaN is an error.
+        force: replace an existing file.
+
+    Shape:
+        ``shadow``: ``H x W``.
+    """
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise ValueError(f"expected a .png path for a shadow image, got '{path.suffix}'")
+    shadow = np.asarray(shadow)
+    if shadow.ndim != 2:
+        raise ValueError(f"expected an H x W shadow image, got shape {shadow.shape}")
+    array = _quantise(shadow, 16)
+    with atomic_output(path, force) as tmp:
+        _write_cv2(tmp, array, ".png")
+    return path
+
+
+def read_shadow_png(path: str | os.PathLike[str]) -> np.ndarray:
+    """Read a shadow PNG written by :func:`write_shadow_png` as float32 ``H x W`` in [0, 1]."""
+    image = read_image(path).image_srgb
+    return np.ascontiguousarray(image[:, :, 0])
+
+
+# --------------------------------------------------------------------------------------------
+# Depth
+
+
+def write_depth(path: str | os.PathLike[str], depth: np.ndarray, force: bool = False) -> Path:
+    """Write a depth map as ``.npy``, ``.exr`` (exact) or 16-bit ``.png`` (quantised).
+
+    Args:
+        path: destination; the extension selects the format (see the module doc).
+        depth: float ``H x W``; ``+inf``/NaN/non-positive values are invalid (sky).
+        force: replace an existing file.
+
+    Shape:
+        ``depth``: ``H x W``.
+
+    Raises:
+        ValueError: wrong shape or dtype, unknown extension.
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext not in DEPTH_EXTENSIONS:
+        raise ValueError(f"expected a depth extension in {DEPTH_EXTENSIONS}, got '{path.suffix}'")
+    depth = _check_depth(np.asarray(depth), "depth")
+    with atomic_output(path, force) as tmp:
+        if ext == ".npy":
+            with open(tmp, "wb") as f:
+                np.save(f, depth, allow_pickle=False)
+        elif ext == ".exr":
+            _write_exr(tmp, depth)
+        else:
+            _write_depth_png(tmp, depth)
+    return path
+
+
+def read_depth(path: str | os.PathLike[str]) -> np.ndarray:
+    """Read a depth map written by :func:`write_depth` (or a compatible file).
+
+    Returns:
+        float32 ``H x W``; invalid/sky pixels are ``+inf``.
+
+    Raises:
+        ImageReadError: missing, empty, corrupt or unreadable file.
+        ValueError: the file holds something that is not an ``H x W`` float depth map.
+    """
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext not in DEPTH_EXTENSIONS:
+        raise ValueError(f"expected a depth extension in {DEPTH_EXTENSIONS}, got '{path.suffix}'")
+    if not path.is_file():
+        raise ImageReadError(f"cannot read depth '{path}': file not found")
+    if path.stat().st_size == 0:
+        raise ImageReadError(f"cannot read depth '{path}': the file is empty")
+    try:
+        if ext == ".npy":
+            depth = _read_npy(path)
+        elif ext == ".exr":
+            depth = _read_exr(path)
+        else:
+            depth = _read_depth_png(path)
+    except (ImageReadError, _DepthContentError):
+        raise
+    except UnidentifiedImageError as exc:
+        raise ImageReadError(f"cannot read depth '{path}': not a PNG file") from exc
+    except Exception as exc:  # numpy/OpenEXR/Pillow errors for broken files
+        raise ImageReadError(
+            f"cannot read depth '{path}': not a {ext} depth file, or truncated/corrupt "
+            f"({_one_line(exc)})"
+        ) from exc
+    depth = _check_depth(np.asarray(depth), f"depth in '{path}'")
+    depth = depth.copy()
+    depth[~(depth > 0)] = np.inf  # NaN and non-positive are invalid, like sky
+    if not np.isfinite(depth).any():
+        raise ImageReadError(
+            f"cannot use depth '{path}': no valid pixel (every value is zero, negative, NaN or "
+            "infinite, which would make the whole frame sky)"
+        )
+    return depth
+
+
+class _DepthContentError(ValueError):
+    """A readable depth file whose content is not a depth map (wrong channels, mode...)."""
+
+
+def _check_depth(depth: np.ndarray, what: str) -> np.ndarray:
+    if depth.ndim != 2 or depth.shape[0] < 1 or depth.shape[1] < 1:
+        raise ValueError(f"expected {what} to be a non-empty H x W array, got shape {depth.shape}")
+    if not np.issubdtype(depth.dtype, np.floating):
+        raise ValueError(f"expected {what} to be a float array, got dtype {depth.dtype}")
+    return np.ascontiguousarray(depth, dtype=np.float32)
+
+
+def _write_exr(path: Path, depth: np.ndarray) -> None:
+    import OpenEXR
+
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    OpenEXR.File(header, {"Z": depth}).write(str(path))
+
+
+def _read_npy(path: Path) -> np.ndarray:
+    """A ``.npy`` depth map; the header (magic, dtype, shape, size) is checked before loading."""
+    with open(path, "rb") as f:
+        try:
+            version = np.lib.format.read_magic(f)
+            if version == (1, 0):
+                shape, _, dtype = np.lib.format.read_array_header_1_0(f)
+            elif version == (2, 0):
+                shape, _, dtype = np.lib.format.read_array_header_2_0(f)
+            else:
+                raise ValueError(f"unsupported .npy version {version}")
+        except ValueError as exc:
+            raise ImageReadError(
+                f"cannot read depth '{path}': not a NumPy .npy file ({_one_line(exc)})"
+            ) from exc
+        header_bytes = f.tell()
+    if dtype.kind != "f" or len(shape) != 2:
+        raise _DepthContentError(
+            f"expected depth in '{path}' to be an H x W float array, got {dtype} of shape {shape}"
+        )
+    _check_pixel_count(path, shape[1], shape[0])
+    if path.stat().st_size < header_bytes + dtype.itemsize * shape[0] * shape[1]:
+        raise ImageReadError(f"cannot read depth '{path}': the file is truncated")
+    return np.load(path, allow_pickle=False)
+
+
+def _read_exr(path: Path) -> np.ndarray:
+    import OpenEXR
+
+    with OpenEXR.File(str(path), header_only=True) as exr:
+        (x0, y0), (x1, y1) = (np.asarray(c, dtype=np.int64) for c in exr.header()["dataWindow"])
+    _check_pixel_count(path, int(x1 - x0 + 1), int(y1 - y0 + 1))
+    with OpenEXR.File(str(path), separate_channels=True) as exr:
+        channels = exr.channels()
+        for name in ("Z", "Y", "R", "depth.Z", "depth.Y", "depth.R"):
+            if name in channels:
+                return np.asarray(channels[name].pixels)
+        if len(channels) == 1:
+            return np.asarray(next(iter(channels.values())).pixels)
+    raise _DepthContentError(
+        f"expected a depth EXR with a 'Z', 'Y' or 'R' channel, got channels {sorted(channels)}"
+    )
+
+
+def _write_depth_png(path: Path, depth: np.ndarray) -> None:
+    valid = np.isfinite(depth) & (depth > 0)
+    codes = np.zeros(depth.shape, dtype=np.uint16)
+    scale = float(depth[valid].max()) if valid.any() else 1.0
+    if valid.any():
+        scaled = np.rint(depth[valid].astype(np.float64) / scale * 65535.0)
+        codes[valid] = np.clip(scaled, 1, 65535).astype(np.uint16)
+    info = PngImagePlugin.PngInfo()
+    info.add_text(DEPTH_SCALE_KEY, repr(scale))
+    Image.fromarray(codes).save(path, format="PNG", pnginfo=info, compress_level=6)
+
+
+def _read_depth_png(path: Path) -> np.ndarray:
+    with _open_pil(path) as im:
+        if im.format != "PNG" or im.mode not in ("I;16", "I;16B", "I;16L", "I"):
+            raise _DepthContentError(
+                f"expected a 16-bit grey PNG depth map, got {im.format} mode {im.mode}"
+            )
+        _check_pixel_count(path, *im.size)
+        codes = np.asarray(im).astype(np.float64)
+        text = im.info.get(DEPTH_SCALE_KEY)
+    try:
+        scale = float(text) if text is not None else 1.0
+    except ValueError:
+        scale = float("nan")
+    if not (np.isfinite(scale) and 0 < scale <= float(np.finfo(np.float32).max)):
+        raise _DepthContentError(
+            f"expected a positive '{DEPTH_SCALE_KEY}' that float32 can hold, got {text!r}"
+        )
+    depth = (codes / 65535.0 * scale).astype(np.float32)
+    depth[codes == 0] = np.inf
+    return depth
+

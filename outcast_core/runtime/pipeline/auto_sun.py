@@ -1,0 +1,784 @@
+"""Automatic sun: find the photo's sun from its own shadows and, where it has them, its EXIF.
+
+:func:`find_sun` searches the visible hemisphere for the sun whose predicted shadows (the
+session's shadow network, or Direct in classic mode) best agree with the shadows found in the
+photo itself (:func:`~outcast_core.runtime.pipeline.photo_shadows.photo_shadow_probability`, no
+prior).
+The agreement of a sun is ``1 - BER`` between the overlay's mask (``S < 0.15`` off the sky, as
+the app draws it and ``outcast eval real`` scores it) and the found mask (probability > 0.5):
+1 is a perfect match, 0.5 is chance.
+
+The search may also rank by the shading (``measure="shading"``, :func:`shading_agreement`: the
+correlation of ``S`` with the photo's linear luminance, attached shading and cast shadows
+together, with no found mask) or by both (``"mask+shading"``); the default stays the mask
+(:data:`MEASURE`), chosen by the numbers below.
+
+Coarse to fine, cheap where it can be:
+
+1. the light-independent buffers (depth, sky, normals, photo, its luminance) at each small size
+   (:data:`COARSE_SIZE`, :data:`FINE_SIZE`), made once per call from the session's working
+   buffers;
+2. a coarse grid over the dome (:data:`COARSE_AZIMUTHS` x :data:`COARSE_ELEVATIONS`), all suns
+   in batches through the shadow network at :data:`COARSE_SIZE` px: this is the map the app
+   shows as a heat map;
+3. the :data:`RECHECK` best separated peaks (:data:`PEAK_SEPARATION`) scored again at
+   :data:`RECHECK_SIZE` px, and around the :data:`SEEDS` best of them 3 x 3 patterns at half
+   the grid step at :data:`FINE_SIZE` px (:data:`FINE_PATTERNS`);
+4. the last :data:`FINAL_CANDIDATES` at the session's working size (cached by the session, so
+   the overlay the app then draws costs nothing), except those more than :data:`FINAL_MARGIN`
+   behind the best at the small size (early rejection).
+
+EXIF: GPS and capture time fix the sun's true elevation above the horizon (astral); with it the
+search runs on that ring only (:class:`SunPrior`), in the camera's frame: its pitch and roll
+from the photo's metadata where it records them (:mod:`~outcast_core.runtime.io.camera_pose`: XMP
+GPano or DJI gimbal angles, Exif ``CameraElevationAngle``), else from the fitted ground plane
+(:attr:`SunFit.pose_source` says which). A compass heading also gives the azimuth:
+a full guess that pulls the search toward it (:attr:`SunPrior.azimuth_weight`) but loses when
+the shadows clearly say otherwise (compasses are often off, sometimes wildly: the ski-slope
+sample's heading puts the sun 130° from where it is in the frame), and that stands when the
+photo has no clear shadows.
+
+Confidence (:attr:`SunFit.confidence`, 0-1) is the product of how clearly the photo has sun and
+shade (the gap between the lit and shaded surface's log luminance, and a shade fraction that is
+neither nothing nor everything), how clearly one part of the dome explains them (the best
+agreement against the dome's median) and how well the best sun explains them at all (its
+agreement between :data:`WEAK_AGREEMENT` and :data:`STRONG_AGREEMENT`; on the real dev photos
+the best of the 24-sun sweep agrees at 0.57 / 0.68 / 0.74 at the 10th / 50th / 75th
+percentile). Below :data:`CONFIDENT` the fit says so (:attr:`SunFit.found` is False) instead of
+offering a guess, and says which: no clear shadows in the photo, or none that any sun's
+predicted shadows fit (rough depth).
+
+Measured on 2026-11-30 (``scripts/eval_auto_sun.py``; shipped models, balanced preset, 2 shared
+cores at load 3-10; seconds are under that load; ``models/EVAL.md`` has the table):
+
+* real dev photos (47, human masks; ``python scripts/eval_auto_sun.py ../shared/realdev
+  --sweep-cache C [--measure M] [--set NAME=VALUE]``): share of photos whose found sun's
+  overlay BER is within 0.03 of the best of the 24-sun sweep. Ranked by the mask, dome at 64 px,
+  3 seeds refined at 96, all 3 finalists checked (the earlier search, with today's photo
+  shadows): 72.3 % (mean gap +0.007). Ranked by the shading correlation: 29.8 %. Speed variants
+  (mask): dome 48 + finalists more than 0.03 behind skipped: 74.5 %; the same with 2 seeds:
+  74.5 % (mean gap +0.004); margin 0.01: 66.0 %; 2 finalists: 70.2 %; dome 32 and refine at 64:
+  63.8 %; dome 32, two patterns at 64: 59.6 %; dome 32, refine at 96: 68.1 %; **dome 32, the 12
+  best peaks rechecked at 64, 2 refined at 96 (the default): 70.2 % (33), mean gap +0.012,
+  mean BER 0.319 vs the sweep's 0.307**; the same rechecked at 48: 68.1 %. Differences of
+  2-4 points are one or two photos. Its 12 MP time (``bench_runtime --only find_sun``) is
+  about 5-6 working-size shadow images, against 8-8.5 for the earlier search.
+* held-out synthetic views (``outcast data make --seed 1000000``, 128 px; ``--synthetic
+  ~/.cache/outcast/data/test --limit 60 [--given-depth] [--measure shading]``, the first 15
+  views x 4 suns): median angle to the true sun with the default search: 65° with the
+  estimated depth, 39° with the renderer's exact depth (10 % / 15 % within 15°; the earlier
+  search 60° / 44°); ranked by the shading: 43° (estimated) and 30° (exact; 20 % within 15°).
+  4.4 s per view at load 7-10 (depth excluded). Why, from a dense 10° grid of every sun at
+  64 px on 40 pairs (nothing fitted): with the exact depth even the *true* shadow mask
+  (``S_true < 0.15``) as the photo's shadows puts the best sun 18° off (13° with Direct at
+  128 px), the photo's found mask 40°, the shading 28°; with the estimated depth the true mask
+  gives 49°, the found mask 62°, the shading 42°: the estimated geometry is what fails (its
+  normals are 22° off the renderer's, median of 10 views, 3-56°), not the search, the found
+  shadows (BER 0.18 against the true mask) or the azimuth ambiguity (12-16 % of the errors
+  are > 135° in azimuth). Scoring cast shadows only (pixels facing the sun, cos >= 0.15) was
+  worse (62-76°), as was the mask + shading sum (27-63°). The mask stays the default: the
+  shading gains on synthetic views and loses badly on real photos.
+* samples, elevation vs astral's (``--samples samples``): with the EXIF prior -1.0° on all
+  three (in the ground plane's frame, or level where none fits: none of the samples records a
+  pose); from the shadows alone -23.8° (pool), -2.9° (ski slope), -31.1° (field path).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from outcast_core.runtime.geometry.camera import (
+    Camera,
+    network_depth,
+    normals_from_depth,
+    sun_angles,
+    sun_vector,
+)
+from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+from outcast_core.runtime.pipeline.photo_shadows import photo_shadow_probability
+
+#: The overlay's threshold: ``S`` below it is a predicted shadow (as ``real_eval``).
+SHADOW_THRESHOLD = 0.15
+#: Longer side (px) of the coarse grid's, the recheck's and the fine patterns' shadow images.
+COARSE_SIZE = 32
+RECHECK_SIZE = 64
+FINE_SIZE = 96
+#: How many separated peaks of the coarse grid are scored again at :data:`RECHECK_SIZE` before
+#: the best :data:`SEEDS` of them are refined (early rejection of the rest of the dome).
+RECHECK = 12
+#: The coarse grid over the dome (degrees, camera-relative, or in the ground's frame with a
+#: known pitch and roll).
+COARSE_AZIMUTHS: tuple[float, ...] = tuple(float(a) for a in range(0, 360, 20))
+COARSE_ELEVATIONS: tuple[float, ...] = (8.0, 22.0, 36.0, 50.0, 64.0, 78.0)
+#: With an elevation prior: the azimuth step of the ring.
+RING_AZIMUTH_STEP = 10.0
+#: Seeds taken from the coarse grid (local peaks at least :data:`PEAK_SEPARATION` degrees apart)
+#: and candidates checked at the session's working size.
+SEEDS = 2
+PEAK_SEPARATION = 30.0
+FINAL_CANDIDATES = 3
+#: A candidate more than this behind the best (in the ranking score at the small sizes) is not
+#: checked at the working size.
+FINAL_MARGIN = 0.03
+#: The fine patterns: ``(seeds, step[, size])``: 3 x 3 suns around the best ``seeds`` so far,
+#: ``step`` times the coarse grid's step apart (step 0: the seeds alone), at ``size`` px
+#: (default :data:`FINE_SIZE`). The first pattern's ``seeds`` are the coarse grid's separated
+#: peaks; a pattern at another size than the one before starts a new list of candidates.
+FINE_PATTERNS: tuple[tuple[int, float] | tuple[int, float, int], ...] = (
+    (RECHECK, 0.0, RECHECK_SIZE), (SEEDS, 0.5, FINE_SIZE))
+#: The lowest elevation tried (a grazing sun puts the whole ground in shadow).
+MIN_ELEVATION = 5.0
+#: Shadow images per network call.
+BATCH = 36
+#: Below this confidence the photo's shadows do not tell the sun (:attr:`SunFit.found`).
+CONFIDENT = 0.3
+#: Gap (natural log units) between the mean log luminance of the photo's lit surface and of its
+#: found shade at which the photo starts / stops counting as clearly sun and shade. A sunlit
+#: cast shadow is 1-3 stops (0.7-2.1) darker; the real dev photos' gaps are 1.1-3.7; Otsu's
+#: split of an overcast photo's texture gives a few tenths.
+SEPARATION_LOW = 0.7
+SEPARATION_HIGH = 1.2
+#: Agreement of the best sun above the dome's median at which a peak counts as clear.
+PEAK_CONTRAST = 0.08
+#: Agreement of the best sun at which the confidence starts from 0 / reaches its full value.
+WEAK_AGREEMENT = 0.55
+STRONG_AGREEMENT = 0.7
+#: Shade fractions (of the surface) below / above which the photo has no usable shadows.
+MIN_SHADE = 0.005
+MAX_SHADE = 0.85
+#: What the search ranks suns by (:func:`ranking`): ``"mask"`` (the overlay's agreement with
+#: the photo's found shadows), ``"shading"`` (the correlation of ``S`` with the photo's
+#: luminance) or ``"mask+shading"`` (the agreement plus :data:`SHADING_WEIGHT` times the
+#: correlation).
+MEASURES = ("mask", "shading", "mask+shading")
+MEASURE = "mask"
+SHADING_WEIGHT = 0.5
+#: Camera tilts (degrees) from the fitted ground plane beyond which it is not trusted.
+MAX_PLANE_TILT = 25.0
+
+Progress = Callable[[str, float], None]
+
+
+class FindSunCancelledError(RuntimeError):
+    """Raised by :func:`find_sun` when its ``cancel`` callback says so."""
+
+
+@dataclass(frozen=True)
+class SunPrior:
+    """What the photo's EXIF says about its sun.
+
+    Attributes:
+        elevation: the sun's true elevation above the horizon in degrees (GPS + time).
+        azimuth: its azimuth relative to the camera in degrees when a compass heading is known
+            (a full guess), else None.
+        elevation_tolerance: how far (degrees) the search may leave ``elevation``.
+        azimuth_weight: how much agreement a sun opposite ``azimuth`` gives up in the search
+            (``weight * (1 - cos(deviation)) / 2``): the compass heading decides between suns
+            the shadows fit about equally well, and loses when they clearly disagree (phone
+            compasses are often tens of degrees off, and a wrong heading is not rare).
+        description: words for the user ("elevation 38° from the photo's time and place").
+    """
+
+    elevation: float
+    azimuth: float | None = None
+    elevation_tolerance: float = 2.0
+    azimuth_weight: float = 0.05
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.elevation) and -90.0 <= self.elevation <= 90.0):
+            raise ValueError(f"expected a prior elevation in [-90, 90], got {self.elevation}")
+        if self.azimuth is not None and not math.isfinite(self.azimuth):
+            raise ValueError(f"expected a finite prior azimuth, got {self.azimuth}")
+        for name in ("elevation_tolerance", "azimuth_weight"):
+            val = getattr(self, name)
+            if not (math.isfinite(val) and val >= 0.0):
+                raise ValueError(f"expected {name} >= 0, got {val}")
+
+
+def exif_sun_prior(metadata: Any) -> SunPrior | None:
+    """The sun prior of a photo's EXIF (:class:`~outcast_core.runtime.io.exif.PhotoMetadata`).
+
+    Returns:
+        None without GPS and capture time, or when the sun was below the horizon then; else the
+        true elevation, with the camera-relative azimuth when a compass heading is recorded.
+    """
+    from outcast_core.runtime.pipeline.timelapse import relative_azimuth, true_sun_position
+
+    when = getattr(metadata, "capture_time", None)
+    lat, lon = getattr(metadata, "latitude", None), getattr(metadata, "longitude", None)
+    if when is None or lat is None or lon is None:
+        return None
+    true_az, el = true_sun_position(when, lat, lon)
+    if el <= 0.0:
+        return None
+    heading = getattr(metadata, "heading_deg", None)
+    if heading is None:
+        return SunPrior(el, description=f"elevation {el:.0f}° from the photo's time and place")
+    az = relative_azimuth(true_az, heading)
+    return SunPrior(el, az, description=f"azimuth {az:.0f}°, elevation {el:.0f}° from the "
+                                        "photo's time, place and compass heading")
+
+
+@dataclass
+class AgreementMap:
+    """The coarse suns' ranking score over the dome (with the default measure the agreement,
+    ``1 - BER``, 0.5 = chance).
+
+    Attributes:
+        azimuths: ``(A,)`` degrees.
+        elevations: ``(E,)`` degrees (camera-relative).
+        scores: ``E x A`` in [0, 1]; NaN where no sun was tried.
+    """
+
+    azimuths: np.ndarray
+    elevations: np.ndarray
+    scores: np.ndarray
+
+    def normalised(self) -> np.ndarray:
+        """``E x A`` in [0, 1]: 0 at the dome's median agreement (or below), 1 at its best."""
+        s = self.scores
+        if not np.isfinite(s).any():
+            return np.zeros(s.shape, np.float32)
+        lo, hi = float(np.nanmedian(s)), float(np.nanmax(s))
+        out = np.clip((s - lo) / max(hi - lo, 1e-6), 0.0, 1.0)
+        return np.nan_to_num(out, nan=0.0).astype(np.float32)
+
+
+@dataclass
+class SunFit:
+    """What :func:`find_sun` found.
+
+    Attributes:
+        azimuth: camera-relative azimuth of the best sun (degrees, level camera convention).
+        elevation: camera-relative elevation (degrees, 0-90).
+        w: camera-space unit vector toward it.
+        agreement: ``1 - BER`` of its overlay against the photo's found shadows.
+        shading: the correlation of its ``S`` with the photo's luminance
+            (:func:`shading_agreement`).
+        measure: what the search ranked suns by (:data:`MEASURES`).
+        confidence: 0-1 (see the module docstring).
+        found: whether the confidence reaches :data:`CONFIDENT`.
+        source: ``"shadows"``, ``"shadows + EXIF elevation"``, ``"shadows + EXIF"`` or
+            ``"EXIF"`` (no clear shadows; the EXIF sun stands).
+        note: one line for the user.
+        map: the coarse agreement map (the dial's heat map).
+        candidates: ``(azimuth, elevation, agreement)`` of the last candidates, best first.
+        true_elevation: the sun's elevation above the ground's horizon (differs from
+            ``elevation`` when the camera is pitched or rolled).
+        pitch: camera pitch used (degrees; 0 without a prior).
+        roll: camera roll used (degrees).
+        pose_source: where ``pitch`` and ``roll`` came from: ``""`` (no prior: not used), the
+            metadata's (e.g. ``"XMP GPano"``, see :mod:`~outcast_core.runtime.io.camera_pose`),
+            ``"given"``, ``"ground plane"`` or ``"level (no ground plane)"``.
+        evaluations: shadow images computed.
+        seconds: wall time.
+        stage_seconds: wall time per stage (``photo shadows``, ``dome``, ``ring``, ``refine``,
+            ``finals``).
+    """
+
+    azimuth: float
+    elevation: float
+    w: np.ndarray
+    agreement: float
+    confidence: float
+    found: bool
+    source: str
+    note: str
+    map: AgreementMap
+    candidates: list[tuple[float, float, float]] = field(default_factory=list)
+    true_elevation: float = 0.0
+    pitch: float = 0.0
+    roll: float = 0.0
+    pose_source: str = ""
+    shading: float = 0.0
+    measure: str = MEASURE
+    evaluations: int = 0
+    seconds: float = 0.0
+    stage_seconds: dict[str, float] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain values for JSON (the map is left out)."""
+        return {
+            "azimuth": round(self.azimuth, 2), "elevation": round(self.elevation, 2),
+            "confidence": round(self.confidence, 3), "found": self.found,
+            "agreement": round(self.agreement, 4), "shading": round(self.shading, 4),
+            "measure": self.measure, "source": self.source, "note": self.note,
+            "true_elevation": round(self.true_elevation, 2), "pitch": round(self.pitch, 2),
+            "roll": round(self.roll, 2), "pose_source": self.pose_source,
+            "evaluations": self.evaluations,
+            "seconds": round(self.seconds, 3), "stage_seconds": self.stage_seconds,
+            "candidates": [[round(a, 2), round(e, 2), round(s, 4)] for a, e, s in self.candidates],
+        }  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------- evidence
+def agreement(predicted: np.ndarray, found: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``1 - BER`` of predicted shadow masks against a found mask, over the valid pixels.
+
+    Args:
+        predicted: ``N x H x W`` (or ``H x W``) bool: the overlays' shadow masks.
+        found: ``H x W`` bool: the photo's shadows.
+        valid: ``H x W`` bool: pixels that count (off the sky).
+
+    Returns:
+        ``(N,)`` float64 (a 0-d array for one mask); a class absent from ``found`` counts as
+        fully right on that side, as
+        :func:`~outcast_core.runtime.pipeline.real_eval.balanced_error_rate`.
+    """
+    pred = np.asarray(predicted, bool)
+    found = np.asarray(found, bool)
+    valid = np.asarray(valid, bool)
+    if pred.shape[-2:] != found.shape or found.shape != valid.shape:
+        raise ValueError(f"expected masks of one size, got {pred.shape}, {found.shape} and "
+                         f"{valid.shape}")
+    pos, neg = (found & valid), (~found & valid)
+    p, n = int(pos.sum()), int(neg.sum())
+    tp = (pred & pos).sum(axis=(-2, -1))
+    tn = (~pred & neg).sum(axis=(-2, -1))
+    tpr = tp / p if p else np.ones(tp.shape)
+    tnr = tn / n if n else np.ones(tn.shape)
+    return 0.5 * (tpr + tnr)
+
+
+def shading_agreement(shadows: np.ndarray, luminance_: np.ndarray, valid: np.ndarray
+                       ) -> np.ndarray:
+    """Pearson correlation of each predicted shadow image ``S`` with the photo's linear
+    luminance over the valid pixels (``(N,)`` in [-1, 1]).
+
+    A sunlit surface's radiance is its albedo times ``E_sun * S + E_sky``, so under the right
+    sun the photo's luminance rises with ``S``: through the cast shadows *and* the attached
+    shading (the cosine term), without the photo's shadows having to be found first.
+    """
+    s = np.asarray(shadows, np.float32)
+    if s.ndim == 2:
+        s = s[None]
+    valid = np.asarray(valid, bool)
+    x = s[:, valid]  # N x P
+    y = np.asarray(luminance_, np.float32)[valid].astype(np.float64)
+    if x.shape[1] < 2:
+        return np.zeros(len(s))
+    x = x - x.mean(axis=1, keepdims=True)
+    y = y - y.mean()
+    den = np.linalg.norm(x, axis=1) * float(np.linalg.norm(y))
+    return np.where(den > 1e-9, (x @ y) / np.maximum(den, 1e-9), 0.0)
+
+
+def measures(shadows: np.ndarray, found: np.ndarray, valid: np.ndarray, luminance_: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """``(agreement, shading)`` of ``N x H x W`` predicted shadow images: the overlay mask's
+    ``1 - BER`` against the photo's found shadows (:func:`agreement`) and the shading
+    correlation (:func:`shading_agreement`)."""
+    pred = (shadows < SHADOW_THRESHOLD) & valid[None]
+    return agreement(pred, found, valid), shading_agreement(shadows, luminance_, valid)
+
+
+def ranking(agree: np.ndarray, shading: np.ndarray, measure: str) -> np.ndarray:
+    """The score :func:`find_sun` ranks suns by (higher is better), by :data:`MEASURES` name."""
+    if measure == "mask":
+        return np.asarray(agree, np.float64)
+    if measure == "shading":
+        return np.asarray(shading, np.float64)
+    if measure == "mask+shading":
+        return np.asarray(agree, np.float64) + SHADING_WEIGHT * np.asarray(shading, np.float64)
+    raise ValueError(f"expected a measure in {MEASURES}, got {measure!r}")
+
+
+def shade_clarity(image_srgb: np.ndarray, sky: np.ndarray, found: np.ndarray) -> float:
+    """How clearly the photo splits into sun and shade (0-1).
+
+    The gap between the mean log luminance of the lit surface and of the found shade, mapped
+    from :data:`SEPARATION_LOW` (0) to
+    :data:`SEPARATION_HIGH` (1); 0 when the shade covers under :data:`MIN_SHADE` or over
+    :data:`MAX_SHADE` of the surface.
+    """
+    surface = ~np.asarray(sky, bool)
+    if surface.sum() < 16:
+        return 0.0
+    shade = np.asarray(found, bool) & surface
+    lit = ~shade & surface
+    frac = shade.sum() / surface.sum()
+    if not MIN_SHADE <= frac <= MAX_SHADE or lit.sum() < 8 or shade.sum() < 8:
+        return 0.0
+    log_y = np.log(luminance(srgb_to_linear(np.clip(image_srgb, 0.0, 1.0))) + 1e-3)
+    a, b = log_y[shade], log_y[lit]
+    sep = float(b.mean() - a.mean())
+    return float(np.clip((sep - SEPARATION_LOW) / (SEPARATION_HIGH - SEPARATION_LOW), 0.0, 1.0))
+
+
+# ---------------------------------------------------------------------------------- levels
+def _resize(image: np.ndarray, shape: tuple[int, int], *, nearest: bool = False) -> np.ndarray:
+    from outcast_core.runtime.pipeline.session import resize
+
+    return resize(image, shape, nearest=nearest)
+
+
+class _Level:
+    """The session's light-independent buffers at one small size, and shadows for many suns."""
+
+    def __init__(self, session: Any, longer_side: int, prob: np.ndarray) -> None:
+        from outcast_core.runtime.pipeline.session import working_shape
+
+        cam: Camera = session.camera
+        h, w = working_shape(cam.height, cam.width, longer_side)
+        self.shape = (h, w)
+        self.camera = cam.resized(h, w)
+        depth_sky = np.where(session.sky, np.inf, session.depth).astype(np.float32)
+        self.depth = _resize(depth_sky, (h, w), nearest=True)  # H x W
+        self.sky = _resize(session.sky.astype(np.uint8), (h, w), nearest=True) > 0
+        self.image = _resize(session.image_srgb, (h, w))  # H x W x 3
+        self.normals = normals_from_depth(self.depth, self.camera)  # H x W x 3
+        self.found = _resize(prob, (h, w)) > 0.5
+        self.valid = ~self.sky
+        self.luminance = luminance(srgb_to_linear(np.clip(self.image, 0.0, 1.0)))
+        self.session = session
+        self._sampler: Any = None
+
+    def shadows(self, suns: np.ndarray) -> np.ndarray:
+        """``N x H x W`` shadow images for ``N x 3`` sun vectors."""
+        s = self.session
+        if s.shadow_mode == "learned":
+            model = s.registry.load("shadow")
+            out = []
+            for i in range(0, len(suns), BATCH):
+                chunk = suns[i:i + BATCH].astype(np.float32)  # B x 3
+                b = len(chunk)
+                res = model.run({
+                    "image": np.repeat(self.image.transpose(2, 0, 1)[None], b, 0),  # B x 3 x H x W
+                    "depth": np.repeat(network_depth(self.depth)[None, None], b, 0),
+                    "normals": np.repeat(self.normals.transpose(2, 0, 1)[None], b, 0),
+                    "sun": chunk,
+                    "focal": np.full((b, 1), self.camera.focal, np.float32),
+                })
+                out.append(np.clip(next(iter(res.values()))[:, 0], 0.0, 1.0))  # B x H x W
+            return np.concatenate(out, axis=0)
+        from outcast_core.runtime.geometry.raymarch import RaySampler
+        from outcast_core.runtime.geometry.shadows import direct_shadow
+
+        if self._sampler is None:
+            self._sampler = RaySampler(self.depth, self.camera)
+        step = max(float(s.preset.direct_step), 1.0 / max(self.shape))
+        return np.stack([
+            direct_shadow(self.depth, self.camera, w, normals=self.normals, sky=self.sky,
+                          steps=int(math.ceil(1.0 / step)), step=step, thickness=s.thickness,
+                          sampler=self._sampler)
+            for w in suns
+        ])  # fmt: skip
+
+    def score(self, suns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(agreement, shading)`` of each sun (``(N,)`` each): see :func:`measures`."""
+        if len(suns) == 0:
+            return np.zeros(0), np.zeros(0)
+        return measures(self.shadows(suns), self.found, self.valid, self.luminance)
+
+
+# ---------------------------------------------------------------------------------- search
+@dataclass
+class _Frame:
+    """Search coordinates: azimuth/elevation in a (possibly tilted) frame, to camera vectors."""
+
+    pitch: float = 0.0
+    roll: float = 0.0
+
+    def vector(self, az: float, el: float) -> np.ndarray:
+        return sun_vector(az, el, self.pitch, self.roll)
+
+    def vectors(self, points: Sequence[tuple[float, float]]) -> np.ndarray:
+        return np.stack([self.vector(a, e) for a, e in points]) if points else np.zeros((0, 3))
+
+
+def _camera_tilt(session: Any) -> tuple[float, float, str]:
+    """Camera ``(pitch, roll, source)`` in degrees from the fitted ground plane; level without
+    one (or with one tilted more than :data:`MAX_PLANE_TILT`)."""
+    from outcast_core.runtime.pipeline.depth_post import fit_ground_plane
+
+    level = (0.0, 0.0, "level (no ground plane)")
+    try:
+        plane = fit_ground_plane(session.depth, session.sky, session.camera)
+    except ValueError:
+        return level
+    if plane is None:
+        return level
+    n = plane.normal  # the ground's up in camera space: R @ (0, -1, 0)
+    pitch = math.degrees(math.asin(max(-1.0, min(1.0, float(n[2])))))
+    roll = math.degrees(math.atan2(-float(n[0]), -float(n[1])))
+    if math.hypot(pitch, roll) > MAX_PLANE_TILT:
+        return level
+    return pitch, roll, "ground plane"
+
+
+def _pose(session: Any, pitch_roll: Any) -> tuple[float, float, str]:
+    """``(pitch, roll, source)``: the given pose (a pair or a
+    :class:`~outcast_core.runtime.io.camera_pose.CameraPose` with a pitch), else the ground
+    plane's."""
+    if pitch_roll is not None and hasattr(pitch_roll, "pitch_roll"):
+        pair = pitch_roll.pitch_roll()
+        if pair is not None:
+            return float(pair[0]), float(pair[1]), str(pitch_roll.source)
+        return _camera_tilt(session)
+    if pitch_roll is not None:
+        pitch, roll = (float(v) for v in pitch_roll)
+        if not (math.isfinite(pitch) and math.isfinite(roll)):
+            raise ValueError(f"expected a finite camera pitch and roll, got {pitch_roll}")
+        return pitch, roll, "given"
+    return _camera_tilt(session)
+
+
+def _angle_between(a: np.ndarray, b: np.ndarray) -> float:
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(np.dot(a, b))))))
+
+
+def _peaks(points: list[tuple[float, float]], scores: np.ndarray, frame: _Frame, k: int,
+           separation: float) -> list[int]:
+    """Indices of the ``k`` best points at least ``separation`` degrees apart."""
+    order = np.argsort(-scores, kind="stable")
+    chosen: list[int] = []
+    vecs = frame.vectors(points)
+    for i in order:
+        if all(_angle_between(vecs[i], vecs[j]) >= separation for j in chosen):
+            chosen.append(int(i))
+        if len(chosen) == k:
+            break
+    return chosen
+
+
+def _pattern(centre: tuple[float, float], d_az: float, d_el: float, el_range: tuple[float, float],
+             ) -> list[tuple[float, float]]:
+    az0, el0 = centre
+    out = []
+    for de in ((-d_el, 0.0, d_el) if d_el > 0 else (0.0,)):
+        for da in (-d_az, 0.0, d_az):
+            el = min(el_range[1], max(el_range[0], el0 + de))
+            out.append(((az0 + da) % 360.0, el))
+    return out
+
+
+def _dedupe(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    seen: set[tuple[float, float]] = set()
+    out = []
+    for a, e in points:
+        key = (round(a % 360.0, 3), round(e, 3))
+        if key not in seen:
+            seen.add(key)
+            out.append((a % 360.0, e))
+    return out
+
+
+def find_sun(
+    session: Any,
+    *,
+    prior: SunPrior | None = None,
+    pitch_roll: Any = None,
+    progress: Progress | None = None,
+    cancel: Callable[[], bool] | None = None,
+    measure: str = MEASURE,
+) -> SunFit:
+    """Find the sun whose predicted shadows best agree with the photo's own shadows.
+
+    Args:
+        session: a :class:`~outcast_core.runtime.pipeline.session.RelightSession` after
+        ``set_image``.
+        prior: the EXIF prior (:func:`exif_sun_prior`); None searches the whole dome.
+        pitch_roll: the camera's ``(pitch, roll)`` in degrees for the prior's frame, or a
+            :class:`~outcast_core.runtime.io.camera_pose.CameraPose` from the photo's metadata
+            (:func:`~outcast_core.runtime.io.camera_pose.read_camera_pose`); None, or a pose
+            without a pitch: from the fitted ground plane (level when there is none). Unused
+            without a prior.
+        progress: called with ``(stage, fraction)`` (the app's may raise to cancel).
+        cancel: polled between stages; True raises :class:`FindSunCancelledError`.
+        measure: what the search ranks suns by (:data:`MEASURES`, :func:`ranking`).
+
+    Returns:
+        A :class:`SunFit`.
+
+    Raises:
+        RuntimeError: before ``set_image``.
+
+    Example:
+        >>> fit = find_sun(session)  # doctest: +SKIP
+        >>> fit.azimuth, fit.elevation, fit.confidence  # doctest: +SKIP
+    """
+    if getattr(session, "image_srgb", None) is None or getattr(session, "depth", None) is None:
+        raise RuntimeError("set_image() must be called before find_sun()")
+    if prior is not None and not isinstance(prior, SunPrior):
+        raise ValueError(f"expected a SunPrior or None, got {type(prior).__name__}")
+    if measure not in MEASURES:
+        raise ValueError(f"expected a measure in {MEASURES}, got {measure!r}")
+    t0 = time.perf_counter()
+    report = progress or (lambda stage, frac: None)
+
+    stages: dict[str, float] = {}
+    lap = [t0]
+
+    def check(stage: str, frac: float, done: str = "") -> None:
+        if done:  # the stage that has just ended, timed
+            now = time.perf_counter()
+            stages[done] = stages.get(done, 0.0) + now - lap[0]
+            lap[0] = now
+        if cancel is not None and cancel():
+            raise FindSunCancelledError("finding the sun was cancelled")
+        report(stage, frac)
+
+    check("finding the photo's shadows", 0.02)
+    prob = photo_shadow_probability(session.image_srgb, session.sky)
+    found_full = prob > 0.5
+    clarity = shade_clarity(session.image_srgb, session.sky, found_full)
+    coarse = _Level(session, COARSE_SIZE, prob)
+    levels = {COARSE_SIZE: coarse}
+
+    def level_of(size: int) -> _Level:
+        if size not in levels:
+            levels[size] = _Level(session, size, prob)
+        return levels[size]
+
+    frame, pose_source = _Frame(), ""
+    if prior is not None:
+        pitch, roll, pose_source = _pose(session, pitch_roll)
+        frame = _Frame(pitch, roll)
+
+    def bias(pts: Sequence[tuple[float, float]]) -> np.ndarray:
+        """The compass heading's soft pull (:attr:`SunPrior.azimuth_weight`)."""
+        if prior is None or prior.azimuth is None or not pts:
+            return np.zeros(len(pts))
+        dev = np.radians(np.array([a for a, _ in pts]) - prior.azimuth)
+        return prior.azimuth_weight * (1.0 - np.cos(dev)) / 2.0
+
+    # -- the coarse dome (the heat map), camera-relative
+    check("trying suns over the dome", 0.08, "photo shadows")
+    grid = [(a, e) for e in COARSE_ELEVATIONS for a in COARSE_AZIMUTHS]
+    dome_agree, dome_shading = coarse.score(_Frame().vectors(grid))
+    dome = ranking(dome_agree, dome_shading, measure)
+    evaluations = len(grid)
+    amap = AgreementMap(np.array(COARSE_AZIMUTHS), np.array(COARSE_ELEVATIONS),
+                        dome.reshape(len(COARSE_ELEVATIONS), len(COARSE_AZIMUTHS)))
+    d_az = COARSE_AZIMUTHS[1] - COARSE_AZIMUTHS[0]
+    d_el = COARSE_ELEVATIONS[1] - COARSE_ELEVATIONS[0]
+    el_range = (MIN_ELEVATION, 90.0)
+
+    # -- the search space: the dome, or the prior's ring (and azimuth window)
+    if prior is None:
+        points, scores = grid, dome
+    else:
+        el_range = (prior.elevation - prior.elevation_tolerance,
+                    prior.elevation + prior.elevation_tolerance)
+        d_az, d_el = RING_AZIMUTH_STEP, prior.elevation_tolerance
+        azs = np.arange(0.0, 360.0, RING_AZIMUTH_STEP)
+        if prior.azimuth is not None:
+            azs = np.unique(np.append(azs, prior.azimuth % 360.0))
+        points = [(float(a), prior.elevation) for a in azs]
+        check("trying suns on the EXIF elevation", 0.3, "dome")
+        scores = ranking(*coarse.score(frame.vectors(points)), measure) - bias(points)
+        evaluations += len(points)
+
+    # -- fine patterns around the best separated peaks
+    n_seeds = max([SEEDS, *(int(p[0]) for p in FINE_PATTERNS[:1])])
+    seeds = [points[i] for i in _peaks(points, scores, frame, n_seeds, PEAK_SEPARATION)]
+    cand: dict[tuple[float, float], float] = {}
+    if not FINE_PATTERNS:
+        cand.update(zip(points, scores.tolist(), strict=True))  # scores with the pull
+    last_level: _Level | None = None
+    for level, pattern in enumerate(FINE_PATTERNS):
+        k, scale = int(pattern[0]), float(pattern[1])
+        fine = level_of(int(pattern[2]) if len(pattern) > 2 else FINE_SIZE)  # type: ignore[misc]
+        check("refining", 0.4 + 0.4 * level / len(FINE_PATTERNS),
+              "dome" if level == 0 and prior is None else "ring" if level == 0 else "refine")
+        pts = _dedupe([p for c in seeds[:k] for p in _pattern(c, d_az * scale, d_el * scale,
+                                                               el_range)])
+        sc = ranking(*fine.score(frame.vectors(pts)), measure) - bias(pts)
+        evaluations += len(pts)
+        if fine is not last_level:  # scores at another size do not compare: this level's only
+            cand = {}
+            last_level = fine
+        cand.update(zip(pts, sc.tolist(), strict=True))
+        ranked = sorted(cand, key=lambda p: -cand[p])
+        seeds = ranked
+
+    # -- the last candidates at the session's working size, as the overlay is drawn and scored
+    #    (the shadow network's result depends on the size; cached there for the overlay)
+    check("checking the best suns", 0.85, "refine" if FINE_PATTERNS else "dome")
+    ranked = sorted(cand, key=lambda p: -cand[p])
+    finalists = [ranked[i] for i in _peaks(ranked, np.array([cand[p] for p in ranked]), frame,
+                                           FINAL_CANDIDATES, 2.0)]
+    # Early rejection: a candidate far behind the best at the small sizes is not checked.
+    finalists = [p for p in finalists if cand[p] >= cand[finalists[0]] - FINAL_MARGIN]
+    finals: list[tuple[float, float, float, float]] = []  # az, el, agreement, shading
+    y_full = luminance(srgb_to_linear(np.clip(session.image_srgb, 0.0, 1.0)))
+    for a, e in finalists:
+        ag, sh = measures(session.shadow(frame.vector(a, e))[None], found_full, ~session.sky,
+                          y_full)
+        finals.append((a, e, float(ag[0]), float(sh[0])))
+        evaluations += 1
+    pull = dict(zip(finalists, bias(finalists).tolist(), strict=True))
+    finals.sort(key=lambda t: -(float(ranking(np.array([t[2]]), np.array([t[3]]), measure)[0])
+                                - pull[(t[0], t[1])]))
+    best_a, best_e, best_score, best_shading = finals[0]
+    w_best = frame.vector(best_a, best_e)
+
+    # -- confidence (from the overlay's agreement, whatever the search ranked by)
+    contrast = best_score - float(np.nanmedian(dome_agree))
+    peak = float(np.clip(contrast / PEAK_CONTRAST, 0.0, 1.0))
+    strength = float(np.clip((best_score - WEAK_AGREEMENT)
+                             / (STRONG_AGREEMENT - WEAK_AGREEMENT), 0.0, 1.0))
+    confidence = float(clarity * peak * strength)
+    found = confidence >= CONFIDENT
+    source = "shadows"
+    if prior is not None:
+        source = "shadows + EXIF elevation" if prior.azimuth is None else "shadows + EXIF"
+    if prior is not None and prior.azimuth is not None and not found:
+        w_best = frame.vector(prior.azimuth, prior.elevation)
+        best_a, best_e = prior.azimuth % 360.0, prior.elevation
+        source = "EXIF"
+    cam_az, cam_el = sun_angles(w_best)
+    cam_el = min(90.0, max(0.0, cam_el))
+    if found:
+        note = f"sun found from the photo's shadows (confidence {confidence:.2f})"
+        if prior is not None:
+            note += "; " + (prior.description or f"elevation {prior.elevation:.0f}° from EXIF")
+        if prior is not None and prior.azimuth is not None:
+            off = abs((best_a - prior.azimuth + 180.0) % 360.0 - 180.0)
+            if off > 45.0:
+                note += (f"; the shadows put the sun {off:.0f}° away from the EXIF compass "
+                         "heading's")
+    else:
+        if clarity < CONFIDENT:
+            why = "no clear shadows in the photo"
+        else:
+            why = ("no sun makes the predicted shadows fit the photo's (the depth may be too "
+                   "rough: try a depth map or another depth model)")
+        if source == "EXIF":
+            note = f"{why}: the sun is the EXIF sun ({prior.description if prior else ''})"
+        else:
+            note = (f"{why}: its sun cannot be told from them (confidence {confidence:.2f}); "
+                    "set it by eye")
+    stages["finals"] = time.perf_counter() - lap[0]
+    report("done", 1.0)
+    return SunFit(
+        azimuth=float(cam_az), elevation=float(cam_el), w=w_best, agreement=best_score,
+        confidence=confidence, found=found, source=source, note=note, map=amap,
+        candidates=[(float(sun_angles(frame.vector(a, e))[0]),
+                     float(max(0.0, sun_angles(frame.vector(a, e))[1])), s)
+                    for a, e, s, _ in finals],
+        shading=best_shading, measure=measure,
+        true_elevation=float(best_e) if prior is not None else float(cam_el),
+        pitch=frame.pitch, roll=frame.roll, pose_source=pose_source, evaluations=evaluations,
+        stage_seconds={k: round(v, 4) for k, v in stages.items()},
+        seconds=time.perf_counter() - t0,
+    )
+
+
+__all__ = [
+    "AgreementMap",
+    "FindSunCancelledError",
+    "SunFit",
+    "SunPrior",
+    "agreement",
+    "exif_sun_prior",
+    "find_sun",
+    "shade_clarity",
+]

@@ -1,0 +1,621 @@
+"""Batch relighting: every photo of a folder, relit, de-shadowed or rendered as a time-lapse.
+
+Plain functions first: :func:`list_photos` finds the photos, :func:`read_targets_csv` reads a
+per-photo target table, :func:`plan_batch` turns them into jobs (skipping finished outputs, so a
+batch is resumed by running it again), :func:`run_job` does one photo and never raises for a bad
+photo, and :func:`run_batch` runs the jobs in one process or several. ``outcast batch``
+(:mod:`outcast_core.runtime.cli.batch_cli`) is the command line.
+
+Each photo's original sun comes from the first of ``sources`` that has one: ``project`` (the
+app's project file next to it, ``NAME.outcast.json``: the sun the user confirmed), ``exif``
+(GPS, capture time and compass heading, as the app's "Sun from EXIF"), ``given`` (one sun for
+every photo: ``--from``) or ``auto`` (the automatic sun,
+:func:`~outcast_core.runtime.pipeline.auto_sun.
+find_sun`, with the EXIF time and place as its prior; used only when it is confident). A row of
+the targets CSV may also give the photo's original sun.
+
+Example:
+    >>> opts = BatchOptions(kind="relight", to_sun=(90.0, 30.0), from_sun=(273.0, 67.0))
+    >>> jobs, skipped = plan_batch("photos", "out", opts)  # doctest: +SKIP
+    >>> results = run_batch(jobs, opts, workers=2)  # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import json
+import math
+import os
+import signal
+import time
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field, replace
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+#: Photo extensions a batch picks up (what :func:`~outcast_core.runtime.io.imageio.read_image`
+#: reads).
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp", ".heic", ".heif", ".bmp")
+#: What a batch can make of each photo.
+KINDS = ("relight", "deshadow", "timelapse")
+#: Where an original sun may come from, in the default order.
+SUN_SOURCES = ("project", "exif", "given", "auto")
+#: Output formats per kind (the first is the default).
+FORMATS = {"relight": ("jpg", "png", "tif", "webp"), "deshadow": ("jpg", "png", "tif", "webp"),
+           "timelapse": ("mp4", "gif", "webp")}
+#: The app's project files (``app.state.PROJECT_SUFFIX``; a test keeps them equal).
+PROJECT_SUFFIX = ".outcast.json"
+MAX_PROJECT_BYTES = 1_000_000
+
+Sun = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """What a batch does to every photo.
+
+    Attributes:
+        kind: ``relight``, ``deshadow`` or ``timelapse``.
+        sources: where original suns come from, in order (:data:`SUN_SOURCES`).
+        from_sun: the ``given`` original sun ``(azimuth, elevation)``, degrees.
+        to_sun: the new sun for every photo (a CSV row or the project's target overrides it...
+            see :func:`target_sun_for`).
+        fmt: output format (:data:`FORMATS`); default the kind's first.
+        preset: the session's quality preset.
+        mode: ``auto``, ``learned`` or ``classic`` (the session's).
+        depth_model: an ONNX depth model to use instead of the shipped one.
+        use_phone_depth: use a phone photo's own depth map.
+        sweep: time-lapse sweep ``((az1, el1), (az2, el2))``; None with ``day``.
+        day: time-lapse along the real sun path of the capture day (needs EXIF GPS and time).
+        frames: time-lapse frame count.
+        easing: sweep easing (:data:`~outcast_core.runtime.pipeline.timelapse.EASINGS`).
+        fps: time-lapse frames per second.
+        size: time-lapse frame size (:data:`~outcast_core.runtime.pipeline.timelapse.FRAME_SIZES`).
+        force: overwrite existing outputs (else finished photos are skipped).
+        threads: onnxruntime threads per worker (None: onnxruntime's default).
+    """
+
+    kind: str = "relight"
+    sources: tuple[str, ...] = SUN_SOURCES
+    from_sun: Sun | None = None
+    to_sun: Sun | None = None
+    fmt: str = ""
+    preset: str = "balanced"
+    mode: str = "auto"
+    depth_model: str | None = None
+    use_phone_depth: bool = True
+    sweep: tuple[Sun, Sun] | None = None
+    day: bool = False
+    frames: int = 48
+    easing: str = "ease-in-out"
+    fps: float = 12.0
+    size: str = "1080p"
+    force: bool = False
+    threads: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"expected a batch kind in {KINDS}, got {self.kind!r}")
+        bad = [s for s in self.sources if s not in SUN_SOURCES]
+        if not self.sources or bad:
+            raise ValueError(f"expected sun sources from {SUN_SOURCES}, got {self.sources!r}")
+        fmt = (self.fmt or FORMATS[self.kind][0]).lower().lstrip(".")
+        if fmt not in FORMATS[self.kind]:
+            raise ValueError(f"expected a {self.kind} format in {FORMATS[self.kind]}, got "
+                             f"{self.fmt!r}")
+        object.__setattr__(self, "fmt", fmt)
+        if self.kind == "timelapse" and (self.sweep is None) == (not self.day):
+            raise ValueError("expected a time-lapse sun path: a sweep or the capture day")
+
+
+@dataclass(frozen=True)
+class BatchJob:
+    """One photo to process.
+
+    Attributes:
+        image: the photo.
+        output: the file to write.
+        to_sun: the new sun from the targets CSV (None: :attr:`BatchOptions.to_sun` or the
+            project's).
+        from_sun: the original sun from the targets CSV (None: the sun sources).
+    """
+
+    image: str
+    output: str
+    to_sun: Sun | None = None
+    from_sun: Sun | None = None
+
+
+@dataclass
+class JobResult:
+    """What happened to one photo.
+
+    Attributes:
+        image: the photo.
+        output: the output file.
+        status: ``done``, ``skipped`` (the output exists) or ``failed``.
+        message: one line: the error, or why it was skipped.
+        from_sun: the original sun used.
+        sun_source: where it came from (``project``, ``exif``, ``given``, ``csv``).
+        to_sun: the new sun (relighting).
+        seconds: wall time of the job.
+        details: the session's modes and timings.
+    """
+
+    image: str
+    output: str
+    status: str
+    message: str = ""
+    from_sun: Sun | None = None
+    sun_source: str = ""
+    to_sun: Sun | None = None
+    seconds: float = 0.0
+    details: dict[str, Any] = field(default_factory=dict)
+
+
+# -------------------------------------------------------------------------------- planning
+def list_photos(folder: str | os.PathLike[str]) -> list[Path]:
+    """The photos directly in ``folder`` (not its sub-folders), sorted by name.
+
+    Raises:
+        FileNotFoundError: ``folder`` is not a folder.
+    """
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"'{folder}' is not a folder")
+    return sorted(p for p in folder.iterdir()
+                  if p.is_file() and not p.name.startswith(".")
+                  and p.suffix.lower() in PHOTO_SUFFIXES)
+
+
+def _parse_sun(az: str, el: str, where: str) -> Sun:
+    try:
+        sun = float(az), float(el)
+    except ValueError:
+        raise ValueError(f"{where}: expected numbers for the sun, got {az!r}, {el!r}") from None
+    if not (math.isfinite(sun[0]) and math.isfinite(sun[1])) or not 0.0 <= sun[1] <= 90.0:
+        raise ValueError(f"{where}: expected a sun at or above the horizon (elevation 0 to "
+                         f"90), got {az},{el}")
+    return sun
+
+
+def read_targets_csv(path: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    """Read a targets table: one row per output.
+
+    Columns (a header row names them): ``image`` (a file name in the input folder), ``to_az``,
+    ``to_el`` (the new sun; may be empty for de-shadowing and time-lapses), and optionally
+    ``from_az``, ``from_el`` (the photo's original sun, instead of the sun sources) and
+    ``output`` (the output file name; needed when a photo is listed twice).
+
+    Returns:
+        Rows as ``{"image", "to_sun", "from_sun", "output"}`` (suns as ``(az, el)`` or None).
+
+    Raises:
+        ValueError: a missing column, a bad number, an empty ``image``.
+    """
+    path = Path(path)
+    with open(path, newline="", encoding="utf-8-sig") as f:
+        reader = csv.DictReader(f)
+        fields = {c.strip() for c in reader.fieldnames or []}
+        if "image" not in fields:
+            raise ValueError(f"{path.name}: expected a header row with an 'image' column, got "
+                             f"{sorted(fields)}")
+        rows = []
+        for line, raw in enumerate(reader, start=2):
+            row = {(k or "").strip(): (v or "").strip() for k, v in raw.items()}
+            where = f"{path.name} line {line}"
+            if not row.get("image"):
+                raise ValueError(f"{where}: expected an image name, got an empty cell")
+            to_sun = from_sun = None
+            if row.get("to_az") or row.get("to_el"):
+                to_sun = _parse_sun(row.get("to_az", ""), row.get("to_el", ""), where)
+            if row.get("from_az") or row.get("from_el"):
+                from_sun = _parse_sun(row.get("from_az", ""), row.get("from_el", ""), where)
+            rows.append({"image": row["image"], "to_sun": to_sun, "from_sun": from_sun,
+                         "output": row.get("output", "")})
+    return rows
+
+
+def plan_batch(
+    in_dir: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+    options: BatchOptions,
+    targets: Sequence[dict[str, Any]] | None = None,
+) -> tuple[list[BatchJob], list[JobResult]]:
+    """The jobs of a batch, and the photos that need none (finished, or impossible to plan).
+
+    Output ``OUT_DIR/NAME.FMT`` for each photo ``NAME.*`` (a CSV ``output`` name instead). An
+    existing output is ``skipped`` unless ``options.force``: running a batch again resumes it.
+
+    Args:
+        in_dir: the folder of photos.
+        out_dir: the output folder (it may not be ``in_dir``).
+        options: the batch options.
+        targets: rows of :func:`read_targets_csv`; None: every photo in ``in_dir``.
+
+    Returns:
+        ``(jobs, results)``: the jobs to run and the ``skipped`` / ``failed`` results of the
+        photos not to run.
+
+    Raises:
+        ValueError: ``out_dir`` is ``in_dir``.
+        FileNotFoundError: ``in_dir`` is not a folder.
+    """
+    in_dir, out_dir = Path(in_dir), Path(out_dir)
+    photos = list_photos(in_dir)
+    if out_dir.exists() and os.path.samefile(in_dir, out_dir):
+        raise ValueError(f"expected an output folder other than the input folder '{in_dir}'")
+    if targets is None:
+        rows = [{"image": p.name, "to_sun": None, "from_sun": None, "output": ""}
+                for p in photos]
+    else:
+        rows = list(targets)
+    names = {p.name for p in photos}
+    jobs: list[BatchJob] = []
+    results: list[JobResult] = []
+    claimed: dict[str, str] = {}
+    for row in rows:
+        image = in_dir / row["image"]
+        name = row["output"] or f"{Path(row['image']).stem}.{options.fmt}"
+        output = out_dir / name
+        if row["image"] not in names:
+            results.append(JobResult(str(image), str(output), "failed",
+                                     f"'{row['image']}' is not a photo in '{in_dir}'"))
+            continue
+        if Path(name).name != name:
+            results.append(JobResult(str(image), str(output), "failed",
+                                     f"expected an output file name, got {name!r}"))
+            continue
+        if name in claimed:
+            results.append(JobResult(
+                str(image), str(output), "failed",
+                f"'{name}' is also the output of '{claimed[name]}'; name the outputs in the "
+                "targets CSV's 'output' column"))
+            continue
+        claimed[name] = row["image"]
+        if output.exists() and not options.force:
+            results.append(JobResult(str(image), str(output), "skipped",
+                                     "the output exists (use --force to redo it)"))
+            continue
+        jobs.append(BatchJob(str(image), str(output), row["to_sun"], row["from_sun"]))
+    return jobs, results
+
+
+# -------------------------------------------------------------------------------- suns
+def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None, str]:
+    """The suns and depth map of the app's project file next to ``photo``, if there is one.
+
+    Reads ``NAME.outcast.json`` (the format of :mod:`app.state`) without the app: its
+    ``original_sun`` (the sun the user confirmed), ``target_sun`` and ``depth_path`` (a depth
+    map the user loaded, relative to the project file).
+
+    Returns:
+        ``(original_sun, target_sun, depth_path)``; ``(None, None, "")`` without a project.
+
+    Raises:
+        ValueError: the project file is not a valid OutCast project, or is for another photo.
+    """
+    photo = Path(photo)
+    project = photo.with_name(photo.stem + PROJECT_SUFFIX)
+    if not project.is_file():
+        return None, None, ""
+    if project.stat().st_size > MAX_PROJECT_BYTES:
+        raise ValueError(f"project '{project.name}' is larger than {MAX_PROJECT_BYTES} bytes")
+    try:
+        data = json.loads(project.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise ValueError(f"project '{project.name}' is not valid JSON: {exc}") from exc
+    if not isinstance(data, dict) or data.get("outcast_project") != 1:
+        raise ValueError(f"project '{project.name}' is not an OutCast project (version 1)")
+    image = data.get("image") or ""
+    if image and Path(str(image)).name != photo.name:
+        raise ValueError(f"project '{project.name}' is for '{image}', not '{photo.name}'")
+
+    def sun(key: str) -> Sun | None:
+        value = data.get(key)
+        if value is None:
+            return None
+        try:
+            return _parse_sun(str(value["azimuth"]), str(value["elevation"]),
+                              f"project '{project.name}' {key}")
+        except (KeyError, TypeError):
+            raise ValueError(f"project '{project.name}' {key}: expected azimuth and "
+                             f"elevation, got {value!r}") from None
+
+    depth = data.get("depth_path") or ""
+    if depth and not os.path.isabs(depth):
+        depth = str((project.parent / depth).resolve())
+    return sun("original_sun"), sun("target_sun"), str(depth)
+
+
+def exif_sun(exif: Any) -> Sun | None:
+    """The photo's sun relative to the camera from EXIF GPS, capture time and compass heading
+    (the app's "Sun from EXIF"); None when one is missing or the sun is below the horizon."""
+    from outcast_core.runtime.pipeline.timelapse import exif_sun as sun_from_exif
+
+    return sun_from_exif(exif)
+
+
+def original_sun_for(
+    job: BatchJob,
+    options: BatchOptions,
+    exif: Any,
+    project_sun: Sun | None,
+    auto: Callable[[], Sun | None] | None = None,
+) -> tuple[Sun, str]:
+    """The photo's original sun and where it came from (``csv`` or one of ``options.sources``).
+
+    Args:
+        job: the photo (a CSV ``from_sun`` wins).
+        options: ``sources`` in order, and the ``given`` sun.
+        exif: the photo's metadata.
+        project_sun: the project file's confirmed sun.
+        auto: runs the automatic sun (slow: called only when its turn comes); returns None
+            when it is not confident. None: the ``auto`` source is unavailable.
+
+    Raises:
+        ValueError: none of the sources has a sun (the message lists what was tried).
+    """
+    if job.from_sun is not None:
+        return job.from_sun, "csv"
+    for source in options.sources:
+        if source == "project" and project_sun is not None:
+            return project_sun, "project"
+        if source == "exif":
+            sun = exif_sun(exif)
+            if sun is not None:
+                return sun, "exif"
+        if source == "given" and options.from_sun is not None:
+            return options.from_sun, "given"
+        if source == "auto" and auto is not None:
+            sun = auto()
+            if sun is not None:
+                return sun, "auto"
+    tried = {"project": f"no {Path(job.image).stem}{PROJECT_SUFFIX} with a confirmed sun",
+             "exif": "no EXIF GPS, time and heading (or the sun was down)",
+             "given": "no --from",
+             "auto": "the automatic sun is not sure" if auto is not None
+             else "no automatic sun in this version"}
+    return_text = "; ".join(tried[s] for s in options.sources)
+    raise ValueError(f"no original sun: {return_text}")
+
+
+def target_sun_for(job: BatchJob, options: BatchOptions, project_target: Sun | None) -> Sun:
+    """The new sun: the CSV row's, else ``options.to_sun``, else the project's target sun.
+
+    Raises:
+        ValueError: there is none.
+    """
+    for sun in (job.to_sun, options.to_sun, project_target):
+        if sun is not None:
+            return sun
+    raise ValueError("no new sun: give --to, a targets CSV row or a project with a new sun")
+
+
+# -------------------------------------------------------------------------------- one job
+_REGISTRY: Any = None  # one per process: models load once per worker
+
+
+def _registry(threads: int | None) -> Any:
+    global _REGISTRY
+    if _REGISTRY is None or _REGISTRY.threads != threads:
+        from outcast_core.runtime.io.models import ModelRegistry
+
+        _REGISTRY = ModelRegistry(threads=threads)
+    return _REGISTRY
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception as one line (user errors as their message, others with their type)."""
+    from outcast_core.runtime.io.models import ModelError
+
+    text = " ".join(str(exc).split())
+    if isinstance(exc, ValueError | ModelError | FileExistsError) and text:
+        return text
+    if isinstance(exc, OSError) and exc.strerror:
+        return f"{exc.filename or ''}: {exc.strerror}".lstrip(": ")
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def run_job(job: BatchJob, options: BatchOptions) -> JobResult:
+    """Process one photo; a failure is returned as a ``failed`` result, never raised.
+
+    Args:
+        job: the photo and its output.
+        options: the batch options.
+
+    Returns:
+        The result (``done`` or ``failed``).
+    """
+    t0 = time.perf_counter()
+    result = JobResult(job.image, job.output, "failed")
+    try:
+        _run_job(job, options, result)
+        result.status = "done"
+    except (Exception, MemoryError) as exc:  # noqa: BLE001 - one photo's failure is reported
+        result.message = one_line(exc)
+    result.seconds = time.perf_counter() - t0
+    return result
+
+
+def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
+    from outcast_core.runtime.geometry.camera import sun_vector
+    from outcast_core.runtime.io.depth_models import pick_depth_source
+    from outcast_core.runtime.io.imageio import read_depth, read_image, write_image
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    project_sun, project_target, depth_path = project_suns(job.image)
+    loaded = read_image(job.image)
+    to_sun = None
+    if options.kind == "relight":  # before the slow part
+        to_sun = target_sun_for(job, options, project_target)
+        result.to_sun = to_sun
+    session = RelightSession(registry=_registry(options.threads), preset=options.preset,
+                             mode=options.mode)
+    depth = read_depth(depth_path) if depth_path else None
+    if depth is None:
+        width, height = loaded.original_size
+        session.depth_provider, _note = pick_depth_source(
+            loaded.path, (height, width), model_path=options.depth_model,
+            use_phone=options.use_phone_depth, strict=False, photo_srgb=loaded.image_srgb)
+    session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm, depth=depth)
+    sun, source = original_sun_for(job, options, loaded.exif, project_sun,
+                                   _auto_sun(session, loaded.exif, result))
+    result.from_sun, result.sun_source = sun, source
+    session.set_original_sun(sun_vector(*sun))
+    Path(job.output).parent.mkdir(parents=True, exist_ok=True)
+    if options.kind == "timelapse":
+        _render_timelapse(session, loaded, sun, job, options)
+    else:
+        out = session.relight_full(sun_vector(*to_sun)) if to_sun else session.deshadow_full()
+        sixteen = options.fmt == "tif"
+        write_image(job.output, out, bit_depth=16 if sixteen else 8, force=options.force,
+                    exif=None if sixteen else loaded.exif_bytes)
+    result.details.update(shadows=session.shadow_mode, relighting=session.relight_mode,
+                          depth=session.depth_source,
+                          timings={k: round(v, 3) for k, v in session.timings.items()})
+
+
+def _auto_sun(session: Any, exif: Any, result: JobResult) -> Callable[[], Sun | None] | None:
+    """The ``auto`` source for one photo, or None when this version has no automatic sun."""
+    try:
+        from outcast_core.runtime.pipeline.auto_sun import exif_sun_prior, find_sun
+    except ImportError:
+        return None
+
+    def run() -> Sun | None:
+        fit = find_sun(session, prior=exif_sun_prior(exif))
+        result.details["auto_sun"] = {"azimuth": round(float(fit.azimuth), 2),
+                                      "elevation": round(float(fit.elevation), 2),
+                                      "confidence": round(float(fit.confidence), 3),
+                                      "found": bool(fit.found)}
+        return (float(fit.azimuth), float(fit.elevation)) if fit.found else None
+
+    return run
+
+
+def _render_timelapse(session: Any, loaded: Any, sun: Sun, job: BatchJob,
+                      options: BatchOptions) -> None:
+    from outcast_core.runtime.pipeline import timelapse as tl
+
+    if options.sweep is not None:
+        samples = tl.sweep_path(options.sweep[0], options.sweep[1], options.frames,
+                                options.easing)
+    else:
+        exif = loaded.exif
+        when, lat, lon = exif.capture_time, exif.latitude, exif.longitude
+        if when is None or lat is None or lon is None:
+            raise ValueError("the capture day's sun path needs the photo's EXIF GPS and time")
+        heading = tl.solve_heading(when, lat, lon, sun[0])
+        samples = tl.real_sun_path(when.date(), lat, lon, heading, options.frames)
+    tl.render_timelapse(session, samples, job.output, fps=options.fps, size=options.size,
+                        force=options.force)
+
+
+# -------------------------------------------------------------------------------- many jobs
+class _Stop(BaseException):
+    """Raised in a worker by SIGTERM: unwinds the job (its writers remove partial outputs)."""
+
+
+def _worker_init() -> None:
+    """Workers leave Ctrl+C to the parent, and turn SIGTERM into :class:`_Stop`."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def stop(signum: int, frame: object) -> None:
+        raise _Stop()
+
+    signal.signal(signal.SIGTERM, stop)
+
+
+def _run_in_worker(job: BatchJob, options: BatchOptions) -> JobResult:
+    """:func:`run_job` in a worker process: stopped by SIGTERM, it cleans up and exits at once
+    (instead of taking the next queued photo)."""
+    try:
+        return run_job(job, options)
+    except _Stop:
+        os._exit(143)
+
+
+def threads_per_worker(workers: int) -> int:
+    """onnxruntime threads for each of ``workers`` processes: the cores shared out, at least 1."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, (cores or 1) // max(1, workers))
+
+
+def run_batch(
+    jobs: Sequence[BatchJob],
+    options: BatchOptions,
+    workers: int = 1,
+    on_result: Callable[[JobResult], None] | None = None,
+) -> list[JobResult]:
+    """Run ``jobs``, in this process (``workers == 1``) or in ``workers`` processes.
+
+    One photo's failure does not stop the others. Ctrl+C (or SIGTERM turned into an exception
+    by the caller) stops the workers; what they were writing is removed, finished outputs stay,
+    so running the batch again resumes it.
+
+    Args:
+        jobs: from :func:`plan_batch`.
+        options: the batch options (``threads`` None: the cores shared out among workers).
+        workers: number of processes.
+        on_result: called in this process with each result as it comes (progress).
+
+    Returns:
+        The results in the order of ``jobs``.
+    """
+    if workers < 1:
+        raise ValueError(f"expected at least one worker, got {workers}")
+    if options.threads is None:
+        options = replace(options, threads=threads_per_worker(workers))
+    results: dict[int, JobResult] = {}
+
+    def done(i: int, r: JobResult) -> None:
+        results[i] = r
+        if on_result is not None:
+            on_result(r)
+
+    if workers == 1 or len(jobs) <= 1:
+        for i, job in enumerate(jobs):
+            done(i, run_job(job, options))
+        return [results[i] for i in range(len(jobs))]
+    context = get_context("forkserver" if os.name == "posix" else "spawn")
+    pool = ProcessPoolExecutor(max_workers=min(workers, len(jobs)), mp_context=context,
+                               initializer=_worker_init)
+    pending: dict[Future[JobResult], int] = {}
+    try:
+        pending = {pool.submit(_run_in_worker, job, options): i for i, job in enumerate(jobs)}
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                i = pending.pop(fut)
+                try:
+                    r = fut.result()
+                except Exception as exc:  # noqa: BLE001 - a worker died (killed, out of memory)
+                    r = JobResult(jobs[i].image, jobs[i].output, "failed",
+                                  f"the worker stopped: {one_line(exc)}")
+                done(i, r)
+    except BaseException:
+        _stop_workers(pool)
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+    return [results[i] for i in range(len(jobs))]
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """SIGTERM every worker of ``pool`` (they clean up their partial outputs and exit)."""
+    processes: Iterable[Any] = (getattr(pool, "_processes", None) or {}).values()
+    for process in list(processes):
+        with contextlib.suppress(Exception):
+            process.terminate()
+
+
+def summarize(results: Sequence[JobResult]) -> dict[str, int]:
+    """Counts of ``done``, ``skipped`` and ``failed`` results."""
+    counts = {"done": 0, "skipped": 0, "failed": 0}
+    for r in results:
+        counts[r.status] = counts.get(r.status, 0) + 1
+    return counts

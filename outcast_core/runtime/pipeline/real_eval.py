@@ -1,0 +1,534 @@
+"""Real-photo evaluation: does the shadow overlay lie on a photo's own shadows?
+
+``outcast eval real DIR`` runs the app's own
+:class:`~outcast_core.runtime.pipeline.session.RelightSession`
+on every ``NAME_image.*`` with a ``NAME_mask.png`` (255 = shadow) in ``DIR`` and measures, per
+photo and on average (DESIGN.md, "Real photographs: how we measure"):
+
+* ``overlay_ber``: the balanced error rate (:func:`balanced_error_rate`) of the overlay's shadow
+  mask (``S < SHADOW_THRESHOLD`` off the sky mask) against the human mask, at the best of
+  :data:`SWEEP_SUNS` (the sun an ideal user would align);
+* ``opposite_ber``: the overlay's BER at the opposite azimuth, same elevation. An overlay that
+  follows the sun gets clearly worse there; one that paints the photo's dark areas does not;
+* ``refined_ber``: the BER of the refined original shadow ``S_o`` (after "Confirm sun") at the
+  best sun;
+* ``otsu_ber``: Otsu's threshold on luminance, a photometric anchor that knows no sun;
+* ``shuffled_ber``: the other photos' best overlays laid on this photo's mask (a control: an
+  overlay that knows the photo sits far below it);
+* ``sky_claim``: the fraction of the mask's shadow pixels the sky mask claims;
+* ``deshadow_in`` / ``deshadow_out`` (photos with a shadow-free twin ``NAME_free.*``): the
+  de-shadowed photo's RMSE in CIE Lab against the twin inside the mask, as a ratio to the
+  unchanged input's, and outside the mask the excess over the input's own RMSE;
+* ``relit_chroma`` / ``relit_sky``: relit to the sun :data:`RELIGHT_TURN` degrees of azimuth
+  away (same elevation), the mean change of chroma (Lab ``a*, b*`` distance) over the pixels
+  lit under both suns (``S_o`` and ``S_n`` both above :data:`LIT_BOTH`), and the mean Lab change
+  on the sky when neither sun is in the frame (brightness may follow the new shading, colour may
+  not; the sky stays as it is);
+* ``new_shade``: how dark the relit photo makes the surface the new sun newly shadows
+  (``S_o`` above 0.5, ``S_n`` below the overlay's threshold), as the median change of log
+  luminance there over the photo's own shade (the median log luminance of its found shadows
+  minus that of its lit surface): 1 is as dark as the photo's own shadows, 0 unchanged;
+* ``seconds``: wall time for the photo (depth, 24 suns, confirmation, de-shadowing, one relight).
+
+Masks are compared at the mask's size: shadow images are resized to it (bilinear) before the
+threshold. The numbers are for notes and ``models/EVAL.md``; pictures made from a research data
+set (the contact sheet) belong outside the repository.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from outcast_core.runtime.geometry.camera import sun_in_frame, sun_vector
+
+#: Shadow images below this are "in shadow" (the overlay's display threshold).
+SHADOW_THRESHOLD = 0.15
+#: The 24-sun sweep: azimuth every 30 deg at elevations 20 and 45 (camera-relative).
+SWEEP_SUNS: tuple[tuple[float, float], ...] = tuple(
+    (float(az), float(el)) for el in (20, 45) for az in range(0, 360, 30)
+)
+#: Azimuth turn of the relighting check, and the shadow level above which a pixel counts as lit.
+RELIGHT_TURN = 120.0
+LIT_BOTH = 0.3
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp")
+
+Progress = Callable[[str, float], None]
+
+
+def balanced_error_rate(pred: np.ndarray, truth: np.ndarray) -> float:
+    """``BER = 1 - (TP / P + TN / N) / 2`` of a boolean prediction against a boolean truth.
+
+    0 is perfect, 0.5 is chance (the SBU benchmark's measure). A class absent from ``truth``
+    counts as fully right on that side.
+
+    Args:
+        pred: ``H x W`` bool; truth: ``H x W`` bool (True = shadow).
+
+    Example:
+        >>> t = np.array([[True, False]]); balanced_error_rate(t, t)
+        0.0
+    """
+    pred = np.asarray(pred, bool)
+    truth = np.asarray(truth, bool)
+    if pred.shape != truth.shape:
+        raise ValueError(f"expected masks of one shape, got {pred.shape} and {truth.shape}")
+    p, n = int(truth.sum()), int((~truth).sum())
+    tpr = float((pred & truth).sum()) / p if p else 1.0
+    tnr = float((~pred & ~truth).sum()) / n if n else 1.0
+    return 1.0 - 0.5 * (tpr + tnr)
+
+
+def otsu_shadow_mask(image_srgb: np.ndarray) -> np.ndarray:
+    """Otsu's threshold on 8-bit luminance: the darker side is shadow (``H x W`` bool)."""
+    img = np.asarray(image_srgb, np.float32)
+    lum = cv2.cvtColor(np.clip(img, 0.0, 1.0), cv2.COLOR_RGB2GRAY)
+    lum8 = np.round(lum * 255.0).astype(np.uint8)
+    t, _ = cv2.threshold(lum8, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    return lum8 <= t
+
+
+def shadow_mask(shadow: np.ndarray, sky: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """A shadow image and sky mask (one size) to the boolean shadow mask at ``shape``."""
+    h, w = shape
+    s = cv2.resize(np.asarray(shadow, np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
+    sk = cv2.resize(np.asarray(sky, np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
+    return (s < SHADOW_THRESHOLD) & ~sk
+
+
+@dataclass(frozen=True)
+class RealItem:
+    """One photo of an evaluation folder: its image, human mask and optional shadow-free twin."""
+
+    name: str
+    image: Path
+    mask: Path
+    free: Path | None = None
+
+
+def find_items(folder: str | Path) -> list[RealItem]:
+    """Every ``NAME_image.*`` with a ``NAME_mask.png`` in ``folder``, sorted by name."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise ValueError(f"expected a folder of NAME_image.* and NAME_mask.png, got {folder}")
+    items = []
+    for img in sorted(folder.iterdir()):
+        stem = img.stem
+        if img.suffix.lower() not in IMAGE_SUFFIXES or not stem.endswith("_image"):
+            continue
+        name = stem[: -len("_image")]
+        mask = folder / f"{name}_mask.png"
+        if not mask.is_file():
+            continue
+        free = next((folder / f"{name}_free{s}" for s in IMAGE_SUFFIXES
+                     if (folder / f"{name}_free{s}").is_file()), None)
+        items.append(RealItem(name, img, mask, free))
+    if not items:
+        raise ValueError(f"expected NAME_image.* files with NAME_mask.png in {folder}, found none")
+    return items
+
+
+def read_mask(path: Path) -> np.ndarray:
+    """A mask PNG as ``H x W`` bool (True where > 127)."""
+    m = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+    if m is None:
+        raise ValueError(f"could not read the mask {path}")
+    return m > 127
+
+
+def lab_rmse(a_srgb: np.ndarray, b_srgb: np.ndarray, where: np.ndarray) -> float:
+    """RMSE in CIE Lab (OpenCV's float Lab: L in 0-100) over the pixels ``where`` is True."""
+    la = cv2.cvtColor(np.clip(a_srgb, 0, 1).astype(np.float32), cv2.COLOR_RGB2Lab)
+    lb = cv2.cvtColor(np.clip(b_srgb, 0, 1).astype(np.float32), cv2.COLOR_RGB2Lab)
+    if not where.any():
+        return float("nan")
+    d = (la - lb)[where]
+    return float(np.sqrt(np.mean(np.sum(d * d, axis=-1))))
+
+
+@dataclass
+class PhotoResult:
+    """Per-photo figures (see the module docstring)."""
+
+    name: str
+    best_sun: tuple[float, float]
+    overlay_ber: float
+    opposite_ber: float
+    refined_ber: float
+    otsu_ber: float
+    sky_claim: float
+    shadow_fraction: float
+    overlay_fraction: float
+    seconds: float
+    shuffled_ber: float = float("nan")
+    deshadow_in: float | None = None
+    deshadow_out: float | None = None
+    relit_chroma: float | None = None
+    relit_sky: float | None = None
+    new_shade: float | None = None
+    depth_source: str = ""
+    extra: dict[str, float] = field(default_factory=dict)
+
+
+def evaluate_photo(
+    session: Any,
+    item: RealItem,
+    *,
+    suns: Sequence[tuple[float, float]] = SWEEP_SUNS,
+    keep: dict[str, Any] | None = None,
+) -> PhotoResult:
+    """Sweep ``suns`` on one photo with a ready-made session and measure it.
+
+    Args:
+        session: a :class:`~outcast_core.runtime.pipeline.session.RelightSession`.
+        item: the photo, its mask and its twin.
+        suns: ``(azimuth, elevation)`` pairs in degrees.
+        keep: if given, filled with the pictures of the photo (``image``, ``overlay``,
+            ``refined``, ``deshadowed``, ``truth``) for a contact sheet.
+    """
+    from outcast_core.runtime.io.imageio import read_image
+
+    t0 = time.perf_counter()
+    loaded = read_image(item.image)
+    truth = read_mask(item.mask)
+    shape = truth.shape
+    if loaded.image_srgb.shape[:2] != shape:
+        raise ValueError(f"{item.name}: expected a mask of the image's size "
+                         f"{loaded.image_srgb.shape[:2]}, got {shape}")
+    session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
+    sky = session.sky
+    scores = []
+    for az, el in suns:
+        pred = shadow_mask(session.shadow(sun_vector(az, el)), sky, shape)
+        scores.append(balanced_error_rate(pred, truth))
+    best = int(np.argmin(scores))
+    az, el = suns[best]
+    opp = (az + 180.0) % 360.0
+    opp_idx = next((i for i, s in enumerate(suns) if abs(s[0] - opp) < 1e-6 and s[1] == el), None)
+    w_best = sun_vector(az, el)
+    if opp_idx is not None:
+        opposite = scores[opp_idx]
+    else:
+        opposite = balanced_error_rate(
+            shadow_mask(session.shadow(sun_vector(opp, el)), sky, shape), truth)
+    overlay = shadow_mask(session.shadow(w_best), sky, shape)
+    refined_img = session.set_original_sun(w_best)
+    refined = shadow_mask(refined_img, sky, shape)
+    sky_full = cv2.resize(sky.astype(np.uint8), (shape[1], shape[0]),
+                          interpolation=cv2.INTER_NEAREST) > 0
+    n_true = max(1, int(truth.sum()))
+    res = PhotoResult(
+        name=item.name,
+        best_sun=(az, el),
+        overlay_ber=float(scores[best]),
+        opposite_ber=float(opposite),
+        refined_ber=balanced_error_rate(refined, truth),
+        otsu_ber=balanced_error_rate(otsu_shadow_mask(loaded.image_srgb), truth),
+        sky_claim=float((sky_full & truth).sum()) / n_true,
+        shadow_fraction=float(truth.mean()),
+        overlay_fraction=float(overlay.mean()),
+        seconds=0.0,
+    )
+    res.depth_source = str(getattr(session, "depth_source", ""))
+    deshadowed = None
+    if item.free is not None and hasattr(session, "deshadow_full"):
+        free = read_image(item.free).image_srgb
+        if free.shape != loaded.image_srgb.shape:
+            free = cv2.resize(free, (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
+        deshadowed = session.deshadow_full()
+        base_in = lab_rmse(loaded.image_srgb, free, truth)
+        res.deshadow_in = lab_rmse(deshadowed, free, truth) / max(base_in, 1e-6)
+        res.deshadow_out = (lab_rmse(deshadowed, free, ~truth)
+                            - lab_rmse(loaded.image_srgb, free, ~truth))
+        res.extra["input_lab_rmse_in"] = base_in
+    if hasattr(session, "relight"):
+        _relight_checks(session, res, az, el)
+    res.seconds = time.perf_counter() - t0
+    if keep is not None:
+        if deshadowed is None and hasattr(session, "deshadow"):
+            deshadowed = session.deshadow()  # working resolution is enough for a thumbnail
+        keep.update(image=loaded.image_srgb, truth=truth, overlay=overlay, refined=refined,
+                    deshadowed=deshadowed)
+        if hasattr(session, "relight"):  # two relit suns, +-RELIGHT_TURN (cached in the session)
+            keep["relit"] = [session.relight(sun_vector((az + turn) % 360.0, el))
+                             for turn in (RELIGHT_TURN, -RELIGHT_TURN)]
+    return res
+
+
+def _relight_checks(session: Any, res: PhotoResult, az: float, el: float) -> None:
+    """``relit_chroma``, ``relit_sky`` and ``new_shade`` of :class:`PhotoResult` (module
+    docstring)."""
+    w_o, w_n = sun_vector(az, el), sun_vector((az + RELIGHT_TURN) % 360.0, el)
+    relit = session.relight(w_n)
+    image = session.image_srgb
+    lab_a = cv2.cvtColor(np.clip(image, 0, 1).astype(np.float32), cv2.COLOR_RGB2Lab)
+    lab_b = cv2.cvtColor(np.clip(relit, 0, 1).astype(np.float32), cv2.COLOR_RGB2Lab)
+    lit = (session.original_shadow > LIT_BOTH) & (session.shadow(w_n) > LIT_BOTH) & ~session.sky
+    if lit.any():
+        d = lab_b[lit, 1:] - lab_a[lit, 1:]
+        res.relit_chroma = float(np.mean(np.hypot(d[:, 0], d[:, 1])))
+    if session.sky.any() and not (sun_in_frame(w_o, session.camera)
+                                  or sun_in_frame(w_n, session.camera)):
+        d = lab_b[session.sky] - lab_a[session.sky]
+        res.relit_sky = float(np.mean(np.sqrt(np.sum(d * d, axis=-1))))
+    res.new_shade = new_shade_ratio(image, relit, session.original_shadow, session.shadow(w_n),
+                                    getattr(session, "shadow_probability", None), session.sky)
+
+
+#: Least pixels of each kind :func:`new_shade_ratio` needs.
+MIN_PIXELS = 50
+
+
+def new_shade_ratio(
+    image_srgb: np.ndarray, relit_srgb: np.ndarray, shadow_old: np.ndarray,
+    shadow_new: np.ndarray, probability: np.ndarray | None, sky: np.ndarray,
+) -> float | None:
+    """``new_shade`` (module docstring); None when a photo has too few pixels of a kind.
+
+    Example:
+        >>> img = np.full((10, 20, 3), 0.8, np.float32); img[:, :10] = 0.3
+        >>> so = np.ones((10, 20), np.float32); so[:, :10] = 0.0
+        >>> sn = np.ones((10, 20), np.float32); sn[:, 15:] = 0.0
+        >>> relit = img.copy(); relit[:, 15:] = 0.3
+        >>> p = 1.0 - so; sky = np.zeros((10, 20), bool)
+        >>> round(new_shade_ratio(img, relit, so, sn, p, sky), 2)
+        1.0
+    """
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+
+    if probability is None:
+        return None
+    surface = ~np.asarray(sky, bool)
+    log_y = np.log(luminance(srgb_to_linear(np.clip(image_srgb, 0, 1))) + 1e-3)
+    log_r = np.log(luminance(srgb_to_linear(np.clip(relit_srgb, 0, 1))) + 1e-3)
+    shade, lit = surface & (probability > 0.5), surface & (probability < 0.5)
+    newly = surface & (shadow_old > 0.5) & (shadow_new < SHADOW_THRESHOLD)
+    if min(shade.sum(), lit.sum(), newly.sum()) < MIN_PIXELS:
+        return None
+    own = float(np.median(log_y[shade]) - np.median(log_y[lit]))
+    if own > -1e-3:
+        return None
+    return float(np.median((log_r - log_y)[newly]) / own)
+
+
+def shuffled_control(
+    masks: dict[str, np.ndarray], truths: dict[str, np.ndarray]
+) -> dict[str, float]:
+    """For each photo, the mean BER of every other photo's best overlay laid on its mask."""
+    out: dict[str, float] = {}
+    for name, truth in truths.items():
+        h, w = truth.shape
+        bers = [
+            balanced_error_rate(
+                cv2.resize(m.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0, truth)
+            for other, m in masks.items() if other != name
+        ]
+        out[name] = float(np.mean(bers)) if bers else float("nan")
+    return out
+
+
+SUMMARY_KEYS = ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuffled_ber",
+                "sky_claim", "overlay_fraction", "shadow_fraction", "seconds",
+                "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky", "new_shade")
+
+
+def summarize(results: Sequence[PhotoResult]) -> dict[str, float]:
+    """Means of the per-photo figures (those a photo lacks are left out of its mean)."""
+    out: dict[str, float] = {"photos": float(len(results))}
+    for key in SUMMARY_KEYS:
+        vals = [getattr(r, key) for r in results]
+        vals = [v for v in vals if v is not None and math.isfinite(v)]
+        if vals:
+            out[key] = float(np.mean(vals))
+    out["opposite_gap"] = out.get("opposite_ber", math.nan) - out.get("overlay_ber", math.nan)
+    out["shuffled_gap"] = out.get("shuffled_ber", math.nan) - out.get("overlay_ber", math.nan)
+    return out
+
+
+def evaluate_real(
+    folder: str | Path,
+    *,
+    session_factory: Callable[[], Any],
+    limit: int = 0,
+    progress: Progress | None = None,
+    sheet: str | Path | None = None,
+) -> dict[str, Any]:
+    """Run :func:`evaluate_photo` on every photo of ``folder``; per-photo results and means.
+
+    Args:
+        folder: a folder of ``NAME_image.*`` + ``NAME_mask.png`` (+ ``NAME_free.*``).
+        session_factory: makes the session (one for the whole folder).
+        limit: use the first ``limit`` photos (0: all).
+        progress: called with ``(photo name, fraction done)``.
+        sheet: where to write a contact sheet (PNG/JPEG), or None.
+
+    Returns:
+        ``{"photos": [per-photo dicts], "mean": {...}}``.
+    """
+    items = find_items(folder)
+    if limit > 0:
+        items = items[:limit]
+    session = session_factory()
+    results: list[PhotoResult] = []
+    masks: dict[str, np.ndarray] = {}
+    truths: dict[str, np.ndarray] = {}
+    rows: list[list[np.ndarray]] = []
+    for i, item in enumerate(items):
+        if progress:
+            progress(item.name, i / len(items))
+        keep: dict[str, Any] = {}
+        res = evaluate_photo(session, item, keep=keep)
+        results.append(res)
+        masks[item.name] = keep["overlay"]
+        truths[item.name] = keep["truth"]
+        if sheet is not None:
+            rows.append(_sheet_row(keep))
+    shuffled = shuffled_control(masks, truths)
+    for r in results:
+        r.shuffled_ber = shuffled[r.name]
+    if sheet is not None and rows:
+        _write_sheet(Path(sheet), rows)
+    if progress:
+        progress("done", 1.0)
+    return {"photos": [asdict(r) for r in results], "mean": summarize(results)}
+
+
+_THUMB = 160
+
+
+def _thumb(img: np.ndarray) -> np.ndarray:
+    """A thumbnail :data:`_THUMB` pixels high (grey images made RGB)."""
+    img = np.asarray(img, np.float32)
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=2)
+    h, w = img.shape[:2]
+    size = (max(1, round(w * _THUMB / h)), _THUMB)
+    return cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+
+
+def _tint(image: np.ndarray, mask: np.ndarray, colour: tuple[float, float, float]) -> np.ndarray:
+    out = np.asarray(image, np.float32).copy()
+    out[mask] = 0.5 * out[mask] + 0.5 * np.asarray(colour, np.float32)
+    return out
+
+
+def _sheet_row(keep: dict[str, Any]) -> list[np.ndarray]:
+    img = keep["image"]
+    row = [_thumb(img), _thumb(_tint(img, keep["truth"], (0.0, 1.0, 0.0))),
+           _thumb(_tint(img, keep["overlay"], (1.0, 0.0, 0.0))),
+           _thumb(_tint(img, keep["refined"], (0.0, 0.3, 1.0)))]
+    if keep.get("deshadowed") is not None:
+        row.append(_thumb(keep["deshadowed"]))
+    row += [_thumb(r) for r in keep.get("relit", [])]
+    return row
+
+
+def _write_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
+    """Rows of thumbnails: photo, human mask (green), overlay (red), S_o (blue), de-shadowed,
+    relit at azimuth +-:data:`RELIGHT_TURN`."""
+    from outcast_core.runtime.io.imageio import write_image
+
+    lines = [np.concatenate(r, axis=1) for r in rows]
+    width = max(line.shape[1] for line in lines)
+    grid = np.concatenate(
+        [np.pad(line, ((0, 2), (0, width - line.shape[1]), (0, 0))) for line in lines], axis=0)
+    write_image(path, grid, force=True)
+
+
+def render_table(report: dict[str, Any]) -> str:
+    """The per-photo results and their means as a Markdown table."""
+    head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | Shuffled | Sky claim |"
+            " De-shadow in / out | Relit chroma / sky / new shade | s |")
+    lines = [head, "|---|---|---|---|---|---|---|---|---|---|---|"]
+
+    def f(v: Any, d: int = 3) -> str:
+        return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else f"{v:.{d}f}"
+
+    for r in report["photos"]:
+        ds = ("-" if r["deshadow_in"] is None
+              else f"{f(r['deshadow_in'], 2)} / {f(r['deshadow_out'], 2)}")
+        lines.append(
+            f"| {r['name']} | {r['best_sun'][0]:.0f},{r['best_sun'][1]:.0f} | "
+            f"{f(r['overlay_ber'])} | {f(r['opposite_ber'])} | {f(r['refined_ber'])} | "
+            f"{f(r['otsu_ber'])} | {f(r['shuffled_ber'])} | {f(r['sky_claim'])} | {ds} | "
+            f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} / {f(r.get('new_shade'), 2)} | "
+            f"{f(r['seconds'], 1)} |")
+    m = report["mean"]
+    ds = ("-" if "deshadow_in" not in m
+          else f"{f(m['deshadow_in'], 2)} / {f(m.get('deshadow_out'), 2)}")
+    lines.append(
+        f"| **mean ({int(m['photos'])})** | | **{f(m.get('overlay_ber'))}** | "
+        f"{f(m.get('opposite_ber'))} | **{f(m.get('refined_ber'))}** | {f(m.get('otsu_ber'))} | "
+        f"{f(m.get('shuffled_ber'))} | {f(m.get('sky_claim'))} | {ds} | "
+        f"{f(m.get('relit_chroma'), 2)} / {f(m.get('relit_sky'), 2)} / "
+        f"{f(m.get('new_shade'), 2)} | {f(m.get('seconds'), 1)} |")
+    return "\n".join(lines)
+
+
+REPORT_BEGIN = ("<!-- real-photos: written by `outcast eval real --report`; "
+                "kept by `outcast eval` -->")
+REPORT_END = "<!-- real-photos: end -->"
+
+
+def real_section(text: str) -> str:
+    """The real-photo section of a report (markers included), or ``""``."""
+    i, j = text.find(REPORT_BEGIN), text.find(REPORT_END)
+    return text[i: j + len(REPORT_END)] if 0 <= i < j else ""
+
+
+def update_report(path: str | Path, section: str) -> Path:
+    """Put ``section`` between :data:`REPORT_BEGIN` / :data:`REPORT_END` in the Markdown file
+    ``path`` (replacing the previous one, or appended; the file is created if missing)."""
+    path = Path(path)
+    text = path.read_text(encoding="utf-8") if path.exists() else ""
+    block = f"{REPORT_BEGIN}\n{section.strip()}\n{REPORT_END}"
+    old = real_section(text)
+    before = text.rstrip("\n") + ("\n\n" if text else "")
+    text = text.replace(old, block) if old else before + block
+    tmp = path.with_name(f".{path.name}.part")
+    tmp.write_text(text + ("" if text.endswith("\n") else "\n"), encoding="utf-8")
+    tmp.replace(path)
+    return path
+
+
+def write_json(path: str | Path, report: dict[str, Any]) -> None:
+    """The report as JSON (NaN written as null)."""
+    def clean(v: Any) -> Any:
+        if isinstance(v, float) and not math.isfinite(v):
+            return None
+        if isinstance(v, dict):
+            return {k: clean(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [clean(x) for x in v]
+        return v
+
+    Path(path).write_text(json.dumps(clean(report), indent=1))
+
+
+__all__ = [
+    "SHADOW_THRESHOLD",
+    "SWEEP_SUNS",
+    "PhotoResult",
+    "RealItem",
+    "balanced_error_rate",
+    "evaluate_photo",
+    "evaluate_real",
+    "find_items",
+    "lab_rmse",
+    "read_mask",
+    "otsu_shadow_mask",
+    "real_section",
+    "render_table",
+    "update_report",
+    "shadow_mask",
+    "shuffled_control",
+    "summarize",
+]

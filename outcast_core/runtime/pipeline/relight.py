@@ -1,0 +1,392 @@
+"""Physics relighting by shading ratios, and full-resolution detail transfer.
+
+Model: a pixel's linear radiance is ``C = rho * (a + k S)`` with albedo ``rho``, ambient (sky)
+irradiance ``a``, sun irradiance ``k`` (both per colour channel) and the shadow image ``S``
+(cosine-weighted sun visibility). Relighting keeps ``rho`` and swaps the shading::
+
+    C_n = C_o * (a + k S_n) / (a + k S_o) = C_o * (1 + r S_n) / (1 + r S_o),   r = k / a
+
+so only the per-channel ratio ``r`` is needed. It is estimated from the photo itself: the median
+radiance of surfaces the original shadow image calls lit (``S_o`` high), against the median of
+those it calls shadowed (``S_o`` near 0), assuming albedo does not correlate with shadowing over
+the whole photo. A warm sun and a blue sky make ``r`` larger in red than in blue, which is what
+makes relit shadows bluish. When the photo has too few lit or too few shadowed pixels to measure,
+``r`` falls back to a clear-day prior. The denominator is ``>= 1`` by construction; the sky is
+left as it is.
+
+Before the ratio is taken, ``S_o`` is snapped to the photo's own edges with a guided filter (the
+predicted shadow never lines up exactly with the photographed one; this is the ratio method's
+stand-in for the learned refinement network R).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from outcast_core.runtime.geometry.colour import linear_to_srgb, luminance, srgb_to_linear
+
+#: Clear-day sun/sky irradiance ratio per channel (R, G, B) when the photo cannot tell.
+PRIOR_RATIO = np.array([5.0, 4.0, 2.8], dtype=np.float32)
+RATIO_RANGE = (0.25, 40.0)
+#: Fewest lit / shadowed pixels (absolute, and as a fraction of the surface) to measure ``r``.
+_MIN_PIXELS = 16
+_MIN_FRACTION = 0.005
+
+
+@dataclass(frozen=True)
+class LightEstimate:
+    """Per-channel sun/ambient ratio ``r = k / a`` and whether it was measured or assumed."""
+
+    ratio: np.ndarray
+    measured: bool
+    lit_pixels: int
+    shadow_pixels: int
+
+
+def _check_pair(image: np.ndarray, shadow: np.ndarray, name: str) -> None:
+    if image.ndim != 3 or image.shape[-1] != 3:
+        raise ValueError(f"expected an H x W x 3 image, got shape {image.shape}")
+    if shadow.shape != image.shape[:2]:
+        raise ValueError(f"expected {name} of shape {image.shape[:2]}, got {shadow.shape}")
+
+
+def estimate_light(
+    radiance_lin: np.ndarray, shadow_old: np.ndarray, sky: np.ndarray | None = None
+) -> LightEstimate:
+    """Estimate ``r = k / a`` per channel from a photo and its original shadow image.
+
+    Args:
+        radiance_lin: ``H x W x 3`` linear RGB.
+        shadow_old: ``H x W`` original shadow image ``S_o`` in [0, 1].
+        sky: optional ``H x W`` bool sky mask (excluded).
+
+    Returns:
+        A :class:`LightEstimate`.
+    """
+    radiance_lin = np.asarray(radiance_lin, dtype=np.float32)
+    shadow_old = np.asarray(shadow_old, dtype=np.float32)
+    _check_pair(radiance_lin, shadow_old, "shadow_old")
+    surface = np.ones(shadow_old.shape, bool) if sky is None else ~np.asarray(sky, bool)
+    lum = luminance(radiance_lin)
+    # Ignore clipped and black pixels: they carry no ratio information.
+    usable = surface & (lum > 1e-3) & (radiance_lin.max(axis=-1) < 0.98)
+    lit = usable & (shadow_old > 0.3)
+    shd = usable & (shadow_old < 0.03)
+    n_lit, n_shd = int(lit.sum()), int(shd.sum())
+    need = max(_MIN_PIXELS, int(_MIN_FRACTION * surface.sum()))
+    if n_lit < need or n_shd < need:
+        return LightEstimate(PRIOR_RATIO.copy(), False, n_lit, n_shd)
+    s_lit = float(np.median(shadow_old[lit]))
+    m_lit = np.median(radiance_lin[lit], axis=0)
+    m_shd = np.maximum(np.median(radiance_lin[shd], axis=0), 1e-4)
+    ratio = (m_lit / m_shd - 1.0) / max(s_lit, 1e-3)
+    if not np.all(np.isfinite(ratio)) or np.any(ratio <= RATIO_RANGE[0]):
+        # Lit no brighter than shadowed: S_o does not describe this photo's light.
+        return LightEstimate(PRIOR_RATIO.copy(), False, n_lit, n_shd)
+    ratio = np.clip(ratio, *RATIO_RANGE).astype(np.float32)
+    return LightEstimate(ratio, True, n_lit, n_shd)
+
+
+def estimate_light_on_surfaces(
+    image_srgb: np.ndarray, shadow_old: np.ndarray, normals: np.ndarray
+) -> LightEstimate:
+    """:func:`estimate_light` on an sRGB photo, with the sky taken from the geometry: pixels
+    whose normals are zero (no surface). What ``L`` with the physics base is fed, in training
+    and in the evaluation (the session passes its sky mask, which is the same set of pixels).
+
+    Args:
+        image_srgb: ``H x W x 3`` sRGB photo; shadow_old: ``H x W``; normals: ``H x W x 3``.
+    """
+    sky = np.sum(np.asarray(normals, np.float32) ** 2, axis=-1) <= 0.25
+    return estimate_light(srgb_to_linear(image_srgb), shadow_old, sky)
+
+
+def snap_shadow_to_photo(
+    shadow: np.ndarray, image_srgb: np.ndarray, radius: int | None = None, eps: float = 1e-3
+) -> np.ndarray:
+    """Guided-filter ``shadow`` with the photo's luminance as the guide (edges follow the photo)."""
+    h, w = shadow.shape
+    if radius is None:
+        radius = max(1, round(max(h, w) / 128))
+    guide = luminance(np.asarray(image_srgb, np.float32)).astype(np.float32)
+    out = cv2.ximgproc.guidedFilter(guide, shadow.astype(np.float32), radius, eps)
+    return np.clip(out, 0.0, 1.0).astype(np.float32)
+
+
+def shading_ratio(
+    shadow_old: np.ndarray, shadow_new: np.ndarray, ratio: np.ndarray
+) -> np.ndarray:
+    """``(1 + r S_n) / (1 + r S_o)`` per pixel and channel (``H x W x 3``)."""
+    r = np.asarray(ratio, np.float32).reshape(1, 1, 3)
+    so = np.clip(np.nan_to_num(shadow_old, nan=0.0), 0.0, 1.0)[..., None]
+    sn = np.clip(np.nan_to_num(shadow_new, nan=0.0), 0.0, 1.0)[..., None]
+    return ((1.0 + r * sn) / (1.0 + r * so)).astype(np.float32)
+
+
+def physics_relight(
+    image_srgb: np.ndarray,
+    shadow_old: np.ndarray,
+    shadow_new: np.ndarray,
+    sky: np.ndarray | None = None,
+    *,
+    light: LightEstimate | None = None,
+    snap: bool = True,
+) -> np.ndarray:
+    """Relight a photo from its original shadow image to a new one by shading ratios.
+
+    Args:
+        image_srgb: ``H x W x 3`` sRGB-encoded photo in [0, 1].
+        shadow_old: ``H x W`` shadow image under the original sun.
+        shadow_new: ``H x W`` shadow image under the new sun.
+        sky: optional ``H x W`` bool sky mask; the sky is left as it is.
+        light: a precomputed :class:`LightEstimate` (else estimated here).
+        snap: snap ``S_o`` to the photo's edges before taking the ratio.
+
+    Returns:
+        ``H x W x 3`` sRGB-encoded float32 in [0, 1].
+    """
+    image_srgb = np.asarray(image_srgb, np.float32)
+    shadow_old = np.asarray(shadow_old, np.float32)
+    shadow_new = np.asarray(shadow_new, np.float32)
+    _check_pair(image_srgb, shadow_old, "shadow_old")
+    _check_pair(image_srgb, shadow_new, "shadow_new")
+    lin = srgb_to_linear(image_srgb)
+    so = snap_shadow_to_photo(shadow_old, image_srgb) if snap else shadow_old
+    if light is None:
+        light = estimate_light(lin, so, sky)
+    out = lin * shading_ratio(so, shadow_new, light.ratio)
+    if sky is not None:
+        out = np.where(np.asarray(sky, bool)[..., None], lin, out)
+    return linear_to_srgb(out)
+
+
+def transfer_to_full_resolution(
+    full_srgb: np.ndarray,
+    work_before_srgb: np.ndarray,
+    work_after_srgb: np.ndarray,
+    *,
+    band_rows: int | None = None,
+    out_dtype: type | np.dtype = np.float32,
+    threads: int | None = None,
+) -> np.ndarray:
+    """Apply a working-resolution relighting to the full-resolution photo.
+
+    The per-pixel linear gain ``after / before`` is computed at working resolution, upsampled
+    (bilinear, pixel centres aligned) and multiplied into the full-resolution photo, so the
+    photo's own detail survives. The full image is processed in bands of rows, in a few threads
+    (:func:`outcast_core.runtime.geometry.fullres.apply_gain`), so a 100-megapixel photo needs only
+    its
+    own buffers plus a few bands of temporaries; the result does not depend on the band size.
+
+    Args:
+        full_srgb: ``H x W x 3`` full-resolution photo (sRGB, uint8 or float32).
+        work_before_srgb: ``h x w x 3`` the photo at working resolution (sRGB).
+        work_after_srgb: ``h x w x 3`` its relit version (sRGB).
+        band_rows: rows processed at once (default: a cache-sized band).
+        out_dtype: ``np.float32`` (default) or ``np.uint8`` (rounded, written through a table:
+            no full-size float buffer at all for an 8-bit photo).
+        threads: worker threads (default: the machine's cores, at most 4).
+
+    Returns:
+        ``H x W x 3`` sRGB of ``out_dtype``.
+    """
+    from outcast_core.runtime.geometry.fullres import apply_gain, gain_map
+
+    gain = gain_map(np.asarray(work_before_srgb), np.asarray(work_after_srgb))  # h x w x 3
+    return apply_gain(full_srgb, gain, out_dtype=out_dtype, band_rows=band_rows, threads=threads)
+
+
+#: :func:`keep_photo_colour`: shadow level above which a pixel counts as lit (soft over
+#: +-LIT_SOFT), so only brightness may change there.
+LIT_LEVEL = 0.3
+LIT_SOFT = 0.1
+
+
+def _relit_inputs(
+    image_srgb: np.ndarray, relit_srgb: np.ndarray, shadow_old: np.ndarray,
+    shadow_new: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The photo, a relighting of it and its two shadow images as float32, checked."""
+    image = np.asarray(image_srgb, np.float32)
+    relit = np.asarray(relit_srgb, np.float32)
+    if relit.shape != image.shape:
+        raise ValueError(f"expected a relit image of the photo's shape {image.shape}, got "
+                         f"{relit.shape}")
+    s_old = np.asarray(shadow_old, np.float32)
+    s_new = np.asarray(shadow_new, np.float32)
+    _check_pair(image, s_old, "shadow_old")
+    _check_pair(image, s_new, "shadow_new")
+    return image, relit, s_old, s_new
+
+
+#: :func:`shadow_contrast_floor`: Gaussian sigma (fraction of the longer side) that smooths the
+#: new shadow before it sets the floor (the rough ``S_n``'s speckle would print otherwise).
+FLOOR_SIGMA = 0.01
+
+
+def shadow_contrast_floor(
+    image_srgb: np.ndarray,
+    relit_srgb: np.ndarray,
+    shadow_old: np.ndarray,
+    shadow_new: np.ndarray,
+    sky: np.ndarray | None,
+    light: LightEstimate,
+    *,
+    lift: bool = False,
+) -> np.ndarray:
+    """Darken a learned relighting's new shadows at least as much as physics does.
+
+    Where the new sun shadows a surface the old one lit, the relit luminance is the smaller of
+    the learned one and :func:`physics_relight`'s, which darkens by the photo's own measured
+    sun/sky ratio (``light``); with ``lift``, where the new sun lights a surface the old one
+    shadowed, the larger. The weight is how far the pixel moves between lit and shadowed (the
+    soft "lit" of :func:`keep_photo_colour`), so surfaces lit, or shadowed, under both suns are
+    left as they are; the learned colour is kept. The new shadow is smoothed first (Gaussian,
+    :data:`FLOOR_SIGMA` of the longer side) for both the weight and the physics image.
+
+    Measured (``python3 scripts/eval_session_synthetic.py`` on the dev split, seed 500000, 20
+    views, and the new-shadow check of ``outcast eval real`` on 38 dev photos relit 120 degrees
+    away):
+
+    =============================  =========  ==========  ==========  ===================
+    learned ``L`` ...               MSE        newly lit   newly shd   new shade / photo's
+    =============================  =========  ==========  ==========  ===================
+    alone                           0.0157     x1.74       x0.80       0.35 (median)
+    + this floor (default)          0.0176     x1.74       x0.72       0.78
+    + this floor with ``lift``      0.0191     x2.13       x0.73       0.78
+    + unsmoothed floor with lift    0.0197     x2.14       x0.70       1.00
+    physics                         0.0363     x1.88       x0.72       1.00
+    truth                                      x2.62       x0.48
+    =============================  =========  ==========  ==========  ===================
+
+    ``lift`` is off: it lifts whatever the photo's found shadows wrongly include (the dark
+    trees of the ski-slope sample glow), and without the smoothing the floor prints the rough
+    new shadow's speckle (dark mottling on the pool's water and the field).
+
+    Args:
+        image_srgb, relit_srgb: ``H x W x 3`` sRGB (the photo and the learned relighting);
+        shadow_old, shadow_new: ``H x W`` in [0, 1]; sky: ``H x W`` bool or None;
+        light: the photo's light estimate; lift: also floor the newly lit surfaces.
+
+    Returns:
+        ``H x W x 3`` sRGB float32.
+    """
+    image, relit, s_old, s_new = _relit_inputs(image_srgb, relit_srgb, shadow_old, shadow_new)
+    sigma = FLOOR_SIGMA * max(s_new.shape)
+    if sigma > 0.3:
+        s_new = cv2.GaussianBlur(s_new, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    physics = physics_relight(image, s_old, s_new, sky, light=light, snap=False)
+    lin_r = srgb_to_linear(relit)
+    y_r = luminance(lin_r) + 1e-4
+    y_p = luminance(srgb_to_linear(physics)) + 1e-4
+    d = _lit(s_new) - _lit(s_old)
+    y = np.where(d > 0, np.maximum(y_r, y_p), np.minimum(y_r, y_p))
+    w = np.abs(d) if lift else np.maximum(-d, 0.0)
+    y = w * y + (1.0 - w) * y_r
+    return linear_to_srgb(lin_r * (y / y_r)[..., None])
+
+
+#: :func:`anchor_exposure`: shadow level above which a pixel is lit under a sun, and the least
+#: number of pixels lit under both suns that the anchor needs.
+ANCHOR_LIT = 0.5
+ANCHOR_MIN_PIXELS = 50
+#: :func:`anchor_exposure` leaves exposure differences within this factor to ``L``.
+ANCHOR_TOLERANCE = 1.0
+
+
+def anchor_exposure(
+    image_srgb: np.ndarray,
+    relit_srgb: np.ndarray,
+    shadow_old: np.ndarray,
+    shadow_new: np.ndarray,
+    sky: np.ndarray | None,
+    light: LightEstimate,
+) -> np.ndarray:
+    """Take a learned relighting's exposure from physics on the surfaces both suns light.
+
+    ``L`` shifts a real photo's whole exposure (brighter or darker, often with a cast: a horse
+    washed yellow, a tennis court cyan). On surfaces lit under both suns (``S_o`` and ``S_n``
+    above :data:`ANCHOR_LIT`, off the sky) only the sun's cosine changes, which
+    :func:`physics_relight` models from the photo's own light; one global gain, the median of
+    physics' luminance over the relit one there, brings the relit image (not its sky) to that
+    exposure. Fewer than :data:`ANCHOR_MIN_PIXELS` such pixels: unchanged.
+
+    Measured on the 47 dev photos relit 120 degrees away (fast preset, ``outcast eval real``'s
+    checks): relit chroma 3.35 -> 2.74, new shade 0.84 -> 0.89; by eye the washed-out relit
+    photos (a horse on grass, a fire engine, a girl on a pavement) come back toward the photo's
+    exposure. On synthetic views with true depth ``L`` does not drift, and physics' own error
+    moves it: MSE 0.0176 -> 0.0267 on the dev split (20 views; physics alone 0.0363). With
+    :data:`ANCHOR_TOLERANCE` 1.25 (gains within 25 % left alone): chroma 2.95, MSE 0.0236.
+    The real photos are the judge, so the anchor is on and the tolerance 1.
+
+    Example:
+        >>> img = np.full((10, 10, 3), 0.5, np.float32); ones = np.ones((10, 10), np.float32)
+        >>> light = estimate_light(srgb_to_linear(img), ones)
+        >>> out = anchor_exposure(img, img * 0.6, ones, ones, None, light)
+        >>> bool(np.allclose(out, img, atol=1e-3))
+        True
+    """
+    image, relit, s_old, s_new = _relit_inputs(image_srgb, relit_srgb, shadow_old, shadow_new)
+    sky_mask = np.zeros(s_old.shape, bool) if sky is None else np.asarray(sky, bool)
+    both = (s_old > ANCHOR_LIT) & (s_new > ANCHOR_LIT) & ~sky_mask
+    if both.sum() < ANCHOR_MIN_PIXELS:
+        return relit
+    physics = physics_relight(image, s_old, s_new, sky, light=light, snap=False)
+    lin_r = srgb_to_linear(relit)
+    y_r = luminance(lin_r) + 1e-4
+    y_p = luminance(srgb_to_linear(physics)) + 1e-4
+    gain = float(np.median((y_p / y_r)[both]))
+    gain /= min(max(gain, 1.0 / ANCHOR_TOLERANCE), ANCHOR_TOLERANCE)
+    out = np.where(sky_mask[..., None], lin_r, lin_r * np.float32(gain))
+    return linear_to_srgb(out)
+
+
+def _lit(s: np.ndarray) -> np.ndarray:
+    """Soft "lit" of a shadow image: 0 below ``LIT_LEVEL - LIT_SOFT``, 1 above ``+ LIT_SOFT``."""
+    return np.clip((np.asarray(s, np.float32) - LIT_LEVEL + LIT_SOFT) / (2 * LIT_SOFT), 0, 1)
+
+
+def keep_photo_colour(
+    image_srgb: np.ndarray,
+    relit_srgb: np.ndarray,
+    shadow_old: np.ndarray,
+    shadow_new: np.ndarray,
+    sky: np.ndarray,
+    *,
+    keep_sky: bool,
+) -> np.ndarray:
+    """Keep the photo's colour where the relighting should only change brightness.
+
+    * On surfaces lit under both suns (``S_o`` and ``S_n`` above :data:`LIT_LEVEL`, soft) the
+      same sun and sky light the surface before and after; only the sun's share (the cosine
+      term) changes. The relit pixel keeps the photo's chromaticity and takes the relit
+      luminance: ``C * Y_relit / Y_photo`` in linear RGB. A learned ``L`` otherwise tints such
+      surfaces (measured on real photos: ``outcast eval real``, relit chroma).
+    * With ``keep_sky`` (neither sun in the frame) the sky is the photo's.
+
+    Args:
+        image_srgb, relit_srgb: ``H x W x 3`` sRGB; shadow_old, shadow_new: ``H x W`` in [0, 1];
+        sky: ``H x W`` bool.
+
+    Returns:
+        ``H x W x 3`` sRGB float32.
+    """
+    image = np.asarray(image_srgb, np.float32)
+    relit = np.asarray(relit_srgb, np.float32)
+    if relit.shape != image.shape:
+        raise ValueError(f"expected a relit image of shape {image.shape}, got {relit.shape}")
+    _check_pair(image, np.asarray(shadow_old), "shadow_old")
+    _check_pair(image, np.asarray(shadow_new), "shadow_new")
+    lin, lin_r = srgb_to_linear(image), srgb_to_linear(relit)
+    y, y_r = luminance(lin)[..., None], luminance(lin_r)[..., None]
+    same_colour = lin * (y_r + 1e-4) / (y + 1e-4)
+
+    weight = (_lit(shadow_old) * _lit(shadow_new))[..., None]
+    out = weight * same_colour + (1.0 - weight) * lin_r
+    sky = np.asarray(sky, bool)[..., None]
+    if keep_sky:
+        out = np.where(sky, lin, out)
+    return linear_to_srgb(out)

@@ -1,0 +1,875 @@
+"""The relighting session: set the photo once, then query shadows and relit images many times.
+
+``set_image`` runs every light-independent stage once at the working resolution (depth, sky mask,
+normals, view directions, the ray sampler's per-pixel set-up). Moving a sun re-runs only what
+depends on it, and results are cached per sun direction, so going back to a sun the user has
+already seen costs nothing. The original sun's refined shadow and the light estimate are computed
+once per original sun.
+
+Modes: ``learned`` uses the shipped ONNX models (depth ``Z``, shadow ``S``, refine ``R``,
+relight ``L``); ``direct`` / ``physics`` are the non-learned screen-space shadows and
+shading-ratio relighting; ``auto`` picks learned where the model is installed.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import OrderedDict
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+
+from outcast_core.runtime.geometry.camera import (
+    DEFAULT_FOV_DEG,
+    Camera,
+    cosine_term,
+    focal_from_35mm,
+    network_depth,
+    normalize_sun,
+    normals_from_depth,
+    sun_in_frame,
+    view_directions,
+)
+from outcast_core.runtime.geometry.colour import srgb_to_linear
+from outcast_core.runtime.geometry.fullres import apply_gain, gain_map, resize_to_working
+from outcast_core.runtime.geometry.raymarch import RaySampler
+from outcast_core.runtime.geometry.shadows import DirectStats, direct_shadow
+from outcast_core.runtime.io.models import ModelError, ModelRegistry
+from outcast_core.runtime.pipeline.depth_post import postprocess_z, run_depth_model
+from outcast_core.runtime.pipeline.photo_shadows import (
+    LIT_FLOOR,
+    deshadow,
+    original_shadow_from_photo,
+    photo_shadow_probability,
+)
+from outcast_core.runtime.pipeline.relight import (
+    LightEstimate,
+    anchor_exposure,
+    estimate_light,
+    keep_photo_colour,
+    physics_relight,
+    shadow_contrast_floor,
+    snap_shadow_to_photo,
+    transfer_to_full_resolution,
+)
+
+Progress = Callable[[str, float], None]
+
+
+@dataclass(frozen=True)
+class Preset:
+    """A speed/accuracy setting.
+
+    Attributes:
+        name: preset name.
+        working_size: longer side of the working resolution in pixels.
+        steps: march steps of the learned S network.
+        direct_step: Direct mode's step (fraction of the longer side); it marches up to one
+            image side and stops early when no pixel can change.
+        preview_size: longer side used while the user drags a sun.
+        preview_steps: march steps while dragging.
+        relight_preview_size: longer side at which the new shadow and the relighting network
+            run while the user drags the new sun in step 2; the result is moved onto the
+            working-size photo (its detail kept), like the full-resolution pass.
+    """
+
+    name: str
+    working_size: int
+    steps: int
+    direct_step: float
+    preview_size: int
+    preview_steps: int
+    relight_preview_size: int = 128
+
+
+PRESETS: dict[str, Preset] = {
+    "fast": Preset("fast", 256, 16, 1 / 128, 128, 8, 80),
+    "balanced": Preset("balanced", 384, 32, 1 / 256, 192, 16, 112),
+    "accurate": Preset("accurate", 512, 64, 1 / 512, 256, 32, 192),
+}
+
+_CACHE_SIZE = 16
+#: onnxruntime threads for the step-2 drag preview's small inputs (measured: one thread was
+#: 2-3x faster than two on two shared cores, and leaves a core to the GUI thread).
+PREVIEW_THREADS = 1
+
+
+def working_shape(height: int, width: int, longer_side: int) -> tuple[int, int]:
+    """Size at which a ``height x width`` image is processed (never upscaled)."""
+    if height < 1 or width < 1:
+        raise ValueError(f"expected a non-empty image, got {height}x{width}")
+    scale = min(1.0, longer_side / max(height, width))
+    return max(1, round(height * scale)), max(1, round(width * scale))
+
+
+def resize(image: np.ndarray, shape: tuple[int, int], *, nearest: bool = False) -> np.ndarray:
+    """Resize ``H x W [x C]`` to ``shape`` (area when shrinking, linear when enlarging)."""
+    h, w = shape
+    if image.shape[:2] == (h, w):
+        return image
+    if nearest:
+        interp = cv2.INTER_NEAREST
+    elif h < image.shape[0] or w < image.shape[1]:
+        interp = cv2.INTER_AREA
+    else:
+        interp = cv2.INTER_LINEAR
+    return cv2.resize(image, (w, h), interpolation=interp)
+
+
+def ground_plane_depth(
+    camera: Camera, camera_height: float = 1.6
+) -> tuple[np.ndarray, np.ndarray]:
+    """A depth prior for when no depth model or depth file exists: a level ground plane.
+
+    Rows below the horizon get the depth of a ground plane ``camera_height`` below a level
+    camera (capped at 200 m); rows at or above the horizon are treated as sky, so the relighting
+    leaves them alone. It casts no shadows; it only keeps the pipeline running (and is reported
+    as such by :attr:`RelightSession.depth_source`).
+
+    Returns:
+        ``(depth, sky)``, ``H x W`` float32 and bool.
+    """
+    v = np.arange(camera.height, dtype=np.float64) + 0.5
+    dv = (v - camera.cy) / camera.focal
+    far = 200.0
+    z = np.minimum(camera_height / np.maximum(dv, 1e-6), far)
+    sky_rows = camera_height / np.maximum(dv, 1e-6) > far
+    depth = np.repeat(z[:, None], camera.width, axis=1).astype(np.float32)
+    sky = np.repeat(sky_rows[:, None], camera.width, axis=1)
+    return depth, sky
+
+
+def _key(w: Any) -> tuple[float, float, float]:
+    v = normalize_sun(w)
+    return (round(float(v[0]), 6), round(float(v[1]), 6), round(float(v[2]), 6))
+
+
+class _LRU(OrderedDict):
+    def get_or(self, key: Any, make: Callable[[], Any]) -> Any:
+        if key in self:
+            self.move_to_end(key)
+            return self[key]
+        value = make()
+        self[key] = value
+        while len(self) > _CACHE_SIZE:
+            self.popitem(last=False)
+        return value
+
+
+class RelightSession:
+    """Set once, query many.
+
+    Args:
+        registry: where the ONNX models come from (default: the shipped ``models/``).
+        preset: one of :data:`PRESETS`.
+        mode: ``auto``, ``learned`` or ``classic`` (Direct shadows + physics relighting).
+        shadow_mode: overrides ``mode`` for shadows: ``auto``, ``learned`` or ``direct``.
+        relight_mode: overrides ``mode`` for relighting: ``auto``, ``learned`` or ``physics``.
+        thickness: Direct mode's occluder thickness (relative to depth; ``inf`` = solid).
+        refine: how the original shadow ``S_o`` is found at "Confirm sun": ``photo`` (the
+            photo's own shadows, with ``S`` as the prior: :mod:`~outcast_core.runtime.
+            photo_shadows`; measured best on real photos) or ``learned`` (the ``R`` network
+            where installed, else ``S`` snapped to the photo's edges).
+        depth_mode: ``auto`` (a given depth, else the depth model when installed, else the
+            ground-plane prior), ``model`` (the depth model; :class:`ModelError` if missing) or
+            ``prior`` (never the model: for when it is broken).
+
+    Example:
+        >>> s = RelightSession(mode="classic", preset="fast")
+        >>> s.set_image(np.full((32, 48, 3), 0.5, np.float32), depth=np.ones((32, 48), np.float32))
+        >>> s.shadow((0.0, -0.7, -0.7)).shape
+        (32, 48)
+    """
+
+    def __init__(
+        self,
+        registry: ModelRegistry | None = None,
+        preset: str = "balanced",
+        mode: str = "auto",
+        *,
+        shadow_mode: str | None = None,
+        relight_mode: str | None = None,
+        thickness: float = math.inf,
+        depth_mode: str = "auto",
+        refine: str = "photo",
+    ) -> None:
+        if depth_mode not in {"auto", "model", "prior"}:
+            raise ValueError(f"expected depth mode auto, model or prior, got {depth_mode!r}")
+        if refine not in {"photo", "learned"}:
+            raise ValueError(f"expected refine photo or learned, got {refine!r}")
+        self.refine = refine
+        #: Learned relighting keeps the photo's colour where both suns light a surface, and its
+        #: sky when no sun is in the frame (:func:`~outcast_core.runtime.pipeline.relight.
+        #: keep_photo_colour`).
+        self.colour_guard = True
+        #: Learned relighting darkens newly shadowed surfaces at least as much as physics does
+        #: (:func:`~outcast_core.runtime.pipeline.relight.shadow_contrast_floor`).
+        self.contrast_floor = True
+        #: Learned relighting takes its exposure from physics on the surfaces both suns light
+        #: (:func:`~outcast_core.runtime.pipeline.relight.anchor_exposure`).
+        self.exposure_anchor = True
+        if mode not in {"auto", "learned", "classic"}:
+            raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
+        shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
+        relight_mode = relight_mode or {"classic": "physics"}.get(mode, mode)
+        if shadow_mode not in {"auto", "learned", "direct"}:
+            raise ValueError(f"expected shadow mode auto, learned or direct, got {shadow_mode!r}")
+        if relight_mode not in {"auto", "learned", "physics"}:
+            raise ValueError(
+                f"expected relight mode auto, learned or physics, got {relight_mode!r}"
+            )
+        self.registry = registry if registry is not None else ModelRegistry()
+        self.thickness = thickness
+        self.depth_mode = depth_mode
+        self._requested = (shadow_mode, relight_mode)
+        if depth_mode == "model":
+            self.registry.load("depth")
+        self.shadow_mode = self._resolve(shadow_mode, "shadow", "direct")
+        self.relight_mode = self._resolve(relight_mode, "relight", "physics")
+        self.preset = self._check_preset(preset)
+        self._lock = threading.RLock()
+        self.timings: dict[str, float] = {}
+        self.full_image_srgb: np.ndarray | None = None
+        self._given_depth: np.ndarray | None = None
+        self._focal_full: float | None = None
+        self.depth_source = "none"
+        #: Optional depth source used instead of the depth model (not instead of a given
+        #: depth): ``(image_srgb, camera) -> (depth, sky)`` with a ``name`` shown as "depth: ...";
+        #: see :mod:`~outcast_core.runtime.io.depth_models` (phone maps, ONNX depth models).
+        self.depth_provider: Any = None
+        self.original_sun: np.ndarray | None = None
+        self.original_shadow: np.ndarray | None = None
+        self._reset_working()
+
+    # ------------------------------------------------------------------ set-up
+    def _resolve(self, requested: str, model: str, classic: str) -> str:
+        if requested == "auto":
+            return "learned" if self.registry.available(model) else classic
+        if requested == "learned":
+            self.registry.load(model)  # raises ModelError naming the file
+        return requested
+
+    @staticmethod
+    def _check_preset(name: str) -> Preset:
+        if name not in PRESETS:
+            raise ValueError(f"expected a preset in {sorted(PRESETS)}, got {name!r}")
+        return PRESETS[name]
+
+    def _reset_working(self) -> None:
+        self.image_srgb: np.ndarray | None = None
+        self.camera: Camera | None = None
+        self.depth: np.ndarray | None = None
+        self.sky: np.ndarray | None = None
+        self.normals: np.ndarray | None = None
+        self.view_dirs: np.ndarray | None = None
+        self._sampler: RaySampler | None = None
+        self._preview: dict[str, Any] | None = None
+        self._relight_preview: dict[str, Any] | None = None
+        #: How many times the light-independent inputs of the step-2 drag preview were built
+        #: (once per photo, original sun and preset; tests count it).
+        self.relight_preview_builds = 0
+        self._shadow_cache = _LRU()
+        self._relight_cache = _LRU()
+        self._light: LightEstimate | None = None
+        self._deshadowed: np.ndarray | None = None
+        #: Where the photo's own shadows are (``H x W`` in [0, 1]), set by set_original_sun().
+        self.shadow_probability: np.ndarray | None = None
+
+    def _time(self, stage: str, t0: float) -> None:
+        self.timings[stage] = time.perf_counter() - t0
+
+    def set_image(
+        self,
+        image_srgb: np.ndarray,
+        *,
+        fov_deg: float | None = None,
+        focal_35mm: float | None = None,
+        depth: np.ndarray | None = None,
+        progress: Progress | None = None,
+    ) -> None:
+        """Set the photo and run every light-independent stage once.
+
+        Args:
+            image_srgb: ``H x W x 3`` sRGB at full resolution: float in [0, 1], or uint8 (kept
+                as it is, without a float copy: the full-resolution stages read it in bands).
+            fov_deg: horizontal field of view (default 60 deg, or from ``focal_35mm``).
+            focal_35mm: EXIF 35 mm equivalent focal length.
+            depth: optional ``h x w`` depth from elsewhere (any resolution with the photo's
+                aspect ratio; non-finite or <= 0 marks sky). Replaces the depth model.
+            progress: called with ``(stage, fraction)``.
+        """
+        img = np.asarray(image_srgb)
+        if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] < 1 or img.shape[1] < 1:
+            raise ValueError(f"expected an H x W x 3 image, got shape {img.shape}")
+        if img.dtype == np.uint8:
+            img = np.ascontiguousarray(img)  # kept as it is: a quarter of float32's memory
+        else:
+            img = np.array(img, dtype=np.float32)  # one copy, cleaned in place
+            np.clip(img, 0.0, 1.0, out=img)
+            img[np.isnan(img)] = 0.0
+        h, w = img.shape[:2]
+        if focal_35mm is not None and fov_deg is None:
+            focal = focal_from_35mm(w, h, focal_35mm)
+        else:
+            focal = Camera.from_fov(h, w, DEFAULT_FOV_DEG if fov_deg is None else fov_deg).focal
+        if depth is not None:
+            depth = np.asarray(depth, np.float32)
+            if depth.ndim != 2:
+                raise ValueError(f"expected depth of shape H x W, got shape {depth.shape}")
+            ar_img, ar_d = w / h, depth.shape[1] / depth.shape[0]
+            if abs(ar_img - ar_d) > 0.02 * ar_img + 1.0 / min(depth.shape):
+                raise ValueError(
+                    f"expected depth with the photo's aspect ratio (width / height {ar_img:.3f}),"
+                    f" got {depth.shape[1]}x{depth.shape[0]} ({ar_d:.3f})"
+                )
+            if not (np.isfinite(depth) & (depth > 0)).any():
+                raise ValueError(
+                    "expected depth with at least one valid pixel (finite and > 0), got none "
+                    "(the whole frame would be sky)"
+                )
+        with self._lock:
+            self.full_image_srgb = img
+            self._focal_full = focal
+            self._given_depth = depth
+            self.original_sun = None
+            self.original_shadow = None
+            self._prepare(progress)
+
+    def set_preset(self, name: str, progress: Progress | None = None) -> None:
+        """Switch preset; light-independent stages re-run only if the working size changes."""
+        preset = self._check_preset(name)
+        with self._lock:
+            old = self.preset
+            self.preset = preset
+            if self.full_image_srgb is None:
+                return
+            if old.working_size != preset.working_size:
+                w_o = self.original_sun
+                self._prepare(progress)
+                if w_o is not None:
+                    self.set_original_sun(w_o)
+            else:
+                self._shadow_cache.clear()
+                self._relight_cache.clear()
+                self._preview = None
+                self._relight_preview = None
+
+    def _prepare(self, progress: Progress | None) -> None:
+        assert self.full_image_srgb is not None and self._focal_full is not None
+        report = progress or (lambda stage, frac: None)
+        full = self.full_image_srgb
+        h, w = working_shape(full.shape[0], full.shape[1], self.preset.working_size)
+        self._reset_working()
+        t0 = time.perf_counter()
+        self.image_srgb = resize_to_working(full, (h, w))
+        self.camera = Camera(h, w, self._focal_full * w / full.shape[1])
+        self._time("resize", t0)
+        report("depth", 0.1)
+        t0 = time.perf_counter()
+        depth, sky = self._estimate_depth()
+        self.depth, self.sky = depth, sky
+        self._time("depth", t0)
+        report("normals", 0.6)
+        t0 = time.perf_counter()
+        depth_sky = np.where(sky, np.inf, depth).astype(np.float32)
+        self.normals = normals_from_depth(depth_sky, self.camera)
+        self.view_dirs = view_directions(self.camera)
+        self._sampler = RaySampler(depth_sky, self.camera)
+        self._time("normals", t0)
+        self.original_sun = None
+        self.original_shadow = None
+        report("ready", 1.0)
+
+    def _estimate_depth(self) -> tuple[np.ndarray, np.ndarray]:
+        cam = self.camera
+        assert cam is not None and self.image_srgb is not None
+        if self._given_depth is not None:
+            d = self._given_depth
+            sky_src = ~(np.isfinite(d) & (d > 0))
+            d_fill = np.where(sky_src, 0.0, d).astype(np.float32)
+            depth = resize(d_fill, (cam.height, cam.width), nearest=True)
+            sky = resize(sky_src.astype(np.uint8), (cam.height, cam.width), nearest=True) > 0
+            self.depth_source = "given"
+            return np.where(sky, np.inf, depth).astype(np.float32), sky
+        if self.depth_provider is not None:
+            depth, sky = self.depth_provider(self.image_srgb, cam)
+            self.depth_source = str(self.depth_provider.name)
+            return depth, sky
+        if self.depth_mode != "prior" and self.registry.available("depth"):
+            # Z at the scale it was trained at, then the sky prior, edge-aware smoothing and
+            # the ground plane for real photos (runtime.pipeline.depth_post).
+            raw, sky_prob = run_depth_model(self.registry.load("depth"), self.image_srgb)
+            depth, sky = postprocess_z(raw, sky_prob, self.image_srgb, cam)
+            self.depth_source = "model"
+            return depth, sky
+        self.depth_source = "ground-plane prior (no depth model)"
+        return ground_plane_depth(cam)
+
+    def _require_image(self) -> None:
+        if self.image_srgb is None:
+            raise RuntimeError("set_image() must be called before asking for shadows or relighting")
+
+    # ------------------------------------------------------------------ preview buffers
+    def _preview_state(self) -> dict[str, Any]:
+        if self._preview is None:
+            assert self.image_srgb is not None and self.camera is not None
+            h, w = working_shape(self.camera.height, self.camera.width, self.preset.preview_size)
+            cam = self.camera.resized(h, w)
+            depth = resize(np.where(self.sky, np.inf, self.depth).astype(np.float32), (h, w),
+                           nearest=True)
+            self._preview = {
+                "camera": cam,
+                "image": resize(self.image_srgb, (h, w)),
+                "depth": depth,
+                "sky": resize(self.sky.astype(np.uint8), (h, w), nearest=True) > 0,
+                "normals": normals_from_depth(depth, cam),
+                "sampler": RaySampler(depth, cam),
+            }
+        return self._preview
+
+    # ------------------------------------------------------------------ shadows
+    def shadow(self, w: Any, *, preview: bool = False) -> np.ndarray:
+        """The shadow image for sun ``w`` at working resolution (``H x W`` float32 in [0, 1]).
+
+        ``preview=True`` computes it at the preset's preview size and fewer steps (for dragging)
+        and upsamples it.
+        """
+        key = (_key(w), preview, self.preset.name)
+        with self._lock:
+            self._require_image()
+            return self._shadow_cache.get_or(key, lambda: self._compute_shadow(w, preview))
+
+    def _compute_shadow(self, w: Any, preview: bool) -> np.ndarray:
+        t0 = time.perf_counter()
+        wv = normalize_sun(w)
+        assert self.camera is not None
+        if preview:
+            st = self._preview_state()
+            cam, image, depth, sky, normals, sampler = (
+                st["camera"], st["image"], st["depth"], st["sky"], st["normals"], st["sampler"]
+            )
+        else:
+            cam, image, sky, normals, sampler = (
+                self.camera, self.image_srgb, self.sky, self.normals, self._sampler
+            )
+            depth = np.where(self.sky, np.inf, self.depth).astype(np.float32)
+        if self.shadow_mode == "learned":
+            out = self._learned_shadow(image, depth, normals, cam, wv)
+        else:
+            step = self.preset.direct_step * (2.0 if preview else 1.0)
+            stats = DirectStats(0, 0, "")
+            out = direct_shadow(
+                depth, cam, wv, normals=normals, sky=sky, steps=int(math.ceil(1.0 / step)),
+                step=step, thickness=self.thickness, sampler=sampler, stats=stats,
+            )
+            self.last_direct_stats = stats
+        if out.shape != (self.camera.height, self.camera.width):
+            out = np.clip(resize(out, (self.camera.height, self.camera.width)), 0.0, 1.0)
+        self._time("shadow_preview" if preview else "shadow", t0)
+        return out.astype(np.float32)
+
+    def _learned_shadow(
+        self, image: np.ndarray, depth: np.ndarray, normals: np.ndarray, cam: Camera,
+        w: np.ndarray,
+    ) -> np.ndarray:
+        model = self.registry.load("shadow")
+        d = network_depth(depth)
+        out = model.run({
+            "image": image.transpose(2, 0, 1)[None],
+            "depth": d[None, None],
+            "normals": normals.transpose(2, 0, 1)[None],
+            "sun": w.astype(np.float32)[None],
+            "focal": np.array([[cam.focal]], np.float32),
+        })
+        return np.clip(_first(out)[0, 0], 0.0, 1.0)
+
+    # ------------------------------------------------------------------ original sun
+    def set_original_sun(self, w: Any) -> np.ndarray:
+        """Fix the photo's original sun; computes the (refined) original shadow ``S_o``."""
+        wv = normalize_sun(w)
+        with self._lock:
+            self._require_image()
+            t0 = time.perf_counter()
+            s = self.shadow(wv)
+            prob = None
+            if self.refinement == "photo":
+                prob = photo_shadow_probability(self.image_srgb, self.sky, s)
+                s = original_shadow_from_photo(prob, cosine_term(self.normals, wv), self.sky)
+            elif self.refinement == "learned":
+                model = self.registry.load("refine")
+                out = model.run({
+                    "shadow": s[None, None],
+                    "image": self.image_srgb.transpose(2, 0, 1)[None],
+                    "sun": wv.astype(np.float32)[None],
+                })
+                s = np.clip(_first(out)[0, 0], 0.0, 1.0)
+            else:
+                s = snap_shadow_to_photo(s, self.image_srgb)
+            if prob is None:  # the photo's shadows as S_o describes them
+                lit = np.maximum(cosine_term(self.normals, wv), LIT_FLOOR)
+                prob = np.where(self.sky, 0.0, np.clip(1.0 - s / lit, 0.0, 1.0))
+            self.original_sun = wv
+            self.original_shadow = s.astype(np.float32)
+            self.shadow_probability = prob.astype(np.float32)
+            self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self.sky)
+            self._relight_cache.clear()
+            self._deshadowed = None
+            self._time("original_sun", t0)
+            return self.original_shadow
+
+    @property
+    def refinement(self) -> str:
+        """How ``S_o`` is refined: ``"photo"`` (the photo's own shadows, ``refine="photo"``),
+        ``"learned"`` (the R network, with learned shadows and ``refine.json`` installed) or
+        ``"guided filter"`` (said, not dropped silently)."""
+        if self.refine == "photo":
+            return "photo"
+        learned = self.shadow_mode == "learned" and self.registry.available("refine")
+        return "learned" if learned else "guided filter"
+
+    def deshadow(self) -> np.ndarray:
+        """The photo with its own shadows lifted, at working resolution (``H x W x 3`` sRGB).
+
+        Needs :meth:`set_original_sun` (the shadows are found at the photo's sun).
+        """
+        with self._lock:
+            self._require_image()
+            if self.shadow_probability is None:
+                raise RuntimeError("set_original_sun() must be called before deshadow()")
+            if self._deshadowed is None:
+                t0 = time.perf_counter()
+                self._deshadowed = deshadow(self.image_srgb, self.shadow_probability, self.sky)
+                self._time("deshadow", t0)
+            return self._deshadowed
+
+    def deshadow_full(self) -> np.ndarray:
+        """:meth:`deshadow` at the photo's full resolution (the lift, upsampled, applied to the
+        full-resolution photo, so its own detail survives)."""
+        out = self.deshadow()
+        t0 = time.perf_counter()
+        with self._lock:
+            full = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, out)
+        self._time("deshadow_full", t0)
+        return full
+
+    @property
+    def light_estimate(self) -> LightEstimate | None:
+        return self._light
+
+    # ------------------------------------------------------------------ relighting
+    def relight(self, w_new: Any, *, preview: bool = False) -> np.ndarray:
+        """The photo relit under ``w_new`` at working resolution (``H x W x 3`` sRGB).
+
+        ``preview=True`` is for dragging the new sun: the new shadow and the relighting run at
+        the preset's ``relight_preview_size`` on inputs prepared once per photo and original sun,
+        and the result is moved onto the working-size photo (sharp, but its shading coarser;
+        quantised to 8 bits, as it is for the screen).
+        """
+        key = (_key(w_new), preview, self.preset.name)
+        with self._lock:
+            self._require_image()
+            if self.original_sun is None or self.original_shadow is None:
+                raise RuntimeError("set_original_sun() must be called before relight()")
+            return self._relight_cache.get_or(key, lambda: self._compute_relight(w_new, preview))
+
+    def _relight_preview_state(self) -> dict[str, Any]:
+        """Everything the step-2 drag preview needs that the new sun does not change, at the
+        preset's ``relight_preview_size``, as the networks take it (``1 x C x h x w``): the
+        photo, ``S_o``, normals, view directions, depth, sky. Built once per photo, original
+        sun and preset."""
+        st = self._relight_preview
+        if st is not None and st["original_shadow"] is self.original_shadow:
+            return st
+        assert self.image_srgb is not None and self.camera is not None
+        assert self.original_shadow is not None and self.depth is not None
+        h, w = working_shape(self.camera.height, self.camera.width,
+                             self.preset.relight_preview_size)
+        cam = self.camera.resized(h, w)
+        depth = resize(np.where(self.sky, np.inf, self.depth).astype(np.float32), (h, w),
+                       nearest=True)
+        sky = resize(self.sky.astype(np.uint8), (h, w), nearest=True) > 0
+        image = resize(self.image_srgb, (h, w))
+        normals = normals_from_depth(depth, cam)
+        s_o = np.clip(resize(self.original_shadow, (h, w)), 0.0, 1.0).astype(np.float32)
+
+        def nchw(a: np.ndarray) -> np.ndarray:
+            a = a[..., None] if a.ndim == 2 else a
+            return np.ascontiguousarray(a.transpose(2, 0, 1)[None], dtype=np.float32)
+
+        self._relight_preview = st = {
+            "original_shadow": self.original_shadow,
+            "camera": cam, "image": image, "sky": sky, "depth": depth, "normals": normals,
+            "shadow_old": s_o, "sampler": RaySampler(depth, cam) if self.shadow_mode != "learned"
+            else None,
+            # The working-size photo in 8 bits: the preview is moved onto it by tables only.
+            "working_u8": np.rint(self.image_srgb * 255.0).astype(np.uint8),
+            "feeds_s": {"image": nchw(image), "depth": nchw(network_depth(depth)),
+                        "normals": nchw(normals),
+                        "focal": np.array([[cam.focal]], np.float32)},
+            "feeds_l": {"image": nchw(image), "shadow_old": nchw(s_o),
+                        "normals": nchw(normals),
+                        "view_dirs": nchw(view_directions(cam)),
+                        "sun_old": self.original_sun.astype(np.float32)[None],
+                        "light_ratio": self._light.ratio.astype(np.float32)[None]},
+        }
+        self.relight_preview_builds += 1
+        return st
+
+    def prepare_relight_preview(self) -> None:
+        """Get the step-2 drag preview ready before the first drag: its light-independent
+        inputs and its one-thread network sessions (the app calls this at "Confirm sun")."""
+        with self._lock:
+            self._require_image()
+            if self.original_shadow is None:
+                raise RuntimeError("set_original_sun() must be called before "
+                                   "prepare_relight_preview()")
+            self._relight_preview_state()
+            if self.shadow_mode == "learned":
+                self.registry.load("shadow", threads=PREVIEW_THREADS)
+            if self.relight_mode == "learned":
+                self.registry.load("relight", threads=PREVIEW_THREADS)
+
+    def _compute_relight_preview(self, wv: np.ndarray) -> np.ndarray:
+        """The step-2 drag preview: only what the new sun changes (its shadow, the relighting
+        network) runs, at ``relight_preview_size``; the gain it makes is moved onto the
+        working-size photo (:func:`~outcast_core.runtime.geometry.fullres.apply_gain`)."""
+        t0 = time.perf_counter()
+        st = self._relight_preview_state()
+        if self.shadow_mode == "learned":
+            out = self.registry.load("shadow", threads=PREVIEW_THREADS).run({**st["feeds_s"],
+                                                    "sun": wv.astype(np.float32)[None]})
+            s_new = np.clip(_first(out)[0, 0], 0.0, 1.0)
+        else:
+            step = self.preset.direct_step * 2.0
+            s_new = direct_shadow(
+                st["depth"], st["camera"], wv, normals=st["normals"], sky=st["sky"],
+                steps=int(math.ceil(1.0 / step)), step=step, thickness=self.thickness,
+                sampler=st["sampler"],
+            )
+        s_new = s_new.astype(np.float32)
+        t1 = time.perf_counter()
+        self.timings["shadow_preview"] = t1 - t0
+        image = st["image"]
+        if self.relight_mode == "learned":
+            out = self.registry.load("relight", threads=PREVIEW_THREADS).run({
+                **st["feeds_l"], "shadow_new": s_new[None, None],
+                "sun_new": wv.astype(np.float32)[None],
+            })
+            relit = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
+            if self.colour_guard:
+                cam = self.camera
+                keep_sky = not (sun_in_frame(self.original_sun, cam) or sun_in_frame(wv, cam))
+                relit = keep_photo_colour(image, relit, st["shadow_old"], s_new, st["sky"],
+                                          keep_sky=keep_sky)
+            if self.contrast_floor:
+                relit = shadow_contrast_floor(image, relit, st["shadow_old"], s_new, st["sky"],
+                                              self._light)
+            if self.exposure_anchor:
+                relit = anchor_exposure(image, relit, st["shadow_old"], s_new, st["sky"],
+                                        self._light)
+        else:
+            relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
+                                    light=self._light, snap=False)
+        out = apply_gain(st["working_u8"], gain_map(image, relit), out_dtype=np.uint8, threads=1)
+        self._time("relight", t1)
+        return out.astype(np.float32) * np.float32(1.0 / 255.0)  # 8 bits: it is for the screen
+
+    def _compute_relight(self, w_new: Any, preview: bool) -> np.ndarray:
+        wv = normalize_sun(w_new)
+        if preview:
+            return self._compute_relight_preview(wv)
+        s_new = self.shadow(wv, preview=preview)
+        t0 = time.perf_counter()
+        img = self._relight_from(self._working_inputs(), wv, s_new)
+        self._time("relight", t0)
+        return img
+
+    def _working_inputs(self) -> dict[str, Any]:
+        """The working-size state a relighting reads (a snapshot: set_image and set_preset
+        replace these arrays, they never change them in place)."""
+        return {
+            "image": self.image_srgb, "camera": self.camera, "sky": self.sky,
+            "normals": self.normals, "view_dirs": self.view_dirs, "depth": self.depth,
+            "sampler": self._sampler, "original_sun": self.original_sun,
+            "original_shadow": self.original_shadow, "light": self._light,
+            "preset": self.preset,
+        }
+
+    def _relight_from(
+        self, inp: dict[str, Any], wv: np.ndarray, s_new: np.ndarray, threads: int | None = None
+    ) -> np.ndarray:
+        """The relighting of ``inp`` (:meth:`_working_inputs`) for sun ``wv`` with its shadow."""
+        image, s_o, w_o = inp["image"], inp["original_shadow"], inp["original_sun"]
+        if self.relight_mode == "learned":
+            model = self.registry.load("relight", threads=threads)
+            out = model.run({
+                "image": image.transpose(2, 0, 1)[None],
+                "shadow_old": s_o[None, None],
+                "shadow_new": s_new[None, None],
+                "normals": inp["normals"].transpose(2, 0, 1)[None],
+                "sun_old": w_o.astype(np.float32)[None],
+                "sun_new": wv.astype(np.float32)[None],
+                "view_dirs": inp["view_dirs"].transpose(2, 0, 1)[None],
+                # Used by L with the physics base only (Model.run feeds a graph's own inputs).
+                "light_ratio": inp["light"].ratio.astype(np.float32)[None],
+            })
+            img = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
+            if self.colour_guard:
+                cam = inp["camera"]
+                keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(wv, cam))
+                img = keep_photo_colour(image, img, s_o, s_new, inp["sky"], keep_sky=keep_sky)
+            if self.contrast_floor:
+                img = shadow_contrast_floor(image, img, s_o, s_new, inp["sky"], inp["light"])
+            if self.exposure_anchor:
+                img = anchor_exposure(image, img, s_o, s_new, inp["sky"], inp["light"])
+        else:
+            img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
+        return img.astype(np.float32)
+
+    def _shadow_from(self, inp: dict[str, Any], wv: np.ndarray, threads: int | None) -> np.ndarray:
+        """:meth:`shadow` (full quality, working size) of the snapshot ``inp``, for
+        :meth:`relight_stream`'s shadow thread (no lock held, nothing cached)."""
+        depth = np.where(inp["sky"], np.inf, inp["depth"]).astype(np.float32)
+        if self.shadow_mode == "learned":
+            cam = inp["camera"]
+            out = self.registry.load("shadow", threads=threads).run({
+                "image": inp["image"].transpose(2, 0, 1)[None],
+                "depth": network_depth(depth)[None, None],
+                "normals": inp["normals"].transpose(2, 0, 1)[None],
+                "sun": wv.astype(np.float32)[None],
+                "focal": np.array([[cam.focal]], np.float32),
+            })
+            out = np.clip(_first(out)[0, 0], 0.0, 1.0)
+        else:
+            step = inp["preset"].direct_step
+            out = direct_shadow(
+                depth, inp["camera"], wv, normals=inp["normals"], sky=inp["sky"],
+                steps=int(math.ceil(1.0 / step)), step=step, thickness=self.thickness,
+                sampler=inp["sampler"], stats=DirectStats(0, 0, ""),
+            )
+        return out.astype(np.float32)
+
+    def relight_stream(self, suns: Any) -> Iterator[np.ndarray]:
+        """:meth:`relight` for many suns in order (a time-lapse), two stages at once.
+
+        The next sun's shadow is computed in a second thread while this sun's relighting
+        runs, each network on one onnxruntime thread, so the two cores are both busy. Frames
+        are the same as ``[relight(w) for w in suns]`` (tested); suns already cached are
+        taken from the cache.
+
+        Args:
+            suns: ``N x 3`` sun directions (or a sequence of them).
+
+        Yields:
+            ``H x W x 3`` float32 sRGB at working resolution, one per sun.
+        """
+        with self._lock:
+            self._require_image()
+            if self.original_sun is None or self.original_shadow is None:
+                raise RuntimeError("set_original_sun() must be called before relight_stream()")
+            inp = self._working_inputs()
+            preset = self.preset.name
+        suns = [normalize_sun(w) for w in suns]
+
+        def cached(wv: np.ndarray) -> np.ndarray | None:
+            with self._lock:
+                return self._relight_cache.get((_key(wv), False, preset))
+
+        def shadow_of(wv: np.ndarray) -> np.ndarray | None:
+            if cached(wv) is not None:
+                return None
+            with self._lock:
+                hit = self._shadow_cache.get((_key(wv), False, preset))
+            return hit if hit is not None else self._shadow_from(inp, wv, PREVIEW_THREADS)
+
+        if not suns:
+            return
+        with ThreadPoolExecutor(max_workers=1, thread_name_prefix="outcast-shadow") as pool:
+            pending = pool.submit(shadow_of, suns[0])
+            for i, wv in enumerate(suns):
+                s_new = pending.result()
+                if i + 1 < len(suns):
+                    pending = pool.submit(shadow_of, suns[i + 1])
+                hit = cached(wv)
+                if hit is not None:
+                    yield hit
+                    continue
+                yield self._relight_from(inp, wv, s_new, PREVIEW_THREADS)
+
+    def relight_full(self, w_new: Any, *, dtype: type | np.dtype = np.float32) -> np.ndarray:
+        """The photo relit under ``w_new`` at its full input resolution (detail transfer).
+
+        Args:
+            w_new: the new sun.
+            dtype: ``np.float32`` (sRGB in [0, 1]) or ``np.uint8`` (for writing 8-bit files:
+                with an 8-bit photo no full-size float buffer is made at all).
+        """
+        relit = self.relight(w_new)
+        t0 = time.perf_counter()
+        with self._lock:
+            out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit,
+                                              out_dtype=dtype)
+        self._time("full_resolution", t0)
+        return out
+
+    def buffers(self, w_new: Any) -> dict[str, np.ndarray]:
+        """Display-ready intermediate buffers for the paper-style figure.
+
+        Returns:
+            ``depth`` (``H x W`` in [0, 1], near = bright, sky 0), ``normals`` (``H x W x 3`` in
+            [0, 1]), ``original_shadow``, ``new_shadow`` (``H x W``), ``output`` (``H x W x 3``).
+        """
+        with self._lock:
+            self._require_image()
+            if self.original_shadow is None:
+                raise RuntimeError("set_original_sun() must be called before buffers()")
+            out = self.relight(w_new)
+            return {
+                "depth": depth_for_display(self.depth, self.sky),
+                "normals": normals_for_display(self.normals),
+                "original_shadow": self.original_shadow,
+                "new_shadow": self.shadow(w_new),
+                "output": out,
+            }
+
+
+def _first(outputs: dict[str, np.ndarray]) -> np.ndarray:
+    """A single-output model's result (ONNX output names may not repeat input names, so the
+    refine and relight models call theirs ``shadow_out`` / ``image_out``)."""
+    return next(iter(outputs.values()))
+
+
+def depth_for_display(depth: np.ndarray, sky: np.ndarray) -> np.ndarray:
+    """Inverse depth normalised to [0, 1] by robust percentiles (sky 0)."""
+    ok = ~sky & np.isfinite(depth) & (depth > 0)
+    out = np.zeros(depth.shape, np.float32)
+    if ok.any():
+        inv = 1.0 / depth[ok]
+        lo, hi = np.percentile(inv, [1, 99])
+        out[ok] = np.clip((inv - lo) / max(hi - lo, 1e-12), 0.0, 1.0)
+    return out
+
+
+def normals_for_display(normals: np.ndarray) -> np.ndarray:
+    """Normals mapped to [0, 1] colours (x right = red, y up = green, toward camera = blue)."""
+    n = normals * np.array([1.0, -1.0, -1.0], np.float32)
+    valid = np.any(normals != 0, axis=-1, keepdims=True)
+    return np.where(valid, n * 0.5 + 0.5, 0.0).astype(np.float32)
+
+
+__all__ = [
+    "PRESETS",
+    "ModelError",
+    "Preset",
+    "RelightSession",
+    "depth_for_display",
+    "ground_plane_depth",
+    "normals_for_display",
+    "working_shape",
+]

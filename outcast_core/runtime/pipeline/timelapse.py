@@ -1,0 +1,923 @@
+"""Time-lapse: sun paths (sweeps and the real sun), frame writers and the ``outcast timelapse`` CLI.
+
+Two kinds of sun path, both in the camera-relative angles every other part of OutCast speaks
+(azimuth 0 = straight ahead, 90 = right; elevation 0 = horizon):
+
+* :func:`sweep_path`: azimuth and elevation from A to B over N frames with an easing curve.
+* :func:`real_sun_path`: the true sun for a date and place (``astral``), turned into
+  camera-relative angles with the camera's compass heading: ``relative = true_azimuth - heading``.
+  The heading can be solved from the aligned original sun when the photo has GPS and a capture time
+  (:func:`solve_heading`: ``heading = true_azimuth - relative_azimuth``).
+
+Writers (:func:`export_frames`) produce MP4 (H.264 via PyAV, even size, yuv420p), GIF and WebP
+(Pillow) or a folder of PNGs. They report progress, can be cancelled, write to a temporary name
+and move it into place only when complete, and never overwrite an existing file unless forced: a
+cancelled or failed export leaves nothing behind.
+
+Plain numpy / astral / av / Pillow: no Qt, no torch.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import math
+import os
+import shutil
+import tempfile
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from outcast_core.runtime.geometry.camera import sun_vector
+
+ProgressFn = Callable[[str, float], None]
+CancelCheck = Callable[[], bool] | Any  # a callable returning bool, or a threading.Event
+
+FORMATS = ("mp4", "gif", "webp", "png")
+EASINGS = ("linear", "ease-in-out", "ease-in", "ease-out")
+DEFAULT_FPS = 12.0
+#: Frame rates a time-lapse accepts (the app's dialog offers the same range).
+MIN_FPS = 1.0
+MAX_FPS = 60.0
+#: File extensions of the video formats; a path without an extension is a PNG folder.
+VIDEO_SUFFIXES = {".mp4": "mp4", ".m4v": "mp4", ".gif": "gif", ".webp": "webp"}
+#: Suns below this elevation are lifted to it for rendering (a sun under the ground casts nonsense).
+MIN_RENDER_ELEVATION = 0.5
+#: Frame sizes: the working size of the preset (fastest), video sizes by their shorter side
+#: (720p: 720 px, so a 4:3 landscape photo gives 960 x 720), or the photo's full size. A size
+#: is never larger than the photo.
+FRAME_SIZES = ("working", "720p", "1080p", "4k", "full")
+DEFAULT_FRAME_SIZE = "1080p"
+SHORT_SIDES = {"720p": 720, "1080p": 1080, "4k": 2160}
+#: Seconds per output megapixel of one frame, for estimates where nothing was measured:
+#: moving the working-size relighting onto the photo (the banded 8-bit transfer), and encoding
+#: (both measured on 2 busy cores: 44 ms and 47 ms of CPU for a 1440 x 1080 frame).
+TRANSFER_SECONDS_PER_MP = 0.03
+ENCODE_SECONDS_PER_MP = 0.03
+#: Share of ``shadow + relight`` a frame takes when the next sun's shadow runs beside this
+#: sun's relighting (:meth:`~outcast_core.runtime.pipeline.session.RelightSession.relight_stream`;
+#: measured 0.64 on 2 busy cores, balanced preset).
+STREAM_SHARE = 0.65
+#: x264's speed preset: "veryfast" took 47 ms of CPU per 1440 x 1080 frame against 70 ms for
+#: "faster", for files about 12 % larger at the same CRF (measured on this machine).
+X264_PRESET = "veryfast"
+
+
+class ExportCancelledError(RuntimeError):
+    """Raised by :func:`export_frames` when the cancel check fires; nothing was written."""
+
+
+# --------------------------------------------------------------------------------------------
+# Sun paths
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SunSample:
+    """One frame's sun, relative to the camera.
+
+    Attributes:
+        azimuth: degrees in [0, 360), 0 = straight ahead, 90 = right.
+        elevation: degrees above the horizon.
+        time: local time of the sample (real sun paths only).
+        true_azimuth: degrees clockwise from true north (real sun paths only).
+    """
+
+    azimuth: float
+    elevation: float
+    time: dt.datetime | None = None
+    true_azimuth: float | None = None
+
+
+def ease(t: np.ndarray | float, easing: str = "linear") -> np.ndarray:
+    """Map progress ``t`` in [0, 1] through an easing curve (monotonic, 0 -> 0, 1 -> 1).
+
+    Args:
+        t: progress values in [0, 1].
+        easing: one of :data:`EASINGS`.
+
+    Returns:
+        Eased values, same shape as ``t`` (float64).
+
+    Example:
+        >>> float(ease(0.5, "ease-in-out"))
+        0.5
+    """
+    t = np.clip(np.asarray(t, dtype=np.float64), 0.0, 1.0)
+    if easing == "linear":
+        return t
+    if easing == "ease-in-out":
+        return 0.5 - 0.5 * np.cos(math.pi * t)
+    if easing == "ease-in":
+        return t * t
+    if easing == "ease-out":
+        return 1.0 - (1.0 - t) ** 2
+    raise ValueError(f"expected an easing in {EASINGS}, got {easing!r}")
+
+
+def _check_frames(frames: int) -> int:
+    if isinstance(frames, bool) or not isinstance(frames, int | np.integer) or frames < 1:
+        raise ValueError(f"expected a frame count >= 1, got {frames!r}")
+    return int(frames)
+
+
+def _check_angle(
+    name: str, value: float, lo: float | None = None, hi: float | None = None
+) -> float:
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f"expected a finite {name}, got {value}")
+    if lo is not None and hi is not None and not lo <= value <= hi:
+        raise ValueError(f"expected {name} in [{lo}, {hi}], got {value}")
+    return value
+
+
+def sweep_path(
+    start: tuple[float, float],
+    end: tuple[float, float],
+    frames: int,
+    easing: str = "linear",
+) -> list[SunSample]:
+    """A sun sweep from ``start = (az, el)`` to ``end`` over ``frames`` frames.
+
+    Azimuth is interpolated between the numbers as given, so the user picks the direction of
+    travel: ``(90, 30) -> (270, 30)`` passes through 180 (behind the camera), while
+    ``(90, 30) -> (-90, 30)`` passes through 0 (in front). Output azimuths are wrapped to [0, 360).
+
+    Args:
+        start: ``(azimuth_deg, elevation_deg)`` of the first frame.
+        end: ``(azimuth_deg, elevation_deg)`` of the last frame.
+        frames: number of frames (>= 1; one frame gives ``start``).
+        easing: one of :data:`EASINGS`.
+
+    Returns:
+        ``frames`` samples.
+    """
+    frames = _check_frames(frames)
+    az0 = _check_angle("start azimuth", start[0])
+    el0 = _check_angle("start elevation", start[1], -90.0, 90.0)
+    az1 = _check_angle("end azimuth", end[0])
+    el1 = _check_angle("end elevation", end[1], -90.0, 90.0)
+    t = np.linspace(0.0, 1.0, frames) if frames > 1 else np.zeros(1)
+    s = ease(t, easing)
+    az = az0 + (az1 - az0) * s
+    el = el0 + (el1 - el0) * s
+    return [SunSample(float(a % 360.0), float(e)) for a, e in zip(az, el, strict=True)]
+
+
+def relative_azimuth(true_azimuth: float, heading: float) -> float:
+    """Sun azimuth relative to the camera from its compass azimuth: ``(true - heading) mod 360``."""
+    return (_check_angle("true azimuth", true_azimuth) - _check_angle("heading", heading)) % 360.0
+
+
+def exif_sun(exif: Any, heading: float | None = None) -> tuple[float, float] | None:
+    """The photo's sun ``(azimuth, elevation)`` relative to the camera from its EXIF GPS,
+    capture time and compass heading (``heading`` stands in when the EXIF has none: one typed
+    by the user); None when one is missing or the sun is below the horizon. The one place the
+    app's "Sun from EXIF" and ``outcast batch`` take it from."""
+    when = getattr(exif, "capture_time", None)
+    lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
+    exif_heading = getattr(exif, "heading_deg", None)
+    heading = exif_heading if exif_heading is not None else heading
+    if when is None or lat is None or lon is None or heading is None:
+        return None
+    true_az, el = true_sun_position(when, lat, lon)
+    if el <= 0:
+        return None
+    return relative_azimuth(true_az, heading), el
+
+
+def heading_from_sun(true_azimuth: float, relative_az: float) -> float:
+    """Camera compass heading from the sun's true and camera-relative azimuths.
+
+    ``heading = (true_azimuth - relative_azimuth) mod 360``; inverse of :func:`relative_azimuth`.
+    """
+    true_az = _check_angle("true azimuth", true_azimuth)
+    return (true_az - _check_angle("azimuth", relative_az)) % 360.0
+
+
+def _observer(latitude: float, longitude: float) -> Any:
+    from astral import Observer
+
+    lat = _check_angle("latitude", latitude, -90.0, 90.0)
+    lon = _check_angle("longitude", longitude, -180.0, 180.0)
+    return Observer(latitude=lat, longitude=lon)
+
+
+def _aware(when: dt.datetime, utc_offset_hours: float | None) -> dt.datetime:
+    if when.tzinfo is not None:
+        return when
+    offset = 0.0 if utc_offset_hours is None else float(utc_offset_hours)
+    return when.replace(tzinfo=dt.timezone(dt.timedelta(hours=offset)))
+
+
+def true_sun_position(
+    when: dt.datetime, latitude: float, longitude: float, utc_offset_hours: float | None = None
+) -> tuple[float, float]:
+    """The sun's apparent ``(azimuth from true north, elevation)`` in degrees at a time and place.
+
+    Args:
+        when: the moment; a naive datetime is local time at ``utc_offset_hours`` (UTC when None).
+        latitude: degrees north.
+        longitude: degrees east.
+        utc_offset_hours: offset of naive times from UTC.
+
+    Returns:
+        ``(azimuth_deg, elevation_deg)`` with atmospheric refraction (what the shadows show).
+    """
+    import astral.sun
+
+    obs = _observer(latitude, longitude)
+    moment = _aware(when, utc_offset_hours)
+    return float(astral.sun.azimuth(obs, moment)), float(astral.sun.elevation(obs, moment))
+
+
+def solve_heading(
+    capture_time: dt.datetime,
+    latitude: float,
+    longitude: float,
+    original_azimuth: float,
+    utc_offset_hours: float | None = None,
+) -> float:
+    """Camera compass heading from the aligned original sun and the photo's time and GPS.
+
+    Args:
+        capture_time: when the photo was taken (naive: local at ``utc_offset_hours``).
+        latitude: degrees north.
+        longitude: degrees east.
+        original_azimuth: the aligned original sun's azimuth relative to the camera, degrees.
+        utc_offset_hours: offset of a naive ``capture_time`` from UTC.
+
+    Returns:
+        Heading in degrees clockwise from true north, in [0, 360).
+    """
+    true_az, _ = true_sun_position(capture_time, latitude, longitude, utc_offset_hours)
+    return heading_from_sun(true_az, original_azimuth)
+
+
+def default_utc_offset(longitude: float) -> float:
+    """A guess of the local UTC offset from longitude (whole hours of mean solar time)."""
+    return float(round(_check_angle("longitude", longitude, -180.0, 180.0) / 15.0))
+
+
+def daylight_range(
+    day: dt.date, latitude: float, longitude: float, utc_offset_hours: float | None = None
+) -> tuple[dt.datetime, dt.datetime]:
+    """Sunrise and sunset (aware datetimes at ``utc_offset_hours``) of a date and place.
+
+    Raises:
+        ValueError: when the sun does not rise or set that day (polar day or night).
+    """
+    import astral.sun
+
+    offset = default_utc_offset(longitude) if utc_offset_hours is None else float(utc_offset_hours)
+    tz = dt.timezone(dt.timedelta(hours=offset))
+    obs = _observer(latitude, longitude)
+    try:
+        rise = astral.sun.sunrise(obs, day, tzinfo=tz)
+        sset = astral.sun.sunset(obs, day, tzinfo=tz)
+    except ValueError as exc:
+        raise ValueError(
+            f"expected a day with a sunrise and a sunset at {latitude:.3f}, {longitude:.3f} on "
+            f"{day.isoformat()}, got none ({exc}); give a start and end time instead"
+        ) from exc
+    if sset <= rise:
+        sset += dt.timedelta(days=1)
+    return rise, sset
+
+
+def real_sun_path(
+    day: dt.date,
+    latitude: float,
+    longitude: float,
+    heading: float,
+    frames: int,
+    start: dt.time | None = None,
+    end: dt.time | None = None,
+    utc_offset_hours: float | None = None,
+) -> list[SunSample]:
+    """The real sun over a day, relative to a camera facing ``heading``.
+
+    Args:
+        day: the date.
+        latitude: degrees north.
+        longitude: degrees east.
+        heading: camera compass heading, degrees clockwise from true north.
+        frames: number of frames (>= 2), evenly spaced in time.
+        start: local start time; sunrise when None.
+        end: local end time; sunset when None.
+        utc_offset_hours: local time's offset from UTC; guessed from longitude when None.
+
+    Returns:
+        ``frames`` samples with ``time`` and ``true_azimuth`` set.
+    """
+    frames = _check_frames(frames)
+    if frames < 2:
+        raise ValueError(f"expected at least 2 frames for a sun path, got {frames}")
+    heading = _check_angle("heading", heading)
+    offset = default_utc_offset(longitude) if utc_offset_hours is None else float(utc_offset_hours)
+    tz = dt.timezone(dt.timedelta(hours=offset))
+    if start is None or end is None:
+        rise, sset = daylight_range(day, latitude, longitude, offset)
+    t0 = dt.datetime.combine(day, start, tzinfo=tz) if start is not None else rise
+    t1 = dt.datetime.combine(day, end, tzinfo=tz) if end is not None else sset
+    if t1 <= t0:
+        raise ValueError(
+            f"expected the end time after the start time, got {t0:%H:%M} -> {t1:%H:%M}"
+        )
+    samples = []
+    for i in range(frames):
+        when = t0 + (t1 - t0) * (i / (frames - 1))
+        true_az, el = true_sun_position(when, latitude, longitude)
+        samples.append(SunSample(relative_azimuth(true_az, heading), el, when, true_az))
+    return samples
+
+
+def sun_vectors(
+    samples: Sequence[SunSample], min_elevation: float = MIN_RENDER_ELEVATION
+) -> list[np.ndarray]:
+    """Camera-space unit sun vectors to render; elevations under ``min_elevation`` are lifted."""
+    return [sun_vector(s.azimuth, max(s.elevation, min_elevation)) for s in samples]
+
+
+# --------------------------------------------------------------------------------------------
+# Frame writers
+# --------------------------------------------------------------------------------------------
+
+
+def format_from_path(path: str | os.PathLike[str]) -> str:
+    """Output format from a path: ``.mp4``/``.m4v``, ``.gif``, ``.webp``; no extension: PNG folder.
+
+    Raises:
+        ValueError: any other extension (``out.avi`` would otherwise become a folder of PNGs).
+    """
+    suffix = Path(path).suffix.lower()
+    if not suffix:
+        return "png"
+    if suffix not in VIDEO_SUFFIXES:
+        raise ValueError(
+            f"expected a time-lapse output ending in {', '.join(VIDEO_SUFFIXES)} or a folder "
+            f"name without an extension (PNG frames), got '{Path(path).name}'"
+        )
+    return VIDEO_SUFFIXES[suffix]
+
+
+def to_uint8(frame: np.ndarray) -> np.ndarray:
+    """An ``H x W x 3`` sRGB frame (float in [0, 1] or uint8) as contiguous uint8."""
+    a = np.asarray(frame)
+    if a.ndim != 3 or a.shape[2] not in (3, 4):
+        raise ValueError(f"expected a frame of shape H x W x 3, got {a.shape}")
+    a = a[..., :3]
+    if a.dtype != np.uint8:
+        a = np.clip(np.nan_to_num(a.astype(np.float32), nan=0.0) * 255.0 + 0.5, 0, 255)
+        a = a.astype(np.uint8)
+    return np.ascontiguousarray(a)
+
+
+def _is_cancelled(cancel: CancelCheck | None) -> bool:
+    if cancel is None:
+        return False
+    if hasattr(cancel, "is_set"):
+        return bool(cancel.is_set())
+    return bool(cancel())
+
+
+def _follow_umask(path: Path, folder: bool = False) -> None:
+    """Give a temp file (0600) or folder (0700) the mode a plain ``open`` would: 0666 / 0777 less
+    the umask, like every other output (stills, depth maps)."""
+    from outcast_core.runtime.io.imageio import _umask
+
+    os.chmod(path, (0o777 if folder else 0o666) & ~_umask())
+
+
+def _commit_file(tmp: Path, final: Path, force: bool) -> None:
+    """Move a finished temp file into place; no-clobber unless ``force``."""
+    _follow_umask(tmp)
+    if force:
+        os.replace(tmp, final)
+        return
+    try:
+        os.link(tmp, final)  # atomic and fails if final exists
+    except FileExistsError:
+        tmp.unlink(missing_ok=True)
+        raise FileExistsError(f"{final} already exists; choose another name or force") from None
+    except OSError:  # file system without hard links
+        if final.exists():
+            tmp.unlink(missing_ok=True)
+            raise FileExistsError(f"{final} already exists; choose another name or force") from None
+        os.replace(tmp, final)
+        return
+    tmp.unlink(missing_ok=True)
+
+
+class FrameWriter(ABC):
+    """Base writer: collects frames into a temp name, :meth:`commit` moves it into place.
+
+    Args:
+        path: the final file (or folder for PNG sequences).
+        fps: frames per second.
+        force: overwrite an existing file.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], fps: float = DEFAULT_FPS, force: bool = False):
+        self.path = Path(path)
+        if not (math.isfinite(fps) and MIN_FPS <= fps <= MAX_FPS):
+            raise ValueError(f"expected fps in [{MIN_FPS:g}, {MAX_FPS:g}], got {fps}")
+        self.fps = float(fps)
+        self.force = bool(force)
+        if self.path.exists() and not self.force:
+            raise FileExistsError(f"{self.path} already exists; choose another name or force")
+        if not self.path.parent.is_dir():
+            raise FileNotFoundError(f"folder {self.path.parent} does not exist")
+        self.frames_written = 0
+        self._tmp: Path | None = None
+
+    def _make_tmp_file(self) -> Path:
+        fd, name = tempfile.mkstemp(
+            prefix=f".{self.path.stem}.", suffix=".part" + self.path.suffix, dir=self.path.parent
+        )
+        os.close(fd)
+        return Path(name)
+
+    @abstractmethod
+    def write(self, frame: np.ndarray) -> None:
+        """Append one ``H x W x 3`` sRGB frame (float in [0, 1] or uint8)."""
+
+    @abstractmethod
+    def commit(self) -> Path:
+        """Finish and move the output into place; returns the final path."""
+
+    def abort(self) -> None:
+        """Drop everything written so far."""
+        if self._tmp is not None:
+            if self._tmp.is_dir():
+                shutil.rmtree(self._tmp, ignore_errors=True)
+            else:
+                self._tmp.unlink(missing_ok=True)
+            self._tmp = None
+
+
+class Mp4Writer(FrameWriter):
+    """H.264 MP4 through PyAV; odd sizes are padded to even by edge replication, yuv420p."""
+
+    def __init__(self, path, fps=DEFAULT_FPS, force=False, crf: int = 18):
+        super().__init__(path, fps, force)
+        self.crf = int(crf)
+        self._container: Any = None
+        self._stream: Any = None
+        self._size: tuple[int, int] | None = None
+
+    def write(self, frame: np.ndarray) -> None:
+        import av
+
+        img = to_uint8(frame)
+        h, w = img.shape[:2]
+        if self._container is None:
+            self._tmp = self._make_tmp_file()
+            self._size = (h, w)
+            self._container = av.open(str(self._tmp), mode="w", format="mp4")
+            rate = dt_fraction(self.fps)
+            self._stream = self._container.add_stream(
+                "libx264", rate=rate, options={"crf": str(self.crf), "preset": X264_PRESET}
+            )
+            self._stream.width = w + (w % 2)
+            self._stream.height = h + (h % 2)
+            self._stream.pix_fmt = "yuv420p"
+        elif (h, w) != self._size:
+            raise ValueError(f"expected every frame of size {self._size}, got {(h, w)}")
+        if h % 2 or w % 2:
+            img = np.pad(img, ((0, h % 2), (0, w % 2), (0, 0)), mode="edge")  # even H x W x 3
+        vf = av.VideoFrame.from_ndarray(img, format="rgb24")
+        for packet in self._stream.encode(vf):
+            self._container.mux(packet)
+        self.frames_written += 1
+
+    def _close(self) -> None:
+        if self._container is not None:
+            try:
+                for packet in self._stream.encode(None):
+                    self._container.mux(packet)
+            finally:
+                self._container.close()
+                self._container = None
+
+    def commit(self) -> Path:
+        if self._container is None:
+            raise RuntimeError("no frames were written")
+        self._close()
+        if self._tmp is None:
+            raise RuntimeError("the MP4 writer lost its temporary file")
+        _commit_file(self._tmp, self.path, self.force)
+        self._tmp = None
+        return self.path
+
+    def abort(self) -> None:
+        if self._container is not None:
+            with contextlib.suppress(Exception):  # a broken container; the file goes anyway
+                self._container.close()
+            self._container = None
+        super().abort()
+
+
+def dt_fraction(fps: float) -> Any:
+    """Frame rate as a Fraction (PyAV wants a rational)."""
+    from fractions import Fraction
+
+    return Fraction(fps).limit_denominator(1001)
+
+
+class _PillowAnimWriter(FrameWriter):
+    """Animated GIF / WebP through Pillow (frames are kept in memory until commit)."""
+
+    pil_format = ""
+
+    def __init__(self, path, fps=DEFAULT_FPS, force=False):
+        super().__init__(path, fps, force)
+        self._frames: list[Any] = []
+        self._size: tuple[int, int] | None = None
+
+    def _convert(self, img: np.ndarray) -> Any:
+        from PIL import Image
+
+        return Image.fromarray(img, "RGB")
+
+    def write(self, frame: np.ndarray) -> None:
+        img = to_uint8(frame)
+        if self._size is None:
+            self._size = img.shape[:2]
+        elif img.shape[:2] != self._size:
+            raise ValueError(f"expected every frame of size {self._size}, got {img.shape[:2]}")
+        self._frames.append(self._convert(img))
+        self.frames_written += 1
+
+    def _save_kwargs(self) -> dict[str, Any]:
+        return {}
+
+    def commit(self) -> Path:
+        if not self._frames:
+            raise RuntimeError("no frames were written")
+        self._tmp = self._make_tmp_file()
+        duration = max(1, round(1000.0 / self.fps))
+        self._frames[0].save(
+            self._tmp,
+            format=self.pil_format,
+            save_all=True,
+            append_images=self._frames[1:],
+            duration=duration,
+            loop=0,
+            **self._save_kwargs(),
+        )
+        self._frames = []
+        _commit_file(self._tmp, self.path, self.force)
+        self._tmp = None
+        return self.path
+
+    def abort(self) -> None:
+        self._frames = []
+        super().abort()
+
+
+class GifWriter(_PillowAnimWriter):
+    pil_format = "GIF"
+
+    def _convert(self, img: np.ndarray) -> Any:
+        # An adaptive palette per frame; dithering keeps skies from banding.
+        return super()._convert(img).quantize(colors=256, method=2, dither=1)
+
+    def _save_kwargs(self) -> dict[str, Any]:
+        return {"optimize": False, "disposal": 1}
+
+
+class WebpWriter(_PillowAnimWriter):
+    pil_format = "WEBP"
+
+    def _save_kwargs(self) -> dict[str, Any]:
+        return {"quality": 90, "method": 4}
+
+
+class PngSequenceWriter(FrameWriter):
+    """A folder of ``frame_0001.png`` ... written to a temp folder and renamed when complete."""
+
+    def write(self, frame: np.ndarray) -> None:
+        from PIL import Image
+
+        img = to_uint8(frame)
+        if self._tmp is None:
+            self._tmp = Path(
+                tempfile.mkdtemp(prefix=f".{self.path.name}.part-", dir=self.path.parent)
+            )
+        Image.fromarray(img, "RGB").save(self._tmp / f"frame_{self.frames_written + 1:04d}.png")
+        self.frames_written += 1
+
+    def commit(self) -> Path:
+        if self._tmp is None:
+            raise RuntimeError("no frames were written")
+        if self.path.exists():
+            if not self.force:
+                self.abort()
+                raise FileExistsError(f"{self.path} already exists; choose another name or force")
+            if self.path.is_dir():
+                shutil.rmtree(self.path)
+            else:
+                self.path.unlink()
+        _follow_umask(self._tmp, folder=True)
+        os.rename(self._tmp, self.path)
+        self._tmp = None
+        return self.path
+
+
+WRITERS: dict[str, type[FrameWriter]] = {
+    "mp4": Mp4Writer,
+    "gif": GifWriter,
+    "webp": WebpWriter,
+    "png": PngSequenceWriter,
+}
+
+
+def export_frames(
+    render_frame: Callable[[int], np.ndarray],
+    n_frames: int,
+    path: str | os.PathLike[str],
+    *,
+    fps: float = DEFAULT_FPS,
+    fmt: str | None = None,
+    force: bool = False,
+    progress: ProgressFn | None = None,
+    cancel: CancelCheck | None = None,
+) -> Path:
+    """Render and write ``n_frames`` frames; all or nothing.
+
+    Frames are rendered in this thread, in order, and encoded in a second one (write-behind,
+    at most :data:`WRITE_AHEAD` frames waiting), so encoding frame ``i`` overlaps rendering
+    frame ``i + 1``.
+
+    Args:
+        render_frame: ``i -> H x W x 3`` sRGB frame (float in [0, 1] or uint8), called for
+            ``i = 0, 1, ...`` in order.
+        n_frames: number of frames (>= 1).
+        path: output file (``.mp4``, ``.gif``, ``.webp``) or folder (PNG sequence).
+        fps: frames per second.
+        fmt: one of :data:`FORMATS`; from the path's extension when None.
+        force: overwrite an existing output.
+        progress: called with ``("timelapse", fraction)`` after every frame.
+        cancel: a callable returning True (or a ``threading.Event``) to stop; checked per frame.
+
+    Returns:
+        The written path.
+
+    Raises:
+        ExportCancelledError: when cancelled (nothing is left on disk).
+        FileExistsError: the output exists and ``force`` is False.
+    """
+    n_frames = _check_frames(n_frames)
+    fmt = format_from_path(path) if fmt is None else fmt
+    if fmt not in WRITERS:
+        raise ValueError(f"expected a format in {FORMATS}, got {fmt!r}")
+    writer = WRITERS[fmt](path, fps=fps, force=force)
+    behind = _WriteBehind(writer)
+    try:
+        for i in range(n_frames):
+            if _is_cancelled(cancel):
+                raise ExportCancelledError(f"export of {path} cancelled after {i} frames")
+            behind.put(render_frame(i))
+            if progress is not None:
+                progress("timelapse", (i + 1) / n_frames)
+        behind.finish()
+        if _is_cancelled(cancel):
+            raise ExportCancelledError(f"export of {path} cancelled")
+        return writer.commit()
+    except BaseException:
+        behind.stop()
+        writer.abort()
+        raise
+
+
+#: Frames a time-lapse's encoder thread may have waiting.
+WRITE_AHEAD = 2
+
+
+class _WriteBehind:
+    """A thread that feeds frames to a :class:`FrameWriter` in order; its errors come back to
+    the caller at the next :meth:`put` or at :meth:`finish`."""
+
+    _DONE = object()
+
+    def __init__(self, writer: FrameWriter) -> None:
+        import queue
+        import threading
+
+        self.writer = writer
+        self._queue: queue.Queue = queue.Queue(maxsize=WRITE_AHEAD)
+        self._error: BaseException | None = None
+        self._stopped = False
+        self._thread = threading.Thread(target=self._run, name="outcast-encode", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            frame = self._queue.get()
+            if frame is self._DONE:
+                return
+            if self._error is not None or self._stopped:
+                continue  # drain: the caller is told at its next call
+            try:
+                self.writer.write(frame)
+            except BaseException as exc:  # handed to the caller's thread
+                self._error = exc
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def put(self, frame: np.ndarray) -> None:
+        self._raise()
+        self._queue.put(frame)
+
+    def finish(self) -> None:
+        """Wait until every frame is written; raise the encoder's error if it had one."""
+        self._queue.put(self._DONE)
+        self._thread.join()
+        self._raise()
+
+    def stop(self) -> None:
+        """Drop what is waiting and end the thread (after an error or a cancel)."""
+        self._stopped = True
+        if self._thread.is_alive():
+            self._queue.put(self._DONE)
+            self._thread.join()
+
+
+def frame_shape(
+    size: str, photo_shape: tuple[int, int], working_shape: tuple[int, int]
+) -> tuple[int, int]:
+    """``(H, W)`` of a time-lapse's frames for one of :data:`FRAME_SIZES`.
+
+    Args:
+        size: ``"working"``, ``"720p"``, ``"1080p"``, ``"4k"`` or ``"full"``.
+        photo_shape: the photo's ``(H, W)``.
+        working_shape: the session's working ``(H, W)``.
+
+    Returns:
+        The frame size; video sizes keep the photo's aspect ratio, with the shorter side 720,
+        1080 or 2160 (even numbers, for H.264), and are never larger than the photo.
+
+    Example:
+        >>> frame_shape("1080p", (3000, 4000), (288, 384))
+        (1080, 1440)
+    """
+    if size not in FRAME_SIZES:
+        raise ValueError(f"expected a frame size in {FRAME_SIZES}, got {size!r}")
+    h, w = photo_shape
+    if size == "working":
+        return tuple(working_shape)  # type: ignore[return-value]
+    if size == "full" or SHORT_SIDES[size] >= min(h, w):
+        return h, w
+    scale = SHORT_SIDES[size] / min(h, w)
+    return max(2, 2 * round(h * scale / 2)), max(2, 2 * round(w * scale / 2))
+
+
+def estimate_seconds(
+    frames: int,
+    shape: tuple[int, int],
+    working_shape: tuple[int, int],
+    timings: dict[str, float] | None = None,
+) -> float:
+    """Rough time to render and write ``frames`` frames of ``shape`` (for the dialog and CLI).
+
+    Per frame: the new sun's shadow and relighting at working size (the session's last measured
+    ``shadow`` and ``relight`` stages, else 0.1 s, the two overlapping: :data:`STREAM_SHARE`),
+    moving it onto ``shape`` when that is larger than the working size, and encoding.
+
+    Returns:
+        Seconds (at least 0).
+    """
+    timings = timings or {}
+    per_frame = STREAM_SHARE * (float(timings.get("shadow", 0.05))
+                                + float(timings.get("relight", 0.05)))
+    mp = shape[0] * shape[1] / 1e6
+    if shape[0] * shape[1] > working_shape[0] * working_shape[1]:
+        per_frame += TRANSFER_SECONDS_PER_MP * mp
+    per_frame += ENCODE_SECONDS_PER_MP * mp
+    return max(0.0, frames * per_frame)
+
+
+def describe_seconds(seconds: float) -> str:
+    """``"about 40 s"``, ``"about 3 min"``, ``"about 1 h 5 min"``."""
+    if seconds < 60:
+        return f"about {max(1, round(seconds))} s"
+    minutes = round(seconds / 60)
+    if minutes < 60:
+        return f"about {minutes} min"
+    return f"about {minutes // 60} h {minutes % 60} min"
+
+
+def _frame_renderer(session: Any, size: str) -> Callable[[np.ndarray], np.ndarray]:
+    """``sun -> frame`` at ``size``: the working-size relighting, resized or moved onto the photo
+    at that size (its detail kept), like :meth:`RelightSession.relight_full` at any size."""
+    from outcast_core.runtime.pipeline.relight import transfer_to_full_resolution
+    from outcast_core.runtime.pipeline.session import resize
+
+    full = session.full_image_srgb
+    work = session.image_srgb
+    shape = frame_shape(size, full.shape[:2], work.shape[:2])
+    if size == "working" or shape == work.shape[:2]:
+        return session.relight
+    if shape == full.shape[:2]:
+        return session.relight_full
+    if shape[0] * shape[1] <= work.shape[0] * work.shape[1]:
+        return lambda w: resize(session.relight(w), shape)
+    photo = resize(full, shape)  # once: every frame starts from the photo at the frame size
+    return lambda w: transfer_to_full_resolution(photo, work, session.relight(w))
+
+
+def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray], np.ndarray]:
+    """``working-size relit frame -> frame at size`` (uint8 above the working size): moved
+    onto the photo at the frame's size (its detail kept) with the banded 8-bit transfer, the
+    photo resized to that size once."""
+    from outcast_core.runtime.pipeline.relight import transfer_to_full_resolution
+    from outcast_core.runtime.pipeline.session import resize
+
+    full = session.full_image_srgb
+    work = session.image_srgb
+    shape = frame_shape(size, full.shape[:2], work.shape[:2])
+    if size == "working" or shape == work.shape[:2]:
+        return lambda relit: relit
+    if shape[0] * shape[1] <= work.shape[0] * work.shape[1]:
+        return lambda relit: resize(relit, shape)
+    photo = full if shape == full.shape[:2] else resize(full, shape)  # once, uint8 if 8-bit
+    return lambda relit: transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8)
+
+
+def render_timelapse(
+    session: Any,
+    samples: Sequence[SunSample],
+    path: str | os.PathLike[str],
+    *,
+    fps: float = DEFAULT_FPS,
+    full_resolution: bool = False,
+    size: str | None = None,
+    fmt: str | None = None,
+    force: bool = False,
+    progress: ProgressFn | None = None,
+    cancel: CancelCheck | None = None,
+) -> Path:
+    """Relight ``session``'s photo along a sun path and write the frames.
+
+    Args:
+        session: a :class:`~outcast_core.runtime.pipeline.session.RelightSession` with the original
+        sun set.
+        samples: the sun path.
+        path: output file or folder.
+        fps: frames per second.
+        full_resolution: the same as ``size="full"`` (kept for callers of earlier versions).
+        size: one of :data:`FRAME_SIZES` (see :func:`frame_shape`); default ``"working"``, or
+            ``"full"`` with ``full_resolution``.
+        fmt: output format; from the extension when None.
+        force: overwrite an existing output.
+        progress: ``(stage, fraction)`` callback.
+        cancel: cancel check.
+
+    Returns:
+        The written path.
+    """
+    if not samples:
+        raise ValueError("expected at least one sun sample, got none")
+    if getattr(session, "original_sun", None) is None:
+        raise RuntimeError("set the original sun before rendering a time-lapse")
+    if size is None:
+        size = "full" if full_resolution else "working"
+    suns = sun_vectors(samples)
+    if hasattr(session, "relight_stream"):
+        # Two stages at once (the next sun's shadow while this one is relit), and each frame
+        # made at its own size from the working-size result (never via full resolution).
+        to_frame = _frame_maker(session, size)
+        stream = session.relight_stream(suns)
+
+        def render_frame(_i: int) -> np.ndarray:
+            return to_frame(next(stream))
+    else:
+        stream = None
+        render = _frame_renderer(session, size)
+
+        def render_frame(i: int) -> np.ndarray:
+            return render(suns[i])
+
+    try:
+        return export_frames(
+            render_frame,
+            len(suns),
+            path,
+            fps=fps,
+            fmt=fmt,
+            force=force,
+            progress=progress,
+            cancel=cancel,
+        )
+    finally:
+        if stream is not None:
+            stream.close()  # a cancelled export: the shadow thread ends here

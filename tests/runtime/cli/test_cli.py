@@ -1,0 +1,108 @@
+"""The `outcast` command line: the contract users and other tools rely on."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from outcast_core.runtime.cli.main import main, parse_azel, parse_vector
+from outcast_core.runtime.io.imageio import read_image, read_shadow_png, write_depth
+from tests.runtime.scenes import box_scene_depth
+
+
+@pytest.fixture
+def depth_file(tmp_path: Path) -> Path:
+    depth = box_scene_depth(60, 80, 80 / (2 * math.tan(math.radians(15))), 60.0,
+                            [(-4.0, 0.0, -3.0, 1.0, 4.0)])
+    path = tmp_path / "depth.npy"
+    write_depth(path, depth)
+    return path
+
+
+def test_parse_angles() -> None:
+    np.testing.assert_allclose(parse_azel("90,0"), [1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(parse_vector("0,0,-2"), [0, 0, -1])
+    for bad in ("90", "a,b", "10,95", "nan,10"):
+        with pytest.raises(ValueError, match="AZ,EL"):
+            parse_azel(bad)
+    with pytest.raises(ValueError):
+        parse_vector("0,0,0")
+
+
+def test_shadow_writes_16bit_png(photo: Path, depth_file: Path, tmp_path: Path) -> None:
+    out = tmp_path / "shadow.png"
+    rc = main(["shadow", str(photo), "--sun-dir=-0.5,-0.3,-0.8", "--depth", str(depth_file),
+               "--fov", "30", "--mode", "direct", "-o", str(out), "-q"])
+    assert rc == 0
+    s = read_shadow_png(out)
+    assert s.shape == (60, 80)
+    assert (s == 0).mean() > 0.02 and s.max() > 0.7  # a cast shadow and lit ground
+    # Thin occluders cast shorter shadows.
+    out2 = tmp_path / "thin.png"
+    assert main(["shadow", str(photo), "--sun-dir=-0.5,-0.3,-0.8", "--depth", str(depth_file),
+                 "--fov", "30", "--thickness", "0.001", "-o", str(out2), "-q"]) == 0
+    assert (read_shadow_png(out2) == 0).sum() < (s == 0).sum()
+
+
+def test_relight_full_resolution_and_no_overwrite(photo: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "relit.tif"
+    args = ["relight", str(photo), "--from", "120,40", "--to", "250,30", "-o", str(out), "-q"]
+    assert main(args) == 0
+    img = read_image(out)
+    assert img.image_srgb.shape == (60, 80, 3) and img.bit_depth == 16
+    before = out.read_bytes()
+    assert main(args) == 2
+    assert "--force" in capsys.readouterr().err
+    assert out.read_bytes() == before
+    assert main(args + ["--force"]) == 0
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["shadow", "{missing}", "--sun", "10,20", "-o", "{out}"], "file not found"),
+        (["shadow", "{text}", "--sun", "10,20", "-o", "{out}"], "not an image"),
+        (["shadow", "{photo}", "--sun", "10,100", "-o", "{out}"], "elevation"),
+        (["shadow", "{photo}", "--sun-dir", "0,0,0", "-o", "{out}"], "non-zero"),
+        (["relight", "{photo}", "--from", "1,2", "--to", "3,4", "--depth", "{text}",
+          "-o", "{out}"], "depth"),
+        (["depth", "{photo}", "-o", "{out}"], "depth.json"),
+    ],
+)
+def test_errors_are_one_line(argv, message, photo: Path, tmp_path: Path, capsys,
+                             monkeypatch) -> None:
+    monkeypatch.setenv("OUTCAST_MODEL_DIR", str(tmp_path / "no-models"))
+    text = tmp_path / "notes.txt"
+    text.write_text("not an image\n")
+    subs = {"missing": str(tmp_path / "nope.jpg"), "text": str(text), "photo": str(photo),
+            "out": str(tmp_path / "o.png")}
+    assert main([a.format(**subs) for a in argv]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert message in err
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_console_script_runs_in_a_fresh_process(photo: Path, tmp_path: Path) -> None:
+    out = tmp_path / "s.png"
+    r = subprocess.run([sys.executable, "-m", "outcast_core.runtime.cli.main", "shadow", str(photo),
+                        "--sun", "135,40", "-o", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert out.is_file()
+    r = subprocess.run([sys.executable, "-m", "outcast_core.runtime.cli.main", "--help"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0 and "relight" in r.stdout
+    json.dumps(r.stdout)  # plain text
+
+
+def test_output_folder_is_created(photo: Path, tmp_path: Path) -> None:
+    out = tmp_path / "new" / "deeper" / "relit.png"
+    assert main(["relight", str(photo), "--from", "120,40", "--to", "250,30", "-o", str(out),
+                 "-q"]) == 0
+    assert out.is_file()

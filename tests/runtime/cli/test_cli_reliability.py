@@ -1,0 +1,334 @@
+"""Issue 20: bad arguments and outputs fail fast with one line; nothing is left behind."""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from outcast_core.runtime.cli import main as cli
+from outcast_core.runtime.cli.main import main
+from outcast_core.runtime.io.imageio import ImageReadError, read_depth, write_depth, write_image
+from outcast_core.runtime.pipeline.session import RelightSession
+from tests.sigterm import terminate_when_ready
+
+
+@pytest.fixture
+def no_work(monkeypatch) -> None:
+    """Fail the test if a command gets as far as building a session (the slow part)."""
+
+    def boom(*args, **kwargs):
+        raise AssertionError("the command started its work before checking its arguments")
+
+    monkeypatch.setattr(cli, "_make_session", boom)
+    monkeypatch.setattr("outcast_core.runtime.pipeline.session.RelightSession.__init__", boom)
+
+
+def _one_line_error(capsys, fragment: str) -> str:
+    err = capsys.readouterr().err.strip()
+    assert "Traceback" not in err
+    last = err.splitlines()[-1]
+    assert fragment in last, err
+    return last
+
+
+# ------------------------------------------------------------------------------------------
+# 3: --steps
+
+
+@pytest.mark.parametrize("steps", ["1000000000", "2049", "0", "-3", "ten"])
+def test_steps_out_of_range_is_refused_before_the_work(photo, tmp_path, capsys, no_work,
+                                                       steps) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["shadow", str(photo), "--sun", "90,30", "--mode", "direct", "--steps", steps,
+              "-o", str(tmp_path / "s.png")])
+    assert info.value.code == 2
+    _one_line_error(capsys, "--steps")
+
+
+def test_steps_in_learned_mode_is_said_not_to_apply(photo, tmp_path, capsys) -> None:
+    if RelightSession(shadow_mode="auto").shadow_mode != "learned":
+        pytest.skip("the learned shadow model is not installed")
+    assert main(["shadow", str(photo), "--sun", "90,30", "--mode", "learned", "--steps", "64",
+                 "--preset", "fast", "-o", str(tmp_path / "s.png")]) == 0
+    assert "--steps applies to Direct shadows only" in capsys.readouterr().err
+
+
+def test_steps_at_the_limit_runs(photo, tmp_path) -> None:
+    assert main(["shadow", str(photo), "--sun", "90,30", "--mode", "direct", "--steps",
+                 str(cli.MAX_DIRECT_STEPS), "-o", str(tmp_path / "s.png"), "-q"]) == 0
+
+
+# ------------------------------------------------------------------------------------------
+# 5: depth with no valid pixel
+
+
+@pytest.mark.parametrize("fill", [0.0, -1.0, math.nan, math.inf, -math.inf])
+@pytest.mark.parametrize("ext", [".npy", ".exr"])
+def test_depth_without_a_valid_pixel_is_refused(tmp_path, fill, ext) -> None:
+    path = tmp_path / f"d{ext}"
+    write_depth(path, np.full((6, 8), fill, np.float32))
+    with pytest.raises(ImageReadError, match="no valid pixel"):
+        read_depth(path)
+
+
+def test_depth_png_with_a_scale_float32_cannot_hold_is_refused(tmp_path) -> None:
+    from PIL import Image, PngImagePlugin
+
+    info = PngImagePlugin.PngInfo()
+    info.add_text("outcast:depth_scale", "1e308")
+    path = tmp_path / "d.png"
+    Image.fromarray(np.full((6, 8), 1000, np.uint16)).save(path, pnginfo=info)
+    with pytest.raises(ValueError, match="depth_scale"):
+        read_depth(path)
+
+
+def test_session_refuses_depth_without_a_valid_pixel() -> None:
+    image = np.full((12, 16, 3), 0.5, np.float32)
+    session = RelightSession(shadow_mode="direct", relight_mode="physics")
+    for fill in (0.0, -2.0, math.nan, math.inf):
+        with pytest.raises(ValueError, match="valid pixel"):
+            session.set_image(image, depth=np.full((12, 16), fill, np.float32))
+
+
+def test_cli_refuses_an_all_zero_depth_map(photo, tmp_path, capsys) -> None:
+    depth = tmp_path / "zeros.npy"
+    np.save(depth, np.zeros((60, 80), np.float32))
+    out = tmp_path / "r.png"
+    assert main(["relight", str(photo), "--from", "90,30", "--to", "200,40", "--depth",
+                 str(depth), "-o", str(out)]) == 2
+    _one_line_error(capsys, "no valid pixel")
+    assert not out.exists()
+
+
+def test_text_file_as_npy_is_not_numpys_pickle_advice(tmp_path) -> None:
+    path = tmp_path / "d.npy"
+    path.write_text("1 2 3\n4 5 6\n")
+    with pytest.raises(ImageReadError) as info:
+        read_depth(path)
+    assert "pickle" not in str(info.value) and "not a NumPy .npy file" in str(info.value)
+
+
+def test_npy_bomb_is_refused_from_its_header(tmp_path) -> None:
+    path = tmp_path / "d.npy"
+    header = {"descr": "<f4", "fortran_order": False, "shape": (100000, 100000)}
+    with open(path, "wb") as f:
+        np.lib.format.write_array_header_1_0(f, header)
+        f.write(b"\0" * 64)
+    with pytest.raises(ImageReadError, match="MP limit"):
+        read_depth(path)
+    header["shape"] = (60, 80)
+    with open(path, "wb") as f:
+        np.lib.format.write_array_header_1_0(f, header)
+        f.write(b"\0" * 64)
+    with pytest.raises(ImageReadError, match="truncated"):
+        read_depth(path)
+
+
+# ------------------------------------------------------------------------------------------
+# 6: --fov 0
+
+
+@pytest.mark.parametrize("fov", ["0", "-0", "-10", "180", "500", "nan", "inf", "wide"])
+def test_bad_fov_is_refused(photo, tmp_path, capsys, no_work, fov) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["shadow", str(photo), "--sun", "90,30", f"--fov={fov}",
+              "-o", str(tmp_path / "s.png")])
+    assert info.value.code == 2
+    _one_line_error(capsys, "field of view")
+
+
+def test_session_fov_zero_is_not_the_default() -> None:
+    session = RelightSession(shadow_mode="direct", relight_mode="physics")
+    with pytest.raises(ValueError, match="field of view"):
+        session.set_image(np.full((12, 16, 3), 0.5, np.float32), fov_deg=0.0)
+
+
+# ------------------------------------------------------------------------------------------
+# 9 and 11: outputs checked before the work
+
+
+@pytest.mark.parametrize(
+    ("command", "name", "fragment"),
+    [
+        (["relight", "--from", "90,30", "--to", "200,40"], "out.avi", "extension"),
+        (["relight", "--from", "90,30", "--to", "200,40"], "out", "extension"),
+        (["shadow", "--sun", "90,30"], "s.jpg", "extension"),
+        (["depth"], "d.jpg", "extension"),
+        (["relight", "--from", "90,30", "--to", "200,40"], "exists.png", "already exists"),
+        (["depth"], "exists.npy", "already exists"),
+        (["shadow", "--sun", "90,30"], "afile/s.png", "is a file, not a folder"),
+        (["shadow", "--sun", "90,30"], "afile/deeper/s.png", "is a file, not a folder"),
+        (["relight", "--from", "90,30", "--to", "200,40"], "folder.png", "it is a folder"),
+    ],
+)
+def test_bad_outputs_are_refused_before_the_work(photo, tmp_path, capsys, no_work, monkeypatch,
+                                                 command, name, fragment) -> None:
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "exists.png").write_bytes(b"old")
+    (tmp_path / "exists.npy").write_bytes(b"old")
+    (tmp_path / "afile").write_text("a file")
+    (tmp_path / "folder.png").mkdir()
+    before = sorted(p.name for p in tmp_path.iterdir())
+    assert main([command[0], str(photo), *command[1:], "-o", name]) == 2
+    _one_line_error(capsys, fragment)
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    assert (tmp_path / "exists.png").read_bytes() == b"old"
+
+
+def test_output_equal_to_input_is_refused_even_with_force(photo, tmp_path, capsys,
+                                                          no_work) -> None:
+    before = photo.read_bytes()
+    assert main(["relight", str(photo), "--from", "90,30", "--to", "200,40", "-o", str(photo),
+                 "--force"]) == 2
+    _one_line_error(capsys, "input file")
+    assert photo.read_bytes() == before
+
+
+def test_a_device_is_never_replaced(photo, tmp_path, capsys, no_work) -> None:
+    link = tmp_path / "null.png"
+    link.symlink_to("/dev/null")
+    assert main(["relight", str(photo), "--from", "90,30", "--to", "200,40", "-o", str(link),
+                 "--force"]) == 2
+    _one_line_error(capsys, "not a regular file")
+    assert main(["timelapse", str(photo), "--from", "90,30", "--sweep", "1,2:3,4", "--frames",
+                 "2", "-o", "/dev/null", "--force"]) == 2
+    _one_line_error(capsys, "not a regular file")
+    assert Path("/dev/null").is_char_device() and link.is_symlink()
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_read_only_folder_is_refused_before_the_work(photo, tmp_path, capsys, no_work) -> None:
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o555)
+    try:
+        assert main(["relight", str(photo), "--from", "90,30", "--to", "200,40",
+                     "-o", str(folder / "r.jpg")]) == 2
+        line = _one_line_error(capsys, "not writable")
+        assert ".tmp" not in line
+    finally:
+        folder.chmod(0o755)
+
+
+def test_unwritable_folder_is_refused_before_the_work(photo, tmp_path, capsys, no_work,
+                                                      monkeypatch) -> None:
+    def denied(*args, **kwargs):
+        raise PermissionError(13, "Permission denied", str(tmp_path / "tmpabc"))
+
+    monkeypatch.setattr(cli.tempfile, "TemporaryFile", denied)  # as root, chmod is no test
+    assert main(["relight", str(photo), "--from", "90,30", "--to", "200,40",
+                 "-o", str(tmp_path / "r.jpg")]) == 2
+    line = _one_line_error(capsys, "not writable")
+    assert "tmp" not in line.split("not writable")[1]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png"]
+
+
+def test_write_errors_name_the_destination_not_the_temp_file(tmp_path, capsys,
+                                                             monkeypatch) -> None:
+    import errno
+
+    from outcast_core.runtime.io import imageio
+
+    def full_disk(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(imageio.Image.Image, "save", full_disk)
+    out = tmp_path / "r.png"
+    with pytest.raises(OSError) as info:
+        write_image(out, np.zeros((4, 4, 3), np.float32))
+    assert info.value.filename == str(out) and info.value.errno == errno.ENOSPC
+    assert list(tmp_path.iterdir()) == []
+
+    def denied(*args, **kwargs):
+        raise PermissionError(errno.EACCES, "Permission denied", str(tmp_path / ".r.abc.tmp.png"))
+
+    monkeypatch.setattr(imageio.tempfile, "mkstemp", denied)
+    with pytest.raises(PermissionError) as info:
+        write_image(out, np.zeros((4, 4, 3), np.float32))
+    assert info.value.filename == str(out)
+
+
+def test_cli_names_the_output_when_the_disk_is_full(photo, tmp_path, capsys,
+                                                    monkeypatch) -> None:
+    import errno
+
+    from outcast_core.runtime.io import imageio
+
+    def full_disk(*args, **kwargs):
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(imageio.Image.Image, "save", full_disk)
+    out = tmp_path / "r.jpg"
+    assert main(["relight", str(photo), "--from", "90,30", "--to", "200,40", "--mode",
+                 "physics", "--shadows", "direct", "-o", str(out)]) == 2
+    line = _one_line_error(capsys, "No space left on device")
+    assert "()" not in line and "r.jpg" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png"]
+
+
+# ------------------------------------------------------------------------------------------
+# 4: SIGTERM cleans up like SIGINT
+
+_SLOW_WRITER = """
+import sys, time
+from outcast_core.runtime.io import imageio
+from outcast_core.runtime.cli.main import main
+save = imageio.Image.Image.save
+def slow_save(self, fp, *args, **kwargs):
+    save(self, fp, *args, **kwargs)
+    print("writing", flush=True)
+    time.sleep(60)
+imageio.Image.Image.save = slow_save
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_sigterm_removes_the_temporary_file(photo, tmp_path) -> None:
+    out = tmp_path / "r.jpg"
+
+    def temp_file_exists() -> None:
+        assert any(p.name.startswith(".r.") for p in tmp_path.iterdir())
+
+    ended = terminate_when_ready(
+        ["-c", _SLOW_WRITER, "relight", str(photo), "--from", "90,30", "--to", "200,40",
+         "--mode", "physics", "--shadows", "direct", "-o", str(out)],
+        "writing", before=temp_file_exists)
+    assert ended.seconds < 10
+    assert ended.returncode == 143, ended.stderr
+    assert "terminated" in ended.stderr and "Traceback" not in ended.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["photo.png"]
+
+
+# ------------------------------------------------------------------------------------------
+# 11: smaller ones
+
+
+def test_huge_sun_dir_is_not_a_zero_vector(photo, tmp_path) -> None:
+    from outcast_core.runtime.geometry.camera import normalize_sun
+
+    np.testing.assert_allclose(normalize_sun([1e308, 1e308, 0]), [2**-0.5, 2**-0.5, 0])
+    assert main(["shadow", str(photo), "--sun-dir", "1e308,-1e308,1e308", "--mode", "direct",
+                 "-o", str(tmp_path / "s.png"), "-q"]) == 0
+
+
+def test_relight_keeps_the_photos_exif(tmp_path) -> None:
+    from PIL import Image
+
+    exif = Image.Exif()
+    exif[0x0132] = "2024:06:21 12:00:00"  # DateTime
+    gps = {1: "N", 2: (48.0, 51.0, 24.0), 3: "E", 4: (2.0, 21.0, 3.0)}
+    exif[0x8825] = gps
+    path = tmp_path / "p.jpg"
+    rng = np.random.default_rng(0)
+    Image.fromarray((rng.random((30, 40, 3)) * 255).astype(np.uint8)).save(path, exif=exif)
+    out = tmp_path / "r.jpg"
+    assert main(["relight", str(path), "--from", "90,30", "--to", "200,40", "--mode", "physics",
+                 "--shadows", "direct", "-o", str(out), "-q"]) == 0
+    with Image.open(out) as im:
+        got = im.getexif()
+        assert got[0x0132] == "2024:06:21 12:00:00"
+        assert got.get_ifd(0x8825)[1] == "N"

@@ -1,0 +1,115 @@
+"""Full-resolution stages in bands (runtime.geometry.fullres): seams, precision, memory, the
+session's
+8-bit path and the readers/writers it uses."""
+
+from __future__ import annotations
+
+import tracemalloc
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
+from outcast_core.runtime.geometry.fullres import GainUpsampler, apply_gain, gain_map
+from outcast_core.runtime.io.imageio import read_image, write_image
+from outcast_core.runtime.pipeline.relight import transfer_to_full_resolution
+from outcast_core.runtime.pipeline.session import RelightSession
+
+
+def _photo(h: int, w: int, seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).integers(0, 256, (h, w, 3), dtype=np.uint8)
+
+
+def _gain(h: int, w: int, seed: int = 1) -> np.ndarray:
+    return np.random.default_rng(seed).uniform(0.3, 2.5, (h, w, 3)).astype(np.float32)
+
+
+@pytest.mark.parametrize(("small", "big"), [((7, 9), (61, 83)), ((1, 5), (13, 40)),
+                                            ((24, 32), (250, 333)), ((5, 4), (5, 4))])
+def test_upsampling_matches_cv2_resize(small: tuple[int, int], big: tuple[int, int]) -> None:
+    g = _gain(*small)
+    ref = cv2.resize(g, (big[1], big[0]), interpolation=cv2.INTER_LINEAR)
+    got = GainUpsampler(g, big).rows(0, big[0])
+    np.testing.assert_allclose(got, ref.reshape(got.shape), atol=1e-5)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.float32])
+def test_tiled_equals_untiled(dtype: type) -> None:
+    photo = _photo(203, 157)
+    if dtype is np.float32:
+        photo = photo.astype(np.float32) / 255.0
+    g = _gain(19, 15)
+    whole = apply_gain(photo, g, band_rows=photo.shape[0], threads=1)
+    for rows, threads in ((1, 1), (7, 3), (64, 2), (None, 4)):
+        tiled = apply_gain(photo, g, band_rows=rows, threads=threads)
+        assert tiled.dtype == whole.dtype
+        np.testing.assert_allclose(tiled.astype(np.float32), whole.astype(np.float32), atol=1e-5)
+
+
+def test_uint8_path_within_one_level_of_float_path() -> None:
+    photo = _photo(120, 160)
+    g = _gain(12, 16)
+    ref = apply_gain(photo.astype(np.float32) / 255.0, g, out_dtype=np.float32)
+    # The reference by the plain formula, whole image at once.
+    lin = srgb_to_linear(photo.astype(np.float32) / 255.0)
+    up = cv2.resize(g, (160, 120), interpolation=cv2.INTER_LINEAR)
+    plain = linear_to_srgb((lin + 1e-3) * up - 1e-3)
+    np.testing.assert_allclose(ref, plain, atol=1e-5)
+    u8 = apply_gain(photo, g, out_dtype=np.uint8)
+    diff = np.abs(u8.astype(int) - np.rint(plain * 255).astype(int))
+    assert diff.max() <= 1 and (diff > 0).mean() < 0.01
+
+
+def test_banded_transfer_allocates_no_full_size_float() -> None:
+    photo = _photo(2000, 3000)  # 18 MB in, 18 MB out; a float32 copy would be 72 MB
+    before = cv2.resize(photo, (300, 200), interpolation=cv2.INTER_AREA).astype(np.float32) / 255
+    after = np.clip(before * 0.7, 0, 1)
+    tracemalloc.start()
+    try:
+        out = transfer_to_full_resolution(photo, before, after, out_dtype=np.uint8, threads=2)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert out.dtype == np.uint8 and out.shape == photo.shape
+    # The output, the gain at full width and two bands of temporaries: under half a float copy.
+    assert peak < photo.nbytes + 2 * photo.nbytes, f"peak {peak / 1e6:.1f} MB"
+
+
+def test_gain_map_checks_shapes() -> None:
+    with pytest.raises(ValueError, match="one shape"):
+        gain_map(np.zeros((4, 4, 3), np.float32), np.zeros((4, 5, 3), np.float32))
+    with pytest.raises(ValueError, match="out_dtype"):
+        apply_gain(_photo(4, 4), _gain(2, 2), out_dtype=np.float64)
+
+
+def test_session_keeps_an_8bit_photo_and_writes_8bit_results() -> None:
+    photo = _photo(90, 120, seed=4)
+    depth = np.full((90, 120), 5.0, np.float32)
+    depth[30:60, 40:80] = 3.0
+    s8 = RelightSession(mode="classic", preset="fast")
+    s8.set_image(photo, depth=depth)
+    assert s8.full_image_srgb is photo  # no float copy of the full photo
+    sf = RelightSession(mode="classic", preset="fast")
+    sf.set_image(photo.astype(np.float32) / 255.0, depth=depth)
+    np.testing.assert_allclose(s8.image_srgb, sf.image_srgb, atol=1 / 255 + 1e-6)
+    w_o, w_n = (0.3, -0.8, -0.5), (-0.5, -0.5, -0.7)
+    for s in (s8, sf):
+        s.set_original_sun(w_o)
+    full8 = s8.relight_full(w_n, dtype=np.uint8)
+    fullf = s8.relight_full(w_n)
+    assert full8.dtype == np.uint8 and fullf.dtype == np.float32
+    assert np.abs(full8.astype(int) - np.rint(fullf * 255).astype(int)).max() <= 1
+
+
+def test_read_keep_uint8_and_write_uint8(tmp_path: Path) -> None:
+    photo = _photo(30, 40, seed=5)
+    path = write_image(tmp_path / "a.png", photo)
+    loaded = read_image(path, keep_uint8=True)
+    assert loaded.image_srgb.dtype == np.uint8
+    np.testing.assert_array_equal(loaded.image_srgb, photo)
+    as_float = read_image(path).image_srgb
+    np.testing.assert_allclose(as_float, photo / 255.0, atol=1e-6)
+    back16 = read_image(write_image(tmp_path / "b.png", photo, bit_depth=16)).image_srgb
+    np.testing.assert_allclose(back16, photo / 255.0, atol=1e-6)

@@ -1,0 +1,170 @@
+"""The automatic sun: a known sun is found from exact shadows; no shadows, no guess; EXIF priors."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from outcast_core.runtime.cli.main import main
+from outcast_core.runtime.geometry.camera import Camera, sun_vector
+from outcast_core.runtime.io.exif import PhotoMetadata
+from outcast_core.runtime.io.imageio import write_depth, write_image
+from outcast_core.runtime.pipeline.auto_sun import (
+    FindSunCancelledError,
+    SunPrior,
+    agreement,
+    exif_sun_prior,
+    find_sun,
+)
+from outcast_core.runtime.pipeline.session import RelightSession
+from outcast_core.runtime.pipeline.timelapse import relative_azimuth, true_sun_position
+from tests.runtime.scenes import box_scene_depth
+
+H, W = 72, 96
+CAMERA = Camera.from_fov(H, W, 60.0)
+# A ground 10 units in front of a camera looking straight at it, two blocks standing on it: a sun
+# behind the camera (azimuth 90-270) lights the ground and the blocks cast shadows on it.
+BOXES = [(-3.0, -1.0, -2.0, 0.0, 3.0), (1.5, 2.5, 0.5, 2.5, 2.0)]
+DEPTH = box_scene_depth(H, W, CAMERA.focal, 10.0, BOXES)
+
+
+def _angle(a: np.ndarray, b: np.ndarray) -> float:
+    return math.degrees(math.acos(float(np.clip(np.dot(a, b), -1.0, 1.0))))
+
+
+def _session(image: np.ndarray) -> RelightSession:
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(image, fov_deg=60.0, depth=DEPTH)
+    return s
+
+
+def _photo_lit_by(w: np.ndarray) -> np.ndarray:
+    """A grey photo of the scene: lit where Direct (exact on boxes) says, dark in its shadows."""
+    s = _session(np.full((H, W, 3), 0.5, np.float32))
+    lit = s.shadow(w) > 0.15
+    return np.repeat((0.12 + 0.7 * lit)[..., None], 3, axis=-1).astype(np.float32)
+
+
+def _shadowless_photo() -> np.ndarray:
+    rng = np.random.default_rng(0)
+    grain = 0.55 + 0.04 * rng.standard_normal((H, W, 1))
+    return np.clip(np.repeat(grain, 3, axis=-1), 0.0, 1.0).astype(np.float32)
+
+
+@pytest.mark.parametrize("sun", [(150.0, 40.0), (215.0, 30.0)])
+def test_find_sun_recovers_a_known_sun(sun: tuple[float, float]) -> None:
+    w = sun_vector(*sun)
+    session = _session(_photo_lit_by(w))
+    steps: list[str] = []
+    fit = find_sun(session, progress=lambda stage, frac: steps.append(stage))
+    assert _angle(fit.w, w) <= 6.0, (fit.azimuth, fit.elevation)
+    assert fit.found and fit.confidence >= 0.5
+    assert fit.agreement > 0.95
+    assert steps[-1] == "done"
+    m = fit.map
+    assert m.scores.shape == (len(m.elevations), len(m.azimuths))
+    norm = m.normalised()
+    assert norm.min() >= 0.0 and norm.max() == pytest.approx(1.0)
+    # The found sun's overlay is what the app then shows: already in the session's cache.
+    assert fit.candidates[0][2] == pytest.approx(fit.agreement)
+
+
+def test_no_shadows_low_confidence_and_no_guess() -> None:
+    fit = find_sun(_session(_shadowless_photo()))
+    assert fit.confidence < 0.3 and not fit.found
+    assert "no clear shadows" in fit.note
+
+
+def test_elevation_prior_holds_the_elevation() -> None:
+    w = sun_vector(150.0, 40.0)
+    session = _session(_photo_lit_by(w))
+    fit = find_sun(session, prior=SunPrior(40.0), pitch_roll=(0.0, 0.0))
+    assert abs(fit.true_elevation - 40.0) <= 2.0 + 1e-9
+    assert abs(fit.elevation - 40.0) <= 2.0 + 1e-9
+    assert _angle(fit.w, w) <= 6.0
+    assert fit.source == "shadows + EXIF elevation"
+
+
+def test_full_exif_sun_stands_without_shadows() -> None:
+    prior = SunPrior(35.0, 200.0, description="EXIF")
+    fit = find_sun(_session(_shadowless_photo()), prior=prior, pitch_roll=(0.0, 0.0))
+    assert fit.source == "EXIF"
+    assert (fit.azimuth, fit.elevation) == pytest.approx((200.0, 35.0), abs=1e-6)
+
+
+def test_cancel_and_bad_input() -> None:
+    session = _session(_shadowless_photo())
+    with pytest.raises(FindSunCancelledError):
+        find_sun(session, cancel=lambda: True)
+    with pytest.raises(RuntimeError, match="set_image"):
+        find_sun(RelightSession(mode="classic", preset="fast"))
+    with pytest.raises(ValueError, match="SunPrior"):
+        find_sun(session, prior=40.0)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="elevation"):
+        SunPrior(float("nan"))
+    with pytest.raises(ValueError, match="one size"):
+        agreement(np.zeros((2, 4, 4), bool), np.zeros((3, 3), bool), np.ones((3, 3), bool))
+
+
+def test_agreement_is_one_minus_ber() -> None:
+    found = np.zeros((4, 4), bool)
+    found[:2] = True
+    valid = np.ones((4, 4), bool)
+    pred = np.stack([found, ~found, np.ones((4, 4), bool)])
+    np.testing.assert_allclose(agreement(pred, found, valid), [1.0, 0.0, 0.5])
+
+
+def test_exif_sun_prior() -> None:
+    assert exif_sun_prior(PhotoMetadata()) is None
+    when = dt.datetime(2024, 6, 21, 12, 0, tzinfo=dt.UTC)
+    meta = PhotoMetadata(latitude=50.0, longitude=14.0, capture_time=when)
+    prior = exif_sun_prior(meta)
+    true_az, el = true_sun_position(when, 50.0, 14.0)
+    assert prior is not None and prior.azimuth is None
+    assert prior.elevation == pytest.approx(el)
+    assert f"elevation {el:.0f}° from the photo's time and place" == prior.description
+    full = exif_sun_prior(PhotoMetadata(latitude=50.0, longitude=14.0, capture_time=when,
+                                        heading_deg=90.0))
+    assert full is not None and full.azimuth == pytest.approx(relative_azimuth(true_az, 90.0))
+    night = PhotoMetadata(latitude=50.0, longitude=14.0,
+                          capture_time=dt.datetime(2024, 6, 21, 23, 0, tzinfo=dt.UTC))
+    assert exif_sun_prior(night) is None
+
+
+def test_cli_sun_json_and_text(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    w = sun_vector(150.0, 40.0)
+    photo, depth = tmp_path / "photo.png", tmp_path / "depth.npy"
+    write_image(photo, _photo_lit_by(w))
+    write_depth(depth, DEPTH)
+    common = [str(photo), "--depth", str(depth), "--fov", "60", "--mode", "direct",
+              "--preset", "fast"]
+    assert main(["sun", *common, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["found"] is True and out["confidence"] >= 0.5
+    assert _angle(sun_vector(out["azimuth"], out["elevation"]), w) <= 6.0
+    assert out["depth_source"] == "given"
+    assert main(["sun", *common, "-q"]) == 0
+    text = capsys.readouterr()
+    assert text.out.startswith("azimuth ") and "confidence" in text.out and text.err == ""
+
+
+def test_cli_sun_says_no_shadows_and_errors_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    photo, depth = tmp_path / "flat.png", tmp_path / "depth.npy"
+    write_image(photo, _shadowless_photo())
+    write_depth(depth, DEPTH)
+    args = ["sun", str(photo), "--depth", str(depth), "--mode", "direct", "--preset", "fast"]
+    assert main([*args, "-q"]) == 0
+    assert capsys.readouterr().out.startswith("no clear shadows in the photo")
+    assert main([*args, "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["azimuth"] is None and out["found"] is False and len(out["best_guess"]) == 2
+    assert main(["sun", str(tmp_path / "missing.jpg")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("outcast sun: error:") and "\n" not in err

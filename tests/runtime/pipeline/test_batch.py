@@ -1,0 +1,284 @@
+"""``outcast batch``: a folder of photos relit, de-shadowed or made into time-lapses."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from outcast_core.runtime.cli.main import main
+from outcast_core.runtime.pipeline.batch import (
+    PROJECT_SUFFIX,
+    BatchJob,
+    BatchOptions,
+    plan_batch,
+    project_suns,
+    read_targets_csv,
+    run_batch,
+    run_job,
+)
+
+ROOT = Path(__file__).resolve().parents[3]
+SAMPLE = ROOT / "samples" / "exif_003_th_pool.jpg"
+#: The sample's sun from its EXIF (README: azimuth 273, elevation 67 relative to the camera).
+SAMPLE_SUN = (273.5, 66.8)
+
+
+def _photo(path: Path, seed: int, size: tuple[int, int] = (64, 48)) -> Path:
+    """A small outdoor-ish photo: sky on top, ground below, a dark patch."""
+    rng = np.random.default_rng(seed)
+    w, h = size
+    img = np.empty((h, w, 3), np.float32)
+    img[: h // 2] = (0.5, 0.65, 0.95)
+    img[h // 2 :] = (0.6, 0.5, 0.4)
+    img[3 * h // 4 :, w // 4 : w // 2] *= 0.4
+    img = np.clip(img + rng.normal(0, 0.02, img.shape), 0, 1)
+    Image.fromarray((img * 255).astype(np.uint8)).save(path)
+    return path
+
+
+def _exif_photo(path: Path) -> Path:
+    """The sample photo, small, with its EXIF (GPS, time, heading)."""
+    with Image.open(SAMPLE) as im:
+        exif = im.info["exif"]
+        im.resize((80, 60)).save(path, exif=exif)
+    return path
+
+
+@pytest.fixture
+def folder(tmp_path: Path) -> Path:
+    """Ten photos, one of them a corrupt JPEG, and a text file that is not a photo."""
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(9):
+        _photo(d / f"p{i}.{'png' if i % 3 else 'jpg'}", i)
+    (d / "p9.jpg").write_bytes(b"\xff\xd8\xff\xe0 this is not a JPEG")
+    (d / "notes.txt").write_text("not a photo")
+    return d
+
+
+def _mtimes(folder: Path) -> dict[str, int]:
+    return {p.name: p.stat().st_mtime_ns for p in folder.iterdir()}
+
+
+def test_folder_with_a_corrupt_photo_is_done_and_resumable(
+    folder: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "out"
+    args = ["batch", str(folder), "-o", str(out), "--from", "200,40", "--to", "90,30",
+            "--preset", "fast", "--workers", "2"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert sorted(p.name for p in out.iterdir()) == [f"p{i}.jpg" for i in range(9)]
+    failed = [line for line in err.splitlines() if ": failed: " in line]
+    assert len(failed) == 1 and "p9.jpg" in failed[0] and "cannot read image" in failed[0]
+    assert "9 done, 0 skipped (already done), 1 failed" in err
+    assert err.strip().splitlines()[-1] == "outcast batch: error: 1 of 10 photos failed: p9.jpg"
+    assert "Traceback" not in err
+
+    before = _mtimes(out)
+    assert main(args) == 2  # resumed: the finished photos are skipped
+    err = capsys.readouterr().err
+    assert "0 done, 9 skipped (already done), 1 failed" in err
+    assert _mtimes(out) == before
+
+    _photo(folder / "p9.jpg", 9)  # the photo is fixed: only it is done
+    assert main(args) == 0
+    assert "1 done, 9 skipped (already done), 0 failed" in capsys.readouterr().err
+    assert {k: v for k, v in _mtimes(out).items() if k != "p9.jpg"} == before
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no partial files
+
+    assert main([*args, "--force", "--workers", "1", "-q"]) == 0  # --force redoes them all
+    assert capsys.readouterr().err == ""
+    assert all(_mtimes(out)[k] != v for k, v in before.items())
+
+
+def test_sun_sources(tmp_path: Path) -> None:
+    from app.state import ProjectState, Sun, save_project
+
+    d = tmp_path / "in"
+    d.mkdir()
+    plain = _photo(d / "plain.png", 1)
+    aligned = _photo(d / "aligned.png", 2)
+    save_project(ProjectState(image_path=str(aligned), original_sun=Sun(120.0, 35.0),
+                              target_sun=Sun(300.0, 20.0)), d / f"aligned{PROJECT_SUFFIX}")
+    exif = _exif_photo(d / "exif.jpg")
+    opts = BatchOptions(kind="relight", from_sun=(200.0, 40.0), preset="fast", mode="classic")
+    jobs, early = plan_batch(d, tmp_path / "out", opts)
+    assert early == [] and [Path(j.image).name for j in jobs] == [
+        "aligned.png", "exif.jpg", "plain.png"]
+    got = {Path(r.image).name: r for r in run_batch(jobs, opts)}
+    assert got["aligned.png"].sun_source == "project"
+    assert got["aligned.png"].from_sun == (120.0, 35.0)
+    assert got["aligned.png"].to_sun == (300.0, 20.0)  # the project's new sun
+    assert got["exif.jpg"].status == "failed" and "no new sun" in got["exif.jpg"].message
+    r = run_job(BatchJob(str(exif), str(tmp_path / "o" / "e.png"), to_sun=(90.0, 30.0)), opts)
+    assert (r.status, r.sun_source) == ("done", "exif")
+    assert r.from_sun == pytest.approx(SAMPLE_SUN, abs=0.2)
+    assert got["plain.png"].status == "failed"
+    assert got["aligned.png"].status == "done"
+    with Image.open(tmp_path / "out" / "aligned.jpg") as im:
+        assert im.size == (64, 48)
+
+    given = BatchOptions(kind="relight", sources=("given",), from_sun=(10.0, 50.0),
+                         to_sun=(90.0, 30.0), preset="fast", mode="classic", force=True)
+    r = run_job(BatchJob(str(exif), str(tmp_path / "o" / "x.png")), given)
+    assert (r.status, r.sun_source, r.from_sun) == ("done", "given", (10.0, 50.0))
+    none = BatchOptions(kind="deshadow", sources=("project", "exif"), preset="fast")
+    r = run_job(BatchJob(str(plain), str(tmp_path / "o" / "y.png")), none)
+    assert r.status == "failed" and r.message.startswith("no original sun: no plain")
+    assert not (tmp_path / "o" / "y.png").exists()
+
+
+def test_project_reader_matches_the_app(tmp_path: Path) -> None:
+    from app import state
+
+    assert state.PROJECT_SUFFIX == PROJECT_SUFFIX
+    photo = _photo(tmp_path / "a.png", 0)
+    depth = tmp_path / "maps" / "a_depth.npy"
+    project = state.ProjectState(image_path=str(photo), original_sun=state.Sun(-30.0, 12.5),
+                                 depth_path=str(depth))
+    state.save_project(project, state.project_path_for(photo))
+    assert project_suns(photo) == ((330.0, 12.5), None, str(depth))
+    assert project_suns(_photo(tmp_path / "b.png", 1)) == (None, None, "")
+    state.project_path_for(photo).write_text(json.dumps({"outcast_project": 1, "image": "c.png"}))
+    with pytest.raises(ValueError, match="is for 'c.png'"):
+        project_suns(photo)
+
+
+def test_targets_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    d = tmp_path / "in"
+    d.mkdir()
+    _photo(d / "a.png", 0)
+    _photo(d / "b.png", 1)
+    table = tmp_path / "targets.csv"
+    with open(table, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["image", "to_az", "to_el", "from_az", "from_el", "output"])
+        w.writerow(["a.png", "90", "30", "200", "40", "a_morning.png"])
+        w.writerow(["a.png", "270", "60", "200", "40", "a_noon.png"])
+        w.writerow(["b.png", "45", "20", "", "", ""])
+        w.writerow(["b.png", "45", "25", "", "", ""])  # same output name as the row above
+        w.writerow(["missing.png", "45", "20", "", "", ""])
+    rows = read_targets_csv(table)
+    assert rows[0] == {"image": "a.png", "to_sun": (90.0, 30.0), "from_sun": (200.0, 40.0),
+                       "output": "a_morning.png"}
+    out = tmp_path / "out"
+    code = main(["batch", str(d), "-o", str(out), "--targets", str(table), "--from", "10,45",
+                 "--mode", "classic", "--preset", "fast", "--format", "png",
+                 "--report", str(tmp_path / "report.json")])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert sorted(p.name for p in out.iterdir()) == ["a_morning.png", "a_noon.png", "b.png"]
+    assert "is also the output of 'b.png'" in err and "'missing.png' is not a photo" in err
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["counts"] == {"done": 3, "skipped": 0, "failed": 2}
+    by_out = {Path(r["output"]).name: r for r in report["results"]}
+    assert by_out["a_noon.png"]["sun_source"] == "csv"
+    assert by_out["a_noon.png"]["to_sun"] == [270.0, 60.0]
+    assert by_out["b.png"]["sun_source"] == "given"
+
+    bad = tmp_path / "bad.csv"
+    bad.write_text("photo,to_az\nx,1\n")
+    assert main(["batch", str(d), "-o", str(out), "--targets", str(bad)]) == 2
+    assert capsys.readouterr().err.strip() == ("outcast batch: error: bad.csv: expected a header "
+                                               "row with an 'image' column, got ['photo', "
+                                               "'to_az']")
+
+
+def test_deshadow_and_timelapse(tmp_path: Path) -> None:
+    d = tmp_path / "in"
+    d.mkdir()
+    _photo(d / "a.png", 0)
+    assert main(["batch", str(d), "-o", str(tmp_path / "ds"), "--deshadow", "--from", "200,40",
+                 "--preset", "fast", "--format", "tif", "-q"]) == 0
+    with Image.open(tmp_path / "ds" / "a.tif") as im:
+        assert im.size == (64, 48)
+    assert main(["batch", str(d), "-o", str(tmp_path / "tl"), "--sweep", "80,15:280,50",
+                 "--frames", "3", "--size", "working", "--format", "gif", "--from", "200,40",
+                 "--preset", "fast", "--mode", "classic", "-q"]) == 0
+    with Image.open(tmp_path / "tl" / "a.gif") as im:
+        assert im.n_frames == 3
+
+
+def test_command_errors(tmp_path: Path, folder: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "empty").mkdir()
+    cases = [
+        (["batch", str(folder), "-o", str(folder), "--to", "1,2"], "other than the input folder"),
+        (["batch", str(tmp_path / "nope"), "-o", str(tmp_path / "o")], "is not a folder"),
+        (["batch", str(folder), "-o", str(tmp_path / "o"), "--deshadow", "--format", "mp4"],
+         "expected --format in jpg, png, tif, webp for deshadow"),
+        (["batch", str(tmp_path / "empty"), "-o", str(tmp_path / "o")], "no photos in"),
+    ]
+    for argv, message in cases:
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and message in err, err
+        assert err.startswith("outcast batch: error: ")
+    with pytest.raises(SystemExit) as stop:
+        main(["batch", str(folder), "-o", str(tmp_path / "o"), "--to", "10,-5"])
+    assert stop.value.code == 2 and "horizon" in capsys.readouterr().err
+
+
+def test_automatic_sun_source(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    auto_sun = pytest.importorskip("outcast_core.runtime.pipeline.auto_sun")
+    from types import SimpleNamespace
+
+    calls = []
+
+    def fake_find_sun(session, *, prior=None, **kwargs):
+        calls.append(prior)
+        sure = len(calls) == 1
+        return SimpleNamespace(azimuth=123.0, elevation=34.0, confidence=0.9 if sure else 0.1,
+                               found=sure)
+
+    monkeypatch.setattr(auto_sun, "find_sun", fake_find_sun)
+    photo = _photo(tmp_path / "a.png", 0)
+    opts = BatchOptions(kind="deshadow", sources=("project", "exif", "auto"), preset="fast",
+                        mode="classic")
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "a.png")), opts)
+    assert (r.status, r.sun_source, r.from_sun) == ("done", "auto", (123.0, 34.0))
+    assert calls == [None] and r.details["auto_sun"]["found"] is True
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "b.png")), opts)  # not confident
+    assert r.status == "failed" and "the automatic sun is not sure" in r.message
+    given_first = replace_sources(opts, ("given", "auto"), from_sun=(10.0, 20.0))
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "c.png")), given_first)
+    assert r.sun_source == "given" and len(calls) == 2  # never ran: --from came first
+
+
+def replace_sources(opts: BatchOptions, sources: tuple[str, ...], **kw: object) -> BatchOptions:
+    from dataclasses import replace
+
+    return replace(opts, sources=sources, **kw)
+
+
+@pytest.mark.slow
+def test_sigterm_stops_the_workers_and_leaves_no_partial_file(tmp_path: Path) -> None:
+    import shutil
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(3):
+        shutil.copy2(SAMPLE, d / f"p{i}.jpg")  # full size: a few seconds each
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "outcast_core.runtime.cli.main", "batch", str(d), "-o", str(out),
+           "--to", "90,30", "--preset", "fast", "--workers", "2"]
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
+    assert proc.stderr is not None
+    assert proc.stderr.readline().startswith("processing 3 photos")
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGTERM)
+    err = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 143 and "outcast batch: terminated" in err
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".")]  # no partial files
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)  # resumed
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["p0.jpg", "p1.jpg", "p2.jpg"]

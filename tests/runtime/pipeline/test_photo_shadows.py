@@ -1,0 +1,177 @@
+"""The photo's own shadows: found (with the geometry as the prior), turned into S_o, lifted."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from outcast_core.runtime.cli.main import main
+from outcast_core.runtime.geometry.colour import linear_to_srgb
+from outcast_core.runtime.io.imageio import read_image, read_shadow_png, write_depth, write_image
+from outcast_core.runtime.pipeline import photo_shadows as ps
+from outcast_core.runtime.pipeline.photo_shadows import (
+    LIT_FLOOR,
+    deshadow,
+    original_shadow_from_photo,
+    photo_shadow_probability,
+)
+from outcast_core.runtime.pipeline.session import RelightSession
+from tests.runtime.scenes import box_scene_depth
+
+H, W = 64, 96
+SHADE = np.array([0.45, 0.5, 0.6], np.float32)  # darker and bluer, as sky-lit shade is
+
+
+def _ground(seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    base = np.array([0.75, 0.65, 0.5], np.float32)  # warm sunlit gravel
+    return np.clip(base * (1 + 0.05 * rng.standard_normal((H, W, 1))), 0, 1).astype(np.float32)
+
+
+def _shadowed(box=(30, 50, 20, 60)) -> tuple[np.ndarray, np.ndarray]:
+    img = _ground()
+    mask = np.zeros((H, W), bool)
+    r0, r1, c0, c1 = box
+    mask[r0:r1, c0:c1] = True
+    img[mask] *= SHADE
+    return img, mask
+
+
+def test_probability_finds_the_shadow_and_never_the_sky() -> None:
+    img, mask = _shadowed()
+    sky = np.zeros((H, W), bool)
+    sky[:8] = True
+    img[:8] = [0.2, 0.3, 0.6]  # a dark blue sky would pass a luminance threshold
+    p = photo_shadow_probability(img, sky)
+    assert p[mask].mean() > 0.9
+    assert p[~mask & ~sky].mean() < 0.05
+    assert np.all(p[sky] == 0)
+
+
+def test_prior_gates_dark_regions_far_from_any_predicted_shadow() -> None:
+    img, mask = _shadowed(box=(40, 60, 5, 25))
+    prior = np.ones((H, W), np.float32)  # S predicts no shadow here...
+    prior[40:60, 70:90] = 0.0  # ...only far to the right
+    p = photo_shadow_probability(img, np.zeros((H, W), bool), prior)
+    assert p[mask].mean() < 0.1
+    prior[40:60, 20:40] = 0.0  # a predicted shadow overlapping it: it is kept
+    p = photo_shadow_probability(img, np.zeros((H, W), bool), prior)
+    assert p[mask].mean() > 0.7
+    with pytest.raises(ValueError, match="prior"):
+        photo_shadow_probability(img, np.zeros((H, W), bool), prior[1:])
+
+
+def test_original_shadow_is_dark_in_shadow_and_lit_elsewhere() -> None:
+    img, mask = _shadowed()
+    sky = np.zeros((H, W), bool)
+    p = photo_shadow_probability(img, sky)
+    cos = np.full((H, W), 0.05, np.float32)  # rough normals call the ground "facing away"
+    s_o = original_shadow_from_photo(p, cos, sky)
+    inner = np.zeros_like(mask)
+    inner[32:48, 22:58] = True  # the soft edge follows the photo's: look inside it
+    assert np.all(s_o[inner] < 0.15)
+    assert np.all(s_o[~mask] >= LIT_FLOOR - 1e-6)  # the photo says lit: not an attached shadow
+
+
+def test_deshadow_lifts_the_shadow_and_keeps_the_lit_surface() -> None:
+    img, mask = _shadowed()
+    sky = np.zeros((H, W), bool)
+    out = deshadow(img, photo_shadow_probability(img, sky), sky)
+    free = _ground()
+    inner = np.zeros_like(mask)
+    inner[33:47, 23:57] = True
+    err_before = np.abs(img[inner] - free[inner]).mean()
+    err_after = np.abs(out[inner] - free[inner]).mean()
+    assert err_after < 0.2 * err_before
+    # The shade's blue cast goes with it: the lifted colour matches the lit ground's balance.
+    lifted = out[inner].mean(axis=0)
+    lit = free[~mask].mean(axis=0)
+    np.testing.assert_allclose(lifted / lifted.sum(), lit / lit.sum(), atol=0.02)
+    far = np.zeros_like(mask)
+    far[:, :8] = True
+    assert np.abs(out[far] - img[far]).max() < 0.01
+
+
+def test_deshadow_leaves_a_dark_material_alone() -> None:
+    """A dark blue object beside warm gravel is not a shadow the sun can lift."""
+    img = _ground()
+    obj = np.zeros((H, W), bool)
+    obj[20:44, 30:60] = True
+    img[obj] = [0.05, 0.08, 0.3]
+    sky = np.zeros((H, W), bool)
+    out = deshadow(img, photo_shadow_probability(img, sky), sky)
+    assert np.abs(out[obj] - img[obj]).mean() < 0.05
+
+
+def _session_inputs(tmp_path: Path) -> tuple[np.ndarray, np.ndarray]:
+    focal = W / (2 * math.tan(math.radians(30)))
+    depth = box_scene_depth(H, W, focal, 60.0, [(-4.0, 0.0, -3.0, 1.0, 4.0)])
+    img, _ = _shadowed()
+    return img, depth
+
+
+def test_session_refines_from_the_photo_and_deshadows(tmp_path: Path) -> None:
+    img, depth = _session_inputs(tmp_path)
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(img, depth=depth)
+    with pytest.raises(RuntimeError, match="set_original_sun"):
+        s.deshadow()
+    assert s.refinement == "photo"
+    s_o = s.set_original_sun((0.5, -0.6, 0.6))
+    assert s.shadow_probability is not None and s.shadow_probability.shape == s_o.shape
+    full = s.deshadow_full()
+    assert full.shape == img.shape
+    assert full[35:45, 25:55].mean() > 1.5 * img[35:45, 25:55].mean()
+    assert s.deshadow() is s.deshadow()  # computed once per original sun
+    learned = RelightSession(mode="classic", preset="fast", refine="learned")
+    assert learned.refinement == "guided filter"
+    with pytest.raises(ValueError, match="refine"):
+        RelightSession(refine="magic")
+
+
+def test_cli_deshadow(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    img, depth = _session_inputs(tmp_path)
+    photo, dpath = tmp_path / "p.png", tmp_path / "d.npy"
+    write_image(photo, img)
+    write_depth(dpath, depth)
+    out, mask = tmp_path / "out.png", tmp_path / "mask.png"
+    args = ["deshadow", str(photo), "--from", "45,35", "--depth", str(dpath), "-o", str(out),
+            "--mask", str(mask), "-q"]
+    assert main(args) == 0
+    res = read_image(out).image_srgb
+    assert res.shape == img.shape and res[35:45, 25:55].mean() > 1.5 * img[35:45, 25:55].mean()
+    assert read_shadow_png(mask)[35:45, 25:55].mean() > 0.8
+    assert main(args) == 2  # nothing overwritten without --force
+    assert "exists" in capsys.readouterr().err
+
+
+def test_deshadow_keeps_black_things_in_the_shade_black() -> None:
+    """Black railings in a shadow are far darker than shade is here: they are not lifted to
+    grey with the shade around them."""
+    img, mask = _shadowed()
+    rails = np.zeros_like(mask)
+    rails[30:50, 30:32] = rails[30:50, 44:46] = True
+    img[rails] = 0.03
+    sky = np.zeros((H, W), bool)
+    out = deshadow(img, photo_shadow_probability(img, sky), sky)
+    shade = mask & ~rails
+    assert out[shade].mean() > 1.3 * img[shade].mean()  # the shade is lifted
+    assert out[rails].mean() < 0.08  # the rails stay black
+
+
+def test_a_small_bright_class_is_highlights_not_the_lit_surface():
+    """A white object in a dim, half-shaded scene: Otsu alone splits white from everything
+    else and calls the lit ground shade; the shade threshold splits again inside the dark class."""
+    lin = np.full((60, 60), math.exp(-3.2), np.float32)  # lit ground, dim
+    lin[:, :18] = math.exp(-4.5)  # shade: 30 %
+    lin[:6, 30:] = 1.0  # a white object: 5 %
+    img = np.repeat(linear_to_srgb(lin)[..., None], 3, axis=-1)
+    sky = np.zeros((60, 60), bool)
+    log_y = np.log(lin.ravel() + 1e-3)
+    assert ps._otsu_threshold(log_y) > -3.0  # Otsu alone takes the lit ground for shade
+    p = ps.photo_shadow_probability(img, sky)
+    assert p[30, 5] > 0.9
+    assert p[30, 45] < 0.1

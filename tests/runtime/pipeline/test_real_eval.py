@@ -1,0 +1,220 @@
+"""The real-photo evaluation (``outcast eval real``) on tiny folders the tests make."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from outcast_core.runtime.cli.main import main
+from outcast_core.runtime.geometry.camera import normalize_sun, sun_vector
+from outcast_core.runtime.io.imageio import write_image
+from outcast_core.runtime.pipeline.real_eval import (
+    SWEEP_SUNS,
+    balanced_error_rate,
+    evaluate_photo,
+    find_items,
+    lab_rmse,
+    otsu_shadow_mask,
+    shuffled_control,
+)
+
+
+def test_balanced_error_rate() -> None:
+    t = np.zeros((4, 4), bool)
+    t[:2] = True
+    assert balanced_error_rate(t, t) == 0.0
+    assert balanced_error_rate(~t, t) == 1.0
+    assert balanced_error_rate(np.zeros_like(t), t) == 0.5  # all "lit": chance
+    half = t.copy()
+    half[0] = False  # half the shadow found, no false alarm
+    assert balanced_error_rate(half, t) == pytest.approx(0.25)
+    with pytest.raises(ValueError, match="one shape"):
+        balanced_error_rate(t[:2], t)
+
+
+def _photo_with_shadow(h: int = 48, w: int = 64, box: tuple[int, int, int, int] = (30, 44, 8, 30)):
+    rng = np.random.default_rng(0)
+    img = np.clip(0.7 + 0.03 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    r0, r1, c0, c1 = box
+    mask = np.zeros((h, w), bool)
+    mask[r0:r1, c0:c1] = True
+    img[mask] *= np.array([0.3, 0.35, 0.45], np.float32)  # bluish shade
+    return img, mask
+
+
+def _write_item(folder: Path, name: str, img: np.ndarray, mask: np.ndarray) -> None:
+    write_image(folder / f"{name}_image.png", img)
+    cv2.imwrite(str(folder / f"{name}_mask.png"), mask.astype(np.uint8) * 255)
+
+
+def test_find_items_pairs_images_with_masks(tmp_path: Path) -> None:
+    img, mask = _photo_with_shadow()
+    _write_item(tmp_path, "a", img, mask)
+    _write_item(tmp_path, "b", img, mask)
+    write_image(tmp_path / "b_free.png", img)
+    write_image(tmp_path / "c_image.png", img)  # no mask: skipped
+    items = find_items(tmp_path)
+    assert [i.name for i in items] == ["a", "b"]
+    assert items[0].free is None and items[1].free == tmp_path / "b_free.png"
+    with pytest.raises(ValueError, match="found none"):
+        find_items(_empty(tmp_path))
+
+
+def _empty(tmp_path: Path) -> Path:
+    d = tmp_path / "empty"
+    d.mkdir()
+    return d
+
+
+def test_otsu_finds_a_dark_shadow() -> None:
+    img, mask = _photo_with_shadow()
+    assert balanced_error_rate(otsu_shadow_mask(img), mask) < 0.02
+
+
+class _FakeSession:
+    """A session whose overlay is the true mask for one sun and shifted sideways for the rest:
+    the evaluation must find that sun, score it 0 and score the opposite azimuth worse."""
+
+    def __init__(self, mask: np.ndarray, true_sun: tuple[float, float]) -> None:
+        self.mask = mask
+        self.true_w = sun_vector(*true_sun)
+        self.sky = np.zeros(mask.shape, bool)
+
+    def set_image(self, image: np.ndarray, **_: object) -> None:
+        assert image.shape[:2] == self.mask.shape
+
+    def shadow(self, w: np.ndarray) -> np.ndarray:
+        angle = np.degrees(np.arccos(np.clip(normalize_sun(w) @ self.true_w, -1, 1)))
+        shift = int(round(angle / 3))
+        return np.where(np.roll(self.mask, shift, axis=1), 0.0, 1.0).astype(np.float32)
+
+    def set_original_sun(self, w: np.ndarray) -> np.ndarray:
+        return self.shadow(w)
+
+
+def test_evaluate_photo_finds_the_aligned_sun(tmp_path: Path) -> None:
+    img, mask = _photo_with_shadow()
+    _write_item(tmp_path, "a", img, mask)
+    item = find_items(tmp_path)[0]
+    true_sun = SWEEP_SUNS[15]
+    res = evaluate_photo(_FakeSession(mask, true_sun), item)
+    assert res.best_sun == true_sun
+    assert res.overlay_ber == 0.0 and res.refined_ber == 0.0
+    assert res.opposite_ber > 0.25
+    assert res.sky_claim == 0.0
+    assert res.otsu_ber < 0.02
+
+
+def test_shuffled_control_uses_other_photos_only() -> None:
+    a = np.zeros((8, 8), bool)
+    a[:4] = True
+    b = ~a
+    out = shuffled_control({"a": a, "b": b}, {"a": a, "b": b})
+    assert out == {"a": 1.0, "b": 1.0}
+
+
+def test_lab_rmse_zero_for_equal_images() -> None:
+    img, mask = _photo_with_shadow()
+    assert lab_rmse(img, img, mask) == 0.0
+    assert lab_rmse(img, np.clip(img + 0.1, 0, 1), mask) > 1.0
+
+
+@pytest.mark.slow
+def test_cli_eval_real_on_a_tiny_folder(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    data = tmp_path / "data"
+    data.mkdir()
+    for i, box in enumerate([(30, 44, 8, 30), (20, 40, 30, 60)]):
+        img, mask = _photo_with_shadow(box=box)
+        _write_item(data, f"p{i}", img, mask)
+        if i == 1:
+            write_image(data / "p1_free.png", np.clip(img / 0.4, 0, 1) * mask[..., None]
+                        + img * ~mask[..., None])
+    out_json, sheet = tmp_path / "r.json", tmp_path / "sheet.png"
+    rc = main(["eval", "real", str(data), "--mode", "classic", "--preset", "fast,balanced",
+               "--json", str(out_json), "--sheet", str(sheet), "-q"])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "Speed / accuracy" in text and "| fast |" in text
+    rep = json.loads(out_json.read_text())
+    assert set(rep) == {"fast", "balanced"}
+    photos = rep["fast"]["photos"]
+    assert [p["name"] for p in photos] == ["p0", "p1"]
+    for p in photos:
+        for key in ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuffled_ber",
+                    "sky_claim"):
+            assert 0.0 <= p[key] <= 1.0, key
+        assert p["otsu_ber"] < 0.05
+        assert p["relit_chroma"] is not None and 0.0 <= p["relit_chroma"] < 50.0
+    assert photos[1]["deshadow_in"] is not None and photos[0]["deshadow_in"] is None
+    assert (tmp_path / "sheet_fast.png").is_file() and (tmp_path / "sheet_balanced.png").is_file()
+    # Nothing overwritten silently.
+    assert main(["eval", "real", str(data), "--mode", "classic", "--json", str(out_json),
+                 "-q"]) == 2
+    assert "exists" in capsys.readouterr().err
+
+
+def test_cli_eval_real_rejects_a_folder_without_masks(tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    assert main(["eval", "real", str(tmp_path)]) == 2
+    assert "NAME_mask.png" in capsys.readouterr().err
+
+
+def test_report_section_is_replaced_and_the_rest_kept(tmp_path: Path) -> None:
+    from outcast_core.runtime.pipeline.real_eval import real_section, update_report
+
+    report = tmp_path / "EVAL.md"
+    report.write_text("# Synthetic\n\nTable 1\n")
+    update_report(report, "## Real photographs\n\nBER 0.3")
+    update_report(report, "## Real photographs\n\nBER 0.2")
+    text = report.read_text()
+    assert text.startswith("# Synthetic\n\nTable 1\n")
+    assert "BER 0.2" in text and "BER 0.3" not in text
+    assert text.count("## Real photographs") == 1
+    assert "BER 0.2" in real_section(text)
+
+
+def test_cli_eval_real_with_a_depth_model(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    pytest.importorskip("onnx")
+    from tests.runtime.depth_fixtures import tiny_depth_model
+
+    data = tmp_path / "data"
+    data.mkdir()
+    img, mask = _photo_with_shadow()
+    _write_item(data, "p0", img, mask)
+    model = tiny_depth_model(tmp_path / "da.onnx", input_name="pixel_values",
+                             output_name="predicted_depth", size=None, block=14, gain=7.0,
+                             offset=0.3)
+    out_json = tmp_path / "r.json"
+    assert main(["eval", "real", str(data), "--mode", "classic", "--preset", "fast",
+                 "--depth-model", str(model), "--json", str(out_json), "-q"]) == 0
+    rep = json.loads(out_json.read_text())
+    assert rep["photos"][0]["depth_source"].startswith("model da.onnx")
+    assert main(["eval", "real", str(data), "--depth-model", str(tmp_path / "none.onnx"),
+                 "-q"]) == 2
+    assert "none.onnx" in capsys.readouterr().err
+
+
+def test_new_shade_ratio_compares_new_shadows_with_the_photos_own() -> None:
+    from outcast_core.runtime.pipeline.real_eval import new_shade_ratio
+
+    img = np.full((20, 40, 3), 0.8, np.float32)
+    img[:, :10] = 0.3  # the photo's own shadow
+    so = np.ones((20, 40), np.float32)
+    so[:, :10] = 0.0
+    sn = np.ones((20, 40), np.float32)
+    sn[:, 30:] = 0.0  # the new sun's shadow
+    prob = 1.0 - so
+    sky = np.zeros((20, 40), bool)
+    same = img.copy()
+    same[:, 30:] = 0.3
+    half = img.copy()
+    half[:, 30:] = 0.52
+    assert new_shade_ratio(img, same, so, sn, prob, sky) == pytest.approx(1.0, abs=1e-3)
+    assert 0.3 < new_shade_ratio(img, half, so, sn, prob, sky) < 0.7
+    assert new_shade_ratio(img, img, so, sn, prob, sky) == pytest.approx(0.0, abs=1e-6)
+    assert new_shade_ratio(img, same, so, sn, None, sky) is None
+    assert new_shade_ratio(img, same, so, np.ones_like(sn), prob, sky) is None  # no new shadow

@@ -1,0 +1,195 @@
+"""Physics relighting by shading ratios, and the full-resolution transfer."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
+from outcast_core.runtime.pipeline.relight import (
+    PRIOR_RATIO,
+    estimate_light,
+    estimate_light_on_surfaces,
+    physics_relight,
+    shading_ratio,
+    transfer_to_full_resolution,
+)
+
+
+def synthetic_photo(ratio: np.ndarray, seed: int = 0):
+    """Albedo x (1 + r S): a random-albedo scene with a shadowed half and a lit half."""
+    rng = np.random.default_rng(seed)
+    albedo = rng.uniform(0.05, 0.4, (64, 64, 3)).astype(np.float32)
+    s_o = np.zeros((64, 64), np.float32)
+    s_o[:, 32:] = 0.7
+    lin = albedo * (1 + ratio * s_o[..., None]) / (1 + ratio.max())
+    return lin.astype(np.float32), s_o, albedo
+
+
+def test_estimate_light_recovers_the_ratio() -> None:
+    r = np.array([6.0, 4.5, 3.0], np.float32)
+    lin, s_o, _ = synthetic_photo(r)
+    est = estimate_light(lin, s_o)
+    assert est.measured
+    np.testing.assert_allclose(est.ratio, r, rtol=0.15)
+
+
+def test_estimate_light_falls_back_without_shadows() -> None:
+    lin, _, _ = synthetic_photo(np.array([5.0, 5.0, 5.0], np.float32))
+    est = estimate_light(lin, np.full((64, 64), 0.8, np.float32))
+    assert not est.measured
+    np.testing.assert_array_equal(est.ratio, PRIOR_RATIO)
+
+
+def test_relight_swaps_shading_exactly_and_keeps_sky() -> None:
+    r = np.array([6.0, 4.5, 3.0], np.float32)
+    lin, s_o, albedo = synthetic_photo(r)
+    s_n = s_o[:, ::-1].copy()  # the shadow moves to the other half
+    sky = np.zeros((64, 64), bool)
+    sky[:4] = True
+    out = physics_relight(linear_to_srgb(lin), s_o, s_n, sky, snap=False)
+    expected = albedo * (1 + r * s_n[..., None]) / (1 + r.max())
+    got = srgb_to_linear(out)
+    np.testing.assert_allclose(got[4:], expected[4:], rtol=0.2, atol=2e-3)
+    np.testing.assert_allclose(out[:4], linear_to_srgb(lin)[:4], atol=1e-6)
+
+
+def test_shading_ratio_is_guarded() -> None:
+    s = np.array([[0.0, 1.0, np.nan]], np.float32)
+    g = shading_ratio(s, s[:, ::-1], np.array([5.0, 5.0, 5.0]))
+    assert np.all(np.isfinite(g)) and g.min() > 0
+
+
+def test_transfer_keeps_detail_and_applies_gain() -> None:
+    rng = np.random.default_rng(2)
+    full = rng.uniform(0.2, 0.8, (301, 403, 3)).astype(np.float32)  # fine detail everywhere
+    small_before = np.full((30, 40, 3), 0.5, np.float32)
+    small_after = linear_to_srgb(srgb_to_linear(small_before) * 0.5)  # halve the light
+    out = transfer_to_full_resolution(full, small_before, small_after, band_rows=64)
+    np.testing.assert_allclose(srgb_to_linear(out), srgb_to_linear(full) * 0.5, rtol=0.01,
+                               atol=2e-3)
+    with pytest.raises(ValueError):
+        transfer_to_full_resolution(full, small_before, small_after[:5])
+
+
+def test_light_estimate_on_surfaces_leaves_out_pixels_without_normals() -> None:
+    from outcast_core.runtime.geometry.colour import linear_to_srgb
+
+    rng = np.random.default_rng(5)
+    shadow = (rng.random((20, 30)) > 0.5).astype(np.float32)
+    lin = 0.1 * (1.0 + np.array([3.0, 2.0, 1.5], np.float32) * shadow[..., None])
+    lin[:12] = (0.9, 0.05, 0.05)  # a "sky" that would break the ratio if it were counted
+    shadow[:12] = 1.0
+    normals = np.zeros((20, 30, 3), np.float32)
+    normals[12:, :, 1] = -1.0
+    got = estimate_light_on_surfaces(linear_to_srgb(lin), shadow, normals)
+    want = estimate_light(lin, shadow, np.arange(20)[:, None].repeat(30, 1) < 12)
+    assert got.measured
+    np.testing.assert_allclose(got.ratio, want.ratio, rtol=1e-3)
+    np.testing.assert_allclose(got.ratio, [3.0, 2.0, 1.5], rtol=2e-2)
+    with_sky = estimate_light(lin, shadow)
+    assert np.abs(with_sky.ratio - got.ratio).max() > 0.1
+
+
+def test_keep_photo_colour_where_both_suns_light_the_surface() -> None:
+    from outcast_core.runtime.pipeline.relight import keep_photo_colour
+
+    h, w = 8, 12
+    image = np.full((h, w, 3), [0.6, 0.5, 0.4], np.float32)
+    relit = np.full((h, w, 3), [0.8, 0.5, 0.3], np.float32)  # brighter and tinted orange
+    s_old = np.full((h, w), 0.8, np.float32)
+    s_new = np.full((h, w), 0.8, np.float32)
+    s_new[:, 6:] = 0.0  # newly shadowed on the right: the relit colour stands there
+    sky = np.zeros((h, w), bool)
+    sky[0] = True
+    out = keep_photo_colour(image, relit, s_old, s_new, sky, keep_sky=True)
+    chroma = out[4, 2] / out[4, 2].sum()
+    np.testing.assert_allclose(chroma, image[4, 2] / image[4, 2].sum(), atol=0.01)
+    assert out[4, 2].mean() > image[4, 2].mean()  # it took the relit brightness
+    np.testing.assert_allclose(out[4, 9], relit[4, 9], atol=1e-3)
+    np.testing.assert_allclose(out[0], image[0], atol=1e-3)  # the sky is the photo's
+    out = keep_photo_colour(image, relit, s_old, s_new, sky, keep_sky=False)
+    assert not np.allclose(out[0, 9], image[0, 9], atol=1e-2)
+
+
+def test_shadow_contrast_floor_darkens_new_shadows_at_least_as_physics_does() -> None:
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+    from outcast_core.runtime.pipeline import relight
+    from outcast_core.runtime.pipeline.relight import (
+        estimate_light,
+        physics_relight,
+        shadow_contrast_floor,
+    )
+
+    h, w = 6, 9
+    image = np.full((h, w, 3), [0.5, 0.45, 0.4], np.float32)
+    s_old = np.full((h, w), 0.8, np.float32)
+    s_new = np.full((h, w), 0.8, np.float32)
+    s_old[:, :3] = 0.0  # columns 0-2: newly lit
+    s_new[:, 6:] = 0.0  # columns 6-8: newly shadowed; 3-5 lit under both suns
+    s_old[:2, :3] = 0.8  # ... and a lit patch for the light estimate
+    image[2:, :3] *= 0.3
+    light = estimate_light(srgb_to_linear(image), s_old)
+    relit = image.copy()
+    relit[:, :3] *= 1.2  # the learned image: a timid change
+    relit[:, 6:] *= 0.9
+    relit[:, 3:6] = [0.55, 0.45, 0.35]  # lit under both suns: left to the other guard
+    sigma, relight.FLOOR_SIGMA = relight.FLOOR_SIGMA, 0.0  # no smoothing on a 9-pixel image
+    try:
+        out = shadow_contrast_floor(image, relit, s_old, s_new, None, light)
+        physics = physics_relight(image, s_old, s_new, None, light=light, snap=False)
+        lifted = shadow_contrast_floor(image, relit, s_old, s_new, None, light, lift=True)
+        bold = image.copy()
+        bold[:, 6:] *= 0.1
+        bold_out = shadow_contrast_floor(image, bold, s_old, s_new, None, light)
+    finally:
+        relight.FLOOR_SIGMA = sigma
+
+    def y(img: np.ndarray, rows: slice, cols: slice) -> float:
+        return float(luminance(srgb_to_linear(img[rows, cols])).mean())
+
+    new_shd, new_lit = (slice(None), slice(6, 9)), (slice(2, None), slice(0, 3))
+    assert y(physics, *new_shd) < y(relit, *new_shd)  # the case: physics darkens more
+    assert y(out, *new_shd) == pytest.approx(y(physics, *new_shd), rel=1e-2)
+    np.testing.assert_allclose(out[:, :6], relit[:, :6], atol=1e-4)  # no lift by default
+    assert y(physics, *new_lit) > y(relit, *new_lit)
+    assert y(lifted, *new_lit) == pytest.approx(y(physics, *new_lit), rel=1e-2)
+    # The learned colour is kept (chromaticity of the relit pixel).
+    c = srgb_to_linear(out[3, 7]) / srgb_to_linear(out[3, 7]).sum()
+    np.testing.assert_allclose(c, srgb_to_linear(relit[3, 7]) / srgb_to_linear(relit[3, 7]).sum(),
+                               atol=1e-3)
+    # A learned new shadow darker than physics' stays.
+    np.testing.assert_allclose(bold_out[:, 6:], bold[:, 6:], atol=1e-4)
+    with pytest.raises(ValueError, match="relit image"):
+        shadow_contrast_floor(image, relit[:3], s_old, s_new, None, light)
+
+
+def test_anchor_exposure_takes_the_exposure_of_physics_on_surfaces_lit_under_both_suns() -> None:
+    from outcast_core.runtime.pipeline.relight import (
+        anchor_exposure,
+        estimate_light,
+        physics_relight,
+    )
+
+    h, w = 12, 16
+    rng = np.random.default_rng(0)
+    image = np.clip(0.5 + 0.05 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    s_old = np.full((h, w), 0.9, np.float32)
+    s_new = np.full((h, w), 0.9, np.float32)
+    s_new[:, 12:] = 0.0  # a new shadow on the right
+    sky = np.zeros((h, w), bool)
+    sky[0] = True
+    light = estimate_light(srgb_to_linear(image), s_old)
+    physics = physics_relight(image, s_old, s_new, sky, light=light, snap=False)
+    drifted = np.clip(image * 1.4, 0, 1)  # L's exposure drift: everything brighter
+    drifted[0] = [0.2, 0.4, 0.9]  # its sky
+    out = anchor_exposure(image, drifted, s_old, s_new, sky, light)
+    both = ~sky & (s_new > 0.5)
+    ratio = srgb_to_linear(out)[both].mean() / srgb_to_linear(physics)[both].mean()
+    assert ratio == pytest.approx(1.0, abs=0.03)
+    np.testing.assert_allclose(out[0], drifted[0], atol=1e-5)  # the sky is not re-exposed
+    # Too few pixels lit under both suns: unchanged.
+    dark = np.zeros((h, w), np.float32)
+    np.testing.assert_allclose(anchor_exposure(image, drifted, dark, s_new, sky, light), drifted)
+    with pytest.raises(ValueError, match="relit image"):
+        anchor_exposure(image, drifted[:4], s_old, s_new, sky, light)

@@ -1,0 +1,117 @@
+"""The relighting session: set once, query many; errors in the right order."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from outcast_core.runtime.io.models import ModelError, ModelRegistry
+from outcast_core.runtime.pipeline.session import PRESETS, RelightSession, working_shape
+from tests.runtime.scenes import box_scene_depth
+
+
+@pytest.fixture
+def scene() -> tuple[np.ndarray, np.ndarray]:
+    h, w = 60, 80
+    depth = box_scene_depth(h, w, w / (2 * math.tan(math.radians(15))), 60.0,
+                            [(-4.0, 0.0, -3.0, 1.0, 4.0)])
+    rng = np.random.default_rng(1)
+    image = np.clip(0.5 + 0.05 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    return image, depth
+
+
+def test_working_shape() -> None:
+    assert working_shape(3000, 4000, 400) == (300, 400)
+    assert working_shape(10, 20, 400) == (10, 20)  # never upscaled
+    assert working_shape(1, 9000, 256) == (1, 256)
+    with pytest.raises(ValueError):
+        working_shape(0, 5, 10)
+
+
+def test_order_errors(tmp_path) -> None:
+    s = RelightSession(registry=ModelRegistry(tmp_path), mode="auto", preset="fast")
+    assert s.shadow_mode == "direct" and s.relight_mode == "physics"
+    with pytest.raises(RuntimeError, match="set_image"):
+        s.shadow((0, -1, 0))
+    s.set_image(np.zeros((8, 8, 3), np.float32), depth=np.ones((8, 8), np.float32))
+    with pytest.raises(RuntimeError, match="set_original_sun"):
+        s.relight((0, -1, 0))
+
+
+def test_learned_mode_without_models_names_the_file(tmp_path) -> None:
+    with pytest.raises(ModelError, match=r"shadow\.json"):
+        RelightSession(registry=ModelRegistry(tmp_path), mode="learned")
+
+
+def test_bad_inputs(tmp_path) -> None:
+    s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic")
+    with pytest.raises(ValueError, match="H x W x 3"):
+        s.set_image(np.zeros((8, 8), np.float32))
+    with pytest.raises(ValueError, match="aspect ratio"):
+        s.set_image(np.zeros((8, 16, 3), np.float32), depth=np.ones((16, 8), np.float32))
+    with pytest.raises(ValueError, match="preset"):
+        s.set_preset("ultra")
+
+
+def test_query_many_is_cached_and_sun_independent_work_is_not_redone(scene, tmp_path) -> None:
+    image, depth = scene
+    s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", preset="fast")
+    s.set_image(image, depth=depth, fov_deg=30.0)
+    sampler = s._sampler
+    w1, w2 = (-0.5, -0.3, -0.8), (0.5, 0.3, -0.8)
+    a = s.shadow(w1)
+    assert s.shadow(w1) is a  # cached
+    s.shadow(w2)
+    assert s._sampler is sampler  # the light-independent set-up was reused
+    assert a.shape == depth.shape and a.min() >= 0 and a.max() <= 1
+    assert (a == 0).mean() > 0.02  # the box casts a shadow
+    prev = s.shadow(w1, preview=True)
+    assert prev.shape == a.shape
+
+
+def test_relight_moves_the_shadow(scene, tmp_path) -> None:
+    image, depth = scene
+    # The scene is seen from above (camera looking down), so the sun has a negative z.
+    w_o, w_n = np.array([-0.5, -0.3, -0.8]), np.array([0.5, 0.3, -0.8])
+    s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", preset="fast")
+    s.set_image(image, depth=depth, fov_deg=30.0)
+    # Darken the photo where its original shadow is, as a real photo would be.
+    s_o = s.shadow(w_o)
+    photo = (image * (0.25 + 0.75 * s_o[..., None] / max(s_o.max(), 1e-6))).astype(np.float32)
+    s.set_image(photo, depth=depth, fov_deg=30.0)
+    s.set_original_sun(w_o)
+    assert s.light_estimate is not None and s.light_estimate.measured
+    out = s.relight(w_n)
+    s_n = s.shadow(w_n)
+    old_only = (s_o < 0.05) & (s_n > 0.2)
+    new_only = (s_n < 0.05) & (s_o > 0.2)
+    assert old_only.sum() > 10 and new_only.sum() > 10
+    # Old shadow brightened, new shadow darkened.
+    assert out[old_only].mean() > photo[old_only].mean() * 1.5
+    assert out[new_only].mean() < photo[new_only].mean() / 1.5
+    full = s.relight_full(w_n)
+    assert full.shape == photo.shape and np.all(np.isfinite(full))
+
+
+def test_preset_switch_keeps_original_sun(scene, tmp_path) -> None:
+    image, depth = scene
+    s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", preset="fast")
+    s.set_image(image, depth=depth, fov_deg=30.0)
+    s.set_original_sun((-0.5, -0.3, -0.8))
+    for name in PRESETS:
+        s.set_preset(name)
+        assert s.original_sun is not None
+        assert s.relight((0.5, 0.3, -0.8)).shape == image.shape
+
+
+def test_buffers(scene, tmp_path) -> None:
+    image, depth = scene
+    s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", preset="fast")
+    s.set_image(image, depth=depth, fov_deg=30.0)
+    s.set_original_sun((-0.5, -0.3, -0.8))
+    b = s.buffers((0.4, -0.4, -0.8))
+    assert set(b) == {"depth", "normals", "original_shadow", "new_shadow", "output"}
+    for v in b.values():
+        assert np.all(np.isfinite(v)) and v.min() >= 0 and v.max() <= 1

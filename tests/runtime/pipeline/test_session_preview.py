@@ -1,0 +1,126 @@
+"""Step 2's drag preview: only what the new sun changes runs per sun, at the preview size; the
+light-independent inputs are prepared once per photo, original sun and preset."""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+
+import numpy as np
+import pytest
+
+from outcast_core.runtime.pipeline import session as session_module
+from outcast_core.runtime.pipeline.session import PRESETS, RelightSession, working_shape
+from tests.runtime.scenes import box_scene_depth
+
+SUNS = [(math.cos(a) * 0.5, -0.55, -0.67) for a in np.linspace(0.2, 2.5, 5)]
+W_O = (0.3, -0.8, -0.5)
+
+
+@pytest.fixture
+def scene() -> tuple[np.ndarray, np.ndarray]:
+    h, w = 150, 200
+    depth = box_scene_depth(h, w, w / (2 * math.tan(math.radians(15))), 60.0,
+                            [(-4.0, 0.0, -3.0, 1.0, 4.0), (2.0, 5.0, 1.0, 4.0, 2.0)])
+    rng = np.random.default_rng(1)
+    image = np.clip(0.5 + 0.1 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    return image, depth
+
+
+def _count_runs(session: RelightSession, monkeypatch) -> tuple[Counter, dict]:
+    """Count model runs by name and remember each model's last input size."""
+    runs: Counter = Counter()
+    sizes: dict = {}
+    real_load = session.registry.load
+
+    def load(name, **kwargs):
+        model = real_load(name, **kwargs)
+
+        class Counted:
+            def __getattr__(self, attr):
+                return getattr(model, attr)
+
+            def run(self, feeds):
+                runs[name] += 1
+                sizes[name] = next(v.shape[2:] for v in feeds.values() if v.ndim == 4)
+                return model.run(feeds)
+
+        return Counted()
+
+    monkeypatch.setattr(session.registry, "load", load)
+    return runs, sizes
+
+
+def test_learned_drag_runs_only_the_sun_dependent_networks_at_preview_size(
+    scene, monkeypatch
+) -> None:
+    image, depth = scene
+    s = RelightSession(preset="balanced", mode="learned")
+    s.set_image(image, depth=depth)
+    s.set_original_sun(W_O)
+    normals_calls = Counter()
+    real_normals = session_module.normals_from_depth
+
+    def counted_normals(*a, **k):
+        normals_calls["n"] += 1
+        return real_normals(*a, **k)
+
+    monkeypatch.setattr(session_module, "normals_from_depth", counted_normals)
+    runs, sizes = _count_runs(s, monkeypatch)
+    frames = [s.relight(w, preview=True) for w in SUNS]
+    assert runs == Counter({"shadow": len(SUNS), "relight": len(SUNS)})  # nothing else per sun
+    assert s.relight_preview_builds == 1 and normals_calls["n"] == 1
+    small = working_shape(*s.image_srgb.shape[:2], PRESETS["balanced"].relight_preview_size)
+    assert sizes["relight"] == small and sizes["shadow"] == small
+    for f in frames:
+        assert f.shape == s.image_srgb.shape and f.dtype == np.float32
+        assert f.min() >= 0.0 and f.max() <= 1.0
+    # Moving back to a sun already seen costs nothing.
+    s.relight(SUNS[0], preview=True)
+    assert runs["relight"] == len(SUNS)
+
+
+def test_preview_cached_equals_uncached_and_is_rebuilt_when_the_inputs_change(scene) -> None:
+    image, depth = scene
+    s = RelightSession(preset="fast", mode="learned")
+    s.set_image(image, depth=depth)
+    s.set_original_sun(W_O)
+    for w in SUNS[1:]:
+        s.relight(w, preview=True)
+    late = s.relight(SUNS[0], preview=True)
+    fresh = RelightSession(preset="fast", mode="learned")
+    fresh.set_image(image, depth=depth)
+    fresh.set_original_sun(W_O)
+    np.testing.assert_array_equal(late, fresh.relight(SUNS[0], preview=True))
+    assert s.relight_preview_builds == 1
+    s.set_original_sun((-0.3, -0.8, -0.5))  # S_o changes: the prepared inputs too
+    s.relight(SUNS[0], preview=True)
+    assert s.relight_preview_builds == 2
+    s.set_preset("fast")  # same working size: caches cleared, inputs prepared again
+    s.relight(SUNS[0], preview=True)
+    assert s.relight_preview_builds == 3
+
+
+def test_preview_follows_the_full_pass(scene) -> None:
+    image, depth = scene
+    for mode in ("learned", "classic"):
+        s = RelightSession(preset="balanced", mode=mode)
+        s.set_image(image, depth=depth)
+        s.set_original_sun(W_O)
+        for w in SUNS[:2]:
+            full, prev = s.relight(w), s.relight(w, preview=True)
+            assert np.abs(full - prev).mean() < 0.03, mode
+
+
+def test_prepare_relight_preview_builds_before_the_first_drag(scene) -> None:
+    image, depth = scene
+    s = RelightSession(preset="fast", mode="learned")
+    s.set_image(image, depth=depth)
+    with pytest.raises(RuntimeError, match="set_original_sun"):
+        s.prepare_relight_preview()
+    s.set_original_sun(W_O)
+    s.prepare_relight_preview()
+    assert s.relight_preview_builds == 1
+    s.relight(SUNS[0], preview=True)
+    assert s.relight_preview_builds == 1
+

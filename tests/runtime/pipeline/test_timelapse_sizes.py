@@ -1,0 +1,117 @@
+"""Time-lapse frame sizes (working, 720p, 1080p, 4k, full) and the time estimate (issue 19, 3)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import av
+import numpy as np
+import pytest
+
+from outcast_core.runtime.cli.main import main
+from outcast_core.runtime.io.imageio import write_image
+from outcast_core.runtime.pipeline.timelapse import (
+    FRAME_SIZES,
+    describe_seconds,
+    estimate_seconds,
+    frame_shape,
+    render_timelapse,
+    sweep_path,
+)
+
+
+@pytest.mark.parametrize(
+    "size, photo, expected",
+    [
+        ("720p", (3000, 4000), (720, 960)),
+        ("1080p", (3000, 4000), (1080, 1440)),
+        ("4k", (3000, 4000), (2160, 2880)),
+        ("1080p", (4000, 3000), (1440, 1080)),  # portrait: the shorter side is the width
+        ("1080p", (1080, 1920), (1080, 1920)),
+        ("4k", (960, 1280), (960, 1280)),  # never larger than the photo
+        ("720p", (1001, 1333), (720, 958)),  # even, for H.264
+        ("full", (1001, 1333), (1001, 1333)),
+        ("working", (3000, 4000), (288, 384)),
+    ],
+)
+def test_frame_shape(size, photo, expected):
+    assert frame_shape(size, photo, (288, 384)) == expected
+
+
+def test_frame_shape_refuses_unknown_sizes():
+    with pytest.raises(ValueError, match="frame size"):
+        frame_shape("8k", (100, 100), (50, 50))
+    assert FRAME_SIZES == ("working", "720p", "1080p", "4k", "full")
+
+
+def test_estimate_grows_with_size_and_frames():
+    work = (288, 384)
+    t = {"shadow": 0.05, "relight": 0.1}
+    small = estimate_seconds(120, (288, 384), work, t)
+    hd = estimate_seconds(120, (1080, 1440), work, t)
+    assert small == pytest.approx(120 * (0.65 * 0.15 + 0.03 * 0.288 * 0.384), rel=1e-6)
+    assert hd > 1.5 * small
+    assert estimate_seconds(240, (1080, 1440), work, t) == pytest.approx(2 * hd)
+    assert describe_seconds(42.4) == "about 42 s"
+    assert describe_seconds(185) == "about 3 min"
+    assert describe_seconds(3900) == "about 1 h 5 min"
+
+
+class _FakeSession:
+    """Enough of RelightSession for rendering: a 600 x 800 photo, working size 150 x 200."""
+
+    def __init__(self):
+        rng = np.random.default_rng(0)
+        self.full_image_srgb = rng.random((600, 800, 3), dtype=np.float32)
+        self.image_srgb = self.full_image_srgb[::4, ::4].copy()
+        self.original_sun = np.array([0.0, -1.0, 0.0])
+        self.calls = SimpleNamespace(relight=0, full=0)
+
+    def relight(self, w, preview=False):
+        self.calls.relight += 1
+        return self.image_srgb * 0.8
+
+    def relight_full(self, w):
+        self.calls.full += 1
+        return self.full_image_srgb * 0.8
+
+
+@pytest.mark.parametrize("size, shape", [("working", (150, 200)), ("720p", (600, 800)),
+                                         ("full", (600, 800))])  # fmt: skip
+def test_render_timelapse_sizes(tmp_path, size, shape):
+    session = _FakeSession()
+    out = render_timelapse(session, sweep_path((0, 20), (90, 20), 3), tmp_path / "a.mp4",
+                           size=size)  # fmt: skip
+    with av.open(str(out)) as c:
+        frames = [f.to_ndarray(format="rgb24") for f in c.decode(video=0)]
+    assert len(frames) == 3 and frames[0].shape[:2] == shape
+
+
+def test_render_timelapse_between_working_and_full(tmp_path, monkeypatch):
+    import outcast_core.runtime.pipeline.timelapse as tl
+
+    monkeypatch.setitem(tl.SHORT_SIDES, "720p", 300)  # a 300 px "720p" of the 600 x 800 photo
+    session = _FakeSession()
+    out = render_timelapse(session, sweep_path((0, 20), (90, 20), 2), tmp_path / "b.gif",
+                           size="720p")  # fmt: skip
+    from PIL import Image
+
+    with Image.open(out) as im:
+        assert im.size == (400, 300)
+    assert session.calls.full == 0 and session.calls.relight == 2  # the photo's detail, not full
+
+
+def test_cli_timelapse_size_option(tmp_path: Path, capsys):
+    rng = np.random.default_rng(1)
+    photo = tmp_path / "p.png"
+    write_image(photo, np.clip(0.5 + 0.1 * rng.standard_normal((120, 160, 3)), 0, 1))
+    out = tmp_path / "clip.mp4"
+    rc = main(["timelapse", str(photo), "--from", "90,40", "--sweep", "0,20:90,30", "--frames",
+               "2", "--size", "working", "--preset", "fast", "-o", str(out)])  # fmt: skip
+    assert rc == 0
+    err = capsys.readouterr().err
+    assert "rendering 2 frames of 160x120 (working), about" in err
+    with pytest.raises(SystemExit):
+        main(["timelapse", str(photo), "--from", "90,40", "--sweep", "0,20:90,30", "--frames",
+              "2", "--size", "8k", "-o", str(tmp_path / "x.mp4")])  # fmt: skip
