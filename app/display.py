@@ -104,17 +104,8 @@ def found_shadow_overlay_rgba(
         [[0, 255]]
     """
     p = np.asarray(probability, dtype=np.float32)
-    if p.ndim != 2:
-        raise ValueError(f"expected a shadow probability of shape H x W, got {p.shape}")
-    p = np.clip(np.nan_to_num(p, nan=0.0), 0.0, 1.0)
-    if sky is not None:
-        if sky.shape != p.shape:
-            raise ValueError(f"expected a sky mask of shape {p.shape}, got {sky.shape}")
-        p = np.where(sky, 0.0, p)
-    out = np.empty(p.shape + (4,), np.uint8)  # H x W x 4
-    out[..., 0], out[..., 1], out[..., 2] = colour
-    out[..., 3] = (p * 255.0 + 0.5).astype(np.uint8)
-    return out
+    return shadow_overlay_rgba(1.0 - np.clip(np.nan_to_num(p, nan=0.0), 0.0, 1.0), sky,
+                               colour=colour)
 
 
 def depth_to_rgb(depth_display: np.ndarray, sky: np.ndarray | None = None) -> np.ndarray:

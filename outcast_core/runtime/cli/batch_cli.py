@@ -131,7 +131,7 @@ def _options(args: argparse.Namespace) -> BatchOptions:
     if args.fmt and args.fmt.lower().lstrip(".") not in FORMATS[kind]:
         raise ValueError(f"expected --format in {', '.join(FORMATS[kind])} for {kind}, got "
                          f"{args.fmt!r}")
-    if "given" in args.sources and args.from_sun is None and args.sources == ("given",):
+    if args.sources == ("given",) and args.from_sun is None:
         raise ValueError("expected --from AZ,EL with --sources given")
     return BatchOptions(
         kind=kind, sources=args.sources, from_sun=args.from_sun, to_sun=args.to_sun,
@@ -204,7 +204,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
     if args.report:
         from outcast_core.runtime.io.imageio import atomic_output
 
-        data = {"options": {k: v for k, v in vars(options).items()},
+        data = {"options": dict(vars(options)),
                 "counts": counts, "seconds": round(seconds, 2),
                 "results": [vars(r) for r in results]}
         with atomic_output(args.report, force=args.force, make_parents=True) as tmp:

@@ -72,7 +72,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--load", action="store_true",
                    help="also load each model with onnxruntime (checks inputs and outputs)")
     p.add_argument("--json", action="store_true", help="print the report as JSON")
-    p.set_defaults(func=run_models_command, check_output=lambda args: None)
+    p.set_defaults(func=run_models_command)
     return p
 
 

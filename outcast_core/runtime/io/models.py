@@ -80,16 +80,6 @@ def model_search_path() -> list[Path]:
     return [user_model_dir(), DEFAULT_MODEL_DIR]
 
 
-def model_dir() -> Path:
-    """The model folder: ``$OUTCAST_MODEL_DIR`` when set, else the shipped models' folder.
-
-    Single-folder view kept for callers that list or write models; loading looks further
-    (:func:`model_search_path`).
-    """
-    env = os.environ.get("OUTCAST_MODEL_DIR")
-    return Path(env).expanduser() if env else DEFAULT_MODEL_DIR
-
-
 def sha256_file(path: Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -181,8 +171,6 @@ class ModelRegistry:
         self.search_path = (
             [Path(directory)] if directory is not None else model_search_path()
         )
-        #: The last folder searched (the shipped models unless a folder was given).
-        self.directory = self.search_path[-1]
         self.threads = threads
         self._loaded: dict[str, Model] = {}
         self._lock = threading.Lock()

@@ -331,14 +331,6 @@ def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None,
     return sun("original_sun"), sun("target_sun"), str(depth)
 
 
-def exif_sun(exif: Any) -> Sun | None:
-    """The photo's sun relative to the camera from EXIF GPS, capture time and compass heading
-    (the app's "Sun from EXIF"); None when one is missing or the sun is below the horizon."""
-    from outcast_core.runtime.pipeline.timelapse import exif_sun as sun_from_exif
-
-    return sun_from_exif(exif)
-
-
 def original_sun_for(
     job: BatchJob,
     options: BatchOptions,
@@ -365,6 +357,8 @@ def original_sun_for(
         if source == "project" and project_sun is not None:
             return project_sun, "project"
         if source == "exif":
+            from outcast_core.runtime.pipeline.timelapse import exif_sun
+
             sun = exif_sun(exif)
             if sun is not None:
                 return sun, "exif"

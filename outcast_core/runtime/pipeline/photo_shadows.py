@@ -40,10 +40,11 @@ Otsu on log luminance of the surface             0.116
 
 The geometry gates it: a dark region more than :data:`PRIOR_RADIUS` of the image from anywhere
 the shadow network puts a shadow at the aligned sun is dark albedo (a black car, a dark coat),
-not a shadow the sun can lift. On the dev photos the gate costs 0.003 in BER: the overlay
-misses real shadows, and its attached shadows cover so much of the frame that the gate rarely
-acts (on the sample photos dark furniture, railings and foliage pass it). It is kept because
-what ``S_o`` calls a shadow is what relighting and de-shadowing brighten.
+not a shadow the sun can lift. On the dev photos the gate costs 0.009 in BER (0.003 before
+:func:`shade_threshold`): the overlay misses real shadows, and its attached shadows cover so
+much of the frame that the gate rarely acts (on the sample photos dark furniture, railings and
+foliage pass it). It is kept because what ``S_o`` calls a shadow is what relighting and
+de-shadowing brighten.
 
 Known failure: one threshold per photo splits its two largest modes. In the ski-slope sample
 those are dark trees and bright snow, so the trees are called shadow and the long tree shadows

@@ -49,6 +49,7 @@ import cv2
 import numpy as np
 
 from outcast_core.runtime.geometry.camera import sun_in_frame, sun_vector
+from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
 
 #: Shadow images below this are "in shadow" (the overlay's display threshold).
 SHADOW_THRESHOLD = 0.15
@@ -302,8 +303,6 @@ def new_shade_ratio(
         >>> round(new_shade_ratio(img, relit, so, sn, p, sky), 2)
         1.0
     """
-    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
-
     if probability is None:
         return None
     surface = ~np.asarray(sky, bool)

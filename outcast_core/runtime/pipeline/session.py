@@ -37,7 +37,7 @@ from outcast_core.runtime.geometry.camera import (
     view_directions,
 )
 from outcast_core.runtime.geometry.colour import srgb_to_linear
-from outcast_core.runtime.geometry.fullres import apply_gain, gain_map, resize_to_working
+from outcast_core.runtime.geometry.fullres import resize_to_working
 from outcast_core.runtime.geometry.raymarch import RaySampler
 from outcast_core.runtime.geometry.shadows import DirectStats, direct_shadow
 from outcast_core.runtime.io.models import ModelError, ModelRegistry
@@ -50,11 +50,9 @@ from outcast_core.runtime.pipeline.photo_shadows import (
 )
 from outcast_core.runtime.pipeline.relight import (
     LightEstimate,
-    anchor_exposure,
     estimate_light,
-    keep_photo_colour,
+    guard_learned_relight,
     physics_relight,
-    shadow_contrast_floor,
     snap_shadow_to_photo,
     transfer_to_full_resolution,
 )
@@ -662,29 +660,21 @@ class RelightSession:
                 "sun_new": wv.astype(np.float32)[None],
             })
             relit = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
-            if self.colour_guard:
-                cam = self.camera
-                keep_sky = not (sun_in_frame(self.original_sun, cam) or sun_in_frame(wv, cam))
-                relit = keep_photo_colour(image, relit, st["shadow_old"], s_new, st["sky"],
-                                          keep_sky=keep_sky)
-            if self.contrast_floor:
-                relit = shadow_contrast_floor(image, relit, st["shadow_old"], s_new, st["sky"],
-                                              self._light)
-            if self.exposure_anchor:
-                relit = anchor_exposure(image, relit, st["shadow_old"], s_new, st["sky"],
-                                        self._light)
+            relit = self._guard(image, relit, st["shadow_old"], s_new, st["sky"], self._light,
+                                self.camera, self.original_sun, wv)
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=self._light, snap=False)
-        out = apply_gain(st["working_u8"], gain_map(image, relit), out_dtype=np.uint8, threads=1)
-        self._time("relight", t1)
+        out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
+                                          threads=1)
+        self._time("relight_preview", t1)
         return out.astype(np.float32) * np.float32(1.0 / 255.0)  # 8 bits: it is for the screen
 
     def _compute_relight(self, w_new: Any, preview: bool) -> np.ndarray:
         wv = normalize_sun(w_new)
         if preview:
             return self._compute_relight_preview(wv)
-        s_new = self.shadow(wv, preview=preview)
+        s_new = self.shadow(wv)
         t0 = time.perf_counter()
         img = self._relight_from(self._working_inputs(), wv, s_new)
         self._time("relight", t0)
@@ -720,17 +710,22 @@ class RelightSession:
                 "light_ratio": inp["light"].ratio.astype(np.float32)[None],
             })
             img = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
-            if self.colour_guard:
-                cam = inp["camera"]
-                keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(wv, cam))
-                img = keep_photo_colour(image, img, s_o, s_new, inp["sky"], keep_sky=keep_sky)
-            if self.contrast_floor:
-                img = shadow_contrast_floor(image, img, s_o, s_new, inp["sky"], inp["light"])
-            if self.exposure_anchor:
-                img = anchor_exposure(image, img, s_o, s_new, inp["sky"], inp["light"])
+            img = self._guard(image, img, s_o, s_new, inp["sky"], inp["light"], inp["camera"],
+                              w_o, wv)
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
         return img.astype(np.float32)
+
+    def _guard(
+        self, image: np.ndarray, relit: np.ndarray, s_o: np.ndarray, s_new: np.ndarray,
+        sky: np.ndarray, light: LightEstimate, cam: Camera, w_o: np.ndarray, w_n: np.ndarray,
+    ) -> np.ndarray:
+        """The learned relighting with the guards this session turns on
+        (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`)."""
+        keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(w_n, cam))
+        return guard_learned_relight(image, relit, s_o, s_new, sky, light, keep_sky=keep_sky,
+                                     colour=self.colour_guard, floor=self.contrast_floor,
+                                     anchor=self.exposure_anchor)
 
     def _shadow_from(self, inp: dict[str, Any], wv: np.ndarray, threads: int | None) -> np.ndarray:
         """:meth:`shadow` (full quality, working size) of the snapshot ``inp``, for

@@ -114,7 +114,6 @@ def test_keep_photo_colour_where_both_suns_light_the_surface() -> None:
 
 def test_shadow_contrast_floor_darkens_new_shadows_at_least_as_physics_does() -> None:
     from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
-    from outcast_core.runtime.pipeline import relight
     from outcast_core.runtime.pipeline.relight import (
         estimate_light,
         physics_relight,
@@ -134,16 +133,12 @@ def test_shadow_contrast_floor_darkens_new_shadows_at_least_as_physics_does() ->
     relit[:, :3] *= 1.2  # the learned image: a timid change
     relit[:, 6:] *= 0.9
     relit[:, 3:6] = [0.55, 0.45, 0.35]  # lit under both suns: left to the other guard
-    sigma, relight.FLOOR_SIGMA = relight.FLOOR_SIGMA, 0.0  # no smoothing on a 9-pixel image
-    try:
-        out = shadow_contrast_floor(image, relit, s_old, s_new, None, light)
-        physics = physics_relight(image, s_old, s_new, None, light=light, snap=False)
-        lifted = shadow_contrast_floor(image, relit, s_old, s_new, None, light, lift=True)
-        bold = image.copy()
-        bold[:, 6:] *= 0.1
-        bold_out = shadow_contrast_floor(image, bold, s_old, s_new, None, light)
-    finally:
-        relight.FLOOR_SIGMA = sigma
+    physics = physics_relight(image, s_old, s_new, None, light=light, snap=False)
+    out = shadow_contrast_floor(image, relit, physics, s_old, s_new)
+    lifted = shadow_contrast_floor(image, relit, physics, s_old, s_new, lift=True)
+    bold = image.copy()
+    bold[:, 6:] *= 0.1
+    bold_out = shadow_contrast_floor(image, bold, physics, s_old, s_new)
 
     def y(img: np.ndarray, rows: slice, cols: slice) -> float:
         return float(luminance(srgb_to_linear(img[rows, cols])).mean())
@@ -161,7 +156,7 @@ def test_shadow_contrast_floor_darkens_new_shadows_at_least_as_physics_does() ->
     # A learned new shadow darker than physics' stays.
     np.testing.assert_allclose(bold_out[:, 6:], bold[:, 6:], atol=1e-4)
     with pytest.raises(ValueError, match="relit image"):
-        shadow_contrast_floor(image, relit[:3], s_old, s_new, None, light)
+        shadow_contrast_floor(image, relit[:3], physics, s_old, s_new)
 
 
 def test_anchor_exposure_takes_the_exposure_of_physics_on_surfaces_lit_under_both_suns() -> None:
@@ -183,13 +178,13 @@ def test_anchor_exposure_takes_the_exposure_of_physics_on_surfaces_lit_under_bot
     physics = physics_relight(image, s_old, s_new, sky, light=light, snap=False)
     drifted = np.clip(image * 1.4, 0, 1)  # L's exposure drift: everything brighter
     drifted[0] = [0.2, 0.4, 0.9]  # its sky
-    out = anchor_exposure(image, drifted, s_old, s_new, sky, light)
+    out = anchor_exposure(image, drifted, physics, s_old, s_new, sky)
     both = ~sky & (s_new > 0.5)
     ratio = srgb_to_linear(out)[both].mean() / srgb_to_linear(physics)[both].mean()
     assert ratio == pytest.approx(1.0, abs=0.03)
     np.testing.assert_allclose(out[0], drifted[0], atol=1e-5)  # the sky is not re-exposed
     # Too few pixels lit under both suns: unchanged.
     dark = np.zeros((h, w), np.float32)
-    np.testing.assert_allclose(anchor_exposure(image, drifted, dark, s_new, sky, light), drifted)
+    np.testing.assert_allclose(anchor_exposure(image, drifted, physics, dark, s_new, sky), drifted)
     with pytest.raises(ValueError, match="relit image"):
-        anchor_exposure(image, drifted[:4], s_old, s_new, sky, light)
+        anchor_exposure(image, drifted[:4], physics, s_old, s_new, sky)
