@@ -9,10 +9,13 @@ tests/packaging/test_bundle.py`` (or run ``python3 packaging/build_bundle.py``).
 from __future__ import annotations
 
 import importlib.util
+import json
 import os
 import shutil
 import subprocess
 from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
 
 import pytest
 
@@ -63,6 +66,39 @@ def test_bundle_checks(tmp_path: Path) -> None:
     assert '"torch"' in spec and "shipped_models" in spec
 
 
+def _spec_datas() -> list[tuple[str, str]]:
+    """The ``datas`` the spec gives PyInstaller (run with PyInstaller's globals stubbed)."""
+    seen: dict[str, Any] = {}
+
+    def analysis(*args: Any, **kwargs: Any) -> SimpleNamespace:
+        seen.update(kwargs)
+        return SimpleNamespace(pure=[], scripts=[], binaries=[], datas=[])
+
+    def stub(*args: Any, **kwargs: Any) -> None:
+        return None
+
+    spec = PKG / "outcast-gui.spec"
+    code = compile(spec.read_text(encoding="utf-8"), str(spec), "exec")
+    exec(code, {"SPECPATH": str(PKG), "Analysis": analysis, "PYZ": stub, "EXE": stub,
+                "COLLECT": stub})
+    return seen["datas"]
+
+
+def test_spec_ships_the_wheels_model_files() -> None:
+    """The bundle carries exactly what the wheel does: setup.py's ``model_files``."""
+    shipped = sorted(Path(src) for src, dest in _spec_datas()
+                     if dest == "outcast_core/shipped_models")
+    models = ROOT / "models"
+    manifests = sorted(models.glob("*.json"))
+    assert manifests, "no model manifests in models/"
+    for manifest in manifests:
+        assert manifest in shipped
+        assert models / json.loads(manifest.read_text(encoding="utf-8"))["file"] in shipped
+    assert models / "README.md" in shipped
+    assert not [p for p in shipped if p.suffix == ".png"]  # the sheets stay out, as in the wheel
+    assert len(shipped) == len(set(shipped))
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(os.environ.get("OUTCAST_BUILD_BUNDLE") != "1",
                     reason="builds a 600 MB bundle: set OUTCAST_BUILD_BUNDLE=1")
@@ -71,8 +107,6 @@ def test_bundle_builds_and_runs_offscreen(tmp_path: Path) -> None:
     code = build_bundle.main(["--dist", str(tmp_path / "dist"), "--work", str(tmp_path / "w"),
                               "--json", str(report)])
     assert code == 0
-    import json
-
     data = json.loads(report.read_text())
     assert data["forbidden"] == [] and "relight.onnx" in data["models"]
     smoke = data["smoke"]

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from outcast_core.runtime.cli.main import int_in
+from outcast_core.runtime.cli.timelapse_cli import SWEEP_HELP, frame_count, sun_pair, sweep_ends
 from outcast_core.runtime.pipeline.batch import (
     FORMATS,
     SUN_SOURCES,
@@ -27,25 +28,6 @@ from outcast_core.runtime.pipeline.batch import (
     run_batch,
     summarize,
 )
-
-
-def _sun(text: str) -> tuple[float, float]:
-    """``AZ,EL`` at or above the horizon (the rules of ``outcast relight``)."""
-    from outcast_core.runtime.cli.main import parse_azel
-
-    try:
-        parse_azel(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-    az, el = (float(p) for p in text.split(","))
-    return az, el
-
-
-def _sweep(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
-    parts = text.split(":")
-    if len(parts) != 2:
-        raise argparse.ArgumentTypeError(f"expected AZ1,EL1:AZ2,EL2, got {text!r}")
-    return _sun(parts[0]), _sun(parts[1])
 
 
 def _sources(text: str) -> tuple[str, ...]:
@@ -66,7 +48,6 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     Returns:
         The ``batch`` parser.
     """
-    from outcast_core.runtime.cli.timelapse_cli import frame_count
     from outcast_core.runtime.pipeline.timelapse import EASINGS, FRAME_SIZES
 
     p = subparsers.add_parser(
@@ -84,17 +65,17 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     what = p.add_mutually_exclusive_group()
     what.add_argument("--deshadow", action="store_true",
                       help="write each photo with its own shadows removed")
-    what.add_argument("--sweep", type=_sweep, metavar="AZ1,EL1:AZ2,EL2",
-                      help="write a time-lapse of each photo, the sun swept A -> B")
+    what.add_argument("--sweep", type=sweep_ends, metavar="AZ1,EL1:AZ2,EL2",
+                      help=f"write a time-lapse of each photo, the sun swept A -> B; {SWEEP_HELP}")
     what.add_argument("--day", action="store_true",
                       help="write a time-lapse of each photo along the real sun path of its "
                            "capture day (needs EXIF GPS and time)")
-    p.add_argument("--to", dest="to_sun", type=_sun, metavar="AZ,EL",
+    p.add_argument("--to", dest="to_sun", type=sun_pair, metavar="AZ,EL",
                    help="the new sun for every photo (relighting)")
     p.add_argument("--targets", metavar="CSV",
                    help="a table with columns image,to_az,to_el[,from_az,from_el][,output]: "
                         "the photos to do and their suns")
-    p.add_argument("--from", dest="from_sun", type=_sun, metavar="AZ,EL",
+    p.add_argument("--from", dest="from_sun", type=sun_pair, metavar="AZ,EL",
                    help="the original sun of photos with no project file or EXIF sun")
     p.add_argument("--sources", type=_sources, default=SUN_SOURCES, metavar="LIST",
                    help="where original suns come from, in order (default "

@@ -40,14 +40,17 @@ from outcast_core.runtime.pipeline.timelapse import (
 MAX_FRAMES = 2000
 
 
-def _pair(text: str) -> tuple[float, float]:
+def _angles(text: str) -> tuple[float, float]:
+    """``AZ,EL`` in degrees: a finite azimuth and an elevation in [-90, 90] (below the horizon
+    too: a point of a sun path)."""
     parts = text.split(",")
     if len(parts) != 2:
-        raise argparse.ArgumentTypeError(f"expected AZ,EL, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected AZ,EL in degrees (e.g. 135,40), got {text!r}")
     try:
         az, el = float(parts[0]), float(parts[1])
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected AZ,EL as numbers, got {text!r}") from None
+        raise argparse.ArgumentTypeError(
+            f"expected AZ,EL in degrees (e.g. 135,40), got {text!r}") from None
     if not (math.isfinite(az) and math.isfinite(el)) or not -90.0 <= el <= 90.0:
         raise argparse.ArgumentTypeError(
             f"expected AZ,EL with a finite azimuth and an elevation in [-90, 90], got {text!r}"
@@ -55,14 +58,33 @@ def _pair(text: str) -> tuple[float, float]:
     return az, el
 
 
-def _sun_pair(text: str) -> tuple[float, float]:
-    """A sun that lights the photo: ``_pair`` at or above the horizon."""
+def sun_pair(text: str) -> tuple[float, float]:
+    """An argparse type for a still's sun (``--from``, ``--to``): ``AZ,EL`` at or above the
+    horizon, as ``outcast relight`` takes it (``outcast batch`` takes the same)."""
     from outcast_core.runtime.cli.main import BELOW_HORIZON
 
-    az, el = _pair(text)
+    az, el = _angles(text)
     if el < 0.0:
         raise argparse.ArgumentTypeError(BELOW_HORIZON.format(text=text))
     return az, el
+
+
+def sweep_ends(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    """An argparse type for ``--sweep AZ1,EL1:AZ2,EL2`` (``outcast batch`` takes the same).
+
+    An end may be below the horizon (elevation down to -90): a sweep is a sun path, and the
+    frames where it dips below the horizon render with the sun at the horizon
+    (:data:`~outcast_core.runtime.pipeline.timelapse.MIN_RENDER_ELEVATION`), like a real day's
+    sunrise and sunset. Only a still's sun (:func:`sun_pair`) must be at or above it.
+    """
+    parts = text.split(":")
+    if len(parts) != 2:
+        raise argparse.ArgumentTypeError(f"expected AZ1,EL1:AZ2,EL2, got {text!r}")
+    return _angles(parts[0]), _angles(parts[1])
+
+
+#: ``--sweep``'s help: the rule for an end below the horizon.
+SWEEP_HELP = "an end may be below the horizon (those frames render with the sun at the horizon)"
 
 
 def _number(lo: float, hi: float, what: str) -> Callable[[str], float]:
@@ -82,13 +104,6 @@ def _number(lo: float, hi: float, what: str) -> Callable[[str], float]:
 
 #: ``--frames``: an integer in [2, MAX_FRAMES] (``outcast batch`` takes the same).
 frame_count = int_in(2, MAX_FRAMES, "frame count")
-
-
-def _sweep(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
-    parts = text.split(":")
-    if len(parts) != 2:
-        raise argparse.ArgumentTypeError(f"expected AZ1,EL1:AZ2,EL2, got {text!r}")
-    return _pair(parts[0]), _pair(parts[1])
 
 
 def _date(text: str) -> dt.date:
@@ -127,12 +142,13 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument(
         "--from",
         dest="from_sun",
-        type=_sun_pair,
+        type=sun_pair,
         required=True,
         metavar="AZ,EL",
         help="the photo's original sun (aligned in the app)",
     )
-    p.add_argument("--sweep", type=_sweep, metavar="AZ1,EL1:AZ2,EL2", help="sweep the sun A -> B")
+    p.add_argument("--sweep", type=sweep_ends, metavar="AZ1,EL1:AZ2,EL2",
+                   help=f"sweep the sun A -> B; {SWEEP_HELP}")
     p.add_argument("--frames", type=frame_count, default=None,
                    help=f"frame count, 2..{MAX_FRAMES} (sweep: required)")
     p.add_argument("--easing", choices=EASINGS, default="ease-in-out")

@@ -1,9 +1,10 @@
 """A sun below the horizon (issue 19, defect 10).
 
 Decision: OutCast renders sunlight and the shadows it casts, not twilight. A still's sun
-(``shadow --sun``, ``relight --from/--to``, ``timelapse --from``) below the horizon is refused
-with one line and exit status 2; a time-lapse path that dips below the horizon (a real day's
-sunrise and sunset, a sweep) renders those frames with the sun at the horizon.
+(``shadow --sun``, ``relight --from/--to``, ``timelapse --from``, ``batch --from/--to``) below
+the horizon is refused with one line and exit status 2; a time-lapse path that dips below the
+horizon (a real day's sunrise and sunset, a sweep: ``timelapse --sweep`` and ``batch --sweep``
+alike) renders those frames with the sun at the horizon.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from outcast_core.runtime.cli.main import main, parse_azel
+from outcast_core.runtime.cli.main import build_parser, main, parse_azel
 from outcast_core.runtime.pipeline.timelapse import MIN_RENDER_ELEVATION, sun_vectors, sweep_path
 
 
@@ -53,3 +54,36 @@ def test_timelapse_paths_below_the_horizon_render_at_the_horizon():
     lowest = min(sun_vectors(samples), key=lambda w: -w[1])
     el = np.degrees(np.arcsin(-lowest[1]))
     assert el == pytest.approx(MIN_RENDER_ELEVATION)
+
+
+#: The start of each command line whose --sweep / --from / --to are checked (parsing only).
+_SWEEP_COMMANDS = {
+    "timelapse": ["timelapse", "photo.jpg", "--from", "90,30", "-o", "out.mp4"],
+    "batch": ["batch", "photos", "-o", "out"],
+}
+
+
+@pytest.mark.parametrize("command", sorted(_SWEEP_COMMANDS))
+def test_a_sweep_end_may_be_below_the_horizon(command):
+    """One rule for both commands (one parser): a sweep is a sun path, so an end may dip below
+    the horizon (down to -90); a malformed end or one past -90 is refused by both."""
+    parser = build_parser()
+    argv = _SWEEP_COMMANDS[command]
+    args = parser.parse_args([*argv, "--sweep", "90,10:270,-10"])
+    assert args.sweep == ((90.0, 10.0), (270.0, -10.0))
+    args = parser.parse_args([*argv, "--sweep", "0,-90:45,0"])
+    assert args.sweep == ((0.0, -90.0), (45.0, 0.0))
+    for bad in ("90,10:270,-91", "90,10", "90,10:east,5", "90,nan:0,5"):
+        with pytest.raises(SystemExit) as exc:
+            parser.parse_args([*argv, "--sweep", bad])
+        assert exc.value.code == 2
+
+
+@pytest.mark.parametrize("option", ["--from", "--to"])
+def test_batch_refuses_a_still_sun_below_the_horizon(option, capsys):
+    parser = build_parser()
+    assert parser.parse_args(["batch", "photos", "-o", "out", option, "90,0"]) is not None
+    with pytest.raises(SystemExit) as exc:
+        parser.parse_args(["batch", "photos", "-o", "out", option, "90,-10"])
+    assert exc.value.code == 2
+    assert "above the horizon" in capsys.readouterr().err
