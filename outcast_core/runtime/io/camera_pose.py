@@ -26,15 +26,15 @@ Example:
 
 from __future__ import annotations
 
-import math
 import os
 import re
 from dataclasses import dataclass
 from typing import Any
 
+from outcast_core.runtime.io.exif import TAG_EXIF_IFD, _sub_ifd, _to_float
+
 #: Exif ``CameraElevationAngle`` (Exif IFD).
 TAG_CAMERA_ELEVATION_ANGLE = 0x9405
-TAG_EXIF_IFD = 0x8769
 #: XMP properties, ``(namespace prefix, pitch name, roll name, source)``, in order of preference.
 XMP_PROPERTIES: tuple[tuple[str, str, str, str], ...] = (
     ("drone-dji", "GimbalPitchDegree", "GimbalRollDegree", "XMP DJI gimbal"),
@@ -69,18 +69,21 @@ class CameraPose:
         return self.pitch, 0.0 if self.roll is None else self.roll
 
 
-def _number(text: str | None, limit: float) -> float | None:
-    if text is None:
-        return None
-    try:
-        v = float(text.strip())
-    except ValueError:
-        return None
-    return v if math.isfinite(v) and abs(v) <= limit else None
+def _angle(value: Any, limit: float) -> float | None:
+    """A finite angle within ``[-limit, limit]`` from an XMP text or an Exif number (rational,
+    1-tuple, numeric string: :func:`~outcast_core.runtime.io.exif._to_float`), or None."""
+    v = _to_float(value)
+    return v if v is not None and abs(v) <= limit else None
 
 
 def _xmp_value(xmp: str, prefix: str, name: str) -> str | None:
-    """A simple XMP property as an attribute (``p:n="v"``) or an element (``<p:n>v</p:n>``)."""
+    """A simple XMP property as an attribute (``p:n="v"``) or an element (``<p:n>v</p:n>``).
+
+    Found by its usual prefix, leniently, rather than with the XML reader of
+    :mod:`~outcast_core.runtime.io.phone_depth` (``parse_xmp``): that one needs well-formed XML
+    with the namespaces declared (it refuses the whole packet otherwise), while a pose in a
+    packet without them is read here, as it always was.
+    """
     q = re.escape(f"{prefix}:{name}")
     m = re.search(rf"{q}\s*=\s*([\"'])(.*?)\1", xmp, re.S)
     if m:
@@ -97,8 +100,8 @@ def pose_from_xmp(xmp: str | bytes | None) -> CameraPose | None:
         xmp = bytes(xmp[:MAX_XMP_CHARS]).decode("utf-8", "replace")
     xmp = xmp[:MAX_XMP_CHARS]
     for prefix, pitch_name, roll_name, source in XMP_PROPERTIES:
-        pitch = _number(_xmp_value(xmp, prefix, pitch_name), 90.0)
-        roll = _number(_xmp_value(xmp, prefix, roll_name), 180.0)
+        pitch = _angle(_xmp_value(xmp, prefix, pitch_name), 90.0)
+        roll = _angle(_xmp_value(xmp, prefix, roll_name), 180.0)
         if pitch is not None or roll is not None:
             return CameraPose(pitch, roll, source)
     return None
@@ -108,13 +111,7 @@ def pose_from_exif(exif: Any) -> CameraPose | None:
     """The pitch in Exif ``CameraElevationAngle`` (a Pillow ``Image.Exif``), or None."""
     if exif is None:
         return None
-    try:
-        ifd = exif.get_ifd(TAG_EXIF_IFD) if hasattr(exif, "get_ifd") else exif.get(
-            TAG_EXIF_IFD, {})
-        value = ifd.get(TAG_CAMERA_ELEVATION_ANGLE) if hasattr(ifd, "get") else None
-        pitch = None if value is None else _number(str(float(value)), 90.0)
-    except (TypeError, ValueError, ZeroDivisionError, KeyError, AttributeError):
-        return None
+    pitch = _angle(_sub_ifd(exif, TAG_EXIF_IFD).get(TAG_CAMERA_ELEVATION_ANGLE), 90.0)
     return None if pitch is None else CameraPose(pitch, None, "Exif CameraElevationAngle")
 
 

@@ -52,6 +52,7 @@ import math
 import os
 import struct
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -304,6 +305,39 @@ def jpeg_xmp_packets(data: bytes) -> tuple[bytes | None, dict[str, bytes]]:
     return standard, extended
 
 
+def parse_xmp(packet: bytes) -> ET.Element:
+    """An XMP packet's XML tree (parse a packet once; read it with :func:`tree_properties`).
+
+    Raises:
+        PhoneDepthError: the packet is not well-formed XML.
+    """
+    try:
+        return ET.fromstring(packet.strip(b"\x00 \t\r\n"))
+    except ET.ParseError as exc:
+        raise PhoneDepthError(f"the photo's XMP metadata is not well-formed XML ({exc})") from exc
+
+
+def tree_properties(root: ET.Element, namespace: str) -> dict[str, str]:
+    """Every property of ``namespace`` in a parsed XMP packet, as attributes or as elements.
+
+    Args:
+        root: from :func:`parse_xmp`.
+        namespace: the namespace URI.
+
+    Returns:
+        ``{local name: text}``, the first of each name in document order.
+    """
+    prefix = "{" + namespace + "}"
+    props: dict[str, str] = {}
+    for element in root.iter():
+        for key, value in element.attrib.items():
+            if key.startswith(prefix):
+                props.setdefault(key[len(prefix):], value)
+        if isinstance(element.tag, str) and element.tag.startswith(prefix):
+            props.setdefault(element.tag[len(prefix):], (element.text or "").strip())
+    return props
+
+
 def xmp_properties(packet: bytes, namespace: str) -> dict[str, str]:
     """Every property of ``namespace`` in an XMP packet, as attributes or as elements.
 
@@ -317,34 +351,62 @@ def xmp_properties(packet: bytes, namespace: str) -> dict[str, str]:
     Raises:
         PhoneDepthError: the packet is not well-formed XML.
     """
-    text = packet.strip(b"\x00 \t\r\n")
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise PhoneDepthError(f"the photo's XMP metadata is not well-formed XML ({exc})") from exc
-    prefix = "{" + namespace + "}"
-    props: dict[str, str] = {}
-    for element in root.iter():
-        for key, value in element.attrib.items():
-            if key.startswith(prefix):
-                props.setdefault(key[len(prefix):], value)
-        if isinstance(element.tag, str) and element.tag.startswith(prefix):
-            props.setdefault(element.tag[len(prefix):], (element.text or "").strip())
-    return props
+    return tree_properties(parse_xmp(packet), namespace)
 
 
-def gdepth_properties(data: bytes) -> dict[str, str]:
-    """The GDepth properties of a JPEG, the standard and the extended XMP merged ({} if none)."""
-    standard, extended = jpeg_xmp_packets(data)
+class JpegXmp:
+    """A JPEG's XMP packets (:func:`jpeg_xmp_packets`), each parsed at most once, when first
+    needed: the GDepth and the Dynamic Depth readers share them.
+
+    Args:
+        data: the JPEG file's bytes.
+
+    Raises:
+        PhoneDepthError: an extended XMP chunk lies outside its declared length.
+    """
+
+    def __init__(self, data: bytes) -> None:
+        self.standard_packet, self.extended_packets = jpeg_xmp_packets(data)
+        self._standard: ET.Element | None = None
+        self._extended: dict[str, ET.Element] = {}
+
+    def standard(self) -> ET.Element | None:
+        """The standard packet's tree (None without one); :class:`PhoneDepthError` if it is
+        not well-formed."""
+        if self._standard is None and self.standard_packet is not None:
+            self._standard = parse_xmp(self.standard_packet)
+        return self._standard
+
+    def extended(self, guid: str) -> ET.Element:
+        """The tree of the extended packet ``guid`` (a key of :attr:`extended_packets`)."""
+        if guid not in self._extended:
+            self._extended[guid] = parse_xmp(self.extended_packets[guid])
+        return self._extended[guid]
+
+    def trees(self) -> list[ET.Element]:
+        """Every packet's tree, the standard one first."""
+        standard = self.standard()
+        extended = [self.extended(guid) for guid in self.extended_packets]
+        return ([standard] if standard is not None else []) + extended
+
+
+def gdepth_properties(data: bytes | JpegXmp) -> dict[str, str]:
+    """The GDepth properties of a JPEG, the standard and the extended XMP merged ({} if none).
+
+    Args:
+        data: the JPEG file's bytes, or its :class:`JpegXmp` (its packets parsed once).
+    """
+    xmp = data if isinstance(data, JpegXmp) else JpegXmp(data)
+    standard = xmp.standard()
     if standard is None:
         return {}
-    props = xmp_properties(standard, GDEPTH_NS)
+    props = tree_properties(standard, GDEPTH_NS)
     if not props:
         return {}
-    guid = xmp_properties(standard, XMP_NOTE_NS).get("HasExtendedXMP", "")
-    packets = [extended[guid]] if guid in extended else list(extended.values())
-    for packet in packets:
-        for key, value in xmp_properties(packet, GDEPTH_NS).items():
+    guid = tree_properties(standard, XMP_NOTE_NS).get("HasExtendedXMP", "")
+    guids = [guid] if guid in xmp.extended_packets else list(xmp.extended_packets)
+    for g in guids:
+        for key, value in tree_properties(xmp.extended(g), GDEPTH_NS).items():
             props.setdefault(key, value)
     return props
 
@@ -432,7 +494,7 @@ def _primary_end(data: bytes) -> int:
     return len(data)
 
 
-def dynamic_depth(data: bytes, packets: list[bytes]) -> PhoneDepth | None:
+def dynamic_depth(data: bytes, packets: Sequence[bytes | ET.Element]) -> PhoneDepth | None:
     """The depth map of a Dynamic Depth JPEG, or None when the XMP describes none.
 
     The XMP (``Device:Container``) lists the files appended after the photo in order
@@ -442,19 +504,17 @@ def dynamic_depth(data: bytes, packets: list[bytes]) -> PhoneDepth | None:
 
     Args:
         data: the JPEG file's bytes.
-        packets: its XMP packets (standard and extended).
+        packets: its XMP packets (standard and extended), as bytes or already parsed
+            (:func:`parse_xmp`).
 
     Raises:
-        PhoneDepthError: the depth item is missing or lies outside the file.
+        PhoneDepthError: the depth item is missing or lies outside the file, or a packet is
+            not well-formed XML.
     """
     depth_props: dict[str, str] = {}
     items: list[dict[str, str]] = []
     for packet in packets:
-        try:
-            root = ET.fromstring(packet.strip(b"\x00 \t\r\n"))
-        except ET.ParseError as exc:
-            raise PhoneDepthError(f"the photo's XMP metadata is not well-formed XML "
-                                  f"({exc})") from exc
+        root = packet if isinstance(packet, ET.Element) else parse_xmp(packet)
         for element in root.iter():
             if element.tag == "{" + DD_CONTAINER_NS + "}Item":
                 items.append(_element_props(element, DD_ITEM_NS))
@@ -572,13 +632,13 @@ def read_phone_depth(path: str | os.PathLike[str], photo_hw: tuple[int, int] | N
         head = f.read(12)
     if head[:2] == b"\xff\xd8":
         data = path.read_bytes()
-        props = gdepth_properties(data)
+        xmp = JpegXmp(data)  # segments found and each packet parsed once for both readers
+        props = gdepth_properties(xmp)
         if props:
             found = decode_gdepth(props)
         else:
-            standard, extended = jpeg_xmp_packets(data)
-            packets = ([standard] if standard else []) + list(extended.values())
-            dd = dynamic_depth(data, packets) if packets else None
+            trees = xmp.trees()
+            dd = dynamic_depth(data, trees) if trees else None
             if dd is None:
                 return None
             found = dd

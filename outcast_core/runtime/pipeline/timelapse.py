@@ -816,25 +816,6 @@ def describe_seconds(seconds: float) -> str:
     return f"about {minutes // 60} h {minutes % 60} min"
 
 
-def _frame_renderer(session: Any, size: str) -> Callable[[np.ndarray], np.ndarray]:
-    """``sun -> frame`` at ``size``: the working-size relighting, resized or moved onto the photo
-    at that size (its detail kept), like :meth:`RelightSession.relight_full` at any size."""
-    from outcast_core.runtime.pipeline.relight import transfer_to_full_resolution
-    from outcast_core.runtime.pipeline.session import resize
-
-    full = session.full_image_srgb
-    work = session.image_srgb
-    shape = frame_shape(size, full.shape[:2], work.shape[:2])
-    if size == "working" or shape == work.shape[:2]:
-        return session.relight
-    if shape == full.shape[:2]:
-        return session.relight_full
-    if shape[0] * shape[1] <= work.shape[0] * work.shape[1]:
-        return lambda w: resize(session.relight(w), shape)
-    photo = resize(full, shape)  # once: every frame starts from the photo at the frame size
-    return lambda w: transfer_to_full_resolution(photo, work, session.relight(w))
-
-
 def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray], np.ndarray]:
     """``working-size relit frame -> frame at size`` (uint8 above the working size): moved
     onto the photo at the frame's size (its detail kept) with the banded 8-bit transfer, the
@@ -892,20 +873,13 @@ def render_timelapse(
     if size is None:
         size = "full" if full_resolution else "working"
     suns = sun_vectors(samples)
-    if hasattr(session, "relight_stream"):
-        # Two stages at once (the next sun's shadow while this one is relit), and each frame
-        # made at its own size from the working-size result (never via full resolution).
-        to_frame = _frame_maker(session, size)
-        stream = session.relight_stream(suns)
+    # Two stages at once (the next sun's shadow while this one is relit), and each frame made
+    # at its own size from the working-size result (never via full resolution).
+    to_frame = _frame_maker(session, size)
+    stream = session.relight_stream(suns)
 
-        def render_frame(_i: int) -> np.ndarray:
-            return to_frame(next(stream))
-    else:
-        stream = None
-        render = _frame_renderer(session, size)
-
-        def render_frame(i: int) -> np.ndarray:
-            return render(suns[i])
+    def render_frame(_i: int) -> np.ndarray:
+        return to_frame(next(stream))
 
     try:
         return export_frames(
@@ -919,5 +893,4 @@ def render_timelapse(
             cancel=cancel,
         )
     finally:
-        if stream is not None:
-            stream.close()  # a cancelled export: the shadow thread ends here
+        stream.close()  # a cancelled export: the shadow thread ends here

@@ -12,6 +12,7 @@ from PIL import Image, PngImagePlugin
 from outcast_core.runtime.geometry.camera import sun_angles
 from outcast_core.runtime.io.camera_pose import (
     CameraPose,
+    pose_from_exif,
     pose_from_xmp,
     read_camera_pose,
 )
@@ -76,6 +77,24 @@ def test_no_pose_and_bad_values(tmp_path: Path) -> None:
     assert pose_from_xmp('GPano:PosePitchDegrees="abc"') is None
     roll_only = pose_from_xmp('GPano:PoseRollDegrees="10"')
     assert roll_only == CameraPose(None, 10.0, "XMP GPano") and roll_only.pitch_roll() is None
+    assert pose_from_xmp('GPano:PosePitchDegrees=""') is None
+
+
+def test_xmp_without_namespace_declarations_is_still_read() -> None:
+    """The pose is found by its prefix, so a packet that is not well-formed XML (undeclared
+    prefixes, as in the app's Find sun test) still gives it."""
+    loose = b'<x:xmpmeta><rdf:Description GPano:PosePitchDegrees=" -8.5 " /></x:xmpmeta>'
+    assert pose_from_xmp(loose) == CameraPose(-8.5, None, "XMP GPano")
+
+
+def test_malformed_exif_pitch_gives_none() -> None:
+    assert pose_from_exif({0x8769: {0x9405: (-25, 2)}}) == CameraPose(
+        -12.5, None, "Exif CameraElevationAngle")  # a plain mapping, a rational as a pair
+    assert pose_from_exif({0x8769: {0x9405: (1, 0)}}) is None  # zero denominator
+    assert pose_from_exif({0x8769: {0x9405: 91}}) is None  # out of range
+    assert pose_from_exif({0x8769: {0x9405: "abc"}}) is None
+    assert pose_from_exif({0x8769: "junk"}) is None and pose_from_exif({}) is None
+    assert pose_from_exif(None) is None
 
 
 def test_the_sample_photos_record_no_pose() -> None:

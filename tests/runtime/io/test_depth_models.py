@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from outcast_core.runtime.geometry.camera import Camera
 from outcast_core.runtime.io.depth_models import (
     ModelDepthSource,
     PhoneDepthSource,
@@ -119,6 +120,31 @@ def test_no_sky_uses_the_level_grounds_horizon() -> None:
     assert np.median(np.abs(depth / truth - 1)) < 0.05
 
 
+def test_affine_ground_finds_a_known_plane_among_outliers() -> None:
+    cam = Camera.from_fov(240, 320, 60.0)  # 38 400 lower-half pixels: AFFINE_POINTS sampled
+    xs = (np.arange(cam.width) + 0.5 - cam.cx) / cam.focal
+    ys = (np.arange(cam.height) + 0.5 - cam.cy) / cam.focal
+    xx, yy = np.meshgrid(xs, ys)
+    rng = np.random.default_rng(5)
+    plane = (0.15, 0.9, 0.35)
+    r = plane[0] * xx + plane[1] * yy + plane[2] + rng.normal(0.0, 1e-3, xx.shape)
+    outliers = rng.random(r.shape) < 0.35  # a third of the pixels anywhere in the range
+    r[outliers] = rng.uniform(r.min(), r.max(), int(outliers.sum()))
+    r[:5, :5] = np.nan  # not finite: left out
+    sky = np.zeros(r.shape, bool)
+    fit = fit_affine_ground(r, sky, cam, seed=3)
+    assert fit is not None
+    np.testing.assert_allclose(fit, plane, atol=2e-3)
+    assert fit_affine_ground(r, sky, cam, seed=3) == fit  # deterministic for a seed
+    assert fit_affine_ground(r.astype(np.float32), sky, cam, seed=3) == pytest.approx(fit,
+                                                                                     abs=1e-5)
+    assert fit_affine_ground(r, sky, cam, seed=4) == pytest.approx(fit, abs=1e-3)
+    # A ceiling (nearer toward the top) is no ground; pure noise and too few pixels give none.
+    assert fit_affine_ground(plane[0] * xx - plane[1] * yy + plane[2], sky, cam) is None
+    assert fit_affine_ground(rng.uniform(0, 1, r.shape), sky, cam) is None
+    assert fit_affine_ground(r, np.ones(r.shape, bool), cam) is None
+
+
 def test_far_sky_needs_the_top_and_a_sky_colour() -> None:
     truth, cam = outdoor_scene()
     image, _ = encode_inverse_image(truth)
@@ -136,6 +162,25 @@ def test_scale_without_a_ground_plane_sets_the_median() -> None:
     assert np.median(d) == pytest.approx(10.0)
     with pytest.raises(ValueError, match="camera height"):
         scale_to_ground(d, np.zeros((48, 64), bool), cam, camera_height=0.0)
+
+
+def test_the_photo_is_shrunk_before_it_is_made_float32(tmp_path: Path) -> None:
+    """uint8, float32 and float64 photos (and a strided view) give the same model output."""
+    big, _ = encode_inverse_image(outdoor_scene(96, 128)[0])
+    path = tiny_depth_model(tmp_path / "da.onnx", input_name="pixel_values",
+                            output_name="predicted_depth", size=None, block=14, gain=7.0,
+                            offset=0.3)
+    model = load_depth_model(path, threads=1)
+    as_u8 = np.round(big * 255).astype(np.uint8)
+    ref = model.run(as_u8 / np.float32(255.0), (48, 64))
+    np.testing.assert_array_equal(model.run(as_u8, (48, 64)), ref)
+    np.testing.assert_allclose(model.run((as_u8 / 255.0).astype(np.float64), (48, 64)), ref,
+                               atol=1e-5)
+    wide = np.zeros((96, 256, 3), np.float32)
+    wide[:, ::2] = as_u8 / np.float32(255.0)
+    np.testing.assert_array_equal(model.run(wide[:, ::2], (48, 64)), ref)
+    with pytest.raises(ValueError, match="H x W x 3"):
+        model.run(as_u8[..., :2])
 
 
 def test_bad_models_and_sidecars_give_clear_errors(tmp_path: Path) -> None:

@@ -107,6 +107,32 @@ def test_dynamic_depth_item_out_of_place_is_refused(tmp_path: Path) -> None:
         read_phone_depth(path)
 
 
+@pytest.mark.parametrize("kind", ["gdepth", "dynamic"])
+def test_each_xmp_packet_is_read_once(tmp_path: Path, monkeypatch, kind: str) -> None:
+    q = np.round(range_linear(_scene(), 1.0, 50.0) * 255).astype(np.uint8)
+    make = gdepth_jpeg if kind == "gdepth" else dynamic_depth_jpeg
+    path = make(tmp_path / "p.jpg", _photo(), png_bytes(q), fmt="RangeLinear", near=1.0,
+                far=50.0)
+    calls = {"scan": 0, "parse": []}
+    scan, parse = phone_depth.jpeg_xmp_packets, phone_depth.parse_xmp
+
+    def counted_scan(data: bytes):
+        calls["scan"] += 1
+        return scan(data)
+
+    def counted_parse(packet: bytes):
+        calls["parse"].append(packet)
+        return parse(packet)
+
+    monkeypatch.setattr(phone_depth, "jpeg_xmp_packets", counted_scan)
+    monkeypatch.setattr(phone_depth, "parse_xmp", counted_parse)
+    found = read_phone_depth(path)
+    assert found is not None and found.container.endswith("RangeLinear")
+    standard, extended = scan(path.read_bytes())
+    assert calls["scan"] == 1
+    assert sorted(calls["parse"]) == sorted([standard, *extended.values()])  # once each
+
+
 def test_plain_photos_have_no_phone_depth(tmp_path: Path) -> None:
     for ext in (".jpg", ".png"):
         p = tmp_path / f"plain{ext}"
