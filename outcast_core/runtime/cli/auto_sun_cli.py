@@ -53,7 +53,7 @@ def cmd_sun(args: argparse.Namespace) -> int:
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``outcast sun`` to the ``outcast`` command line."""
-    from outcast_core.runtime.cli.main import _fov
+    from outcast_core.runtime.cli.main import add_input_options
 
     p = sub.add_parser("sun", help="find the photo's sun from its shadows (and its EXIF GPS, "
                                    "time and heading)")
@@ -64,17 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "only)")
     p.add_argument("--mode", choices=["auto", "direct", "learned"], default="auto",
                    help="predicted shadows: learned S network (default when installed) or Direct")
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--depth", help="depth map (.npy float32 H x W, 16-bit PNG or .exr) "
-                                   "to use instead of the depth model")
-    g.add_argument("--depth-model", metavar="MODEL.onnx",
-                   help="a monocular ONNX depth model to use instead of the shipped one")
-    p.add_argument("--no-phone-depth", action="store_true",
-                   help="ignore a depth map stored inside the photo (phone portrait photos)")
-    p.add_argument("--fov", type=_fov, default=None,
-                   help="horizontal field of view in degrees (default: EXIF, else 60)")
-    p.add_argument("--preset", choices=["fast", "balanced", "accurate"], default="balanced",
-                   help="speed/accuracy preset")
+    add_input_options(p)
     p.add_argument("-q", "--quiet", action="store_true", help="print only the result")
     p.set_defaults(func=cmd_sun)
 

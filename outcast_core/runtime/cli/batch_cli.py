@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from outcast_core.runtime.cli.main import int_in
+from outcast_core.runtime.cli.main import int_in, names_in
 from outcast_core.runtime.cli.timelapse_cli import SWEEP_HELP, frame_count, sun_pair, sweep_ends
 from outcast_core.runtime.pipeline.batch import (
     FORMATS,
@@ -28,15 +28,6 @@ from outcast_core.runtime.pipeline.batch import (
     run_batch,
     summarize,
 )
-
-
-def _sources(text: str) -> tuple[str, ...]:
-    names = tuple(s.strip() for s in text.split(",") if s.strip())
-    bad = [s for s in names if s not in SUN_SOURCES]
-    if not names or bad:
-        raise argparse.ArgumentTypeError(
-            f"expected sources from {', '.join(SUN_SOURCES)} separated by commas, got {text!r}")
-    return names
 
 
 def register(subparsers: Any) -> argparse.ArgumentParser:
@@ -77,7 +68,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                         "the photos to do and their suns")
     p.add_argument("--from", dest="from_sun", type=sun_pair, metavar="AZ,EL",
                    help="the original sun of photos with no project file or EXIF sun")
-    p.add_argument("--sources", type=_sources, default=SUN_SOURCES, metavar="LIST",
+    p.add_argument("--sources", type=names_in(SUN_SOURCES, "sources"), default=SUN_SOURCES,
+                   metavar="LIST",
                    help="where original suns come from, in order (default "
                         f"{','.join(SUN_SOURCES)}; 'given' is --from, 'auto' the automatic sun)")
     p.add_argument("--format", dest="fmt", default="", metavar="FMT",

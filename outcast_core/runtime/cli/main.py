@@ -248,7 +248,9 @@ def cmd_depth(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_common(p: argparse.ArgumentParser, *, depth: bool = True) -> None:
+def add_input_options(p: argparse.ArgumentParser, *, depth: bool = True) -> None:
+    """The options every command that reads a photo shares: where depth comes from, the field
+    of view and the preset (``outcast sun`` adds its own output options)."""
     g = p.add_mutually_exclusive_group()
     if depth:
         g.add_argument("--depth", help="depth map (.npy float32 H x W, 16-bit PNG or .exr) "
@@ -262,6 +264,10 @@ def _add_common(p: argparse.ArgumentParser, *, depth: bool = True) -> None:
                    help="horizontal field of view in degrees (default: EXIF, else 60)")
     p.add_argument("--preset", choices=["fast", "balanced", "accurate"],
                    default=DEFAULT_CLI_PRESET, help="speed/accuracy preset")
+
+
+def _add_common(p: argparse.ArgumentParser, *, depth: bool = True) -> None:
+    add_input_options(p, depth=depth)
     p.add_argument("-o", "--output", required=True, help="output file")
     p.add_argument("--force", action="store_true", help="overwrite an existing output file")
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
@@ -289,7 +295,7 @@ def build_parser(
                    help="learned S network (default when installed) or Direct ray marching")
     p.add_argument("--thickness", default=math.inf, type=_thickness,
                    help="Direct occluder thickness relative to depth, or 'inf' (default)")
-    p.add_argument("--steps", type=_direct_steps, default=None,
+    p.add_argument("--steps", type=int_in(1, MAX_DIRECT_STEPS, "step count"), default=None,
                    help=f"Direct march steps across one image side, 1..{MAX_DIRECT_STEPS} "
                         "(default: from the preset; --mode direct only)")
     _add_common(p)
@@ -364,21 +370,21 @@ def int_in(low: int, high: int, what: str) -> Callable[[str], int]:
     return parse
 
 
-def _positive_int(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from exc
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return n
+def names_in(names: Sequence[str], what: str) -> Callable[[str], tuple[str, ...]]:
+    """An argparse ``type`` accepting a comma-separated list of ``names`` (at least one).
 
+    Example:
+        >>> names_in(("fast", "balanced"), "presets")("fast, balanced")
+        ('fast', 'balanced')
+    """
+    def parse(text: str) -> tuple[str, ...]:
+        got = tuple(n.strip() for n in text.split(",") if n.strip())
+        if not got or any(n not in names for n in got):
+            raise argparse.ArgumentTypeError(
+                f"expected {what} from {', '.join(names)} separated by commas, got {text!r}")
+        return got
 
-def _direct_steps(text: str) -> int:
-    n = _positive_int(text)
-    if n > MAX_DIRECT_STEPS:
-        raise argparse.ArgumentTypeError(f"expected at most {MAX_DIRECT_STEPS} steps, got {n}")
-    return n
+    return parse
 
 
 def _fov(text: str) -> float:

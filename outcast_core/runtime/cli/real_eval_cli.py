@@ -14,16 +14,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from outcast_core.runtime.cli.main import names_in
 from outcast_core.runtime.pipeline.session import PRESETS
-
-
-def _presets(text: str) -> list[str]:
-    names = [p.strip() for p in text.split(",") if p.strip()]
-    bad = [p for p in names if p not in PRESETS]
-    if not names or bad:
-        raise argparse.ArgumentTypeError(
-            f"expected presets from {sorted(PRESETS)} separated by commas, got {text!r}")
-    return names
 
 
 def register(subparsers: Any) -> argparse.ArgumentParser:
@@ -38,7 +30,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
         "error on pairs with a NAME_free.* twin, and the time per photo.",
     )
     p.add_argument("folder", metavar="DIR", help="folder of NAME_image.* and NAME_mask.png")
-    p.add_argument("--preset", type=_presets, default=["balanced"],
+    p.add_argument("--preset", type=names_in(tuple(PRESETS), "presets"),
+                   default=("balanced",),
                    help="preset, or several separated by commas (fast,balanced,accurate) to "
                    "measure the speed/accuracy trade")
     p.add_argument("--mode", choices=["auto", "learned", "classic"], default="auto",

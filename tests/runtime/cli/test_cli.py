@@ -106,3 +106,33 @@ def test_output_folder_is_created(photo: Path, tmp_path: Path) -> None:
     assert main(["relight", str(photo), "--from", "120,40", "--to", "250,30", "-o", str(out),
                  "-q"]) == 0
     assert out.is_file()
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["shadow", "p.jpg", "--sun", "1,2", "--steps", "0", "-o", "o.png"],
+         "step count in [1, "),
+        (["shadow", "p.jpg", "--sun", "1,2", "--steps", "many", "-o", "o.png"],
+         "step count in [1, "),
+        (["eval-real", "d", "--preset", "fast,quick"],
+         "presets from fast, balanced, accurate separated by commas"),
+        (["eval-real", "d", "--preset", ","], "presets from"),
+        (["batch", "d", "--to", "1,2", "--sources", "exif,moon"], "sources from"),
+    ],
+)
+def test_option_lists_and_ranges_say_what_they_take(argv, message, capsys) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert message in capsys.readouterr().err
+
+
+def test_sun_takes_the_same_input_options_as_the_other_commands(capsys) -> None:
+    from outcast_core.runtime.cli.main import DEFAULT_CLI_PRESET, build_parser
+
+    p = build_parser()
+    args = p.parse_args(["sun", "p.jpg", "--depth-model", "m.onnx", "--fov", "50"])
+    assert (args.depth_model, args.fov, args.preset) == ("m.onnx", 50.0, DEFAULT_CLI_PRESET)
+    assert p.parse_args(["eval-real", "d", "--preset", "fast, accurate"]).preset == (
+        "fast", "accurate")
