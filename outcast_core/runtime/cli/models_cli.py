@@ -18,6 +18,7 @@ from outcast_core.runtime.io.models import (
     ModelError,
     ModelRegistry,
     check_model_io,
+    onnx_session,
     sha256_file,
 )
 
@@ -55,7 +56,7 @@ def model_report(registry: ModelRegistry, names: tuple[str, ...] = KNOWN_MODELS,
             elif load:
                 # Its sha256 was just checked: open it and check its inputs and outputs as
                 # ModelRegistry.load does, without hashing the file a second time.
-                check_model_io(name, manifest, ModelRegistry._session(path, registry.threads),
+                check_model_io(name, manifest, onnx_session(path, registry.threads),
                                path)
         except ModelError as exc:
             row.update(status="error", message=str(exc))

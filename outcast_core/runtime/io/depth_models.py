@@ -58,7 +58,7 @@ import cv2
 import numpy as np
 
 from outcast_core.runtime.geometry.camera import Camera
-from outcast_core.runtime.io.models import ModelError, ModelRegistry
+from outcast_core.runtime.io.models import ModelError, onnx_session
 from outcast_core.runtime.io.phone_depth import PhoneDepth, phone_depth_at
 from outcast_core.runtime.pipeline.depth_post import (
     GROUND_ROWS,
@@ -553,7 +553,7 @@ def load_depth_model(path: str | os.PathLike[str], threads: int | None = None
     if not path.is_file():
         raise ModelError(f"depth model '{path}' not found")
     try:  # the shipped models' session settings (CPU, quiet, the thread count)
-        session = ModelRegistry._session(path, threads)
+        session = onnx_session(path, threads)
     except ModelError as exc:
         cause = exc.__cause__ or exc  # onnxruntime's own error
         raise ModelError(f"depth model '{path}' is not a readable ONNX model "

@@ -223,7 +223,7 @@ class ModelRegistry:
                     return self._loaded[key]
             base = self.load(name)  # verified once, with the registry's threads
             model = Model(name, base.path, base.manifest,
-                          self._session(base.path, threads))
+                          onnx_session(base.path, threads))
             with self._lock:
                 return self._loaded.setdefault(key, model)
         with self._lock:
@@ -239,26 +239,30 @@ class ModelRegistry:
                     f"model file {onnx_path} is corrupt: sha256 {digest[:12]}... does not match "
                     f"the manifest's {str(manifest['sha256'])[:12]}...; reinstall the models"
                 )
-            sess = self._session(onnx_path, self.threads)
+            sess = onnx_session(onnx_path, self.threads)
             check_model_io(name, manifest, sess, onnx_path)
             model = Model(name, onnx_path, manifest, sess)
             self._loaded[name] = model
             return model
 
-    @staticmethod
-    def _session(onnx_path: Path, threads: int | None) -> Any:
-        import onnxruntime as ort
 
-        opts = ort.SessionOptions()
-        if threads:
-            opts.intra_op_num_threads = threads
-        opts.log_severity_level = 3
-        try:
-            return ort.InferenceSession(
-                str(onnx_path), sess_options=opts, providers=["CPUExecutionProvider"]
-            )
-        except Exception as exc:  # onnxruntime raises its own exception types
-            raise ModelError(f"model file {onnx_path} could not be loaded: {exc}") from exc
+def onnx_session(onnx_path: Path, threads: int | None) -> Any:
+    """An onnxruntime CPU session for ``onnx_path`` (``threads`` intra-op threads, or
+    onnxruntime's default), or :class:`ModelError` saying why the file could not be loaded.
+    Checks nothing about what the model computes: :meth:`ModelRegistry.load` verifies the
+    manifest and checksum first."""
+    import onnxruntime as ort
+
+    opts = ort.SessionOptions()
+    if threads:
+        opts.intra_op_num_threads = threads
+    opts.log_severity_level = 3
+    try:
+        return ort.InferenceSession(
+            str(onnx_path), sess_options=opts, providers=["CPUExecutionProvider"]
+        )
+    except Exception as exc:  # onnxruntime raises its own exception types
+        raise ModelError(f"model file {onnx_path} could not be loaded: {exc}") from exc
 
 
 def check_manifest(data: Any, path: Path) -> None:
