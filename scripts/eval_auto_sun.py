@@ -122,14 +122,16 @@ def measure_synthetic(folder: str, *, preset: str, limit: int | None,
                       given_depth: bool) -> dict[str, Any]:
     """The synthetic figures: angle to the true sun per (view, sun) pair."""
     from outcast_core.data.dataset import iter_views
-    from outcast_core.runtime.geometry.colour import linear_to_srgb
+    from outcast_core.runtime.geometry.colour import tonemap_aces
 
     rows = []
     for view in iter_views(folder):
         for k in range(len(view["sun"])):
             if limit and len(rows) >= limit:
                 break
-            img = np.clip(linear_to_srgb(view["rgb"][k] * view["exposure"]), 0.0, 1.0)
+            # The training views' tone curve (train.data.tonemap: ACES, then sRGB), as Z and
+            # S saw them; a plain sRGB encoding clips the highlights they never saw clipped.
+            img = tonemap_aces(view["rgb"][k], view["exposure"])
             s = RelightSession(preset=preset)
             depth = np.where(view["sky"], np.inf, view["depth"]) if given_depth else None
             s.set_image(img.astype(np.float32), fov_deg=view["fov_deg"], depth=depth)

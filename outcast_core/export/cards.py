@@ -90,6 +90,11 @@ def _branch_lines(br: dict[str, Any] | None) -> list[str]:
     """The card line of a run that continues another (``resume_from``), or none."""
     if not br:
         return []
+    if br.get("init_onnx"):
+        return [f"- Starts from the weights of `{Path(br['init_onnx']).name}` (sha256 "
+                f"{str(br['sha256'])[:12]}..., trained {br.get('step')} steps in "
+                f"{_minutes(br.get('wall_time_s'))} by `{br.get('command')}`); steps and wall "
+                "time above count this run only"]
     threads = f", trained with {br['threads']} thread(s)" if br.get("threads") else ""
     return [f"- Continues run `{br['run']}` (`{br['command']}`) from its step {br['step']} "
             f"({_minutes(br['wall_time_s'])} of the wall time above{threads}); steps and wall "

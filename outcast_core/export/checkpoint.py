@@ -68,6 +68,8 @@ def _branch(rec: dict[str, Any] | None) -> dict[str, Any] | None:
     """Where a ``resume_from`` run branched off: run, step, wall time and that run's command."""
     if not rec:
         return None
+    if rec.get("init_onnx"):
+        return {k: rec.get(k) for k in ("init_onnx", "sha256", "step", "wall_time_s", "command")}
     out = {k: rec.get(k) for k in ("run", "step", "wall_time_s", "command")}
     out["threads"] = (rec.get("config") or {}).get("threads")
     return out

@@ -43,7 +43,8 @@ class TrainConfig:
         d_every: generator steps per critic step (paper: 5).
         gt_depth_prob: probability that ``S`` sees ground-truth depth rather than ``Z``'s
             estimate (paper: 0.8; 1.0 when no ``depth_checkpoint`` is given).
-        depth_checkpoint: trained ``Z`` checkpoint used for estimated depth, or empty.
+        depth_checkpoint: trained ``Z`` checkpoint used for estimated depth (a run's
+            ``last.pt``, or a shipped ``depth.onnx`` whose checkpoint is gone), or empty.
         shadow_checkpoint: trained ``S`` checkpoint (required by ``relight``).
         new_shadow_gt_depth_prob: ``relight`` stage: probability that the new shadow ``S_n`` fed
             to ``L`` comes from ground-truth depth rather than ``Z``'s (old shadows and normals
@@ -62,12 +63,19 @@ class TrainConfig:
         resume_from: when this run has no checkpoint yet, continue the named run's checkpoint
             (networks, optimisers, step, wall time) under this config, e.g. to train longer
             with a changed loss; the checkpoint records where it branched.
+        init_onnx: when this run has no checkpoint yet, start the stage's network from the
+            weights of a shipped ONNX model (e.g. ``models/depth.onnx``: its initialisers carry
+            the network's parameter names); optimiser, step and schedule start afresh. For
+            continuing a model whose training checkpoint is gone.
         sun_noise_deg: std of the angular noise added to the original sun (user alignment).
         cloud_prob: probability of painting random clouds into the sky of a training pair (the
             synthetic skies are cloudless; see :func:`outcast_core.train.data.add_clouds`).
         zoom_prob: probability of a random zoom of a training pair (depth stage only; see
             :func:`outcast_core.train.data.zoom_crop`).
         zoom_max: the largest zoom factor (uniform in ``[1, zoom_max]``).
+        degrade_prob: probability that a pair's input photo gets a camera's flaws (white
+            balance, blur, noise, JPEG: :func:`outcast_core.train.data.degrade_photo`); the
+            depth and shadow stages only (a relighting target must stay clean).
         exposure_stops: range of the random exposure (both images of a pair alike).
         saturation: range of the random saturation factor.
         gamma: range of the random gamma.
@@ -106,10 +114,12 @@ class TrainConfig:
     postprocess_depth: bool = False
     snap_ground: bool = False
     resume_from: str = ""
+    init_onnx: str = ""
     sun_noise_deg: float = 3.0
     cloud_prob: float = 0.0
     zoom_prob: float = 0.0
     zoom_max: float = 1.5
+    degrade_prob: float = 0.0
     exposure_stops: float = 1.0
     saturation: tuple[float, float] = (0.8, 1.2)
     gamma: tuple[float, float] = (0.9, 1.1)
@@ -132,7 +142,8 @@ class TrainConfig:
             )
         if not 0.0 <= self.lr_final <= self.lr:
             raise ValueError(f"expected 0 <= lr_final <= lr, got {self.lr_final} (lr {self.lr})")
-        for key in ("gt_depth_prob", "new_shadow_gt_depth_prob", "cloud_prob", "zoom_prob"):
+        for key in ("gt_depth_prob", "new_shadow_gt_depth_prob", "cloud_prob", "zoom_prob",
+                    "degrade_prob"):
             if not 0.0 <= getattr(self, key) <= 1.0:
                 raise ValueError(f"expected {key} in [0, 1], got {getattr(self, key)}")
         if self.zoom_max < 1.0:
@@ -140,6 +151,9 @@ class TrainConfig:
         if self.zoom_prob > 0 and self.stage != "depth":
             raise ValueError(f"expected zoom_prob only for the depth stage (a zoomed view's "
                              f"principal point is off centre), got stage {self.stage!r}")
+        if self.degrade_prob > 0 and self.stage not in ("depth", "shadow", "shadow_2d"):
+            raise ValueError(f"expected degrade_prob only for the depth and shadow stages, got "
+                             f"stage {self.stage!r}")
         if self.relight_base not in ("photo", "physics"):
             raise ValueError(f"expected relight_base photo or physics, got {self.relight_base!r}")
         if self.relight_base != "photo" and self.stage != "relight":
@@ -152,6 +166,8 @@ class TrainConfig:
             raise ValueError("expected a depth_checkpoint for postprocess_depth, got none")
         if self.snap_ground and not self.postprocess_depth:
             raise ValueError("expected postprocess_depth = true for snap_ground, got false")
+        if self.init_onnx and self.resume_from:
+            raise ValueError("expected either init_onnx or resume_from, got both")
         if self.resume_from == self.run:
             raise ValueError(f"expected resume_from to name another run, got {self.run!r}")
         if self.stage == "relight" and not self.shadow_checkpoint:
@@ -168,7 +184,7 @@ class TrainConfig:
                 f"expected extra_data to be a list of folders, got {self.extra_data!r}"
             )
         self.extra_data = [str(Path(d).expanduser()) for d in self.extra_data]
-        for key in ("depth_checkpoint", "shadow_checkpoint"):
+        for key in ("depth_checkpoint", "shadow_checkpoint", "init_onnx"):
             value = getattr(self, key)
             if value:
                 setattr(self, key, str(Path(value).expanduser()))

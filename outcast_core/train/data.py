@@ -181,6 +181,48 @@ def _fractal_noise(h: int, w: int, rng: np.random.Generator, octaves: int = 5) -
     return np.clip(out / total, 0.0, 1.0)
 
 
+def degrade_photo(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """What a camera and a photo's path to the app do to an image, drawn at random: a white
+    balance error, a little blur, sensor noise and JPEG compression (each drawn independently).
+
+    The renders are clean; real photos are not, and the app shows ``Z`` and ``S`` a photo
+    shrunk to their working size, where these survive as colour casts, softness and mottled
+    flat areas. Every call draws the same number of values from ``rng`` whatever the image
+    (pixel noise comes from a generator seeded by one draw), so :meth:`PairSampler.skip` can
+    replay it without pixels.
+
+    Args:
+        image: ``H x W x 3`` float32 sRGB in ``[0, 1]``.
+        rng: the sampler's generator.
+
+    Returns:
+        The degraded image, same shape, float32 in ``[0, 1]``.
+    """
+    import cv2
+
+    gains = np.exp(rng.normal(0.0, 0.08, 3)).astype(np.float32)  # white balance, in sRGB
+    blur = rng.uniform(0.3, 0.9) if rng.random() < 0.3 else 0.0
+    noise = rng.uniform(0.004, 0.025) if rng.random() < 0.5 else 0.0
+    quality = int(rng.integers(40, 96)) if rng.random() < 0.3 else 0
+    pixel_seed = int(rng.integers(2**31))
+    out = np.clip(np.asarray(image, np.float32) * gains, 0.0, 1.0)
+    if blur > 0:
+        out = cv2.GaussianBlur(out, (0, 0), blur)
+    if noise > 0:
+        prng = np.random.default_rng(pixel_seed)
+        grey = prng.normal(0.0, noise, out.shape[:2] + (1,))
+        colour = prng.normal(0.0, noise * 0.5, out.shape)
+        out = out + (grey + colour).astype(np.float32)
+    out = np.clip(out, 0.0, 1.0)
+    if quality:
+        u8 = cv2.cvtColor((out * 255.0 + 0.5).astype(np.uint8), cv2.COLOR_RGB2BGR)
+        ok, buf = cv2.imencode(".jpg", u8, [cv2.IMWRITE_JPEG_QUALITY, quality])
+        if ok:
+            dec = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+            out = cv2.cvtColor(dec, cv2.COLOR_BGR2RGB).astype(np.float32) / 255.0
+    return out.astype(np.float32)
+
+
 def add_clouds(
     images: tuple[np.ndarray, ...], sky: np.ndarray, rng: np.random.Generator
 ) -> tuple[np.ndarray, ...]:
@@ -300,13 +342,15 @@ class PairSampler:
         zoom_prob, zoom_max: probability of a zoom, and its largest factor (:func:`zoom_crop`).
             A zoomed pair's principal point is off centre, which only the depth stage (image
             and depth alone) may ignore; the training config allows it for that stage only.
+        degrade_prob: probability that the input photo (``image``, never a target) goes
+            through :func:`degrade_photo`, after every other augmentation.
     """
 
     def __init__(
         self, views: list[Prepared], rng: np.random.Generator, exposure_stops: float = 1.0,
         saturation: tuple[float, float] = (0.8, 1.2), gamma: tuple[float, float] = (0.9, 1.1),
         flip: bool = True, sun_noise_deg: float = 3.0, cloud_prob: float = 0.0,
-        zoom_prob: float = 0.0, zoom_max: float = 1.5,
+        zoom_prob: float = 0.0, zoom_max: float = 1.5, degrade_prob: float = 0.0,
     ) -> None:
         if not views:
             raise ValueError("expected at least one view, got none")
@@ -318,6 +362,7 @@ class PairSampler:
         self.cloud_prob = cloud_prob
         self.zoom_prob = zoom_prob
         self.zoom_max = zoom_max
+        self.degrade_prob = degrade_prob
 
     def skip(self) -> tuple[int, int]:
         """Advance the generator exactly as :meth:`sample` does, without making the pair.
@@ -343,6 +388,8 @@ class PairSampler:
         perturb_sun(v.sun[i], self.sun_noise_deg, self.rng)
         if self.zoom_prob > 0 and self.rng.random() < self.zoom_prob:
             zoom_crop((v.depth,), float(self.rng.uniform(1.0, self.zoom_max)), self.rng)
+        if self.degrade_prob > 0 and self.rng.random() < self.degrade_prob:
+            degrade_photo(np.zeros((1, 1, 3), np.float32), self.rng)
         return int(v.rgb.shape[1]), int(v.rgb.shape[2])
 
     def sample(self) -> dict[str, np.ndarray]:
@@ -374,6 +421,8 @@ class PairSampler:
             c_o, c_n, s_o, s_n, depth, vis_o, vis_n, normals, psi = zoom_crop(
                 (c_o, c_n, s_o, s_n, depth, vis_o, vis_n, normals, psi), factor, self.rng)
             focal = focal * factor
+        if self.degrade_prob > 0 and self.rng.random() < self.degrade_prob:
+            c_o = degrade_photo(c_o, self.rng)
 
         def chw(a: np.ndarray) -> np.ndarray:
             a = np.ascontiguousarray(a, dtype=np.float32)

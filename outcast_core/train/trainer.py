@@ -43,7 +43,7 @@ import torch.nn.functional as F  # noqa: N812  (the universal torch idiom)
 from torch import nn
 
 from outcast_core.nets import build
-from outcast_core.nets.depth import scale_invariant_log_loss
+from outcast_core.nets.depth import gradient_matching_loss, normal_loss, scale_invariant_log_loss
 from outcast_core.nets.geometry_torch import normals_from_depth
 from outcast_core.train import distributed
 from outcast_core.train.config import TrainConfig, run_dir
@@ -111,6 +111,46 @@ def load_checkpoint_nets(path: str | Path) -> tuple[dict[str, nn.Module], dict[s
         net.load_state_dict(state)
         nets[kind] = net.eval()
     return nets, ckpt
+
+
+def onnx_origin(path: str | Path) -> dict[str, Any]:
+    """What a run started from a shipped ONNX model records: its path, SHA-256 and, from the
+    model card beside it (``NAME.json``), the steps, wall time and command that trained it."""
+    import hashlib
+
+    path = Path(path)
+    rec: dict[str, Any] = {"init_onnx": str(path),
+                           "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+    card = path.with_suffix(".json")
+    if card.exists():
+        tr = json.loads(card.read_text()).get("training", {})
+        rec.update(step=tr.get("steps"), wall_time_s=tr.get("wall_time_s"),
+                   command=tr.get("command", ""))
+    return rec
+
+
+def load_onnx_weights(net: nn.Module, path: str | Path) -> None:
+    """Copy an exported ONNX model's initialisers into ``net`` by parameter name.
+
+    ``torch.onnx.export`` keeps the state-dict names of parameters it does not fold, so a model
+    exported from this network type holds every entry of its state dict. Raises ``ValueError``
+    when one is missing or has another shape (a model of another network or width).
+    """
+    import onnx
+    from onnx import numpy_helper
+
+    model = onnx.load(str(path))
+    weights = {i.name: numpy_helper.to_array(i) for i in model.graph.initializer}
+    state = net.state_dict()
+    missing = [k for k in state if k not in weights]
+    wrong = [k for k in state if k in weights and tuple(weights[k].shape) != tuple(state[k].shape)]
+    if missing or wrong:
+        raise ValueError(
+            f"expected {path} to hold the network's {len(state)} tensors, got "
+            f"{len(missing)} missing ({missing[:3]}) and {len(wrong)} of another shape "
+            f"({wrong[:3]})"
+        )
+    net.load_state_dict({k: torch.from_numpy(weights[k].copy()) for k in state})
 
 
 def _postprocessed(
@@ -205,7 +245,7 @@ class Trainer:
         self.sampler = PairSampler(
             views, np.random.default_rng(cfg.seed), cfg.exposure_stops, cfg.saturation,
             cfg.gamma, cfg.flip, cfg.sun_noise_deg, cfg.cloud_prob, cfg.zoom_prob,
-            cfg.zoom_max,
+            cfg.zoom_max, cfg.degrade_prob,
         )
         self.net_kwargs: dict[str, dict[str, Any]] = {}
         self.nets: dict[str, nn.Module] = {}
@@ -223,7 +263,12 @@ class Trainer:
             if "critic" in self.nets else None
         )
         self.depth_net = None
-        if cfg.depth_checkpoint:
+        if cfg.depth_checkpoint and cfg.depth_checkpoint.endswith(".onnx"):
+            # A shipped Z whose training checkpoint is gone: its ONNX weights, default widths.
+            self.depth_net = build("depth")
+            load_onnx_weights(self.depth_net, cfg.depth_checkpoint)
+            self.depth_net = self.depth_net.eval().to(self.device)
+        elif cfg.depth_checkpoint:
             self.depth_net = load_checkpoint_nets(cfg.depth_checkpoint)[0]["depth"].to(
                 self.device)
         self.shadow_net = None
@@ -295,6 +340,10 @@ class Trainer:
         path, ckpt = (self.dist.on_main(self._resume_checkpoint) if self.dist.enabled
                       else self._resume_checkpoint())
         if ckpt is None:
+            if self.cfg.init_onnx:
+                first = STAGE_NETS[self.cfg.stage][0]
+                load_onnx_weights(self.nets[first], self.cfg.init_onnx)
+                self.branched_from = onnx_origin(self.cfg.init_onnx)
             return
         if path != self.checkpoint_path:
             self.branched_from = {"run": self.cfg.resume_from, "step": int(ckpt["step"]),
@@ -501,10 +550,26 @@ class Trainer:
         f_z = scale_invariant_log_loss(depth, t["depth"], valid)
         f_sky = F.binary_cross_entropy(sky.clamp(1e-6, 1 - 1e-6), (~valid).to(sky.dtype))
         loss = f_z + f_sky
+        logs: dict[str, float] = {"silog": f_z.item(), "sky_bce": f_sky.item()}
+        w_grad = self.cfg.weights.get("depth_grad", 0.0)
+        if w_grad > 0:
+            f_grad = gradient_matching_loss(depth, t["depth"], valid)
+            loss = loss + w_grad * f_grad
+            logs["grad"] = f_grad.item()
+        w_normal = self.cfg.weights.get("depth_normal", 0.0)
+        if w_normal > 0:
+            # Both sides through the same function (the runtime's), so a zoomed crop's off-centre
+            # rays bend both alike; the prediction only where the truth has a surface.
+            true_n = normals_from_depth(t["depth"], t["focal"])
+            pred_n = normals_from_depth(torch.where(valid, depth, torch.zeros_like(depth)),
+                                        t["focal"])
+            f_normal = normal_loss(pred_n, true_n, valid)
+            loss = loss + w_normal * f_normal
+            logs["normal"] = f_normal.item()
         self.opt_g.zero_grad(set_to_none=True)
         loss.backward()
         self.opt_g.step()
-        return {"loss": loss.item(), "silog": f_z.item(), "sky_bce": f_sky.item()}
+        return {"loss": loss.item(), **logs}
 
     def lr_at(self, step: int) -> float:
         """The learning rate of optimiser step ``step`` (constant, or cosine to ``lr_final``)."""

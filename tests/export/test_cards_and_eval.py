@@ -72,6 +72,17 @@ def test_cards_render_from_manifests(tmp_path) -> None:
     assert "Continues run `r` (`outcast train r.toml`) from its step 12" in text
     assert "trained with 2 thread(s)" in text
     assert "Extra data" not in text
+    from outcast_core.export.checkpoint import _branch
+
+    started = _branch({"init_onnx": "/m/depth.onnx", "sha256": "ab" * 32, "step": 9500,
+                       "wall_time_s": 600.0, "command": "outcast train z4.toml"})
+    write_manifest(net, "refine", path, {
+        "config": {"stage": "relight", "run": "r3"}, "steps": 30, "wall_time_s": 60.0,
+        "branched_from": started}, {})
+    text = render_cards(tmp_path, "")
+    assert ("Starts from the weights of `depth.onnx` (sha256 abababababab..., trained 9500 "
+            "steps in 10 min by `outcast train z4.toml`)") in text
+    assert "Continues run" not in text
     write_manifest(net, "refine", path, {
         "config": {"stage": "depth", "run": "z"}, "steps": 5, "wall_time_s": 1.0,
         "extra_data": [{"data_set": "/d/land", "views_loaded": 650,

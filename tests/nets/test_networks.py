@@ -8,7 +8,11 @@ import torch.nn.functional as F  # noqa: N812
 
 from outcast_core.nets import NETWORKS, build
 from outcast_core.nets.blocks import count_parameters
-from outcast_core.nets.depth import scale_invariant_log_loss
+from outcast_core.nets.depth import (
+    gradient_matching_loss,
+    normal_loss,
+    scale_invariant_log_loss,
+)
 
 
 def _shadow_inputs(b: int, h: int, w: int, seed: int = 0) -> tuple[torch.Tensor, ...]:
@@ -167,6 +171,41 @@ def test_depth_net_is_scale_free_and_loss_is_scale_invariant() -> None:
     mask = torch.ones_like(t, dtype=torch.bool)
     assert float(scale_invariant_log_loss(3.7 * t, t, mask)) < 1e-10
     assert float(scale_invariant_log_loss(t**2, t, mask)) > 1e-4
+
+
+def test_gradient_matching_pays_for_compressed_relief_not_for_scale() -> None:
+    # A ramp in log depth (a ground seen at a slant) with a step (an object's edge).
+    log_t = torch.linspace(0.0, 2.0, 16).reshape(1, 1, 16, 1).expand(1, 1, 16, 16).clone()
+    log_t[..., 4:8, 6:10] -= 0.7
+    t = torch.exp(log_t)
+    mask = torch.ones_like(t, dtype=torch.bool)
+    assert float(gradient_matching_loss(5.0 * t, t, mask)) < 1e-6  # scale is free
+    flat = float(gradient_matching_loss(torch.exp(0.3 * log_t), t, mask))
+    close = float(gradient_matching_loss(torch.exp(0.9 * log_t), t, mask))
+    assert flat > 3 * close > 0  # compressed relief pays, more the flatter
+    # Masked-out pixels (sky) neither count nor break it, whatever the depth there.
+    t_sky = torch.where(mask & (torch.arange(16).reshape(1, 1, 1, 16) < 12), t,
+                        torch.full_like(t, float("inf")))
+    sky_mask = torch.isfinite(t_sky)
+    assert float(gradient_matching_loss(2.0 * t, t_sky, sky_mask)) < 1e-6
+    with pytest.raises(ValueError, match="scales"):
+        gradient_matching_loss(t, t, mask, scales=0)
+
+
+def test_normal_loss_is_one_minus_cosine_on_the_mask() -> None:
+    up = torch.zeros(1, 3, 4, 4)
+    up[:, 1] = -1.0
+    side = torch.zeros(1, 3, 4, 4)
+    side[:, 0] = 1.0
+    mask = torch.ones(1, 1, 4, 4, dtype=torch.bool)
+    assert float(normal_loss(up, up, mask)) == pytest.approx(0.0)
+    assert float(normal_loss(side, up, mask)) == pytest.approx(1.0)
+    assert float(normal_loss(-up, up, mask)) == pytest.approx(2.0)
+    half = mask.clone()
+    half[..., 2:] = False
+    mixed = torch.where(half, up, side)
+    assert float(normal_loss(mixed, up, half)) == pytest.approx(0.0)  # only the mask counts
+    assert float(normal_loss(side, torch.zeros_like(up), mask)) == 0.0  # no truth, no cost
 
 
 def test_parameter_budgets() -> None:

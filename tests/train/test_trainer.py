@@ -402,3 +402,68 @@ def test_extra_data_folders_add_their_views(tmp_path) -> None:
     assert ckpt["views_by_folder"] == {main: 2, extra: 4}
     with pytest.raises(ValueError, match="extra_data"):
         _cfg("depth", extra_data=extra)
+
+
+def test_depth_geometry_terms_and_start_from_a_shipped_onnx(fake_views, tmp_path) -> None:
+    from outcast_core.export.onnx_export import export_onnx
+    from outcast_core.nets import build
+
+    views = [resize_view(v, 32) for v in fake_views]
+    z = build("depth")
+    export_onnx(z, "depth", tmp_path / "depth.onnx", parity_sizes=[(32, 32)])
+    (tmp_path / "depth.json").write_text(json.dumps(
+        {"training": {"steps": 77, "wall_time_s": 12.0, "command": "outcast train z.toml"}}))
+    tr = Trainer(_cfg("depth", run="z_geo", steps=2, init_onnx=str(tmp_path / "depth.onnx"),
+                      weights={"depth_grad": 0.5, "depth_normal": 0.5}), views, progress=False)
+    for a, b in zip(tr.nets["depth"].state_dict().values(), z.state_dict().values(),
+                    strict=True):
+        torch.testing.assert_close(a, b)  # the ONNX model's weights, not a fresh init
+    assert tr.step == 0 and tr.branched_from["step"] == 77
+    assert tr.branched_from["command"] == "outcast train z.toml"
+    logs = tr.train_step()
+    assert {"silog", "sky_bce", "grad", "normal"} <= set(logs)
+    assert logs["loss"] == pytest.approx(
+        logs["silog"] + logs["sky_bce"] + 0.5 * logs["grad"] + 0.5 * logs["normal"], rel=1e-5)
+    tr.fit()
+    again = Trainer(_cfg("depth", run="z_geo", steps=3, init_onnx=str(tmp_path / "depth.onnx"),
+                         weights={"depth_grad": 0.5, "depth_normal": 0.5}), views,
+                    progress=False)
+    assert again.step == 2  # its own checkpoint wins over the ONNX start
+    plain = Trainer(_cfg("depth", run="z_plain", steps=1), views, progress=False).train_step()
+    assert "grad" not in plain and "normal" not in plain  # old configs train as before
+    export_onnx(build("shadow_2d"), "shadow_2d", tmp_path / "s2d.onnx", parity_sizes=[(32, 32)])
+    with pytest.raises(ValueError, match="missing"):
+        Trainer(_cfg("depth", run="z_bad", init_onnx=str(tmp_path / "s2d.onnx")), views,
+                progress=False)
+    # A shipped Z as the estimated depth of the shadow stage (its checkpoint gone).
+    s = Trainer(_cfg("shadow_2d", run="s_on_onnx_z", depth_checkpoint=str(tmp_path / "depth.onnx"),
+                     gt_depth_prob=0.0), views, progress=False)
+    for a, b in zip(s.depth_net.state_dict().values(), z.state_dict().values(), strict=True):
+        torch.testing.assert_close(a, b)
+    assert not s.depth_net.training
+    s.train_step()
+    with pytest.raises(ValueError, match="init_onnx or resume_from"):
+        _cfg("depth", init_onnx="a.onnx", resume_from="other")
+
+
+def test_degrade_photo_draws_alike_and_touches_only_the_input(fake_views) -> None:
+    from outcast_core.train.data import degrade_photo
+
+    img = np.random.default_rng(0).uniform(0.1, 0.9, (32, 32, 3)).astype(np.float32)
+    a, b = np.random.default_rng(3), np.random.default_rng(3)
+    out = [degrade_photo(img, a) for _ in range(20)]
+    for _ in range(20):
+        degrade_photo(np.zeros((1, 1, 3), np.float32), b)  # what PairSampler.skip replays
+    assert a.bit_generator.state == b.bit_generator.state
+    assert all(o.shape == img.shape and o.dtype == np.float32 for o in out)
+    assert all(o.min() >= 0.0 and o.max() <= 1.0 for o in out)
+    diffs = [float(np.abs(o - img).mean()) for o in out]
+    assert 0.0 < np.median(diffs) < 0.1  # visible flaws, the same picture
+    views = [resize_view(v, 32) for v in fake_views]
+    clean = PairSampler(views, np.random.default_rng(5)).sample()
+    dirty = PairSampler(views, np.random.default_rng(5), degrade_prob=1.0).sample()
+    assert not np.array_equal(clean["image"], dirty["image"])
+    for key in ("target", "depth", "normals", "shadow_old", "shadow_new"):
+        np.testing.assert_array_equal(clean[key], dirty[key])
+    with pytest.raises(ValueError, match="degrade_prob"):
+        _cfg("relight", shadow_checkpoint="x", degrade_prob=0.5)
