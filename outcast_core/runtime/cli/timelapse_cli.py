@@ -102,6 +102,9 @@ def _number(lo: float, hi: float, what: str) -> Callable[[str], float]:
     return parse
 
 
+#: ``--fps``: what the video writers take (``outcast batch`` takes the same).
+fps_value = _number(MIN_FPS, MAX_FPS, "frames per second")
+
 #: ``--frames``: an integer in [2, MAX_FRAMES] (``outcast batch`` takes the same).
 frame_count = int_in(2, MAX_FRAMES, "frame count")
 
@@ -174,8 +177,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument(
         "-o", "--output", required=True, metavar="OUT", help="OUT.mp4, .gif, .webp or a folder"
     )
-    p.add_argument("--fps", type=_number(MIN_FPS, MAX_FPS, "frames per second"),
-                   default=DEFAULT_FPS, help=f"{MIN_FPS:g}..{MAX_FPS:g} (default {DEFAULT_FPS:g})")
+    p.add_argument("--fps", type=fps_value, default=DEFAULT_FPS,
+                   help=f"{MIN_FPS:g}..{MAX_FPS:g} (default {DEFAULT_FPS:g})")
     p.add_argument(
         "--size", choices=FRAME_SIZES, default=None,
         help="frame size: the preset's working size (fastest), 720p / 1080p / 4k (shorter side "

@@ -136,3 +136,14 @@ def test_sun_takes_the_same_input_options_as_the_other_commands(capsys) -> None:
     assert (args.depth_model, args.fov, args.preset) == ("m.onnx", 50.0, DEFAULT_CLI_PRESET)
     assert p.parse_args(["eval-real", "d", "--preset", "fast, accurate"]).preset == (
         "fast", "accurate")
+
+
+@pytest.mark.parametrize("command", [["batch", "d", "--to", "1,2"], ["timelapse", "p.jpg",
+                                                                     "-o", "o.mp4"]])
+def test_fps_has_one_range_for_every_video_command(command, capsys) -> None:
+    from outcast_core.runtime.pipeline.timelapse import MAX_FPS, MIN_FPS
+
+    for bad in ("0.5", "0", "61", "nan"):
+        with pytest.raises(SystemExit):
+            main([*command, "--fps", bad])
+        assert f"frames per second in [{MIN_FPS:g}, {MAX_FPS:g}]" in capsys.readouterr().err
