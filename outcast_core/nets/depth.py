@@ -62,9 +62,8 @@ def gradient_matching_loss(
     The log residual ``R = log pred - log target`` is free of the unknown scale; this is the mean
     absolute horizontal and vertical difference of ``R`` between neighbouring valid pixels, at
     ``scales`` resolutions (each half the last, by subsampling). A depth map whose log is a
-    compressed copy of the truth's (the right ordering, too little relief: the tilted ground of
-    ``Z`` v4) pays at every edge and slope, where the scale-invariant log loss only sees one
-    variance over the whole image.
+    compressed copy of the truth's (the right ordering, too little relief) pays at every edge and
+    slope, where the scale-invariant log loss only sees one variance over the whole image.
 
     Args:
         pred: ``B x 1 x H x W`` predicted depth (> 0).

@@ -187,9 +187,9 @@ def degrade_photo(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
     The renders are clean; real photos are not, and the app shows ``Z`` and ``S`` a photo
     shrunk to their working size, where these survive as colour casts, softness and mottled
-    flat areas. Every call draws the same number of values from ``rng`` whatever the image
-    (pixel noise comes from a generator seeded by one draw), so :meth:`PairSampler.skip` can
-    replay it without pixels.
+    flat areas. What a call draws from ``rng`` does not depend on the image (pixel noise comes
+    from a generator seeded by one draw), so :meth:`PairSampler.skip` replays it on a 1 x 1
+    stand-in.
 
     Args:
         image: ``H x W x 3`` float32 sRGB in ``[0, 1]``.

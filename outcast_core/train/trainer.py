@@ -116,11 +116,10 @@ def load_checkpoint_nets(path: str | Path) -> tuple[dict[str, nn.Module], dict[s
 def onnx_origin(path: str | Path) -> dict[str, Any]:
     """What a run started from a shipped ONNX model records: its path, SHA-256 and, from the
     model card beside it (``NAME.json``), the steps, wall time and command that trained it."""
-    import hashlib
+    from outcast_core.runtime.io.models import sha256_file
 
     path = Path(path)
-    rec: dict[str, Any] = {"init_onnx": str(path),
-                           "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+    rec: dict[str, Any] = {"init_onnx": str(path), "sha256": sha256_file(path)}
     card = path.with_suffix(".json")
     if card.exists():
         tr = json.loads(card.read_text()).get("training", {})

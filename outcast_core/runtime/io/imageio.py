@@ -170,15 +170,7 @@ def read_image(
     _check_input_file(path)
     try:
         with _open_pil(path) as im:
-            fmt = im.format or "unknown"
-            if fmt not in READ_FORMATS:
-                raise ImageReadError(
-                    f"cannot read image '{path}': unsupported format {fmt}; "
-                    f"expected {_READABLE_NAMES}"
-                )
-            stored_w, stored_h = im.size
-            _check_pixel_count(path, stored_w, stored_h)
-            exif, exif_bytes = _exif_of(im, path)
+            fmt, (stored_w, stored_h), exif, exif_bytes = _checked_header(im, path)
             meta = metadata_from_exif(exif)
             target = _fit_size(stored_w, stored_h, max_pixels)
             bits = _bits_per_sample(im, path)
@@ -224,14 +216,7 @@ def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
     _check_input_file(path)
     try:
         with _open_pil(path) as im:
-            if im.format not in READ_FORMATS:
-                raise ImageReadError(
-                    f"cannot read image '{path}': unsupported format {im.format}; "
-                    f"expected {_READABLE_NAMES}"
-                )
-            w, h = im.size
-            _check_pixel_count(path, w, h)
-            exif, _ = _exif_of(im, path)
+            _, (w, h), exif, _ = _checked_header(im, path)
             orientation = metadata_from_exif(exif).orientation
     except ImageReadError:
         raise
@@ -240,6 +225,21 @@ def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
     except Exception as exc:
         raise ImageReadError(f"cannot read image '{path}': {_one_line(exc)}") from exc
     return (h, w) if orientation >= 5 else (w, h)
+
+
+def _checked_header(
+    im: Image.Image, path: Path
+) -> tuple[str, tuple[int, int], Image.Exif | None, bytes | None]:
+    """An opened image's format, stored ``(width, height)``, Exif and raw Exif bytes, with the
+    format and the pixel count checked (:class:`ImageReadError` otherwise)."""
+    fmt = im.format or "unknown"
+    if fmt not in READ_FORMATS:
+        raise ImageReadError(
+            f"cannot read image '{path}': unsupported format {fmt}; expected {_READABLE_NAMES}"
+        )
+    _check_pixel_count(path, *im.size)
+    exif, exif_bytes = _exif_of(im, path)
+    return fmt, im.size, exif, exif_bytes
 
 
 def _check_input_file(path: Path) -> None:
