@@ -33,6 +33,8 @@ from outcast_core.train.data import auto_exposure, tonemap  # noqa: E402
 #: (label, session keyword arguments): the app's default first.
 CONFIGS: list[tuple[str, dict]] = [
     ("learned L, S_o from the photo, colour guard, shade floor (app default)", {}),
+    ("learned L, S_o from the photo, colour guard, shade floor and lift",
+     {"lift_new_light": True}),
     ("learned L, S_o from the photo, colour guard, no floor", {"contrast_floor": False}),
     ("learned L, S_o from the photo, no guard, no floor",
      {"colour_guard": False, "contrast_floor": False}),
@@ -52,8 +54,9 @@ def factor(img: np.ndarray, base: np.ndarray, m: np.ndarray) -> float:
 def _session(kwargs: dict) -> RelightSession:
     guard = kwargs.pop("colour_guard", True)
     floor = kwargs.pop("contrast_floor", True)
+    lift = kwargs.pop("lift_new_light", False)
     s = RelightSession(preset="fast", shadow_mode="learned", **kwargs)
-    s.colour_guard, s.contrast_floor = guard, floor
+    s.colour_guard, s.contrast_floor, s.lift_new_light = guard, floor, lift
     return s
 
 
@@ -110,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     for label, _ in CONFIGS:
         r = rows[label]
         print(f"| {label} | {np.mean(r['mse']):.4f} | {np.mean(r['dssim']):.4f} | "
-              f"x{np.mean(r['lit']):.2f} | x{np.mean(r['shd']):.2f} |")
+              f"x{np.mean(r['lit']):.3f} | x{np.mean(r['shd']):.3f} |")
     return 0
 
 

@@ -76,6 +76,9 @@ class TrainConfig:
         degrade_prob: probability that a pair's input photo gets a camera's flaws (white
             balance, blur, noise, JPEG: :func:`outcast_core.train.data.degrade_photo`); the
             depth and shadow stages only (a relighting target must stay clean).
+        stain_prob: probability that a pair's input photo gets dark stains and fine albedo
+            texture that no geometry casts (:func:`outcast_core.train.data.stain_photo`); the
+            depth and shadow stages only.
         exposure_stops: range of the random exposure (both images of a pair alike).
         saturation: range of the random saturation factor.
         gamma: range of the random gamma.
@@ -120,6 +123,7 @@ class TrainConfig:
     zoom_prob: float = 0.0
     zoom_max: float = 1.5
     degrade_prob: float = 0.0
+    stain_prob: float = 0.0
     exposure_stops: float = 1.0
     saturation: tuple[float, float] = (0.8, 1.2)
     gamma: tuple[float, float] = (0.9, 1.1)
@@ -143,7 +147,7 @@ class TrainConfig:
         if not 0.0 <= self.lr_final <= self.lr:
             raise ValueError(f"expected 0 <= lr_final <= lr, got {self.lr_final} (lr {self.lr})")
         for key in ("gt_depth_prob", "new_shadow_gt_depth_prob", "cloud_prob", "zoom_prob",
-                    "degrade_prob"):
+                    "degrade_prob", "stain_prob"):
             if not 0.0 <= getattr(self, key) <= 1.0:
                 raise ValueError(f"expected {key} in [0, 1], got {getattr(self, key)}")
         if self.zoom_max < 1.0:
@@ -151,9 +155,10 @@ class TrainConfig:
         if self.zoom_prob > 0 and self.stage != "depth":
             raise ValueError(f"expected zoom_prob only for the depth stage (a zoomed view's "
                              f"principal point is off centre), got stage {self.stage!r}")
-        if self.degrade_prob > 0 and self.stage not in ("depth", "shadow", "shadow_2d"):
-            raise ValueError(f"expected degrade_prob only for the depth and shadow stages, got "
-                             f"stage {self.stage!r}")
+        for key in ("degrade_prob", "stain_prob"):
+            if getattr(self, key) > 0 and self.stage not in ("depth", "shadow", "shadow_2d"):
+                raise ValueError(f"expected {key} only for the depth and shadow stages, got "
+                                 f"stage {self.stage!r}")
         if self.relight_base not in ("photo", "physics"):
             raise ValueError(f"expected relight_base photo or physics, got {self.relight_base!r}")
         if self.relight_base != "photo" and self.stage != "relight":

@@ -223,6 +223,93 @@ def degrade_photo(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return out.astype(np.float32)
 
 
+def stain_photo(image: np.ndarray, surface: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Dark patches and fine texture painted into the surface's albedo, the geometry untouched.
+
+    On real photos ``Z`` reads the photo's texture (gravel, deck boards, snow) and its own
+    shadows' edges as relief, and the cosine term then marks textured flat ground as facing away
+    from the sun (``models/EVAL.md``, evening notes of 2026-11-30: 21.7 % of the frame falsely
+    shadowed by the cosine term at each dev photo's best sun). The renders' flat surfaces are
+    plainer than a photo's, and their dark patches are almost always real shadows of real
+    relief. This teaches the opposite: with the depth target unchanged, a pair's input photo
+    gets, each drawn independently,
+
+    - shadow-like stains: 1-5 dark, slightly blue patches (polygons like a building's or a
+      pole's shadow, or foliage-like blobs), with soft or hard edges, that no geometry casts;
+    - fine multiplicative albedo texture (speckle and streaks at 2-16 px) on the surface.
+
+    Applied in linear light, on the surface only (never the sky). As :func:`degrade_photo`,
+    what a call draws from ``rng`` does not depend on the image, so :meth:`PairSampler.skip`
+    replays it on a 1 x 1 stand-in.
+
+    Args:
+        image: ``H x W x 3`` float32 sRGB in ``[0, 1]``.
+        surface: ``H x W`` bool, not sky.
+        rng: the sampler's generator.
+
+    Returns:
+        The stained image, same shape, float32 in ``[0, 1]``.
+    """
+    import cv2
+
+    from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
+
+    stains = int(rng.integers(1, 6)) if rng.random() < 0.75 else 0
+    dark = rng.uniform(0.2, 0.65)
+    blue = rng.uniform(1.0, 1.5)
+    soft = rng.uniform(0.0, 0.02) if rng.random() < 0.6 else 0.0
+    texture = rng.uniform(0.08, 0.4) if rng.random() < 0.6 else 0.0
+    pixel_seed = int(rng.integers(2**31))
+    img = np.clip(np.asarray(image, np.float32), 0.0, 1.0)
+    h, w = img.shape[:2]
+    surface = np.asarray(surface, bool)
+    if (not stains and not texture) or not surface.any():
+        return img
+    prng = np.random.default_rng(pixel_seed)
+    side = max(h, w)
+    log_gain = np.zeros((h, w, 3), np.float32)
+    if stains:
+        mask = np.zeros((h, w), np.float32)
+        for _ in range(stains):
+            if prng.random() < 0.5:  # a polygon: a building's, wall's, pole's or car's shadow
+                centre = prng.uniform(0, 1, 2) * (w, h)
+                length = prng.uniform(0.05, 0.6) * side
+                width = length * prng.uniform(0.05, 0.8)
+                angle = prng.uniform(0, np.pi)
+                d = np.array([np.cos(angle), np.sin(angle)])
+                n = np.array([-d[1], d[0]])
+                corners = [centre + a * d * length / 2 + b * n * width / 2 * prng.uniform(0.6, 1.4)
+                           for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+                cv2.fillPoly(mask, [np.round(np.array(corners)).astype(np.int32)], 1.0)
+            else:  # foliage: a patch of thresholded noise
+                n_field = _fractal_noise(h, w, prng, octaves=6)
+                blob = (n_field > np.quantile(n_field, 1.0 - prng.uniform(0.05, 0.35)))
+                cy, cx = prng.uniform(0, 1, 2) * (h, w)
+                r = prng.uniform(0.15, 0.5) * side
+                yy, xx = np.mgrid[0:h, 0:w]
+                mask = np.maximum(mask, (blob & ((yy - cy) ** 2 + (xx - cx) ** 2 < r * r))
+                                  .astype(np.float32))
+        if soft > 0:
+            mask = cv2.GaussianBlur(mask, (0, 0), max(0.5, soft * side))
+        tint = np.array([blue ** -0.5, 1.0, blue ** 0.5], np.float32)
+        log_gain += mask[..., None] * np.log(np.clip(dark * tint, 0.05, 1.0))[None, None]
+    if texture:
+        fine = np.zeros((h, w), np.float32)
+        for cells in (side // 16, side // 8, side // 4, side // 2):
+            cells = max(2, cells)
+            grid = prng.normal(size=(max(2, cells * h // side), max(2, cells * w // side)))
+            if prng.random() < 0.3:  # streaks (boards, furrows): stretched along one axis
+                grid = np.repeat(grid[:, :1], grid.shape[1], axis=1) if prng.random() < 0.5 \
+                    else np.repeat(grid[:1], grid.shape[0], axis=0)
+            fine += cv2.resize(grid.astype(np.float32), (w, h), interpolation=cv2.INTER_LINEAR)
+        std = float(fine.std())
+        if std > 1e-6:
+            fine = np.clip((fine - float(fine.mean())) / std, -3.0, 3.0)
+            log_gain += (texture * fine)[..., None]
+    stained = np.clip(linear_to_srgb(srgb_to_linear(img) * np.exp(log_gain)), 0.0, 1.0)
+    return np.where(surface[..., None], stained, img).astype(np.float32)
+
+
 def add_clouds(
     images: tuple[np.ndarray, ...], sky: np.ndarray, rng: np.random.Generator
 ) -> tuple[np.ndarray, ...]:
@@ -342,6 +429,9 @@ class PairSampler:
         zoom_prob, zoom_max: probability of a zoom, and its largest factor (:func:`zoom_crop`).
             A zoomed pair's principal point is off centre, which only the depth stage (image
             and depth alone) may ignore; the training config allows it for that stage only.
+        stain_prob: probability that the input photo (``image``, never a target) gets dark
+            stains and fine texture that no geometry explains (:func:`stain_photo`), after the
+            zoom and before the camera's flaws.
         degrade_prob: probability that the input photo (``image``, never a target) goes
             through :func:`degrade_photo`, after every other augmentation.
     """
@@ -351,6 +441,7 @@ class PairSampler:
         saturation: tuple[float, float] = (0.8, 1.2), gamma: tuple[float, float] = (0.9, 1.1),
         flip: bool = True, sun_noise_deg: float = 3.0, cloud_prob: float = 0.0,
         zoom_prob: float = 0.0, zoom_max: float = 1.5, degrade_prob: float = 0.0,
+        stain_prob: float = 0.0,
     ) -> None:
         if not views:
             raise ValueError("expected at least one view, got none")
@@ -363,6 +454,7 @@ class PairSampler:
         self.zoom_prob = zoom_prob
         self.zoom_max = zoom_max
         self.degrade_prob = degrade_prob
+        self.stain_prob = stain_prob
 
     def skip(self) -> tuple[int, int]:
         """Advance the generator exactly as :meth:`sample` does, without making the pair.
@@ -388,6 +480,8 @@ class PairSampler:
         perturb_sun(v.sun[i], self.sun_noise_deg, self.rng)
         if self.zoom_prob > 0 and self.rng.random() < self.zoom_prob:
             zoom_crop((v.depth,), float(self.rng.uniform(1.0, self.zoom_max)), self.rng)
+        if self.stain_prob > 0 and self.rng.random() < self.stain_prob:
+            stain_photo(np.zeros((1, 1, 3), np.float32), np.ones((1, 1), bool), self.rng)
         if self.degrade_prob > 0 and self.rng.random() < self.degrade_prob:
             degrade_photo(np.zeros((1, 1, 3), np.float32), self.rng)
         return int(v.rgb.shape[1]), int(v.rgb.shape[2])
@@ -421,6 +515,8 @@ class PairSampler:
             c_o, c_n, s_o, s_n, depth, vis_o, vis_n, normals, psi = zoom_crop(
                 (c_o, c_n, s_o, s_n, depth, vis_o, vis_n, normals, psi), factor, self.rng)
             focal = focal * factor
+        if self.stain_prob > 0 and self.rng.random() < self.stain_prob:
+            c_o = stain_photo(c_o, np.isfinite(depth) & (depth > 0), self.rng)
         if self.degrade_prob > 0 and self.rng.random() < self.degrade_prob:
             c_o = degrade_photo(c_o, self.rng)
 

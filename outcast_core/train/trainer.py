@@ -244,7 +244,7 @@ class Trainer:
         self.sampler = PairSampler(
             views, np.random.default_rng(cfg.seed), cfg.exposure_stops, cfg.saturation,
             cfg.gamma, cfg.flip, cfg.sun_noise_deg, cfg.cloud_prob, cfg.zoom_prob,
-            cfg.zoom_max, cfg.degrade_prob,
+            cfg.zoom_max, cfg.degrade_prob, cfg.stain_prob,
         )
         self.net_kwargs: dict[str, dict[str, Any]] = {}
         self.nets: dict[str, nn.Module] = {}

@@ -86,7 +86,7 @@ def test_ranks_make_disjoint_parts_of_the_one_process_batch(fake_views) -> None:
 
     views = [resize_view(v, 32) for v in fake_views] + [resize_view(make_view(9), 16)]
     kw = {"cloud_prob": 0.5, "zoom_prob": 0.5, "zoom_max": 1.5, "sun_noise_deg": 3.0,
-          "degrade_prob": 0.7}
+          "degrade_prob": 0.7, "stain_prob": 0.6}
     one = PairSampler(views, np.random.default_rng(7), **kw)
     ranks = [PairSampler(views, np.random.default_rng(7), **kw) for _ in range(4)]
     zoomed = 0

@@ -467,3 +467,32 @@ def test_degrade_photo_draws_alike_and_touches_only_the_input(fake_views) -> Non
         np.testing.assert_array_equal(clean[key], dirty[key])
     with pytest.raises(ValueError, match="degrade_prob"):
         _cfg("relight", shadow_checkpoint="x", degrade_prob=0.5)
+
+
+def test_stain_photo_darkens_the_surface_only_and_draws_alike(fake_views) -> None:
+    from outcast_core.train.data import stain_photo
+
+    img = np.full((48, 48, 3), 0.6, np.float32)
+    surface = np.ones((48, 48), bool)
+    surface[:12] = False  # sky
+    a, b = np.random.default_rng(4), np.random.default_rng(4)
+    out = [stain_photo(img, surface, a) for _ in range(30)]
+    for _ in range(30):  # what PairSampler.skip replays
+        stain_photo(np.zeros((1, 1, 3), np.float32), np.ones((1, 1), bool), b)
+    assert a.bit_generator.state == b.bit_generator.state
+    assert all(o.shape == img.shape and o.dtype == np.float32 for o in out)
+    for o in out:
+        np.testing.assert_array_equal(o[:12], img[:12])  # the sky untouched
+    changed = [o for o in out if not np.array_equal(o, img)]
+    assert len(changed) >= 20  # most calls paint something
+    # Stains are dark patches, bluer than the surface around them (shade is sky-lit).
+    darkest = min(changed, key=lambda o: float(o[12:].min()))
+    px = darkest[12:].reshape(-1, 3)[np.argmin(darkest[12:].sum(-1))]
+    assert px.sum() < 0.6 * 3 * 0.8 and px[2] >= px[0]
+    views = [resize_view(v, 32) for v in fake_views]
+    clean = PairSampler(views, np.random.default_rng(5)).sample()
+    stained = PairSampler(views, np.random.default_rng(5), stain_prob=1.0).sample()
+    for key in ("target", "depth", "normals", "shadow_old", "shadow_new"):
+        np.testing.assert_array_equal(clean[key], stained[key])
+    with pytest.raises(ValueError, match="stain_prob"):
+        _cfg("relight", shadow_checkpoint="x", stain_prob=0.5)

@@ -45,3 +45,43 @@ def tonemap_aces(radiance_lin: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     a, b, c, d, e = 2.51, 0.03, 2.43, 0.59, 0.14
     mapped = np.clip((x * (a * x + b)) / (x * (c * x + d) + e), 0.0, 1.0)
     return linear_to_srgb(mapped)
+
+
+#: Linear sRGB (D65) to CIE XYZ, and the D65 white point (IEC 61966-2-1).
+_RGB_TO_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
+                        [0.2126729, 0.7151522, 0.0721750],
+                        [0.0193339, 0.1191920, 0.9503041]], dtype=np.float64)
+_XYZ_TO_RGB = np.linalg.inv(_RGB_TO_XYZ)
+_WHITE_D65 = np.array([0.95047, 1.0, 1.08883], dtype=np.float64)
+_LAB_EPS = (6.0 / 29.0) ** 3
+
+
+def linear_to_lab(radiance_lin: np.ndarray) -> np.ndarray:
+    """Linear RGB (D65) to CIE L*a*b* (``L*`` in [0, 100]), ``... x 3``; negatives count as 0.
+
+    Example:
+        >>> [round(float(v), 3) + 0.0 for v in linear_to_lab(np.array([1.0, 1.0, 1.0]))]
+        [100.0, 0.0, 0.0]
+    """
+    x = np.maximum(np.asarray(radiance_lin, np.float64), 0.0)
+    t = (x @ _RGB_TO_XYZ.T) / _WHITE_D65
+    f = np.where(t > _LAB_EPS, np.cbrt(t), t / (3 * (6.0 / 29.0) ** 2) + 4.0 / 29.0)
+    lab = np.stack([116.0 * f[..., 1] - 16.0, 500.0 * (f[..., 0] - f[..., 1]),
+                    200.0 * (f[..., 1] - f[..., 2])], axis=-1)
+    return lab.astype(np.float32)
+
+
+def lab_to_linear(lab: np.ndarray) -> np.ndarray:
+    """CIE L*a*b* to linear RGB (D65), the inverse of :func:`linear_to_lab`; colours outside
+    the sRGB gamut come out below 0 or above 1 (not clipped).
+
+    Example:
+        >>> x = np.array([[0.2, 0.5, 0.1], [0.9, 0.01, 0.3]], np.float32)
+        >>> bool(np.allclose(lab_to_linear(linear_to_lab(x)), x, atol=1e-5))
+        True
+    """
+    lab = np.asarray(lab, np.float64)
+    fy = (lab[..., 0] + 16.0) / 116.0
+    f = np.stack([fy + lab[..., 1] / 500.0, fy, fy - lab[..., 2] / 200.0], axis=-1)
+    t = np.where(f > 6.0 / 29.0, f**3, 3 * (6.0 / 29.0) ** 2 * (f - 4.0 / 29.0))
+    return ((t * _WHITE_D65) @ _XYZ_TO_RGB.T).astype(np.float32)

@@ -88,6 +88,18 @@ GROUND_POINTS = 4000
 MIN_AGREEMENT = 0.05
 #: Rows (fraction of the height) below ``Z``'s lowest sky row that the prior may still add.
 HORIZON_MARGIN = 0.15
+#: :func:`combine_sky`: a prior region at least this clear blue, spanning at least this share of
+#: the top row, is sky without ``Z``'s agreement.
+CLEAR_BLUE = 0.9
+CLEAR_TOP = 0.9
+
+
+def _clear_blue(image_srgb: np.ndarray) -> np.ndarray:
+    """Clear-sky blue: blue above red and not below green, not dark (``H x W`` bool)."""
+    img = np.asarray(image_srgb, dtype=np.float32)
+    r, g, b = cv2.split(img)
+    lum = cv2.transform(img, np.array([[0.2126, 0.7152, 0.0722]], np.float32))
+    return (b > r + 0.03) & (b >= g - 0.02) & (lum > 0.2)
 
 
 def sky_colour(image_srgb: np.ndarray) -> np.ndarray:
@@ -97,7 +109,7 @@ def sky_colour(image_srgb: np.ndarray) -> np.ndarray:
     r, g, b = cv2.split(img)
     lum = cv2.transform(img, np.array([[0.2126, 0.7152, 0.0722]], np.float32))
     lo, hi = np.minimum(np.minimum(r, g), b), np.maximum(np.maximum(r, g), b)
-    bluish = (b > r + 0.03) & (b >= g - 0.02) & (lum > 0.2)
+    bluish = _clear_blue(img)
     cloudish = (lum > 0.5) & (hi - lo < 0.25 * hi)  # saturation < 0.25
     return bluish | cloudish
 
@@ -179,6 +191,13 @@ def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
     * A sky region of ``Z``'s is kept if it reaches the top of the frame (through the prior's
       regions too) or starts in the upper half; one cut off from the top that starts in the lower
       half is dropped (a pool or a window that ``Z`` took for sky).
+    * A region of the prior that is clear blue (:func:`_clear_blue` on at least
+      :data:`CLEAR_BLUE` of it) and spans at least :data:`CLEAR_TOP` of the top row is sky
+      whatever ``Z`` says: ``Z`` missed the whole sky of a beach under a clear sky (dev photos:
+      sky mask empty on 2 of 47, their blue sky and sea then read as the photo's shadows), and
+      a smooth blue band across the whole top of a frame is almost never a surface. Shade on
+      snow is bluish too, but does not span the top row (on the dev photos such regions touch
+      at most 9 % of it).
     * Holes are closed as in :func:`sky_prior`.
     """
     model_sky = np.asarray(model_sky, dtype=bool)
@@ -189,13 +208,18 @@ def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
         )
     h = model_sky.shape[0]
     prior = sky_prior(image)
+    clear = np.zeros_like(prior)
     n, labels = cv2.connectedComponents(prior.astype(np.uint8), connectivity=4)
     if n > 1:
         area = np.bincount(labels.ravel(), minlength=n)
         agree = np.bincount(labels.ravel(), weights=model_sky.ravel(), minlength=n)
         ok = agree >= MIN_AGREEMENT * np.maximum(area, 1)
-        ok[0] = False
+        blue = np.bincount(labels.ravel(), weights=_clear_blue(image).ravel(), minlength=n)
+        top = np.bincount(labels[0], minlength=n)
+        sure = (blue >= CLEAR_BLUE * np.maximum(area, 1)) & (top >= CLEAR_TOP * labels.shape[1])
+        ok[0] = sure[0] = False
         prior = ok[labels]
+        clear = sure[labels]
     n, labels = cv2.connectedComponents(model_sky.astype(np.uint8), connectivity=8)
     keep = np.zeros(n, bool)
     if n > 1:
@@ -210,7 +234,7 @@ def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
     rows_with_sky = np.nonzero(z_kept.any(axis=1))[0]
     limit = rows_with_sky[-1] + 1 + round(HORIZON_MARGIN * h) if rows_with_sky.size else 0
     prior[limit:] = False
-    return _fill_holes(z_kept | prior, sky_colour(image))
+    return _fill_holes(z_kept | prior | clear, sky_colour(image))
 
 
 def smooth_depth(depth: np.ndarray, sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:

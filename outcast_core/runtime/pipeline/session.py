@@ -212,6 +212,11 @@ class RelightSession:
         #: Learned relighting takes its exposure from physics on the surfaces both suns light
         #: (:func:`~outcast_core.runtime.pipeline.relight.anchor_exposure`).
         self.exposure_anchor = True
+        #: With the floor, learned relighting would also brighten newly lit surfaces at least as
+        #: much as physics does (:func:`~outcast_core.runtime.pipeline.relight.
+        #: shadow_contrast_floor`'s ``lift``); off: it lifts dark materials that the photo's
+        #: found shadows include (measured in that docstring).
+        self.lift_new_light = False
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
         shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
@@ -725,7 +730,7 @@ class RelightSession:
         keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(w_n, cam))
         return guard_learned_relight(image, relit, s_o, s_new, sky, light, keep_sky=keep_sky,
                                      colour=self.colour_guard, floor=self.contrast_floor,
-                                     anchor=self.exposure_anchor)
+                                     anchor=self.exposure_anchor, lift=self.lift_new_light)
 
     def _shadow_from(self, inp: dict[str, Any], wv: np.ndarray, threads: int | None) -> np.ndarray:
         """:meth:`shadow` (full quality, working size) of the snapshot ``inp``, for

@@ -113,6 +113,27 @@ def test_combine_keeps_no_sky_where_z_sees_none() -> None:
     assert not combine_sky(np.zeros(img.shape[:2], bool), img).any()
 
 
+
+def test_combine_takes_a_clear_blue_sky_across_the_top_that_z_missed() -> None:
+    """A beach: clear blue sky over the whole top of the frame, dark blue sea, pale sand with a
+    bluish shadow on it. ``Z`` saw no sky at all (as on 2 of the 47 dev photos); the sky is the
+    clear blue band, not the sea (not smooth-connected to the top through sky colour) and not
+    the shadow (it does not reach the top row)."""
+    h, w = 100, 120
+    rng = np.random.default_rng(1)
+    img = np.empty((h, w, 3), np.float32)
+    t = np.linspace(0.0, 1.0, 30)[:, None]
+    img[:30] = np.stack([0.3 + 0.2 * t, 0.5 + 0.2 * t, 0.85 + 0.05 * t], -1)
+    img[30:45] = np.array([0.05, 0.2, 0.35]) + 0.08 * rng.random((15, w, 1))  # the sea
+    img[45:] = np.array([0.85, 0.78, 0.62]) + 0.05 * rng.random((h - 45, w, 1))  # sand
+    img[70:85, 30:60] = np.array([0.35, 0.38, 0.45])  # a shadow on the sand, bluish
+    out = combine_sky(np.zeros((h, w), bool), img.clip(0, 1))
+    assert out[:25].all()  # the prior stops a few rows short of an edge
+    assert not out[32:].any()
+    # The same band broken by a roof across half the top row is not taken without Z.
+    img[:12, :60] = np.array([0.45, 0.25, 0.2])
+    assert not combine_sky(np.zeros((h, w), bool), img.clip(0, 1)).any()
+
 def test_combine_stops_below_zs_horizon() -> None:
     # Pale smooth ground meeting a pale sky without an edge: only the margin below Z's horizon.
     h, w = 100, 100

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import cv2
 import numpy as np
 import pytest
 
@@ -103,9 +104,11 @@ def test_keep_photo_colour_where_both_suns_light_the_surface() -> None:
     sky = np.zeros((h, w), bool)
     sky[0] = True
     out = keep_photo_colour(image, relit, s_old, s_new, sky, keep_sky=True)
-    chroma = out[4, 2] / out[4, 2].sum()
-    np.testing.assert_allclose(chroma, image[4, 2] / image[4, 2].sum(), atol=0.01)
-    assert out[4, 2].mean() > image[4, 2].mean()  # it took the relit brightness
+    lab = [cv2.cvtColor(np.ascontiguousarray(x[4:5, 2:3]), cv2.COLOR_RGB2Lab)[0, 0]
+           for x in (image, relit, out)]
+    np.testing.assert_allclose(lab[2][1:], lab[0][1:], atol=0.3)  # the photo's a*, b*
+    np.testing.assert_allclose(lab[2][0], lab[1][0], atol=0.3)  # the relit lightness L*
+    assert out[4, 2].mean() > image[4, 2].mean()
     np.testing.assert_allclose(out[4, 9], relit[4, 9], atol=1e-3)
     np.testing.assert_allclose(out[0], image[0], atol=1e-3)  # the sky is the photo's
     out = keep_photo_colour(image, relit, s_old, s_new, sky, keep_sky=False)
@@ -188,3 +191,55 @@ def test_anchor_exposure_takes_the_exposure_of_physics_on_surfaces_lit_under_bot
     np.testing.assert_allclose(anchor_exposure(image, drifted, physics, dark, s_new, sky), drifted)
     with pytest.raises(ValueError, match="relit image"):
         anchor_exposure(image, drifted[:4], physics, s_old, s_new, sky)
+
+
+def test_guarded_relight_keeps_the_photos_colour_where_both_suns_light_it() -> None:
+    """The colour guard acts last: neither the exposure anchor's gain nor the shade floor moves
+    the ``a*, b*`` it keeps on surfaces lit under both suns (the anchor's gain alone moved them
+    before: Lab ``a*, b*`` grow with lightness)."""
+    from outcast_core.runtime.geometry.colour import linear_to_lab
+    from outcast_core.runtime.pipeline.relight import guard_learned_relight
+
+    rng = np.random.default_rng(2)
+    h, w = 16, 24
+    image = rng.uniform(0.25, 0.6, (h, w, 3)).astype(np.float32)
+    image[..., 1] *= 1.25  # greener, where a gain moves a* most (in gamut: the sRGB cube
+    # clips the most saturated colours when their lightness changes)
+    relit = np.clip(image * np.array([1.25, 0.9, 0.8], np.float32), 0, 1)  # tinted
+    s_old = np.full((h, w), 0.9, np.float32)
+    s_new = np.full((h, w), 0.6, np.float32)  # lit, but less: the relit image may darken
+    s_new[:, 16:] = 0.0  # newly shadowed there: its colour is the relighting's
+    sky = np.zeros((h, w), bool)
+    light = estimate_light(srgb_to_linear(image), s_old)
+    out = guard_learned_relight(image, relit, s_old, s_new, sky, light, keep_sky=True)
+    lab_i, lab_o = linear_to_lab(srgb_to_linear(image)), linear_to_lab(srgb_to_linear(out))
+    both = np.s_[:, :10]  # away from the new shadow's smoothed edge
+    np.testing.assert_allclose(lab_o[both][..., 1:], lab_i[both][..., 1:], atol=0.5)
+    assert np.abs(lab_o[both][..., 0] - lab_i[both][..., 0]).mean() > 1.0  # brightness moved
+    newly = np.s_[:, 20:]
+    assert np.abs(lab_o[newly][..., 1:] - lab_i[newly][..., 1:]).mean() > 1.0
+
+
+def test_guarded_relight_lifts_newly_lit_surfaces_to_physics_only_when_asked() -> None:
+    from outcast_core.runtime.geometry.colour import luminance
+    from outcast_core.runtime.pipeline.relight import guard_learned_relight, physics_relight
+
+    h, w = 40, 40
+    image = np.full((h, w, 3), 0.6, np.float32)
+    s_old = np.full((h, w), 0.9, np.float32)
+    image[:, :20] *= 0.35  # the photo's shadow on the left half
+    s_old[:, :20] = 0.0
+    s_new = np.full((h, w), 0.9, np.float32)  # the new sun lights everything
+    sky = np.zeros((h, w), bool)
+    light = estimate_light(srgb_to_linear(image), s_old)
+    timid = image.copy()  # a relighting that did not lift the old shadow
+    off = guard_learned_relight(image, timid, s_old, s_new, sky, light, keep_sky=True)
+    on = guard_learned_relight(image, timid, s_old, s_new, sky, light, keep_sky=True,
+                               lift=True)
+    physics = physics_relight(image, s_old, s_new, sky, light=light, snap=False)
+
+    def y(x: np.ndarray) -> float:
+        return float(luminance(srgb_to_linear(x))[10:30, 5:12].mean())
+
+    assert y(off) < 0.8 * y(physics)
+    assert y(on) >= 0.97 * y(physics)
