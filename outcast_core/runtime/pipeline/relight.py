@@ -385,6 +385,10 @@ def guard_learned_relight(
     Lab ``a*b*`` kept, ``L*`` relit, last (default)          0.87
     ======================================================  ============
 
+    (The Lab rows were measured with OpenCV's conversion; the shipped one,
+    :func:`~outcast_core.runtime.geometry.colour.linear_to_lab`, gives 0.86 for the last.)
+    ``lift`` is :func:`shadow_contrast_floor`'s (off: measured there).
+
     Example:
         >>> img = np.full((8, 8, 3), 0.5, np.float32); ones = np.ones((8, 8), np.float32)
         >>> light = estimate_light(srgb_to_linear(img), ones)
