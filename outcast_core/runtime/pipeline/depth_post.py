@@ -94,11 +94,13 @@ CLEAR_BLUE = 0.9
 CLEAR_TOP = 0.9
 
 
-def _clear_blue(image_srgb: np.ndarray) -> np.ndarray:
-    """Clear-sky blue: blue above red and not below green, not dark (``H x W`` bool)."""
+def _clear_blue(image_srgb: np.ndarray, lum: np.ndarray | None = None) -> np.ndarray:
+    """Clear-sky blue: blue above red and not below green, not dark (``H x W`` bool);
+    ``lum``: the image's Rec. 709 luma when the caller has it."""
     img = np.asarray(image_srgb, dtype=np.float32)
     r, g, b = cv2.split(img)
-    lum = cv2.transform(img, np.array([[0.2126, 0.7152, 0.0722]], np.float32))
+    if lum is None:
+        lum = cv2.transform(img, np.array([[0.2126, 0.7152, 0.0722]], np.float32))
     return (b > r + 0.03) & (b >= g - 0.02) & (lum > 0.2)
 
 
@@ -109,7 +111,7 @@ def sky_colour(image_srgb: np.ndarray) -> np.ndarray:
     r, g, b = cv2.split(img)
     lum = cv2.transform(img, np.array([[0.2126, 0.7152, 0.0722]], np.float32))
     lo, hi = np.minimum(np.minimum(r, g), b), np.maximum(np.maximum(r, g), b)
-    bluish = _clear_blue(img)
+    bluish = _clear_blue(img, lum)
     cloudish = (lum > 0.5) & (hi - lo < 0.25 * hi)  # saturation < 0.25
     return bluish | cloudish
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from outcast_core.runtime.geometry.colour import (
     lab_to_linear,
+    lightness,
     linear_to_lab,
     linear_to_srgb,
     luminance,
@@ -451,12 +452,15 @@ def keep_photo_colour(
     _check_pair(image, np.asarray(shadow_old), "shadow_old")
     _check_pair(image, np.asarray(shadow_new), "shadow_new")
     lin, lin_r = srgb_to_linear(image), srgb_to_linear(relit)
-    lab = linear_to_lab(lin)
-    lab[..., 0] = linear_to_lab(lin_r)[..., 0]
-    same_colour = np.clip(lab_to_linear(lab), 0.0, 1.0)
-
-    weight = (_lit(shadow_old) * _lit(shadow_new))[..., None]
-    out = weight * same_colour + (1.0 - weight) * lin_r
+    weight = _lit(shadow_old) * _lit(shadow_new)
+    both = weight > 0  # only there: the drag preview runs this on every frame
+    out = lin_r.copy()
+    if both.any():
+        lab = linear_to_lab(lin[both])
+        lab[:, 0] = lightness(luminance(lin_r[both]))
+        same_colour = np.clip(lab_to_linear(lab), 0.0, 1.0)
+        w = weight[both][:, None]
+        out[both] = w * same_colour + (1.0 - w) * lin_r[both]
     sky = np.asarray(sky, bool)[..., None]
     if keep_sky:
         out = np.where(sky, lin, out)
