@@ -122,6 +122,37 @@ def session_reuse(repeats: int) -> None:
         t_full, _ = best_of(lambda s=s: s.relight_full((-0.4, -0.5, -0.7)), 1)
         print(f"{name:>9} {t_set:12.3f} {t_sh:9.3f} {t_prev:10.3f} {t_rel:10.3f} "
               f"{t_cached:9.5f} {t_full:11.3f}")
+    lift_cost(img, repeats)
+
+
+def lift_cost(img: object, repeats: int) -> None:
+    """The learned relighting's guards with and without the lift of newly lit surfaces (the
+    session's ``lift_new_light``), balanced preset, working size: the relighting network and
+    its guards for one new sun (shadow cached), and the lift's one-off inputs per original sun
+    (material guard, de-shadowed photo)."""
+    s = RelightSession(preset="balanced")
+    s.set_image(img)
+    s.set_original_sun((0.3, -0.8, -0.5))
+    suns = [(-0.4, -0.5, -0.7), (0.5, -0.6, -0.6)]
+    for w in suns:
+        s.shadow(w)
+    times = {}
+    for lift in (False, True):
+        s.lift_new_light = lift
+        s.relight(suns[0])  # the lift's inputs made and cached here (counted below)
+
+        def one(s: RelightSession = s) -> object:
+            s._relight_cache.clear()
+            return s.relight(suns[1])
+
+        times[lift], _ = best_of(one, repeats)
+    s.set_original_sun((0.3, -0.8, -0.5))  # new S_o: the lift's inputs are made again
+    t0 = time.perf_counter()
+    s._lift_inputs(s.image_srgb.shape[:2])
+    t_inputs = time.perf_counter() - t0
+    print(f"  learned relight, balanced, one sun: without the lift {times[False]:.3f} s, with "
+          f"it {times[True]:.3f} s (x{times[True] / times[False]:.2f}); its inputs once per "
+          f"original sun {t_inputs:.3f} s")
 
 
 def find_sun_speed(repeats: int) -> None:

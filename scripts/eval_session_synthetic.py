@@ -32,9 +32,10 @@ from outcast_core.train.data import auto_exposure, tonemap  # noqa: E402
 
 #: (label, session keyword arguments): the app's default first.
 CONFIGS: list[tuple[str, dict]] = [
-    ("learned L, S_o from the photo, colour guard, shade floor (app default)", {}),
-    ("learned L, S_o from the photo, colour guard, shade floor and lift",
-     {"lift_new_light": True}),
+    ("learned L, S_o from the photo, colour guard, shade floor and guarded lift (app default)",
+     {}),
+    ("learned L, S_o from the photo, colour guard, shade floor, no lift",
+     {"lift_new_light": False}),
     ("learned L, S_o from the photo, colour guard, no floor", {"contrast_floor": False}),
     ("learned L, S_o from the photo, no guard, no floor",
      {"colour_guard": False, "contrast_floor": False}),
@@ -54,7 +55,7 @@ def factor(img: np.ndarray, base: np.ndarray, m: np.ndarray) -> float:
 def _session(kwargs: dict) -> RelightSession:
     guard = kwargs.pop("colour_guard", True)
     floor = kwargs.pop("contrast_floor", True)
-    lift = kwargs.pop("lift_new_light", False)
+    lift = kwargs.pop("lift_new_light", True)
     s = RelightSession(preset="fast", shadow_mode="learned", **kwargs)
     s.colour_guard, s.contrast_floor, s.lift_new_light = guard, floor, lift
     return s

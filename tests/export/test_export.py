@@ -97,7 +97,8 @@ def test_session_relights_with_a_physics_base_l_as_the_physics_mode_does(tmp_pat
     s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", relight_mode="learned",
                        preset="fast")
     assert s.relight_mode == "learned"
-    s.colour_guard = False  # compare L's own output (the guard is tested in test_relight)
+    # Compare L's own output (the colour guard and the lift are tested in test_relight).
+    s.colour_guard = s.lift_new_light = False
     s.set_image(image, depth=depth, fov_deg=30.0)
     # Shade the photo by its own shadows so the session measures its light ratio.
     from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear

@@ -109,6 +109,7 @@ CHROMA_TOL = 1.0
 #: shade before the split is taken again inside the dark class.
 MAX_SHADE_FRACTION = 0.5
 LOCAL_MAX = 1.5
+_LUM = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec. 709 luminance weights
 
 
 def _otsu_threshold(values: np.ndarray, bins: int = 256) -> float:
@@ -196,15 +197,23 @@ def photo_shadow_probability(
     if EDGE_RADIUS > 0:
         p = cv2.ximgproc.guidedFilter(img, p.astype(np.float32), radius, EDGE_EPS)
     if prior_shadow is not None:
-        prior = np.asarray(prior_shadow, np.float32)
-        if prior.shape != sky.shape:
-            raise ValueError(f"expected a prior of shape {sky.shape}, got {prior.shape}")
-        geo = ((prior < PRIOR_THRESHOLD) & surface).astype(np.uint8)
-        k = max(1, round(PRIOR_RADIUS * side))
-        near = cv2.dilate(geo, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
-        gate = cv2.GaussianBlur(near.astype(np.float32), (0, 0), max(1.0, k / 4))
-        p = p * np.clip(gate * 2.0, 0.0, 1.0)
+        p = p * near_predicted_shadow(prior_shadow, sky, PRIOR_RADIUS)
     return np.where(surface, np.clip(p, 0.0, 1.0), 0.0).astype(np.float32)
+
+
+def near_predicted_shadow(prior_shadow: np.ndarray, sky: np.ndarray, radius: float
+                          ) -> np.ndarray:
+    """1 within ``radius`` (fraction of the longer side) of a predicted shadow
+    (``S < PRIOR_THRESHOLD`` off the sky), falling softly to 0 beyond it (``H x W`` float32)."""
+    prior = np.asarray(prior_shadow, np.float32)
+    sky = np.asarray(sky, bool)
+    if prior.shape != sky.shape:
+        raise ValueError(f"expected a prior of shape {sky.shape}, got {prior.shape}")
+    geo = ((prior < PRIOR_THRESHOLD) & ~sky).astype(np.uint8)
+    k = max(1, round(radius * max(sky.shape)))
+    near = cv2.dilate(geo, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
+    gate = cv2.GaussianBlur(near.astype(np.float32), (0, 0), max(1.0, k / 4))
+    return np.clip(gate * 2.0, 0.0, 1.0).astype(np.float32)
 
 
 def same_material(image_srgb: np.ndarray, probability: np.ndarray, surface: np.ndarray
@@ -247,29 +256,27 @@ def original_shadow_from_photo(
     return np.where(np.asarray(sky, bool), 0.0, out).astype(np.float32)
 
 
-def deshadow_log_gain(
-    image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray
-) -> np.ndarray:
-    """Per-pixel, per-channel log gain that lifts the photo's shadows (``H x W x 3``).
-
-    Around each pixel (Gaussian weights, sigma :data:`RATIO_SIGMA` of the longer side) the mean
-    log colour of the lit surface minus that of the shadowed surface, clamped to
-    ``[0, MAX_LIFT_LOG]``, times the pixel's shadow probability. Where no lit surface is near,
-    the whole photo's lit/shadow ratio stands in.
-    """
+def _check_probability(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
     p = np.clip(np.asarray(probability, np.float32), 0.0, 1.0)
     sky = np.asarray(sky, bool)
     if p.shape != img.shape[:2] or sky.shape != p.shape:
         raise ValueError(f"expected probability and sky of shape {img.shape[:2]}, got "
                          f"{p.shape} and {sky.shape}")
+    return img, p, sky
+
+
+def _shade_statistics(img: np.ndarray, p: np.ndarray, sky: np.ndarray) -> dict | None:
+    """Log colour, the lit and shadowed surfaces' local log means and weights, and the whole
+    photo's lit/shadow log ratio ``glob`` (per channel); None without both surfaces."""
     lin = srgb_to_linear(img)
     log_c = np.log(lin + _LOG_EPS).astype(np.float32)
     usable = ~sky & (lin.max(axis=-1) < 0.98)
     w_lit = ((1.0 - p) ** 2 * usable).astype(np.float32)
     w_shd = (p**2 * usable).astype(np.float32)
     if w_lit.sum() < 1.0 or w_shd.sum() < 1.0:
-        return np.zeros(img.shape, np.float32)
+        return None
     glob = (np.einsum("hw,hwc->c", w_lit, log_c) / w_lit.sum()
             - np.einsum("hw,hwc->c", w_shd, log_c) / w_shd.sum())
     sigma = max(1.0, RATIO_SIGMA * max(p.shape))
@@ -284,19 +291,71 @@ def deshadow_log_gain(
     mu_lit = blur(log_c * w_lit[..., None]) / np.maximum(n_lit, 1e-6)[..., None]
     # The shade's own level more locally: a shadow darkens toward its occluder.
     mu_shd = blur_s(log_c * w_shd[..., None]) / np.maximum(blur_s(w_shd), 1e-6)[..., None]
-    local = mu_lit - mu_shd
+    return {"log_c": log_c, "glob": glob, "n_lit": n_lit, "n_shd": n_shd, "mu_lit": mu_lit,
+            "mu_shd": mu_shd}
+
+
+def deshadow_log_gain(
+    image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray
+) -> np.ndarray:
+    """Per-pixel, per-channel log gain that lifts the photo's shadows (``H x W x 3``).
+
+    Around each pixel (Gaussian weights, sigma :data:`RATIO_SIGMA` of the longer side) the mean
+    log colour of the lit surface minus that of the shadowed surface, clamped to
+    ``[0, MAX_LIFT_LOG]``, times the pixel's shadow probability. Where no lit surface is near,
+    the whole photo's lit/shadow ratio stands in.
+    """
+    img, p, sky = _check_probability(image_srgb, probability, sky)
+    st = _shade_statistics(img, p, sky)
+    if st is None:
+        return np.zeros(img.shape, np.float32)
+    glob = st["glob"]
+    local = st["mu_lit"] - st["mu_shd"]
     # Trust the local ratio where both sides have weight; blend to the global one elsewhere.
-    trust = np.clip(np.minimum(n_lit, n_shd) / 0.05, 0.0, 1.0)[..., None]
+    trust = np.clip(np.minimum(st["n_lit"], st["n_shd"]) / 0.05, 0.0, 1.0)[..., None]
     gain = trust * local + (1.0 - trust) * glob.reshape(1, 1, 3)
     # Lit surfaces nearby may be another material: never lift far beyond the photo's own
     # sun/shade ratio.
     gain = np.clip(gain, 0.0, np.minimum(MAX_LIFT_LOG, LOCAL_MAX * np.maximum(glob, 0.0)))
-    # A pixel far darker than shade is here (black railings, navy cushions, foliage gaps) is a
-    # dark material or a deep cavity: lifting it by the shade's ratio would turn it grey.
-    lum = np.array([0.2126, 0.7152, 0.0722], np.float32)
-    excess = (mu_lit @ lum - log_c @ lum) - float(np.maximum(glob, 0.0) @ lum) - DARKER_MARGIN
-    keep = np.exp(-0.5 * (np.maximum(excess, 0.0) / DARKER_WIDTH) ** 2)
+    keep = _not_darker_than_shade(st["log_c"], st["mu_lit"], glob)
     return (gain * (p * keep)[..., None]).astype(np.float32)
+
+
+def material_guard(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray
+                   ) -> np.ndarray:
+    """How much each pixel's darkness may be taken for shade rather than material (``H x W``
+    in [0, 1]): :func:`same_material` times the darker-than-shade guard of
+    :func:`deshadow_log_gain`, the two guards :func:`deshadow` uses to keep dark materials dark.
+
+    Example:
+        >>> img = np.full((32, 32, 3), 0.8, np.float32); img[16:, 16:] *= 0.5
+        >>> img[20:24, 20:24] = 0.01  # a black object inside the shadow
+        >>> p = photo_shadow_probability(img, np.zeros((32, 32), bool))
+        >>> g = material_guard(img, p, np.zeros((32, 32), bool))
+        >>> bool(g[28, 28] > 0.8 and g[22, 22] < 0.2)
+        True
+    """
+    img, p, sky = _check_probability(image_srgb, probability, sky)
+    surface = ~sky
+    guard = same_material(img, p, surface) if CHROMA_TOL > 0 else np.ones(p.shape, np.float32)
+    st = _shade_statistics(img, p * guard, sky)
+    if st is None:
+        return np.where(surface, guard, 0.0).astype(np.float32)
+    keep = _not_darker_than_shade(st["log_c"], st["mu_lit"], st["glob"])
+    return np.where(surface, guard * keep, 0.0).astype(np.float32)
+
+
+def _not_darker_than_shade(log_c: np.ndarray, mu_lit: np.ndarray, glob: np.ndarray
+                           ) -> np.ndarray:
+    """1 where a pixel is no darker than shade is here, falling to 0 beyond it.
+
+    A pixel far darker than shade is here (black railings, navy cushions, foliage gaps) is a
+    dark material or a deep cavity: lifting it by the shade's ratio would turn it grey. Its
+    darkness against the lit surface around it (``mu_lit``, log colour) is compared with the
+    photo's lit/shade log ratio ``glob`` plus :data:`DARKER_MARGIN`.
+    """
+    excess = (mu_lit @ _LUM - log_c @ _LUM) - float(np.maximum(glob, 0.0) @ _LUM) - DARKER_MARGIN
+    return np.exp(-0.5 * (np.maximum(excess, 0.0) / DARKER_WIDTH) ** 2).astype(np.float32)
 
 
 def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray) -> np.ndarray:
@@ -321,6 +380,8 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray) -
 __all__ = [
     "deshadow",
     "deshadow_log_gain",
+    "material_guard",
+    "near_predicted_shadow",
     "original_shadow_from_photo",
     "photo_shadow_probability",
     "shade_threshold",

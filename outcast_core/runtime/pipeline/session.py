@@ -45,10 +45,13 @@ from outcast_core.runtime.pipeline.depth_post import postprocess_z, run_depth_mo
 from outcast_core.runtime.pipeline.photo_shadows import (
     LIT_FLOOR,
     deshadow,
+    material_guard,
+    near_predicted_shadow,
     original_shadow_from_photo,
     photo_shadow_probability,
 )
 from outcast_core.runtime.pipeline.relight import (
+    LIFT_PRIOR_RADIUS,
     LightEstimate,
     estimate_light,
     guard_learned_relight,
@@ -212,11 +215,12 @@ class RelightSession:
         #: Learned relighting takes its exposure from physics on the surfaces both suns light
         #: (:func:`~outcast_core.runtime.pipeline.relight.anchor_exposure`).
         self.exposure_anchor = True
-        #: With the floor, learned relighting would also brighten newly lit surfaces at least as
-        #: much as physics does (:func:`~outcast_core.runtime.pipeline.relight.
-        #: shadow_contrast_floor`'s ``lift``); off: it lifts dark materials that the photo's
-        #: found shadows include (measured in that docstring).
-        self.lift_new_light = False
+        #: With the floor, learned relighting also brightens newly lit surfaces toward physics
+        #: (:func:`~outcast_core.runtime.pipeline.relight.shadow_contrast_floor`'s ``lift``),
+        #: only where the photo's found shadow is shade and not dark material and the geometry
+        #: puts a shadow (:meth:`_lift_guard`), and no brighter than the de-shadowed photo
+        #: relit by physics (:meth:`_lift_inputs`; measured in that docstring).
+        self.lift_new_light = True
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
         shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
@@ -283,6 +287,8 @@ class RelightSession:
         self._deshadowed: np.ndarray | None = None
         #: Where the photo's own shadows are (``H x W`` in [0, 1]), set by set_original_sun().
         self.shadow_probability: np.ndarray | None = None
+        #: The lift's material guard (:meth:`_lift_guard`), per size, for one ``S_o``.
+        self._lift_guards: dict[Any, Any] = {}
 
     def _time(self, stage: str, t0: float) -> None:
         self.timings[stage] = time.perf_counter() - t0
@@ -499,7 +505,7 @@ class RelightSession:
         with self._lock:
             self._require_image()
             t0 = time.perf_counter()
-            s = self.shadow(wv)
+            s = geometry = self.shadow(wv)
             prob = None
             if self.refinement == "photo":
                 prob = photo_shadow_probability(self.image_srgb, self.sky, s)
@@ -523,6 +529,7 @@ class RelightSession:
             self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self.sky)
             self._relight_cache.clear()
             self._deshadowed = None
+            self._lift_guards = {"of": self.original_shadow, "geometry": geometry}
             self._time("original_sun", t0)
             return self.original_shadow
 
@@ -728,9 +735,50 @@ class RelightSession:
         """The learned relighting with the guards this session turns on
         (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`)."""
         keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(w_n, cam))
+        lift = self.lift_new_light and self.contrast_floor
         return guard_learned_relight(image, relit, s_o, s_new, sky, light, keep_sky=keep_sky,
                                      colour=self.colour_guard, floor=self.contrast_floor,
-                                     anchor=self.exposure_anchor, lift=self.lift_new_light)
+                                     anchor=self.exposure_anchor, lift=lift,
+                                     **(self._lift_inputs(s_o.shape) if lift else {}))
+
+    def _lift_inputs(self, shape: tuple[int, int]) -> dict[str, Any]:
+        """:func:`guard_learned_relight`'s ``lift_guard`` and ``lift_base`` at ``shape``: where
+        the lift may act (:meth:`_lift_guard`) and the de-shadowed photo with the lit level of
+        the old sun, which physics relights into the lift's ceiling."""
+        guard = self._lift_guard(shape)
+        if guard is None:
+            return {}
+        guards = self._lift_guards
+        key = ("base", tuple(shape))
+        if key not in guards:
+            assert self.original_sun is not None and self.normals is not None
+            base = self.deshadow()
+            lit_old = np.maximum(cosine_term(self.normals, self.original_sun), LIT_FLOOR)
+            lit_old = np.where(self.sky, 0.0, lit_old).astype(np.float32)
+            if base.shape[:2] != tuple(shape):
+                base = np.clip(resize(base, tuple(shape)), 0.0, 1.0)
+                lit_old = np.clip(resize(lit_old, tuple(shape)), 0.0, 1.0)
+            guards[key] = (base.astype(np.float32), lit_old.astype(np.float32))
+        return {"lift_guard": guard, "lift_base": guards[key]}
+
+    def _lift_guard(self, shape: tuple[int, int]) -> np.ndarray | None:
+        """Where a newly lit surface may be lifted to physics' brightness: the photo's found
+        shadows that are shade, not dark material (:func:`~outcast_core.runtime.pipeline.
+        photo_shadows.material_guard`), at ``shape`` (working size or the drag preview's).
+        Made once per ``S_o`` and size; a worker thread that races another makes the same
+        array."""
+        guards = self._lift_guards
+        if self.shadow_probability is None or guards.get("of") is not self.original_shadow:
+            return None
+        if "working" not in guards:
+            guards["working"] = (
+                material_guard(self.image_srgb, self.shadow_probability, self.sky)
+                * near_predicted_shadow(guards["geometry"], self.sky, LIFT_PRIOR_RADIUS))
+        key = tuple(shape)
+        if key not in guards:
+            g = guards["working"]
+            guards[key] = g if g.shape == key else np.clip(resize(g, key), 0.0, 1.0)
+        return guards[key]
 
     def _shadow_from(self, inp: dict[str, Any], wv: np.ndarray, threads: int | None) -> np.ndarray:
         """:meth:`shadow` (full quality, working size) of the snapshot ``inp``, for

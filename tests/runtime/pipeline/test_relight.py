@@ -243,3 +243,70 @@ def test_guarded_relight_lifts_newly_lit_surfaces_to_physics_only_when_asked() -
 
     assert y(off) < 0.8 * y(physics)
     assert y(on) >= 0.97 * y(physics)
+
+
+def test_lift_stops_where_the_material_guard_says_the_darkness_is_material() -> None:
+    from outcast_core.runtime.geometry.colour import luminance
+    from outcast_core.runtime.pipeline.photo_shadows import (
+        material_guard,
+        photo_shadow_probability,
+    )
+    from outcast_core.runtime.pipeline.relight import guard_learned_relight, physics_relight
+
+    h, w = 48, 48
+    image = np.full((h, w, 3), 0.6, np.float32)
+    image[:, :24] *= 0.35  # the photo's shadow on the left half
+    image[20:28, 6:14] = 0.01  # a black object inside it: dark material, not shade
+    sky = np.zeros((h, w), bool)
+    prob = photo_shadow_probability(image, sky)
+    assert prob[24, 10] > 0.9 and prob[5, 5] > 0.9  # both found as "shadow" by darkness
+    s_old = np.where(prob > 0.5, 0.0, 0.9).astype(np.float32)
+    s_new = np.full((h, w), 0.9, np.float32)  # the new sun lights everything
+    light = estimate_light(srgb_to_linear(image), s_old)
+    guard = material_guard(image, prob, sky)
+    assert guard[5, 5] > 0.8 and guard[24, 10] < 0.2
+    timid = image.copy()
+    on = guard_learned_relight(image, timid, s_old, s_new, sky, light, keep_sky=True,
+                               lift=True, lift_guard=guard)
+    physics = physics_relight(image, s_old, s_new, sky, light=light, snap=False)
+
+    def y(x: np.ndarray, rows: slice, cols: slice) -> float:
+        return float(luminance(srgb_to_linear(x))[rows, cols].mean())
+
+    shade, black = (slice(2, 12), slice(2, 20)), (slice(22, 26), slice(8, 12))
+    assert y(on, *shade) >= 0.95 * y(physics, *shade)  # shade lifted to physics
+    assert y(physics, *black) > 5 * y(image, *black)  # physics would lift the black object
+    assert y(on, *black) < 1.5 * y(image, *black)  # the guard keeps it black
+    with pytest.raises(ValueError, match="lift guard of shape"):
+        guard_learned_relight(image, timid, s_old, s_new, sky, light, keep_sky=True,
+                              lift=True, lift_guard=guard[:10])
+
+
+def test_lift_goes_no_higher_than_its_cap() -> None:
+    from outcast_core.runtime.geometry.colour import luminance
+    from outcast_core.runtime.pipeline.relight import physics_relight, shadow_contrast_floor
+
+    h, w = 8, 8
+    image = np.full((h, w, 3), 0.6, np.float32)
+    image[:, :4] *= 0.3  # the photo's shadow on the left half
+    s_old = np.full((h, w), 0.9, np.float32)
+    s_old[:, :4] = 0.0
+    s_new = np.full((h, w), 0.9, np.float32)  # the new sun lights everything
+    light = estimate_light(srgb_to_linear(image), s_old)
+    physics = physics_relight(image, s_old, s_new, None, light=light, snap=False)
+    cap = np.full_like(image, 0.4)  # darker than physics' lift, brighter than the photo
+
+    def y(x: np.ndarray) -> float:
+        return float(luminance(srgb_to_linear(x))[:, :4].mean())
+
+    full = shadow_contrast_floor(image, image, physics, s_old, s_new, lift=True)
+    capped = shadow_contrast_floor(image, image, physics, s_old, s_new, lift=True,
+                                   lift_cap_srgb=cap)
+    assert y(full) == pytest.approx(y(physics), rel=1e-2)
+    assert y(capped) == pytest.approx(y(cap), rel=1e-2)
+    below = shadow_contrast_floor(image, image, physics, s_old, s_new, lift=True,
+                                  lift_cap_srgb=image * 0.5)  # a cap below the relit image
+    assert y(below) == pytest.approx(y(image), rel=1e-3)  # the lift never darkens
+    with pytest.raises(ValueError, match="lift cap of shape"):
+        shadow_contrast_floor(image, image, physics, s_old, s_new, lift=True,
+                              lift_cap_srgb=cap[:4])

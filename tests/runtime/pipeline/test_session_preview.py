@@ -139,3 +139,30 @@ def test_prepare_relight_preview_builds_before_the_first_drag(scene) -> None:
     s.relight(SUNS[0], preview=True)
     assert s.relight_preview_builds == 1
 
+
+
+def test_lift_runs_at_working_and_preview_sizes_and_only_brightens(scene) -> None:
+    image, depth = scene
+    s = RelightSession(preset="balanced", mode="learned")
+    assert s.lift_new_light  # the app's default
+    s.lift_new_light = False
+    s.set_image(image, depth=depth)
+    s_o = s.shadow(W_O)
+    photo = (image * (0.3 + 0.7 * (s_o[..., None] > 0.2))).astype(np.float32)
+    s.set_image(photo, depth=depth)
+    s.set_original_sun(W_O)
+    off = s.relight(SUNS[0])
+    off_preview = s.relight(SUNS[0], preview=True)
+    s.lift_new_light = True
+    s._relight_cache.clear()
+    s._relight_preview = None
+    on = s.relight(SUNS[0])
+    on_preview = s.relight(SUNS[0], preview=True)
+    assert on.shape == off.shape and on_preview.shape == off_preview.shape
+    # The lift only raises luminance (never darkens), and it acts somewhere.
+    assert (on.mean(axis=-1) >= off.mean(axis=-1) - 2e-3).all()
+    assert (on.mean(axis=-1) > off.mean(axis=-1) + 0.02).any()
+    # Its inputs were made once per size and kept for the next sun.
+    keys = set(s._lift_guards)
+    s.relight(SUNS[1])
+    assert set(s._lift_guards) == keys
