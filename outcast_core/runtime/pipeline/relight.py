@@ -308,14 +308,15 @@ def shadow_contrast_floor(
     newly lit / newly shadowed / MSE): no lift x1.638 / x0.624 / 0.0270; lift alone x1.93 /
     x0.63 / 0.0290; lift with the material guard x1.823 / x0.630 / 0.0281; with the material
     and geometric guards x1.804 / x0.628 / 0.0278; both guards and the cap (the default)
-    x1.697 / x0.626 / 0.0272; physics x1.736 / x0.633 / 0.0451; truth x2.42 / x0.51. The cap
-    keeps the default below physics on renders (the de-shadowed photo under-lifts them), so
-    the issue's synthetic "newly lit" criterion stays unmet; the guards without the cap would
-    meet it and print the blotches above on a real photo. On the 47 dev photos relit +-120
-    degrees (fast preset, 69 cases with enough pixels), the log luminance ratio between the
-    lit surface just outside a human-marked shadow and the shadow itself, where the new sun
-    lights both (0 = the old shadow is gone): the photo 2.16, relit without the lift 0.664
-    (median 0.589), with the default lift 0.639 (median 0.498).
+    x1.697 / x0.626 / 0.0272 (x1.701 / x0.626 / 0.0273 with the de-shadow's wider
+    neighbourhood, ``photo_shadows.RATIO_SIGMA`` 0.3); physics x1.736 / x0.633 / 0.0451;
+    truth x2.42 / x0.51. The cap keeps the default below physics on renders (the de-shadowed
+    photo under-lifts them), so the issue's synthetic "newly lit" criterion stays unmet; the
+    guards without the cap would meet it and print the blotches above on a real photo. On the
+    47 dev photos relit +-120 degrees (fast preset, 69 cases with enough pixels), the log
+    luminance ratio between the lit surface just outside a human-marked shadow and the shadow
+    itself, where the new sun lights both (0 = the old shadow is gone): the photo 2.16, relit
+    without the lift 0.664 (median 0.589), with the default lift 0.639 (median 0.498).
 
     Returns:
         ``H x W x 3`` sRGB float32.

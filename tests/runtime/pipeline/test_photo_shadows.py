@@ -175,3 +175,20 @@ def test_a_small_bright_class_is_highlights_not_the_lit_surface():
     p = ps.photo_shadow_probability(img, sky)
     assert p[30, 5] > 0.9
     assert p[30, 45] < 0.1
+
+
+@pytest.mark.parametrize("sigma", [3.0, 20.0, 60.0])
+def test_wide_blur_matches_a_direct_gaussian(sigma: float) -> None:
+    import cv2
+
+    from outcast_core.runtime.pipeline.photo_shadows import wide_blur
+
+    rng = np.random.default_rng(3)
+    x = cv2.GaussianBlur(rng.random((120, 200, 3)).astype(np.float32), (0, 0), 2.0)
+    x[40:80, 60:140] += 1.0  # a sharp-edged region: the weight maps it blurs are like this
+    want = cv2.GaussianBlur(x, (0, 0), sigma, borderType=cv2.BORDER_REFLECT)
+    got = wide_blur(x, sigma)
+    assert got.shape == x.shape and got.dtype == np.float32
+    np.testing.assert_allclose(got, want, atol=0.01 if sigma > 16 else 1e-6)
+    one = wide_blur(x[..., 0], sigma)  # 2-D in, 2-D out
+    assert one.shape == x.shape[:2]
