@@ -202,6 +202,9 @@ def cmd_relight(args: argparse.Namespace) -> int:
 
 
 def cmd_deshadow(args: argparse.Namespace) -> int:
+    import cv2
+    import numpy as np
+
     from outcast_core.runtime.io.imageio import write_image, write_shadow_png
 
     w_from = parse_azel(args.from_sun)
@@ -216,8 +219,13 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     bit_depth = 16 if Path(args.output).suffix.lower() in {".tif", ".tiff"} else 8
     write_image(args.output, out, bit_depth=bit_depth, force=args.force,
                 exif=loaded.exif_bytes)
-    if args.mask:
-        write_shadow_png(args.mask, session.shadow_probability, force=args.force)
+    if args.mask:  # where the shadows were found, at the photo's size
+        prob = session.found_shadows_detail()["probability"]
+        full_hw = session.full_image_srgb.shape[:2]
+        if prob.shape != full_hw:
+            prob = np.clip(cv2.resize(prob, (full_hw[1], full_hw[0]),
+                                      interpolation=cv2.INTER_LINEAR), 0.0, 1.0)
+        write_shadow_png(args.mask, prob, force=args.force)
     t = session.timings
     _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows found at the "
                f"photo's sun with {session.shadow_mode} S as the prior, depth: "

@@ -93,6 +93,9 @@ SOFT_LOG = 0.12
 PRIOR_RADIUS = 0.2
 #: The shadow network's ``S`` below this is a predicted shadow (the overlay's threshold).
 PRIOR_THRESHOLD = 0.15
+#: :func:`original_shadow_from_photo`: the visibility at ``p = 0.5``, just under the overlay's
+#: threshold, so that ``S_o`` marks as shadow exactly the found shadows.
+FOUND_VISIBILITY = 0.99 * PRIOR_THRESHOLD
 #: Guided-filter radius (fraction of the longer side) and eps that snap the mask to the photo.
 EDGE_RADIUS = 1.0 / 192.0
 EDGE_EPS = 1e-3
@@ -279,14 +282,20 @@ def same_material(image_srgb: np.ndarray, probability: np.ndarray, surface: np.n
 def original_shadow_from_photo(
     probability: np.ndarray, cosine: np.ndarray, sky: np.ndarray
 ) -> np.ndarray:
-    """``S_o = (1 - p) * max(cos, LIT_FLOOR)`` on the surface, 0 on the sky.
+    """``S_o = vis(p) * max(cos, LIT_FLOOR)`` on the surface, 0 on the sky.
 
     The photo decides visibility (``p``), the geometry the lit level (the cosine term).
+    Visibility falls from 1 at ``p = 0.4`` through :data:`FOUND_VISIBILITY` at ``p = 0.5`` to 0
+    at ``p = 0.6``, so ``S_o`` is below the overlay's threshold (0.15) wherever ``p > 0.5``, on
+    any surface (and from ``p`` about 0.46 where the lit level is :data:`LIT_FLOOR`): what
+    ``S_o`` calls shadow is what the app shows as the photo's found shadows and what
+    de-shadowing lifts. (Until 2026-11-30 a straight ramp from 0.4 to 0.6 left
+    surfaces facing the sun with ``p`` up to 0.57 above 0.15, although a comment said
+    otherwise.)
     """
     p = np.asarray(probability, np.float32)
     cos = np.clip(np.asarray(cosine, np.float32), 0.0, 1.0)
-    # Visibility 1 below p = 0.4, 0 above p = 0.6: S_o < 0.15 wherever p > 0.5.
-    vis = np.clip((0.6 - p) / 0.2, 0.0, 1.0)
+    vis = np.interp(p, [0.4, 0.5, 0.6], [1.0, FOUND_VISIBILITY, 0.0]).astype(np.float32)
     out = vis * np.maximum(cos, LIT_FLOOR)
     return np.where(np.asarray(sky, bool), 0.0, out).astype(np.float32)
 

@@ -11,7 +11,8 @@ photo and on average (DESIGN.md, "Real photographs: how we measure"):
 * ``opposite_ber``: the overlay's BER at the opposite azimuth, same elevation. An overlay that
   follows the sun gets clearly worse there; one that paints the photo's dark areas does not;
 * ``refined_ber``: the BER of the refined original shadow ``S_o`` (after "Confirm sun") at the
-  best sun;
+  best sun, as the session finds it for its full-resolution outputs
+  (``found_shadows_detail``: up to 1024 px; the working size before 2026-11-30 late night);
 * ``otsu_ber``: Otsu's threshold on luminance, a photometric anchor that knows no sun;
 * ``shuffled_ber``: the other photos' best overlays laid on this photo's mask (a control: an
   overlay that knows the photo sits far below it);
@@ -222,7 +223,11 @@ def evaluate_photo(
             shadow_mask(session.shadow(sun_vector(opp, el)), sky, shape), truth)
     overlay = shadow_mask(session.shadow(w_best), sky, shape)
     refined_img = session.set_original_sun(w_best)
-    refined = shadow_mask(refined_img, sky, shape)
+    refined_sky = sky
+    if hasattr(session, "found_shadows_detail"):  # S_o as the app exports it (full-res uses)
+        detail = session.found_shadows_detail()
+        refined_img, refined_sky = detail["original_shadow"], detail["sky"]
+    refined = shadow_mask(refined_img, refined_sky, shape)
     sky_full = cv2.resize(sky.astype(np.uint8), (shape[1], shape[0]),
                           interpolation=cv2.INTER_NEAREST) > 0
     n_true = max(1, int(truth.sum()))

@@ -310,7 +310,9 @@ def shadow_contrast_floor(
     and geometric guards x1.804 / x0.628 / 0.0278; both guards and the cap (the default)
     x1.697 / x0.626 / 0.0272 (x1.701 / x0.626 / 0.0273 with the de-shadow's wider
     neighbourhood, ``photo_shadows.RATIO_SIGMA`` 0.3); physics x1.736 / x0.633 / 0.0451;
-    truth x2.42 / x0.51. The cap keeps the default below physics on renders (the de-shadowed
+    truth x2.42 / x0.51. Once ``S_o`` marked every found shadow
+    (``photo_shadows.FOUND_VISIBILITY``): default x1.711 / x0.629 / 0.0272, physics x1.765 /
+    x0.639 / 0.0450. The cap keeps the default below physics on renders (the de-shadowed
     photo under-lifts them), so the issue's synthetic "newly lit" criterion stays unmet; the
     guards without the cap would meet it and print the blotches above on a real photo. On the
     47 dev photos relit +-120 degrees (fast preset, 69 cases with enough pixels), the log

@@ -44,6 +44,7 @@ from outcast_core.runtime.io.models import ModelError, ModelRegistry
 from outcast_core.runtime.pipeline.depth_post import postprocess_z, run_depth_model
 from outcast_core.runtime.pipeline.photo_shadows import (
     LIT_FLOOR,
+    PRIOR_RADIUS,
     deshadow,
     material_guard,
     near_predicted_shadow,
@@ -61,6 +62,10 @@ from outcast_core.runtime.pipeline.relight import (
 )
 
 Progress = Callable[[str, float], None]
+
+#: Longer side (pixels) at which :meth:`RelightSession.found_shadows_detail` finds the photo's
+#: own shadows for full-resolution outputs (smaller photos: their own size).
+DETAIL_SIDE = 1024
 
 
 @dataclass(frozen=True)
@@ -289,6 +294,10 @@ class RelightSession:
         self.shadow_probability: np.ndarray | None = None
         #: The lift's material guard (:meth:`_lift_guard`), per size, for one ``S_o``.
         self._lift_guards: dict[Any, Any] = {}
+        #: The shadow network's ``S`` at the original sun (the geometry's prior for ``S_o``).
+        self._original_geometry: np.ndarray | None = None
+        #: :meth:`found_shadows_detail`'s arrays, for one ``S_o``.
+        self._detail: dict[str, Any] | None = None
 
     def _time(self, stage: str, t0: float) -> None:
         self.timings[stage] = time.perf_counter() - t0
@@ -529,7 +538,9 @@ class RelightSession:
             self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self.sky)
             self._relight_cache.clear()
             self._deshadowed = None
-            self._lift_guards = {"of": self.original_shadow, "geometry": geometry}
+            self._lift_guards = {"of": self.original_shadow}
+            self._original_geometry = geometry
+            self._detail = None
             self._time("original_sun", t0)
             return self.original_shadow
 
@@ -558,13 +569,64 @@ class RelightSession:
                 self._time("deshadow", t0)
             return self._deshadowed
 
+    def found_shadows_detail(self) -> dict[str, np.ndarray]:
+        """The photo's own shadows found at up to :data:`DETAIL_SIDE` pixels (the photo's
+        size if smaller), for what leaves the app at full resolution (the de-shadowed photo,
+        the exported shadow mask) and for ``outcast eval real``.
+
+        With the photo refinement the photometric stage runs on the photo at that size, gated
+        by the geometry's prior made at working size (:func:`~outcast_core.runtime.pipeline.
+        photo_shadows.near_predicted_shadow`, upsampled: it is coarse by design), so shadow
+        edges follow the photo's own rather than the working size's upsampled pixels. Other
+        refinements upsample the working-size result.
+
+        Returns:
+            ``{"image", "sky", "probability", "original_shadow"}`` at that size (``h x w x 3``
+            sRGB float32, ``h x w`` bool, ``h x w`` float32, ``h x w`` float32).
+        """
+        with self._lock:
+            self._require_image()
+            if self.shadow_probability is None or self.original_sun is None:
+                raise RuntimeError("set_original_sun() must be called before "
+                                   "found_shadows_detail()")
+            if self._detail is not None:
+                return self._detail
+            t0 = time.perf_counter()
+            full = self.full_image_srgb
+            assert full is not None and self.normals is not None
+            shape = working_shape(full.shape[0], full.shape[1],
+                                  min(DETAIL_SIDE, max(full.shape[:2])))
+            if shape == self.image_srgb.shape[:2]:
+                image, sky = self.image_srgb, self.sky
+            else:
+                image = resize_to_working(full, shape)
+                sky = resize(self.sky.astype(np.uint8), shape, nearest=True) > 0
+            cosine = cosine_term(self.normals, self.original_sun)
+            if shape != cosine.shape:
+                cosine = np.clip(resize(cosine, shape), 0.0, 1.0)
+            if self.refinement == "photo" and self._original_geometry is not None:
+                gate = near_predicted_shadow(self._original_geometry, self.sky, PRIOR_RADIUS)
+                if gate.shape != shape:
+                    gate = np.clip(resize(gate, shape), 0.0, 1.0)
+                prob = photo_shadow_probability(image, sky) * gate
+                s_o = original_shadow_from_photo(prob, cosine, sky)
+            else:
+                prob = np.clip(resize(self.shadow_probability, shape), 0.0, 1.0)
+                s_o = np.clip(resize(self.original_shadow, shape), 0.0, 1.0)
+            self._detail = {"image": image, "sky": sky, "probability": prob.astype(np.float32),
+                            "original_shadow": s_o.astype(np.float32)}
+            self._time("found_shadows_detail", t0)
+            return self._detail
+
     def deshadow_full(self) -> np.ndarray:
-        """:meth:`deshadow` at the photo's full resolution (the lift, upsampled, applied to the
-        full-resolution photo, so its own detail survives)."""
-        out = self.deshadow()
+        """:meth:`deshadow` at the photo's full resolution: the shadows found and lifted at
+        :meth:`found_shadows_detail`'s size, the lift then upsampled and applied to the
+        full-resolution photo, so its own detail survives."""
+        d = self.found_shadows_detail()
         t0 = time.perf_counter()
         with self._lock:
-            full = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, out)
+            out = deshadow(d["image"], d["probability"], d["sky"])
+            full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out)
         self._time("deshadow_full", t0)
         return full
 
@@ -773,7 +835,7 @@ class RelightSession:
         if "working" not in guards:
             guards["working"] = (
                 material_guard(self.image_srgb, self.shadow_probability, self.sky)
-                * near_predicted_shadow(guards["geometry"], self.sky, LIFT_PRIOR_RADIUS))
+                * near_predicted_shadow(self._original_geometry, self.sky, LIFT_PRIOR_RADIUS))
         key = tuple(shape)
         if key not in guards:
             g = guards["working"]

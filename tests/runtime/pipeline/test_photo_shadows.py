@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 
@@ -74,6 +75,16 @@ def test_original_shadow_is_dark_in_shadow_and_lit_elsewhere() -> None:
     inner[32:48, 22:58] = True  # the soft edge follows the photo's: look inside it
     assert np.all(s_o[inner] < 0.15)
     assert np.all(s_o[~mask] >= LIT_FLOOR - 1e-6)  # the photo says lit: not an attached shadow
+
+
+@pytest.mark.parametrize("cos", [0.0, 0.3, 0.7, 1.0])
+def test_original_shadow_marks_exactly_the_found_shadows_whatever_the_cosine(cos: float) -> None:
+    p = np.linspace(0.0, 1.0, 1001, dtype=np.float32)[None]
+    s_o = original_shadow_from_photo(p, np.full_like(p, cos), np.zeros(p.shape, bool))
+    assert np.all(s_o[p > 0.5] < 0.15)  # every found shadow, also on a surface facing the sun
+    assert np.all(s_o[p < 0.45] >= 0.15)  # and nothing the photo calls clearly lit
+    assert np.all(np.diff(s_o[0]) <= 1e-7)  # darker with more evidence of shadow
+    assert s_o[0, 0] == pytest.approx(max(cos, LIT_FLOOR))
 
 
 def test_deshadow_lifts_the_shadow_and_keeps_the_lit_surface() -> None:
@@ -192,3 +203,47 @@ def test_wide_blur_matches_a_direct_gaussian(sigma: float) -> None:
     np.testing.assert_allclose(got, want, atol=0.01 if sigma > 16 else 1e-6)
     one = wide_blur(x[..., 0], sigma)  # 2-D in, 2-D out
     assert one.shape == x.shape[:2]
+
+
+def test_shadows_for_full_resolution_outputs_are_found_at_the_detail_size(tmp_path: Path) -> None:
+    """A photo larger than the working size: its shadows are found at up to DETAIL_SIDE, so
+    their edges follow the photo's, and the exported mask has the photo's size."""
+    from outcast_core.runtime.pipeline import session as session_module
+
+    rng = np.random.default_rng(5)
+    h, w = 300, 400
+    img = np.clip(0.7 + 0.02 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    img[:, 201:] *= 0.3  # a straight shadow edge between working-size pixels
+    depth = np.full((h, w), 10.0, np.float32)
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(img, depth=depth)
+    with pytest.raises(RuntimeError, match="set_original_sun"):
+        s.found_shadows_detail()
+    s.set_original_sun((0.5, -0.6, 0.6))
+    assert s.image_srgb.shape[1] < w  # the working size is smaller than the photo
+    d = s.found_shadows_detail()
+    assert d["probability"].shape == d["original_shadow"].shape == d["sky"].shape == (h, w)
+    assert s.found_shadows_detail() is d  # once per original sun
+    found = d["probability"] > 0.5
+    truth = np.zeros((h, w), bool)
+    truth[:, 201:] = True
+    working = cv2.resize(s.shadow_probability, (w, h), interpolation=cv2.INTER_LINEAR) > 0.5
+    assert (found != truth).mean() < 0.002
+    assert (found != truth).mean() <= (working != truth).mean()
+    # The de-shadowed photo is made there too, and the exported mask has the photo's size.
+    full = s.deshadow_full()
+    assert full.shape == img.shape and full[:, 210:].mean() > 2.0 * img[:, 210:].mean()
+    monkey_side = session_module.DETAIL_SIDE
+    try:  # a photo larger than DETAIL_SIDE: found at DETAIL_SIDE, mask still at full size
+        session_module.DETAIL_SIDE = 200
+        s.set_original_sun((0.5, -0.6, 0.6))
+        assert s.found_shadows_detail()["probability"].shape == (150, 200)
+    finally:
+        session_module.DETAIL_SIDE = monkey_side
+    photo, dpath = tmp_path / "big.png", tmp_path / "d.npy"
+    write_image(photo, img)
+    write_depth(dpath, depth)
+    out, mask = tmp_path / "out.png", tmp_path / "mask.png"
+    assert main(["deshadow", str(photo), "--from", "45,35", "--depth", str(dpath), "-o",
+                 str(out), "--mask", str(mask), "-q"]) == 0
+    assert read_shadow_png(mask).shape == (h, w)
