@@ -122,6 +122,9 @@ CHROMA_TOL = 1.0
 #: shade before the split is taken again inside the dark class.
 MAX_SHADE_FRACTION = 0.5
 LOCAL_MAX = 1.5
+#: :func:`without_texture`: radius (fraction of the longer side) of the opening that keeps
+#: narrower dark structures (the surface's texture) out of the lift.
+TEXTURE_RADIUS = 0.006
 _LUM = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec. 709 luminance weights
 
 
@@ -402,8 +405,31 @@ def _not_darker_than_shade(log_c: np.ndarray, mu_lit: np.ndarray, glob: np.ndarr
     return np.exp(-0.5 * (np.maximum(excess, 0.0) / DARKER_WIDTH) ** 2).astype(np.float32)
 
 
+def without_texture(probability: np.ndarray) -> np.ndarray:
+    """The shadow probability with dark structures narrower than about
+    ``2 * TEXTURE_RADIUS`` of the longer side removed (a grey-level opening).
+
+    Furrows, gravel gaps and grass read as shade to the photometric stage; lifting them flattens
+    the surface's texture, which de-shadowing must keep. Measured (2026-11-30, late night) with
+    the radius 0 / 0.006 / 0.012 of the side: the 7 dev pairs 0.498 / 0.499 / 0.499 inside and
+    +0.12 / +0.12 / +0.06 outside; on the 47 dev photos the mean Lab change outside the human
+    shadow masks 1.05 / 1.00 / 0.83, the ``a*b*`` / ``L*`` gap between each lifted shadow and the
+    lit ring around it 13.0 / 13.0 / 12.9 and 24.6 / 24.5 / 24.0. Those figures cannot see thin
+    shadows (the pairs' are wide; the gaps are read inside eroded masks); on the field-path
+    sample 0.012 left the hedge's streak shadows on the path, 0.006 lifted them and kept most of
+    the ploughed field's furrows, which 0 flattened.
+    """
+    p = np.asarray(probability, np.float32)
+    k = round(TEXTURE_RADIUS * max(p.shape))
+    if k < 1:
+        return p
+    return cv2.morphologyEx(p, cv2.MORPH_OPEN,
+                            cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
+
+
 def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray) -> np.ndarray:
-    """The photo with its shadows lifted (``H x W x 3`` sRGB float32, same size).
+    """The photo with its shadows lifted (``H x W x 3`` sRGB float32, same size); the surface's
+    fine texture is not lifted (:func:`without_texture`).
 
     Example:
         >>> img = np.full((32, 32, 3), 0.8, np.float32); img[16:, 16:] *= 0.5
@@ -413,7 +439,7 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray) -
         True
     """
     img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
-    p = np.asarray(probability, np.float32)
+    p = without_texture(probability)
     if CHROMA_TOL > 0:
         p = p * same_material(img, p, ~np.asarray(sky, bool))
     gain = deshadow_log_gain(img, p, sky)
@@ -426,6 +452,7 @@ __all__ = [
     "deshadow_log_gain",
     "material_guard",
     "near_predicted_shadow",
+    "without_texture",
     "original_shadow_from_photo",
     "photo_shadow_probability",
     "shade_threshold",

@@ -247,3 +247,23 @@ def test_shadows_for_full_resolution_outputs_are_found_at_the_detail_size(tmp_pa
     assert main(["deshadow", str(photo), "--from", "45,35", "--depth", str(dpath), "-o",
                  str(out), "--mask", str(mask), "-q"]) == 0
     assert read_shadow_png(mask).shape == (h, w)
+
+
+def test_deshadow_keeps_fine_dark_texture_and_lifts_wide_shadows() -> None:
+    """Furrow-like dark stripes (2 px wide in a 400 px photo) are the surface's texture, not a
+    shadow to lift; a wide shadow beside them is lifted."""
+    h, w = 400, 400
+    img = np.full((h, w, 3), 0.6, np.float32)
+    furrows = np.zeros((h, w), bool)
+    for x0 in range(0, 160, 10):
+        furrows[:200, x0:x0 + 2] = True
+    img[furrows] *= 0.35
+    img[240:, 240:] *= 0.35  # a wide cast shadow
+    sky = np.zeros((h, w), bool)
+    p = photo_shadow_probability(img, sky)
+    thin = ps.without_texture(p)
+    assert thin[furrows].mean() < 0.6 * p[furrows].mean()  # the furrows' shade, mostly gone
+    assert thin[300:380, 300:380].min() > 0.9  # the wide shadow's, kept
+    out = deshadow(img, p, sky)
+    assert out[furrows].mean() < 1.15 * img[furrows].mean()  # texture kept (1.25 unopened)
+    assert out[280:380, 280:380].mean() > 1.5 * img[280:380, 280:380].mean()  # shadow lifted
