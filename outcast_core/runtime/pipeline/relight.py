@@ -301,7 +301,11 @@ def shadow_contrast_floor(
     * ``lift_cap_srgb``: the lift rises no higher than this image's luminance. The session's is
       the de-shadowed photo relit by physics, whose gain is measured locally: physics' single
       sun/sky ratio overshoots on some photos (an aircraft's shadow on grass turned into
-      near-white blotches brighter than the lit grass around it).
+      near-white blotches brighter than the lit grass around it). A higher ceiling, the photo
+      lifted everywhere by the de-shadow's local ratio without its per-pixel probability,
+      would meet the synthetic criterion below (x1.776) but brightens what the photo's
+      shadows wrongly include x1.38 instead of x1.11 (``models/EVAL.md``, late-night notes
+      of 2026-11-30).
 
     Measured on 2026-11-30 (held-out synthetic views, true depth, ``python3
     scripts/eval_session_synthetic.py ~/.cache/outcast/data/test --max-views 40``, 480 pairs,
