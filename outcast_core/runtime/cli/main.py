@@ -202,10 +202,10 @@ def cmd_relight(args: argparse.Namespace) -> int:
 
 
 def cmd_deshadow(args: argparse.Namespace) -> int:
-    import cv2
     import numpy as np
 
     from outcast_core.runtime.io.imageio import write_image, write_shadow_png
+    from outcast_core.runtime.pipeline.session import resize
 
     w_from = parse_azel(args.from_sun)
     if args.mask:  # the main output is checked before the work by _check_output
@@ -223,8 +223,7 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
         prob = session.found_shadows_detail()["probability"]
         full_hw = session.full_image_srgb.shape[:2]
         if prob.shape != full_hw:
-            prob = np.clip(cv2.resize(prob, (full_hw[1], full_hw[0]),
-                                      interpolation=cv2.INTER_LINEAR), 0.0, 1.0)
+            prob = np.clip(resize(prob, full_hw), 0.0, 1.0)
         write_shadow_png(args.mask, prob, force=args.force)
     t = session.timings
     _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows found at the "

@@ -59,6 +59,7 @@ import cv2
 import numpy as np
 
 from outcast_core.runtime.geometry.camera import Camera, backproject, fill_invalid
+from outcast_core.runtime.geometry.colour import LUMA_709
 
 #: Longer side (pixels) the prior works at; the mask is resized back (nearest) to the input.
 WORK_SIDE = 256
@@ -100,7 +101,7 @@ def _clear_blue(image_srgb: np.ndarray, lum: np.ndarray | None = None) -> np.nda
     img = np.asarray(image_srgb, dtype=np.float32)
     r, g, b = cv2.split(img)
     if lum is None:
-        lum = cv2.transform(img, np.array([[0.2126, 0.7152, 0.0722]], np.float32))
+        lum = cv2.transform(img, LUMA_709[None])
     return (b > r + 0.03) & (b >= g - 0.02) & (lum > 0.2)
 
 
@@ -109,7 +110,7 @@ def sky_colour(image_srgb: np.ndarray) -> np.ndarray:
     haze, overcast). ``H x W x 3`` sRGB -> ``H x W`` bool."""
     img = np.asarray(image_srgb, dtype=np.float32)  # NaN compares False: never sky-coloured
     r, g, b = cv2.split(img)
-    lum = cv2.transform(img, np.array([[0.2126, 0.7152, 0.0722]], np.float32))
+    lum = cv2.transform(img, LUMA_709[None])
     lo, hi = np.minimum(np.minimum(r, g), b), np.maximum(np.maximum(r, g), b)
     bluish = _clear_blue(img, lum)
     cloudish = (lum > 0.5) & (hi - lo < 0.25 * hi)  # saturation < 0.25

@@ -84,7 +84,12 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from outcast_core.runtime.geometry.colour import linear_to_srgb, luminance, srgb_to_linear
+from outcast_core.runtime.geometry.colour import (
+    LUMA_709,
+    linear_to_srgb,
+    luminance,
+    srgb_to_linear,
+)
 
 #: Width (natural log units of luminance) of the soft step around Otsu's threshold.
 SOFT_LOG = 0.12
@@ -125,7 +130,6 @@ LOCAL_MAX = 1.5
 #: :func:`without_texture`: radius (fraction of the longer side) of the opening that keeps
 #: narrower dark structures (the surface's texture) out of the lift.
 TEXTURE_RADIUS = 0.006
-_LUM = np.array([0.2126, 0.7152, 0.0722], np.float32)  # Rec. 709 luminance weights
 
 
 #: :func:`wide_blur` blurs on a grid this many times coarser than ``sigma``'s pixels.
@@ -401,7 +405,8 @@ def _not_darker_than_shade(log_c: np.ndarray, mu_lit: np.ndarray, glob: np.ndarr
     darkness against the lit surface around it (``mu_lit``, log colour) is compared with the
     photo's lit/shade log ratio ``glob`` plus :data:`DARKER_MARGIN`.
     """
-    excess = (mu_lit @ _LUM - log_c @ _LUM) - float(np.maximum(glob, 0.0) @ _LUM) - DARKER_MARGIN
+    excess = ((mu_lit - log_c) @ LUMA_709 - float(np.maximum(glob, 0.0) @ LUMA_709)
+              - DARKER_MARGIN)
     return np.exp(-0.5 * (np.maximum(excess, 0.0) / DARKER_WIDTH) ** 2).astype(np.float32)
 
 

@@ -596,23 +596,23 @@ class RelightSession:
             assert full is not None and self.normals is not None
             shape = working_shape(full.shape[0], full.shape[1],
                                   min(DETAIL_SIDE, max(full.shape[:2])))
-            if shape == self.image_srgb.shape[:2]:
+            working = shape == self.image_srgb.shape[:2]
+            if working:  # a photo no larger than the working size: already found there
                 image, sky = self.image_srgb, self.sky
             else:
                 image = resize_to_working(full, shape)
                 sky = resize(self.sky.astype(np.uint8), shape, nearest=True) > 0
-            cosine = cosine_term(self.normals, self.original_sun)
-            if shape != cosine.shape:
-                cosine = np.clip(resize(cosine, shape), 0.0, 1.0)
-            if self.refinement == "photo" and self._original_geometry is not None:
+            if working or self.refinement != "photo" or self._original_geometry is None:
+                prob = np.clip(resize(self.shadow_probability, shape), 0.0, 1.0)
+                s_o = np.clip(resize(self.original_shadow, shape), 0.0, 1.0)
+            else:
+                cosine = np.clip(resize(cosine_term(self.normals, self.original_sun), shape),
+                                 0.0, 1.0)
                 gate = near_predicted_shadow(self._original_geometry, self.sky, PRIOR_RADIUS)
                 if gate.shape != shape:
                     gate = np.clip(resize(gate, shape), 0.0, 1.0)
                 prob = photo_shadow_probability(image, sky) * gate
                 s_o = original_shadow_from_photo(prob, cosine, sky)
-            else:
-                prob = np.clip(resize(self.shadow_probability, shape), 0.0, 1.0)
-                s_o = np.clip(resize(self.original_shadow, shape), 0.0, 1.0)
             self._detail = {"image": image, "sky": sky, "probability": prob.astype(np.float32),
                             "original_shadow": s_o.astype(np.float32)}
             self._time("found_shadows_detail", t0)
@@ -625,7 +625,10 @@ class RelightSession:
         d = self.found_shadows_detail()
         t0 = time.perf_counter()
         with self._lock:
-            out = deshadow(d["image"], d["probability"], d["sky"])
+            if d["image"] is self.image_srgb:  # found at the working size: lifted there already
+                out = self.deshadow()
+            else:
+                out = deshadow(d["image"], d["probability"], d["sky"])
             full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out)
         self._time("deshadow_full", t0)
         return full
@@ -701,7 +704,9 @@ class RelightSession:
             if self.original_shadow is None:
                 raise RuntimeError("set_original_sun() must be called before "
                                    "prepare_relight_preview()")
-            self._relight_preview_state()
+            st = self._relight_preview_state()
+            if self.relight_mode == "learned" and self.lift_new_light and self.contrast_floor:
+                self._lift_inputs(st["shadow_old"].shape)  # not on the first drag frame
             if self.shadow_mode == "learned":
                 self.registry.load("shadow", threads=PREVIEW_THREADS)
             if self.relight_mode == "learned":

@@ -162,7 +162,12 @@ def test_lift_runs_at_working_and_preview_sizes_and_only_brightens(scene) -> Non
     # The lift only raises luminance (never darkens), and it acts somewhere.
     assert (on.mean(axis=-1) >= off.mean(axis=-1) - 2e-3).all()
     assert (on.mean(axis=-1) > off.mean(axis=-1) + 0.02).any()
-    # Its inputs were made once per size and kept for the next sun.
+    # "Confirm sun" makes the drag preview's lift inputs, so the first drag frame does not,
+    # and they are kept for the next sun.
+    s.set_original_sun(W_O)
+    s.prepare_relight_preview()
+    h, w = s._relight_preview_state()["shadow_old"].shape
+    assert ("base", (h, w)) in s._lift_guards and (h, w) in s._lift_guards
     keys = set(s._lift_guards)
-    s.relight(SUNS[1])
+    s.relight(SUNS[1], preview=True)
     assert set(s._lift_guards) == keys
