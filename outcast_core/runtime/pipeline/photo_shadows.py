@@ -115,9 +115,17 @@ _LOG_EPS = 1e-3
 #: The shade's level is measured at this fraction of :data:`RATIO_SIGMA`; a local lift is at
 #: most this multiple of the photo's global lit/shade log ratio.
 SHADE_SIGMA = 0.25
-#: :func:`same_material`: the shade's expected shift in ``log B/G`` and the chromaticity
-#: distance (log units) at which a dark pixel stops counting as shadow (0 turns it off).
-SHADE_BLUE = 0.2
+#: :func:`same_material`: the shade's expected chromaticity shift ``(log R/G, log B/G)`` from
+#: the lit surface (the de-shadow's, chosen on the 7 dev pairs, whose shade is nearly neutral:
+#: 6 of the 7 shift by less than 0.1) and the chromaticity distance :data:`CHROMA_TOL` (log
+#: units) at which a dark pixel stops counting as shadow (0 turns it off).
+SHADE_SHIFT: tuple[float, float] = (0.0, 0.2)
+#: The shift of shade lit by a clear sky: the median, over the 47 dev photos, of the median
+#: chromaticity inside each human-marked shadow minus that of the lit ring around it is
+#: ``(-0.25, +0.42)`` (quartiles of ``log B/G`` 0.03 and 0.62); the held-out renders' true
+#: shadows give ``(-0.28, +0.39)``. The relighting's lift uses it
+#: (:data:`~outcast_core.runtime.pipeline.relight.LIFT_SHADE_SHIFT`).
+SKY_SHADE_SHIFT: tuple[float, float] = (-0.25, 0.42)
 #: Log luminance by which a pixel may be darker than the photo's typical shade (relative to
 #: the lit surface around it) and still be lifted fully, and the fall-off beyond it.
 DARKER_MARGIN = 0.5
@@ -261,8 +269,8 @@ def near_predicted_shadow(prior_shadow: np.ndarray, sky: np.ndarray, radius: flo
     return np.clip(gate * 2.0, 0.0, 1.0).astype(np.float32)
 
 
-def same_material(image_srgb: np.ndarray, probability: np.ndarray, surface: np.ndarray
-                  ) -> np.ndarray:
+def same_material(image_srgb: np.ndarray, probability: np.ndarray, surface: np.ndarray,
+                  shift: tuple[float, float] = SHADE_SHIFT) -> np.ndarray:
     """How well each pixel's chromaticity matches the lit surface around it (``H x W`` in
     [0, 1]).
 
@@ -270,8 +278,9 @@ def same_material(image_srgb: np.ndarray, probability: np.ndarray, surface: np.n
     material differs from its surroundings in chromaticity too. Chromaticity is
     ``(log R/G, log B/G)`` of the linear colour, lightly blurred (dark pixels are noisy); the
     lit surroundings' mean is Gaussian-weighted (sigma :data:`RATIO_SIGMA` of the longer side)
-    by ``(1 - p)^2``. The expected blue shift :data:`SHADE_BLUE` is allowed for, and the match
-    falls off as ``exp(-(d / CHROMA_TOL)^2)``.
+    by ``(1 - p)^2``. The shade's expected shift ``shift`` (:data:`SHADE_SHIFT`, or
+    :data:`SKY_SHADE_SHIFT`) is allowed for, and the match falls off as
+    ``exp(-(d / CHROMA_TOL)^2)``.
     """
     lin = srgb_to_linear(image_srgb)
     side = max(probability.shape)
@@ -282,7 +291,7 @@ def same_material(image_srgb: np.ndarray, probability: np.ndarray, surface: np.n
     n = wide_blur(w, sigma)
     mean = wide_blur(chroma * w[..., None], sigma) / np.maximum(n, 1e-6)[..., None]
     d = chroma - mean
-    dist = np.hypot(d[..., 0], d[..., 1] - SHADE_BLUE)
+    dist = np.hypot(d[..., 0] - shift[0], d[..., 1] - shift[1])
     return np.exp(-((dist / CHROMA_TOL) ** 2)).astype(np.float32)
 
 
@@ -372,11 +381,12 @@ def deshadow_log_gain(
     return (gain * (p * keep)[..., None]).astype(np.float32)
 
 
-def material_guard(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray
-                   ) -> np.ndarray:
+def material_guard(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
+                   shift: tuple[float, float] = SHADE_SHIFT) -> np.ndarray:
     """How much each pixel's darkness may be taken for shade rather than material (``H x W``
-    in [0, 1]): :func:`same_material` times the darker-than-shade guard of
-    :func:`deshadow_log_gain`, the two guards :func:`deshadow` uses to keep dark materials dark.
+    in [0, 1]): :func:`same_material` (with the shade's expected shift ``shift``) times the
+    darker-than-shade guard of :func:`deshadow_log_gain`, the two guards :func:`deshadow` uses
+    to keep dark materials dark.
 
     Example:
         >>> img = np.full((32, 32, 3), 0.8, np.float32); img[16:, 16:] *= 0.5
@@ -388,7 +398,8 @@ def material_guard(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndar
     """
     img, p, sky = _check_probability(image_srgb, probability, sky)
     surface = ~sky
-    guard = same_material(img, p, surface) if CHROMA_TOL > 0 else np.ones(p.shape, np.float32)
+    guard = (same_material(img, p, surface, shift) if CHROMA_TOL > 0
+             else np.ones(p.shape, np.float32))
     st = _shade_statistics(img, p * guard, sky)
     if st is None:
         return np.where(surface, guard, 0.0).astype(np.float32)
@@ -432,9 +443,11 @@ def without_texture(probability: np.ndarray) -> np.ndarray:
                             cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
 
 
-def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray) -> np.ndarray:
+def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
+             shift: tuple[float, float] = SHADE_SHIFT) -> np.ndarray:
     """The photo with its shadows lifted (``H x W x 3`` sRGB float32, same size); the surface's
-    fine texture is not lifted (:func:`without_texture`).
+    fine texture is not lifted (:func:`without_texture`). ``shift``: the shade's expected
+    chromaticity shift (:func:`same_material`).
 
     Example:
         >>> img = np.full((32, 32, 3), 0.8, np.float32); img[16:, 16:] *= 0.5
@@ -446,7 +459,7 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray) -
     img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
     p = without_texture(probability)
     if CHROMA_TOL > 0:
-        p = p * same_material(img, p, ~np.asarray(sky, bool))
+        p = p * same_material(img, p, ~np.asarray(sky, bool), shift)
     gain = deshadow_log_gain(img, p, sky)
     lin = srgb_to_linear(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
     return linear_to_srgb((lin + _LOG_EPS) * np.exp(gain) - _LOG_EPS)

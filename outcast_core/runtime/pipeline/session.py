@@ -53,6 +53,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
 )
 from outcast_core.runtime.pipeline.relight import (
     LIFT_PRIOR_RADIUS,
+    LIFT_SHADE_SHIFT,
     LightEstimate,
     estimate_light,
     guard_learned_relight,
@@ -810,22 +811,29 @@ class RelightSession:
 
     def _lift_inputs(self, shape: tuple[int, int]) -> dict[str, Any]:
         """:func:`guard_learned_relight`'s ``lift_guard`` and ``lift_base`` at ``shape``: where
-        the lift may act (:meth:`_lift_guard`) and the de-shadowed photo with the lit level of
-        the old sun, which physics relights into the lift's ceiling."""
+        the lift may act (:meth:`_lift_guard`) and the photo de-shadowed with the clear-sky
+        shade colour (:data:`~outcast_core.runtime.pipeline.relight.LIFT_SHADE_SHIFT`) with the
+        lit level of the old sun, which physics relights into the lift's ceiling. Made once at
+        working size per ``S_o``, resized per ``shape``."""
         guard = self._lift_guard(shape)
         if guard is None:
             return {}
         guards = self._lift_guards
+        if "base" not in guards:
+            assert self.original_sun is not None and self.normals is not None
+            assert self.shadow_probability is not None
+            base = deshadow(self.image_srgb, self.shadow_probability, self.sky,
+                            LIFT_SHADE_SHIFT)
+            lit_old = np.maximum(cosine_term(self.normals, self.original_sun), LIT_FLOOR)
+            lit_old = np.where(self.sky, 0.0, lit_old)
+            guards["base"] = (base.astype(np.float32), lit_old.astype(np.float32))
         key = ("base", tuple(shape))
         if key not in guards:
-            assert self.original_sun is not None and self.normals is not None
-            base = self.deshadow()
-            lit_old = np.maximum(cosine_term(self.normals, self.original_sun), LIT_FLOOR)
-            lit_old = np.where(self.sky, 0.0, lit_old).astype(np.float32)
+            base, lit_old = guards["base"]
             if base.shape[:2] != tuple(shape):
                 base = np.clip(resize(base, tuple(shape)), 0.0, 1.0)
                 lit_old = np.clip(resize(lit_old, tuple(shape)), 0.0, 1.0)
-            guards[key] = (base.astype(np.float32), lit_old.astype(np.float32))
+            guards[key] = (base, lit_old)
         return {"lift_guard": guard, "lift_base": guards[key]}
 
     def _lift_guard(self, shape: tuple[int, int]) -> np.ndarray | None:
@@ -839,7 +847,8 @@ class RelightSession:
             return None
         if "working" not in guards:
             guards["working"] = (
-                material_guard(self.image_srgb, self.shadow_probability, self.sky)
+                material_guard(self.image_srgb, self.shadow_probability, self.sky,
+                               LIFT_SHADE_SHIFT)
                 * near_predicted_shadow(self._original_geometry, self.sky, LIFT_PRIOR_RADIUS))
         key = tuple(shape)
         if key not in guards:

@@ -267,3 +267,59 @@ def test_deshadow_keeps_fine_dark_texture_and_lifts_wide_shadows() -> None:
     out = deshadow(img, p, sky)
     assert out[furrows].mean() < 1.15 * img[furrows].mean()  # texture kept (1.25 unopened)
     assert out[280:380, 280:380].mean() > 1.5 * img[280:380, 280:380].mean()  # shadow lifted
+
+
+def test_sky_shade_shift_takes_blue_shade_for_shade_and_a_dark_material_still_not() -> None:
+    """Shade under a clear sky is much bluer than the lit ground (``SKY_SHADE_SHIFT``); the
+    de-shadow's nearly neutral ``SHADE_SHIFT`` half rejects it, the sky shift takes it, and a
+    dark material of another hue (red-brown) stays rejected under both."""
+    from outcast_core.runtime.geometry.colour import srgb_to_linear
+
+    lin = srgb_to_linear(_ground())
+    lin[20:44, 10:40] *= np.exp(np.array([-1.75, -1.5, -1.08], np.float32))  # (-.25, +.42)
+    lin[20:44, 56:86] *= np.array([0.3, 0.08, 0.03], np.float32)  # dark red-brown material
+    img = linear_to_srgb(lin).astype(np.float32)
+    sky = np.zeros((H, W), bool)
+    p = photo_shadow_probability(img, sky)
+    assert p[32, 25] > 0.9 and p[32, 70] > 0.9  # both dark
+    neutral = ps.same_material(img, p, ~sky)
+    clear_sky = ps.same_material(img, p, ~sky, ps.SKY_SHADE_SHIFT)
+    assert neutral[26:38, 16:34].mean() < 0.9 < clear_sky[26:38, 16:34].mean()
+    assert clear_sky[26:38, 62:80].mean() < 0.2 and neutral[26:38, 62:80].mean() < 0.2
+    lifted = deshadow(img, p, sky, ps.SKY_SHADE_SHIFT)[26:38, 16:34].mean()
+    assert lifted > 1.05 * deshadow(img, p, sky)[26:38, 16:34].mean()
+
+
+def test_session_lift_expects_the_clear_sky_shade_colour(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """The relighting's lift (guard and ceiling) expects clear-sky shade
+    (``relight.LIFT_SHADE_SHIFT`` = ``SKY_SHADE_SHIFT``); the de-shadow export keeps
+    ``SHADE_SHIFT``."""
+    from outcast_core.runtime.pipeline import relight, session
+
+    shifts: list[tuple[str, tuple[float, float]]] = []
+    real_guard, real_deshadow = session.material_guard, session.deshadow
+
+    def guard(img, p, sky, shift=ps.SHADE_SHIFT):
+        shifts.append(("guard", shift))
+        return real_guard(img, p, sky, shift)
+
+    def lift(img, p, sky, shift=ps.SHADE_SHIFT):
+        shifts.append(("deshadow", shift))
+        return real_deshadow(img, p, sky, shift)
+
+    monkeypatch.setattr(session, "material_guard", guard)
+    monkeypatch.setattr(session, "deshadow", lift)
+    img, depth = _session_inputs(tmp_path)
+    s = RelightSession(preset="fast")
+    s.set_image(img, depth=depth)
+    assert s.relight_mode == "learned" and s.lift_new_light
+    s.set_original_sun((0.5, -0.6, 0.6))
+    s.relight((-0.5, -0.6, 0.6))
+    assert relight.LIFT_SHADE_SHIFT == ps.SKY_SHADE_SHIFT != ps.SHADE_SHIFT
+    assert ("guard", ps.SKY_SHADE_SHIFT) in shifts
+    assert ("deshadow", ps.SKY_SHADE_SHIFT) in shifts
+    shifts.clear()
+    s.deshadow()
+    assert shifts == [("deshadow", ps.SHADE_SHIFT)]
