@@ -168,3 +168,22 @@ def test_cli_sun_says_no_shadows_and_errors_in_one_line(
     assert main(["sun", str(tmp_path / "missing.jpg")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("outcast sun: error:") and "\n" not in err
+
+
+def test_fine_dark_texture_is_not_taken_for_shadows(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Thin dark furrows on the lit ground are texture no sun casts: the found shadows the
+    search matches leave them out (``photo_shadows.without_texture``), so the true sun keeps
+    its agreement (0.91 here); matched with them it agrees at 0.66."""
+    from outcast_core.runtime.pipeline import auto_sun
+
+    w = sun_vector(150.0, 40.0)
+    photo = _photo_lit_by(w)
+    furrows = np.zeros((H, W), bool)
+    furrows[:, ::5] = furrows[:, 1::5] = True  # 2 px wide
+    furrows[:, :24] = False  # on the right three quarters of the frame
+    photo[furrows & (photo[..., 0] > 0.5)] = 0.12
+    fit = find_sun(_session(photo))
+    assert _angle(fit.w, w) <= 6.0, (fit.azimuth, fit.elevation)
+    monkeypatch.setattr(auto_sun, "without_texture", lambda p: p)
+    textured = find_sun(_session(photo))
+    assert fit.agreement > 0.85 and fit.agreement > textured.agreement + 0.1
