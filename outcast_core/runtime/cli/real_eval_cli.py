@@ -147,7 +147,10 @@ def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
         "Lab change on the sky when no sun is in frame (learned relighting keeps the photo's "
         "sky then, so it is 0 by construction; physics relighting never touches the sky); "
         "new shade = median log-luminance change where the new sun newly shadows, over the "
-        "photo's own shade/lit log ratio (1: as dark as the photo's own shadows). "
+        "photo's own shade/lit log ratio (1: as dark as the photo's own shadows); "
+        "old shade = the relit photo's log-luminance ratio between the lit ring outside each "
+        "marked shadow and the shadow, where the new sun lights both, over the photo's own "
+        "(0: the old shadow is gone, 1: unchanged). "
         "The photos are research data kept "
         "outside the repository; only these numbers are here.", "",
         "### Speed / accuracy", "", render_trade(reports), "",
@@ -165,7 +168,7 @@ def _summary_line(preset: str, report: dict[str, Any]) -> str:
 def render_trade(reports: dict[str, Any]) -> str:
     """One row per preset: the mean figures beside the time per photo."""
     lines = ["| Preset | Overlay BER | Opposite | S_o BER | Otsu | Shuffled | Sky claim | "
-             "De-shadow in / out | Relit chroma / sky / new shade | s / photo |",
+             "De-shadow in / out | Relit chroma / sky / new shade / old shade | s / photo |",
              "|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(m: dict[str, float], k: str, d: int = 3) -> str:
@@ -178,6 +181,7 @@ def render_trade(reports: dict[str, Any]) -> str:
         lines.append(f"| {preset} | {f(m, 'overlay_ber')} | {f(m, 'opposite_ber')} | "
                      f"{f(m, 'refined_ber')} | {f(m, 'otsu_ber')} | {f(m, 'shuffled_ber')} | "
                      f"{f(m, 'sky_claim')} | {ds} | {f(m, 'relit_chroma', 2)} / "
-                     f"{f(m, 'relit_sky', 2)} / {f(m, 'new_shade', 2)} | "
+                     f"{f(m, 'relit_sky', 2)} / {f(m, 'new_shade', 2)} / "
+                     f"{f(m, 'old_shade', 2)} | "
                      f"{f(m, 'seconds', 2)} |")
     return "\n".join(lines)

@@ -29,6 +29,11 @@ photo and on average (DESIGN.md, "Real photographs: how we measure"):
   (``S_o`` above 0.5, ``S_n`` below the overlay's threshold), as the median change of log
   luminance there over the photo's own shade (the median log luminance of its found shadows
   minus that of its lit surface): 1 is as dark as the photo's own shadows, 0 unchanged;
+* ``old_shade``: how much of the photo's own shadows stays in that relit photo where the new
+  sun lights them: the log luminance ratio between the lit ring just outside the human-marked
+  shadow (:data:`OLD_SHADE_RING` of the longer side) and the shadow itself, both where
+  ``S_n`` is above :data:`LIT_BOTH`, as a fraction of the photo's own ratio there: 0 is the old
+  shadow gone, 1 unchanged (added 2026-12-01);
 * ``seconds``: wall time for the photo (depth, 24 suns, confirmation, de-shadowing, one relight).
 
 Masks are compared at the mask's size: shadow images are resized to it (bilinear) before the
@@ -61,6 +66,8 @@ SWEEP_SUNS: tuple[tuple[float, float], ...] = tuple(
 #: Azimuth turn of the relighting check, and the shadow level above which a pixel counts as lit.
 RELIGHT_TURN = 120.0
 LIT_BOTH = 0.3
+#: ``old_shade``: width of the lit ring outside a marked shadow (fraction of the longer side).
+OLD_SHADE_RING = 0.03
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp")
 
 Progress = Callable[[str, float], None]
@@ -176,6 +183,7 @@ class PhotoResult:
     relit_chroma: float | None = None
     relit_sky: float | None = None
     new_shade: float | None = None
+    old_shade: float | None = None
     depth_source: str = ""
     extra: dict[str, float] = field(default_factory=dict)
 
@@ -256,7 +264,7 @@ def evaluate_photo(
                             - lab_rmse(loaded.image_srgb, free, ~truth))
         res.extra["input_lab_rmse_in"] = base_in
     if hasattr(session, "relight"):
-        _relight_checks(session, res, az, el)
+        _relight_checks(session, res, az, el, truth)
     res.seconds = time.perf_counter() - t0
     if keep is not None:
         if deshadowed is None and hasattr(session, "deshadow"):
@@ -269,9 +277,10 @@ def evaluate_photo(
     return res
 
 
-def _relight_checks(session: Any, res: PhotoResult, az: float, el: float) -> None:
-    """``relit_chroma``, ``relit_sky`` and ``new_shade`` of :class:`PhotoResult` (module
-    docstring)."""
+def _relight_checks(session: Any, res: PhotoResult, az: float, el: float,
+                    truth: np.ndarray) -> None:
+    """``relit_chroma``, ``relit_sky``, ``new_shade`` and ``old_shade`` of
+    :class:`PhotoResult` (module docstring)."""
     w_o, w_n = sun_vector(az, el), sun_vector((az + RELIGHT_TURN) % 360.0, el)
     relit = session.relight(w_n)
     image = session.image_srgb
@@ -287,6 +296,9 @@ def _relight_checks(session: Any, res: PhotoResult, az: float, el: float) -> Non
         res.relit_sky = float(np.mean(np.sqrt(np.sum(d * d, axis=-1))))
     res.new_shade = new_shade_ratio(image, relit, session.original_shadow, session.shadow(w_n),
                                     getattr(session, "shadow_probability", None), session.sky)
+    h, w = image.shape[:2]
+    marked = cv2.resize(truth.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
+    res.old_shade = old_shade_ratio(image, relit, marked, session.shadow(w_n), session.sky)
 
 
 #: Least pixels of each kind :func:`new_shade_ratio` needs.
@@ -323,6 +335,43 @@ def new_shade_ratio(
     return float(np.median((log_r - log_y)[newly]) / own)
 
 
+def old_shade_ratio(
+    image_srgb: np.ndarray, relit_srgb: np.ndarray, marked: np.ndarray, shadow_new: np.ndarray,
+    sky: np.ndarray,
+) -> float | None:
+    """``old_shade`` (module docstring); None when a photo has too few pixels of a kind.
+
+    ``marked`` is the human shadow mask at the images' size.
+
+    Example:
+        >>> img = np.full((40, 40, 3), 0.8, np.float32); img[10:30, 10:30] = 0.2
+        >>> m = np.zeros((40, 40), bool); m[10:30, 10:30] = True
+        >>> lit, sky = np.ones((40, 40), np.float32), np.zeros((40, 40), bool)
+        >>> round(old_shade_ratio(img, img, m, lit, sky), 2)  # unchanged
+        1.0
+        >>> round(old_shade_ratio(img, np.full_like(img, 0.8), m, lit, sky), 2)  # gone
+        0.0
+    """
+    marked = np.asarray(marked, np.uint8)
+    r = max(6, round(OLD_SHADE_RING * max(marked.shape)))  # beyond the 3 px gap
+    ellipse = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)
+    gap = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
+    lit = (np.asarray(shadow_new) > LIT_BOTH) & ~np.asarray(sky, bool)
+    inner = (cv2.erode(marked, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0) & lit
+    ring = (cv2.dilate(marked, ellipse) > 0) & ~(cv2.dilate(marked, gap) > 0) & lit
+    if min(inner.sum(), ring.sum()) < MIN_PIXELS:
+        return None
+
+    def log_ratio(x: np.ndarray) -> float:
+        y = luminance(srgb_to_linear(np.clip(x, 0.0, 1.0)))
+        return float(np.log(y[ring].mean() / max(float(y[inner].mean()), 1e-4)))
+
+    own = log_ratio(image_srgb)
+    if own < 0.1:  # the marked shadow is not darker than its surroundings here
+        return None
+    return log_ratio(relit_srgb) / own
+
+
 def shuffled_control(
     masks: dict[str, np.ndarray], truths: dict[str, np.ndarray]
 ) -> dict[str, float]:
@@ -341,7 +390,8 @@ def shuffled_control(
 
 SUMMARY_KEYS = ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuffled_ber",
                 "sky_claim", "overlay_fraction", "shadow_fraction", "seconds",
-                "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky", "new_shade")
+                "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky", "new_shade",
+                "old_shade")
 
 
 def summarize(results: Sequence[PhotoResult]) -> dict[str, float]:
@@ -450,7 +500,7 @@ def _write_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
 def render_table(report: dict[str, Any]) -> str:
     """The per-photo results and their means as a Markdown table."""
     head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | Shuffled | Sky claim |"
-            " De-shadow in / out | Relit chroma / sky / new shade | s |")
+            " De-shadow in / out | Relit chroma / sky / new shade / old shade | s |")
     lines = [head, "|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(v: Any, d: int = 3) -> str:
@@ -463,7 +513,8 @@ def render_table(report: dict[str, Any]) -> str:
             f"| {r['name']} | {r['best_sun'][0]:.0f},{r['best_sun'][1]:.0f} | "
             f"{f(r['overlay_ber'])} | {f(r['opposite_ber'])} | {f(r['refined_ber'])} | "
             f"{f(r['otsu_ber'])} | {f(r['shuffled_ber'])} | {f(r['sky_claim'])} | {ds} | "
-            f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} / {f(r.get('new_shade'), 2)} | "
+            f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} / {f(r.get('new_shade'), 2)} / "
+            f"{f(r.get('old_shade'), 2)} | "
             f"{f(r['seconds'], 1)} |")
     m = report["mean"]
     ds = ("-" if "deshadow_in" not in m
@@ -473,7 +524,7 @@ def render_table(report: dict[str, Any]) -> str:
         f"{f(m.get('opposite_ber'))} | **{f(m.get('refined_ber'))}** | {f(m.get('otsu_ber'))} | "
         f"{f(m.get('shuffled_ber'))} | {f(m.get('sky_claim'))} | {ds} | "
         f"{f(m.get('relit_chroma'), 2)} / {f(m.get('relit_sky'), 2)} / "
-        f"{f(m.get('new_shade'), 2)} | {f(m.get('seconds'), 1)} |")
+        f"{f(m.get('new_shade'), 2)} / {f(m.get('old_shade'), 2)} | {f(m.get('seconds'), 1)} |")
     return "\n".join(lines)
 
 

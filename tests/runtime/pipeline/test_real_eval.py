@@ -218,3 +218,26 @@ def test_new_shade_ratio_compares_new_shadows_with_the_photos_own() -> None:
     assert new_shade_ratio(img, img, so, sn, prob, sky) == pytest.approx(0.0, abs=1e-6)
     assert new_shade_ratio(img, same, so, sn, None, sky) is None
     assert new_shade_ratio(img, same, so, np.ones_like(sn), prob, sky) is None  # no new shadow
+
+
+def test_old_shade_ratio_measures_the_old_shadow_left_where_the_new_sun_lights_it() -> None:
+    from outcast_core.runtime.pipeline.real_eval import old_shade_ratio
+
+    img = np.full((60, 60, 3), 0.8, np.float32)
+    img[20:40, 20:40] = 0.2  # the photo's own (marked) shadow
+    marked = np.zeros((60, 60), bool)
+    marked[20:40, 20:40] = True
+    lit, sky = np.ones((60, 60), np.float32), np.zeros((60, 60), bool)
+    from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
+
+    halfway = img.copy()  # the geometric mean of lit and shade in linear light: half the log
+    halfway[20:40, 20:40] = linear_to_srgb(np.sqrt(srgb_to_linear(np.float32(0.8))
+                                                   * srgb_to_linear(np.float32(0.2))))
+    assert old_shade_ratio(img, img, marked, lit, sky) == pytest.approx(1.0)
+    assert old_shade_ratio(img, halfway, marked, lit, sky) == pytest.approx(0.5, abs=0.01)
+    gone = np.full_like(img, 0.8)
+    assert old_shade_ratio(img, gone, marked, lit, sky) == pytest.approx(0.0, abs=1e-6)
+    # Where the new sun does not light the old shadow, there is nothing to measure.
+    assert old_shade_ratio(img, img, marked, np.zeros_like(lit), sky) is None
+    # A marked region no darker than its surroundings says nothing about a relighting.
+    assert old_shade_ratio(np.full_like(img, 0.8), img, marked, lit, sky) is None
