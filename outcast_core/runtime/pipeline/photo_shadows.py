@@ -86,6 +86,7 @@ import numpy as np
 
 from outcast_core.runtime.geometry.colour import (
     LUMA_709,
+    linear_to_lab,
     linear_to_srgb,
     luminance,
     srgb_to_linear,
@@ -407,6 +408,35 @@ def material_guard(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndar
     return np.where(surface, guard * keep, 0.0).astype(np.float32)
 
 
+def lit_surface_colour(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
+                       sigma: float) -> np.ndarray:
+    """The CIE Lab ``a*, b*`` of the lit surface around each pixel (``H x W x 2`` float32): a
+    Gaussian-weighted mean (sigma ``sigma`` of the longer side) over the surface, weighted by
+    ``(1 - p)^2`` and leaving out clipped pixels; where no lit surface is near, the photo's
+    mean lit colour.
+
+    Example:
+        >>> img = np.full((16, 16, 3), [0.7, 0.5, 0.3], np.float32); img[8:] *= 0.2
+        >>> p = photo_shadow_probability(img, np.zeros((16, 16), bool))
+        >>> ab = lit_surface_colour(img, p, np.zeros((16, 16), bool), 0.5)
+        >>> lab = linear_to_lab(srgb_to_linear(img))
+        >>> bool(np.allclose(ab[12, 8], lab[2, 8, 1:], atol=1.0))
+        True
+    """
+    img, p, sky = _check_probability(image_srgb, probability, sky)
+    lin = srgb_to_linear(img)
+    w = ((1.0 - p) ** 2 * (~sky & (lin.max(axis=-1) < 0.98))).astype(np.float32)
+    ab = linear_to_lab(lin)[..., 1:].astype(np.float32)
+    if w.sum() < 1.0:
+        return ab
+    s = max(1.0, sigma * max(p.shape))
+    n = wide_blur(w, s)
+    glob = np.einsum("hw,hwc->c", w, ab) / w.sum()
+    local = wide_blur(ab * w[..., None], s) / np.maximum(n, 1e-6)[..., None]
+    trust = np.clip(n / 0.05, 0.0, 1.0)[..., None]
+    return (trust * local + (1.0 - trust) * glob).astype(np.float32)
+
+
 def _not_darker_than_shade(log_c: np.ndarray, mu_lit: np.ndarray, glob: np.ndarray
                            ) -> np.ndarray:
     """1 where a pixel is no darker than shade is here, falling to 0 beyond it.
@@ -468,6 +498,7 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
 __all__ = [
     "deshadow",
     "deshadow_log_gain",
+    "lit_surface_colour",
     "material_guard",
     "near_predicted_shadow",
     "without_texture",

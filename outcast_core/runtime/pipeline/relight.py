@@ -249,6 +249,20 @@ LIFT_PRIOR_RADIUS = 0.02
 #: x1.112; the anisotropic tolerance along it 0.581 / x1.159.
 LIFT_SHADE_SHIFT: tuple[float, float] = SKY_SHADE_SHIFT
 
+#: Where the lift acts, the relit surface takes the colour (Lab ``a*, b*``) of the lit surface
+#: around it (:func:`~outcast_core.runtime.pipeline.photo_shadows.lit_surface_colour`, over
+#: this fraction of the longer side), in proportion to the lift's weight: the lift's guard has
+#: said that the surface is the same material as its lit surroundings, in shade, and the shade's
+#: own colour is the sky's cast, or noise where the photo crushed it. On the 47 dev photos
+#: relit +-120 degrees (fast, 69 cases), the ``a*b*`` distance between an old shadow the new sun
+#: lights and the lit ring just outside it (the photo 15.5): 11.37 (median 10.26) with the
+#: learned relighting's colour, 8.51 (median 6.53) with this. Measured on a prototype: 0.02 of
+#: the side 9.40 (0.05: 8.87); plus the shade's own variation about its local mean 10.68; only
+#: where the photo's shade is darker than linear luminance 0.03: 10.44. What the found shadows
+#: wrongly include (outside the human masks, newly lit, 60 cases) moves by 2.90 in ``a*b*``
+#: (at most 11.6: a dark asphalt strip the lift itself already greys, colour or not).
+LIFT_COLOUR_SIGMA = 0.05
+
 #: :func:`shadow_contrast_floor`: Gaussian sigma (fraction of the longer side) that smooths the
 #: new shadow before it sets the floor (the rough ``S_n``'s speckle would print otherwise).
 FLOOR_SIGMA = 0.01
@@ -429,6 +443,7 @@ def guard_learned_relight(
     lift: bool = False,
     lift_guard: np.ndarray | None = None,
     lift_base: tuple[np.ndarray, np.ndarray] | None = None,
+    lift_colour: np.ndarray | None = None,
 ) -> np.ndarray:
     """A learned relighting with the real-photo guards the session turns on: new shadows at
     least as dark as physics makes them (:func:`shadow_contrast_floor`), physics' exposure
@@ -454,7 +469,9 @@ def guard_learned_relight(
     :func:`~outcast_core.runtime.geometry.colour.linear_to_lab`, gives 0.86 for the last.)
     ``lift`` and ``lift_guard`` are :func:`shadow_contrast_floor`'s (measured there);
     ``lift_base``, the de-shadowed photo and the old sun's lit level (``max(cos, LIT_FLOOR)``),
-    is relit by physics into its ``lift_cap_srgb``.
+    is relit by physics into its ``lift_cap_srgb``; ``lift_colour`` (``H x W x 2``, the lit
+    surroundings' ``a*, b*``) is the colour the lifted surface takes (:func:`lifted_colour`,
+    with the colour guard).
 
     Example:
         >>> img = np.full((8, 8, 3), 0.5, np.float32); ones = np.ones((8, 8), np.float32)
@@ -465,8 +482,8 @@ def guard_learned_relight(
         True
     """
     out = np.asarray(relit_srgb, np.float32)
+    s_new = smooth_new_shadow(shadow_new)
     if floor or anchor:
-        s_new = smooth_new_shadow(shadow_new)
         physics = physics_relight(image_srgb, shadow_old, s_new, sky, light=light, snap=False)
         if floor:
             cap = None
@@ -479,7 +496,39 @@ def guard_learned_relight(
             out = anchor_exposure(image_srgb, out, physics, shadow_old, s_new, sky)
     if colour:
         out = keep_photo_colour(image_srgb, out, shadow_old, shadow_new, sky, keep_sky=keep_sky)
+        if floor and lift and lift_guard is not None and lift_colour is not None:
+            up = np.clip(_lit(s_new) - _lit(shadow_old), 0.0, 1.0) * np.clip(lift_guard, 0, 1)
+            out = lifted_colour(out, up, lift_colour)
     return out.astype(np.float32)
+
+
+def lifted_colour(relit_srgb: np.ndarray, weight: np.ndarray, lit_ab: np.ndarray) -> np.ndarray:
+    """The relit photo with Lab ``a*, b*`` moved to ``lit_ab`` (``H x W x 2``) in proportion to
+    ``weight`` (``H x W`` in [0, 1]), its lightness kept (:data:`LIFT_COLOUR_SIGMA`).
+
+    Example:
+        >>> img = np.full((4, 4, 3), 0.5, np.float32)
+        >>> ab = np.zeros((4, 4, 2), np.float32); ab[..., 1] = 30.0  # yellow
+        >>> w = np.zeros((4, 4), np.float32); w[:, 2:] = 1.0
+        >>> out = lifted_colour(img, w, ab)
+        >>> bool(np.allclose(out[:, :2], img[:, :2]) and out[0, 3, 2] < out[0, 3, 0])
+        True
+    """
+    relit = np.asarray(relit_srgb, np.float32)
+    w = np.clip(np.asarray(weight, np.float32), 0.0, 1.0)
+    ab = np.asarray(lit_ab, np.float32)
+    if w.shape != relit.shape[:2] or ab.shape != relit.shape[:2] + (2,):
+        raise ValueError(f"expected a weight and a*b* of the image's size {relit.shape[:2]}, got "
+                         f"{w.shape} and {ab.shape}")
+    where = w > 0
+    if not where.any():
+        return relit
+    lin = srgb_to_linear(relit)
+    lab = linear_to_lab(lin[where])
+    k = w[where][:, None]
+    lab[:, 1:] = (1.0 - k) * lab[:, 1:] + k * ab[where]
+    lin[where] = np.clip(lab_to_linear(lab), 0.0, 1.0)
+    return linear_to_srgb(lin)
 
 
 def _lit(s: np.ndarray) -> np.ndarray:

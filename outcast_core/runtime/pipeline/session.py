@@ -46,12 +46,14 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     LIT_FLOOR,
     PRIOR_RADIUS,
     deshadow,
+    lit_surface_colour,
     material_guard,
     near_predicted_shadow,
     original_shadow_from_photo,
     photo_shadow_probability,
 )
 from outcast_core.runtime.pipeline.relight import (
+    LIFT_COLOUR_SIGMA,
     LIFT_PRIOR_RADIUS,
     LIFT_SHADE_SHIFT,
     LightEstimate,
@@ -827,14 +829,19 @@ class RelightSession:
             lit_old = np.maximum(cosine_term(self.normals, self.original_sun), LIT_FLOOR)
             lit_old = np.where(self.sky, 0.0, lit_old)
             guards["base"] = (base.astype(np.float32), lit_old.astype(np.float32))
+            guards["colour"] = lit_surface_colour(self.image_srgb, self.shadow_probability,
+                                                  self.sky, LIFT_COLOUR_SIGMA)
         key = ("base", tuple(shape))
         if key not in guards:
             base, lit_old = guards["base"]
+            colour = guards["colour"]
             if base.shape[:2] != tuple(shape):
                 base = np.clip(resize(base, tuple(shape)), 0.0, 1.0)
                 lit_old = np.clip(resize(lit_old, tuple(shape)), 0.0, 1.0)
-            guards[key] = (base, lit_old)
-        return {"lift_guard": guard, "lift_base": guards[key]}
+                colour = resize(colour, tuple(shape))
+            guards[key] = (base, lit_old, colour)
+        base, lit_old, colour = guards[key]
+        return {"lift_guard": guard, "lift_base": (base, lit_old), "lift_colour": colour}
 
     def _lift_guard(self, shape: tuple[int, int]) -> np.ndarray | None:
         """Where a newly lit surface may be lifted to physics' brightness: the photo's found

@@ -310,3 +310,38 @@ def test_lift_goes_no_higher_than_its_cap() -> None:
     with pytest.raises(ValueError, match="lift cap of shape"):
         shadow_contrast_floor(image, image, physics, s_old, s_new, lift=True,
                               lift_cap_srgb=cap[:4])
+
+
+def test_lifted_old_shadow_takes_the_lit_surroundings_colour() -> None:
+    """Where the lift acts, the relit surface takes the lit surroundings' a*b* (the shade's
+    blue cast goes); where the guard says material, nothing moves."""
+    from outcast_core.runtime.geometry.colour import linear_to_lab
+    from outcast_core.runtime.pipeline.photo_shadows import (
+        lit_surface_colour,
+        photo_shadow_probability,
+    )
+    from outcast_core.runtime.pipeline.relight import guard_learned_relight
+
+    h, w = 48, 48
+    image = np.full((h, w, 3), [0.75, 0.6, 0.4], np.float32)  # warm sunlit sand
+    image[:, :24] *= np.array([0.3, 0.35, 0.5], np.float32)  # blue-grey shade on the left
+    sky = np.zeros((h, w), bool)
+    prob = photo_shadow_probability(image, sky)
+    s_old = np.where(prob > 0.5, 0.0, 0.9).astype(np.float32)
+    s_new = np.full((h, w), 0.9, np.float32)  # the new sun lights everything
+    light = estimate_light(srgb_to_linear(image), s_old)
+    lit_ab = lit_surface_colour(image, prob, sky, 0.5)
+    guard = np.ones((h, w), np.float32)
+    guard[:, :8] = 0.0  # a strip the guard calls material
+
+    def ab(x: np.ndarray, cols: slice) -> np.ndarray:
+        return linear_to_lab(srgb_to_linear(x))[4:44, cols, 1:].reshape(-1, 2).mean(0)
+
+    kwargs = dict(keep_sky=True, lift=True, lift_guard=guard)
+    plain = guard_learned_relight(image, image, s_old, s_new, sky, light, **kwargs)
+    coloured = guard_learned_relight(image, image, s_old, s_new, sky, light, lift_colour=lit_ab,
+                                     **kwargs)
+    sand, shade, material = ab(image, slice(30, 46)), slice(12, 20), slice(1, 6)
+    assert np.hypot(*(ab(plain, shade) - sand)) > 10  # the shade's cast stays without it
+    assert np.hypot(*(ab(coloured, shade) - sand)) < 3
+    assert np.allclose(ab(coloured, material), ab(plain, material), atol=0.1)

@@ -159,9 +159,13 @@ def test_lift_runs_at_working_and_preview_sizes_and_only_brightens(scene) -> Non
     on = s.relight(SUNS[0])
     on_preview = s.relight(SUNS[0], preview=True)
     assert on.shape == off.shape and on_preview.shape == off_preview.shape
-    # The lift only raises luminance (never darkens), and it acts somewhere.
-    assert (on.mean(axis=-1) >= off.mean(axis=-1) - 2e-3).all()
-    assert (on.mean(axis=-1) > off.mean(axis=-1) + 0.02).any()
+    # The lift only raises luminance (never darkens), and it acts somewhere; where it acts the
+    # surface takes its lit surroundings' colour, which may move single channels either way.
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+
+    y_on, y_off = luminance(srgb_to_linear(on)), luminance(srgb_to_linear(off))
+    assert (y_on >= y_off * (1 - 2e-3) - 1e-4).all()
+    assert (y_on > y_off * 1.1 + 0.01).any()
     # "Confirm sun" makes the drag preview's lift inputs, so the first drag frame does not,
     # and they are kept for the next sun.
     s.set_original_sun(W_O)
