@@ -482,7 +482,7 @@ def guard_learned_relight(
         True
     """
     out = np.asarray(relit_srgb, np.float32)
-    s_new = smooth_new_shadow(shadow_new)
+    s_new = smooth_new_shadow(shadow_new) if floor or anchor else shadow_new
     if floor or anchor:
         physics = physics_relight(image_srgb, shadow_old, s_new, sky, light=light, snap=False)
         if floor:

@@ -812,11 +812,12 @@ class RelightSession:
                                      **(self._lift_inputs(s_o.shape) if lift else {}))
 
     def _lift_inputs(self, shape: tuple[int, int]) -> dict[str, Any]:
-        """:func:`guard_learned_relight`'s ``lift_guard`` and ``lift_base`` at ``shape``: where
-        the lift may act (:meth:`_lift_guard`) and the photo de-shadowed with the clear-sky
-        shade colour (:data:`~outcast_core.runtime.pipeline.relight.LIFT_SHADE_SHIFT`) with the
-        lit level of the old sun, which physics relights into the lift's ceiling. Made once at
-        working size per ``S_o``, resized per ``shape``."""
+        """:func:`guard_learned_relight`'s ``lift_guard``, ``lift_base`` and ``lift_colour`` at
+        ``shape``: where the lift may act (:meth:`_lift_guard`), the photo de-shadowed with the
+        clear-sky shade colour (:data:`~outcast_core.runtime.pipeline.relight.LIFT_SHADE_SHIFT`)
+        with the lit level of the old sun, which physics relights into the lift's ceiling, and
+        the lit surroundings' colour the lifted surface takes. Made once at working size per
+        ``S_o``, resized per ``shape``."""
         guard = self._lift_guard(shape)
         if guard is None:
             return {}
@@ -828,9 +829,10 @@ class RelightSession:
                             LIFT_SHADE_SHIFT)
             lit_old = np.maximum(cosine_term(self.normals, self.original_sun), LIT_FLOOR)
             lit_old = np.where(self.sky, 0.0, lit_old)
-            guards["base"] = (base.astype(np.float32), lit_old.astype(np.float32))
             guards["colour"] = lit_surface_colour(self.image_srgb, self.shadow_probability,
                                                   self.sky, LIFT_COLOUR_SIGMA)
+            # Last: a thread that finds "base" finds "colour" too.
+            guards["base"] = (base.astype(np.float32), lit_old.astype(np.float32))
         key = ("base", tuple(shape))
         if key not in guards:
             base, lit_old = guards["base"]
