@@ -388,9 +388,10 @@ def shadow_contrast_floor(
     out = lin_r * (y / y_r)[..., None]
     # Newly shadowed: physics' colour (the photo's own shade colour, from its measured sun/sky
     # ratio per channel) at that luminance.
-    lin_p = srgb_to_linear(np.asarray(physics_srgb, np.float32))
-    k = down[..., None]
-    out = (1.0 - k) * out + k * lin_p * (y / y_p)[..., None]
+    if down.any():
+        lin_p = srgb_to_linear(np.asarray(physics_srgb, np.float32))
+        k = down[..., None]
+        out = (1.0 - k) * out + k * lin_p * (y / y_p)[..., None]
     return linear_to_srgb(out)
 
 
@@ -516,7 +517,9 @@ def guard_learned_relight(
 
 def lifted_colour(relit_srgb: np.ndarray, weight: np.ndarray, lit_ab: np.ndarray) -> np.ndarray:
     """The relit photo with Lab ``a*, b*`` moved to ``lit_ab`` (``H x W x 2``) in proportion to
-    ``weight`` (``H x W`` in [0, 1]), its lightness kept (:data:`LIFT_COLOUR_SIGMA`).
+    ``weight`` (``H x W`` in [0, 1]), its lightness kept: the lift's colour
+    (:data:`LIFT_COLOUR_SIGMA`; ``lit_ab`` from
+    :func:`~outcast_core.runtime.pipeline.photo_shadows.lit_surface_colour`).
 
     Example:
         >>> img = np.full((4, 4, 3), 0.5, np.float32)
