@@ -328,12 +328,17 @@ def _check_probability(image_srgb: np.ndarray, probability: np.ndarray, sky: np.
     return img, p, sky
 
 
+def _usable(lin: np.ndarray, sky: np.ndarray) -> np.ndarray:
+    """Surface pixels whose colour can be measured (off the sky, no channel clipped)."""
+    return ~sky & (lin.max(axis=-1) < 0.98)
+
+
 def _shade_statistics(img: np.ndarray, p: np.ndarray, sky: np.ndarray) -> dict | None:
     """Log colour, the lit and shadowed surfaces' local log means and weights, and the whole
     photo's lit/shadow log ratio ``glob`` (per channel); None without both surfaces."""
     lin = srgb_to_linear(img)
     log_c = np.log(lin + _LOG_EPS).astype(np.float32)
-    usable = ~sky & (lin.max(axis=-1) < 0.98)
+    usable = _usable(lin, sky)
     w_lit = ((1.0 - p) ** 2 * usable).astype(np.float32)
     w_shd = (p**2 * usable).astype(np.float32)
     if w_lit.sum() < 1.0 or w_shd.sum() < 1.0:
@@ -425,7 +430,7 @@ def lit_surface_colour(image_srgb: np.ndarray, probability: np.ndarray, sky: np.
     """
     img, p, sky = _check_probability(image_srgb, probability, sky)
     lin = srgb_to_linear(img)
-    w = ((1.0 - p) ** 2 * (~sky & (lin.max(axis=-1) < 0.98))).astype(np.float32)
+    w = ((1.0 - p) ** 2 * _usable(lin, sky)).astype(np.float32)  # as the shade statistics' lit
     ab = linear_to_lab(lin)[..., 1:].astype(np.float32)
     if w.sum() < 1.0:
         return ab

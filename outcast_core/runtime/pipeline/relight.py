@@ -376,12 +376,7 @@ def shadow_contrast_floor(
             raise ValueError(f"expected a lift cap of shape {relit.shape}, got {cap.shape}")
         y_up = np.minimum(y_p, luminance(srgb_to_linear(cap)) + 1e-4)
     y = np.where(d > 0, np.maximum(y_r, y_up), np.minimum(y_r, y_p))
-    up = np.maximum(d, 0.0)
-    if lift_guard is not None:
-        guard = np.asarray(lift_guard, np.float32)
-        if guard.shape != up.shape:
-            raise ValueError(f"expected a lift guard of shape {up.shape}, got {guard.shape}")
-        up = up * np.clip(guard, 0.0, 1.0)
+    up = lift_weight(s_old, s_new, lift_guard)
     down = np.maximum(-d, 0.0)
     w = down + (up if lift else 0.0)
     y = w * y + (1.0 - w) * y_r
@@ -510,9 +505,22 @@ def guard_learned_relight(
     if colour:
         out = keep_photo_colour(image_srgb, out, shadow_old, shadow_new, sky, keep_sky=keep_sky)
         if floor and lift and lift_guard is not None and lift_colour is not None:
-            up = np.clip(_lit(s_new) - _lit(shadow_old), 0.0, 1.0) * np.clip(lift_guard, 0, 1)
-            out = lifted_colour(out, up, lift_colour)
+            out = lifted_colour(out, lift_weight(shadow_old, s_new, lift_guard), lift_colour)
     return out.astype(np.float32)
+
+
+def lift_weight(shadow_old: np.ndarray, shadow_new: np.ndarray,
+                lift_guard: np.ndarray | None) -> np.ndarray:
+    """Where and how much :func:`shadow_contrast_floor`'s lift acts (``H x W`` in [0, 1]): how
+    far a pixel moves from shadowed to lit (the soft "lit" of the two shadow images), times the
+    guard. :func:`lifted_colour` moves the colour with the same weight."""
+    up = np.maximum(_lit(shadow_new) - _lit(shadow_old), 0.0)
+    if lift_guard is None:
+        return up
+    guard = np.asarray(lift_guard, np.float32)
+    if guard.shape != up.shape:
+        raise ValueError(f"expected a lift guard of shape {up.shape}, got {guard.shape}")
+    return up * np.clip(guard, 0.0, 1.0)
 
 
 def lifted_colour(relit_srgb: np.ndarray, weight: np.ndarray, lit_ab: np.ndarray) -> np.ndarray:
