@@ -98,6 +98,7 @@ EXPORT_CHANNELS = (*IMAGE_EXPORT_CHANNELS, "tl_export")
 DESHADOW_VIEWS = ("shadows_removed", "shadows_found")
 SPLIT_VIEWS = ("output", "shadows_removed")
 DEFAULT_SUN = (135.0, 45.0)  # behind-right of the camera, half-way up: where a new photo starts
+LEVEL_TILT = (0.0, 0.0, "level")  # the camera's (pitch, roll, source) before a photo is loaded
 ICON_PATH = Path(__file__).resolve().parent / "resources" / "outcast.svg"
 STILL_FILTERS = "PNG image (*.png);;JPEG image (*.jpg *.jpeg);;16-bit TIFF (*.tif *.tiff)"
 
@@ -168,6 +169,8 @@ class MainWindow(QMainWindow):
         self.timelapse_settings = TimelapseSettings()
         #: A compass heading typed in step 1 for a photo whose EXIF has none (None: unknown).
         self.user_heading: float | None = None
+        #: The loaded photo's camera ``(pitch, roll, source)`` (auto_sun.camera_tilt).
+        self.camera_tilt: tuple[float, float, str] = LEVEL_TILT
         #: The last automatic sun (``auto_sun.SunFit``) of this photo, or None.
         self.sun_fit: Any = None
         self._find_message = ""  # shown once the found sun's overlay is drawn
@@ -615,8 +618,10 @@ class MainWindow(QMainWindow):
         use_phone = self.use_phone_depth
 
         def job(ctx: JobContext) -> dict[str, Any]:
+            from outcast_core.runtime.io.camera_pose import read_camera_pose
             from outcast_core.runtime.io.depth_models import pick_depth_source
             from outcast_core.runtime.io.imageio import read_depth, read_image
+            from outcast_core.runtime.pipeline.auto_sun import camera_tilt
             from outcast_core.runtime.pipeline.session import RelightSession
 
             ctx.progress("reading", 0.02)
@@ -635,9 +640,12 @@ class MainWindow(QMainWindow):
             focal = loaded.exif.focal_35mm if loaded.exif else None
             session.set_image(loaded.image_srgb, focal_35mm=focal or None, depth=depth,
                               progress=ctx.progress)
+            # The camera's pitch and roll (its metadata's, else the ground plane's): the frame
+            # in which the EXIF sun and the real sun path are given.
+            tilt = camera_tilt(session, read_camera_pose(path))
             photo = display.to_uint8_rgb(loaded.image_srgb)
             return {"path": path, "loaded": loaded, "session": session, "photo": photo,
-                    "depth_path": depth_path, "depth_note": note}
+                    "depth_path": depth_path, "depth_note": note, "tilt": tilt}
 
         self._pending_project = project
         self._pending_restore = restore
@@ -652,6 +660,9 @@ class MainWindow(QMainWindow):
         old_path = self.image_path
         self.session = result["session"]
         self.loaded = result["loaded"]
+        self.camera_tilt = result.get("tilt", LEVEL_TILT)
+        for panel in (self.align_panel, self.relight_panel):
+            panel.sun_panel.set_tilt(*self.camera_tilt[:2])
         self.depth_path = result.get("depth_path", "")
         self.image_path = os.path.abspath(result["path"])
         if old_path != self.image_path and project is None:
@@ -724,9 +735,10 @@ class MainWindow(QMainWindow):
             self._applying_edit = False
         opened = f"Opened {os.path.basename(self.image_path)}"
         if exif_sun is not None:
+            tilt = self.tilt_note()
             opened += (
                 f" · sun from its EXIF: azimuth {exif_sun[0]:.1f}°, elevation {exif_sun[1]:.1f}°"
-                " (check it against the shadows)"
+                f"{f' for a {tilt}' if tilt else ''} (check it against the shadows)"
             )
         self.stage_label.setText(opened)
         if restore is not None:  # the same photo again: keep the history
@@ -753,24 +765,32 @@ class MainWindow(QMainWindow):
 
     def exif_sun(self) -> tuple[float, float] | None:
         """The photo's sun relative to the camera from EXIF GPS, time and compass heading (or
-        the heading typed in step 1 when the EXIF has none)."""
+        the heading typed in step 1 when the EXIF has none), in the camera's frame (its pitch
+        and roll: :attr:`camera_tilt`)."""
         from outcast_core.runtime.pipeline.timelapse import exif_sun
 
-        return exif_sun(getattr(self.loaded, "exif", None), heading=self.user_heading)
+        return exif_sun(getattr(self.loaded, "exif", None), heading=self.user_heading,
+                        tilt=self.camera_tilt[:2])
+
+    def tilt_note(self) -> str:
+        """The camera's tilt in words when it is not level ("camera pitched 21° down (ground
+        plane)"), else ""."""
+        pitch, roll, source = self.camera_tilt
+        if abs(pitch) < 0.5 and abs(roll) < 0.5:
+            return ""
+        words = [f"pitched {abs(pitch):.0f}° {'up' if pitch > 0 else 'down'}"] if abs(
+            pitch) >= 0.5 else []
+        if abs(roll) >= 0.5:
+            words.append(f"rolled {abs(roll):.0f}° {'clockwise' if roll > 0 else 'anticlockwise'}")
+        return f"camera {' and '.join(words)} ({source})"
 
     def exif_prior(self) -> Any:
         """What the photo's EXIF (and a typed heading) says about its sun: an
         :class:`~outcast_core.runtime.pipeline.auto_sun.SunPrior`, or None without GPS and time."""
-        from outcast_core.runtime.pipeline.auto_sun import SunPrior, exif_sun_prior
+        from outcast_core.runtime.pipeline.auto_sun import exif_sun_prior
 
         exif = getattr(self.loaded, "exif", None)
-        prior = exif_sun_prior(exif) if exif is not None else None
-        sun = self.exif_sun()
-        if prior is not None and prior.azimuth is None and sun is not None:  # a typed heading
-            prior = SunPrior(prior.elevation, sun[0], description=(
-                f"azimuth {sun[0]:.0f}°, elevation {prior.elevation:.0f}° from the photo's time "
-                "and place and the heading you gave"))
-        return prior
+        return exif_sun_prior(exif, heading=self.user_heading) if exif is not None else None
 
     def exif_note(self) -> str:
         """Why the EXIF button is greyed out, or what the EXIF gives without a heading."""
@@ -835,14 +855,12 @@ class MainWindow(QMainWindow):
             return None
         prior = self.exif_prior()
         load = self._loads
-        path = self.image_path
+        tilt = self.camera_tilt
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            from outcast_core.runtime.io.camera_pose import read_camera_pose
             from outcast_core.runtime.pipeline.auto_sun import find_sun
 
-            pose = read_camera_pose(path) if prior is not None and path else None
-            fit = find_sun(session, prior=prior, pitch_roll=pose, progress=ctx.progress)
+            fit = find_sun(session, prior=prior, pitch_roll=tilt, progress=ctx.progress)
             return {"fit": fit, "prior": prior, "load": load,
                     "timings": {**_timings(session), "find_sun": fit.seconds}}
 
@@ -897,9 +915,10 @@ class MainWindow(QMainWindow):
         self._record(text="Sun from EXIF")
         magnetic = getattr(getattr(self.loaded, "exif", None), "heading_ref", None) == "M"
         note = "; the heading is magnetic, so allow for the local declination" if magnetic else ""
+        tilt = self.tilt_note()
         self.stage_label.setText(
-            f"Sun from EXIF: azimuth {sun[0]:.1f}°, elevation {sun[1]:.1f}° "
-            f"(check it against the shadows{note})"
+            f"Sun from EXIF: azimuth {sun[0]:.1f}°, elevation {sun[1]:.1f}°"
+            f"{f' for a {tilt}' if tilt else ''} (check it against the shadows{note})"
         )
 
     def _apply_project(self, project: ProjectState) -> None:

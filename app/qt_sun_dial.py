@@ -2,10 +2,13 @@
 
 Maths lives in :mod:`app.sun_dial_math`; this module only paints and turns events into angles.
 Painting happens in small overridable steps (``paint_sky``, ``paint_heat_map``, ``paint_grid``,
-``paint_prior``, ``paint_camera``, ``paint_shadow_ruler``, ``paint_reference``, ``paint_sun``).
+``paint_horizon``, ``paint_prior``, ``paint_camera``, ``paint_shadow_ruler``,
+``paint_reference``, ``paint_sun``).
 The heat map (:meth:`QtSunDial.set_heat_map`) shows how well suns over the dome explain the
 photo's shadows ("Find sun"); the dashed ring (:meth:`QtSunDial.set_prior_elevation`) is the
-elevation the photo's EXIF time and place give.
+elevation the photo's EXIF time and place give. The dial's angles are the camera's: for a camera
+pitched or rolled (:meth:`QtSunDial.set_tilt`) that ring is drawn where the camera sees it, and
+the suns under the true horizon are shaded (``paint_horizon``).
 
 Keyboard (dial focused): Left/Right turn the azimuth, Up/Down raise/lower the sun; 1 degree per
 press, 10 with Shift, 0.1 with Ctrl.
@@ -68,6 +71,7 @@ class QtSunDial(QWidget):
         self._heat: list[tuple[int, int, float, float, float, float]] = []
         self._heat_values: list[list[float]] = []
         self._prior_elevation: float | None = None
+        self._tilt = (0.0, 0.0)
         self.sun_colour = colour or QColor(255, 196, 40)
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.setMinimumSize(180, 180)
@@ -153,6 +157,37 @@ class QtSunDial(QWidget):
     def prior_elevation(self) -> float | None:
         return self._prior_elevation
 
+    def set_tilt(self, pitch: float, roll: float) -> None:
+        """The camera's pitch and roll in degrees: where the true horizon and the EXIF ring lie
+        on the dial's camera-relative angles."""
+        if not (math.isfinite(pitch) and math.isfinite(roll)):
+            raise ValueError(f"expected a finite camera pitch and roll, got {pitch}, {roll}")
+        self._tilt = (float(pitch), float(roll))
+        self.update()
+
+    def tilt(self) -> tuple[float, float]:
+        return self._tilt
+
+    def _tilted(self) -> bool:
+        return abs(self._tilt[0]) >= 0.5 or abs(self._tilt[1]) >= 0.5
+
+    def below_horizon(self, azimuth: float, elevation: float) -> bool:
+        """Whether a sun at these dial angles is under the true horizon (the camera's tilt)."""
+        from outcast_core.runtime.geometry.camera import sun_angles, sun_vector
+
+        if not self._tilted():
+            return elevation < 0.0
+        return sun_angles(sun_vector(azimuth, elevation), *self._tilt)[1] < 0.0
+
+    def _ring_path(self, elevation: float, cx: float, cy: float, r: float) -> QPainterPath:
+        """The true-elevation circle on the dial, closed (points off the dial on its rim)."""
+        pts = dm.tilted_ring(elevation, *self._tilt)
+        path = QPainterPath(QPointF(*dm.sun_to_point(*pts[0], cx, cy, r)))
+        for a, e in pts[1:]:
+            path.lineTo(QPointF(*dm.sun_to_point(a, e, cx, cy, r)))
+        path.closeSubpath()
+        return path
+
     # ------------------------------------------------------------------ geometry
     def dial_geometry(self) -> tuple[float, float, float]:
         """``(cx, cy, radius)`` of the disc in widget pixels."""
@@ -181,6 +216,7 @@ class QtSunDial(QWidget):
         self.paint_sky(p, cx, cy, r)
         self.paint_heat_map(p, cx, cy, r)
         self.paint_grid(p, cx, cy, r)
+        self.paint_horizon(p, cx, cy, r)
         self.paint_prior(p, cx, cy, r)
         self.paint_camera(p, cx, cy, r)
         self.paint_shadow_ruler(p, cx, cy, r)
@@ -222,14 +258,29 @@ class QtSunDial(QWidget):
             p.setBrush(QColor(*colour))
             p.drawPath(path)
 
+    def paint_horizon(self, p: QPainter, cx: float, cy: float, r: float) -> None:
+        """For a tilted camera: the suns under the true horizon, shaded like ground."""
+        if not self._tilted():
+            return
+        disc = QPainterPath()
+        disc.addEllipse(QPointF(cx, cy), r, r)
+        ground = disc.subtracted(self._ring_path(0.0, cx, cy, r))
+        p.setPen(Qt.PenStyle.NoPen)
+        p.setBrush(QColor(110, 84, 50, 170))
+        p.drawPath(ground)
+
     def paint_prior(self, p: QPainter, cx: float, cy: float, r: float) -> None:
-        """The EXIF elevation (:meth:`set_prior_elevation`): a dashed ring."""
+        """The EXIF elevation (:meth:`set_prior_elevation`): a dashed ring, where the camera
+        sees that elevation."""
         if self._prior_elevation is None:
             return
-        rr = r * (90.0 - self._prior_elevation) / 90.0
         p.setBrush(Qt.BrushStyle.NoBrush)
         p.setPen(QPen(QColor(255, 225, 120, 230), 2.0, Qt.PenStyle.DashLine))
-        p.drawEllipse(QPointF(cx, cy), rr, rr)
+        if not self._tilted():
+            rr = r * (90.0 - self._prior_elevation) / 90.0
+            p.drawEllipse(QPointF(cx, cy), rr, rr)
+            return
+        p.drawPath(self._ring_path(self._prior_elevation, cx, cy, r))
 
     def paint_grid(self, p: QPainter, cx: float, cy: float, r: float) -> None:
         p.setBrush(Qt.BrushStyle.NoBrush)
@@ -451,6 +502,11 @@ class SunDialPanel(QWidget):
         self.dial.set_fov(fov_deg, vfov_deg)
         self._sync_fields()
 
+    def set_tilt(self, pitch: float, roll: float) -> None:
+        """The camera's pitch and roll (:meth:`QtSunDial.set_tilt`)."""
+        self.dial.set_tilt(pitch, roll)
+        self._sync_fields()
+
     def _sync_fields(self) -> None:
         az, el = self.dial.sun()
         for box, value in ((self.azimuth_box, az), (self.elevation_box, el)):
@@ -460,6 +516,8 @@ class SunDialPanel(QWidget):
         ratio = dm.shadow_length_ratio(el)
         length = "very long" if ratio > dm.MAX_SHADOW_RATIO else f"{ratio:.2f} × height"
         in_frame = " · in the frame" if self.dial.sun_in_view() else ""
+        if self.dial.below_horizon(az, el):
+            in_frame += " · under the horizon for this camera's tilt"
         self.shadow_label.setText(f"Shadow: {length} · {dm.describe_sun(az, el)}{in_frame}")
 
     def _on_dial_changed(self, az: float, el: float) -> None:

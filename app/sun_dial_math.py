@@ -66,6 +66,26 @@ def sun_to_point(
     return cx + r * math.sin(a), cy - r * math.cos(a)
 
 
+def tilted_ring(
+    elevation: float, pitch: float, roll: float, step: float = 3.0
+) -> list[tuple[float, float]]:
+    """The circle of suns at ``elevation`` above the true horizon, as a camera pitched ``pitch``
+    and rolled ``roll`` degrees (:func:`~outcast_core.runtime.geometry.camera.camera_rotation`)
+    sees them: ``(azimuth, elevation)`` on the dial's (camera-relative) angles, one every
+    ``step`` degrees of true azimuth, elevations not clamped (below 0: off the dial).
+
+    Example:
+        >>> [tuple(round(v, 6) for v in p) for p in tilted_ring(0.0, -20.0, 0.0, 180.0)]
+        [(0.0, 20.0), (180.0, -20.0)]
+    """
+    from outcast_core.runtime.geometry.camera import sun_angles, sun_vector
+
+    if not (math.isfinite(step) and 0.0 < step <= 180.0):
+        raise ValueError(f"expected a ring step in (0, 180] degrees, got {step}")
+    n = max(2, round(360.0 / step))
+    return [sun_angles(sun_vector(360.0 * k / n, elevation, pitch, roll)) for k in range(n)]
+
+
 def point_to_sun(x: float, y: float, cx: float, cy: float, radius: float) -> tuple[float, float]:
     """Sun ``(azimuth, elevation)`` under a screen point; points beyond the rim snap to it.
 

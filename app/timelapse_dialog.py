@@ -61,8 +61,13 @@ FORMAT_CHOICES = (
 )
 
 
-def samples_for(settings: TimelapseSettings) -> list[tl.SunSample]:
-    """The sun path described by the settings (Qt-free; raises ValueError with what is missing)."""
+def samples_for(
+    settings: TimelapseSettings, tilt: tuple[float, float] = (0.0, 0.0)
+) -> list[tl.SunSample]:
+    """The sun path described by the settings (Qt-free; raises ValueError with what is missing).
+
+    ``tilt`` is the photo's camera ``(pitch, roll)``: the real sun is given against the horizon
+    (a sweep is drawn on the dial, in the camera's own frame, and ignores it)."""
     settings.validate()
     if settings.kind == "sweep":
         a0, a1 = settings.sweep_from.azimuth, settings.sweep_to.azimuth
@@ -94,6 +99,7 @@ def samples_for(settings: TimelapseSettings) -> list[tl.SunSample]:
         start,
         end,
         settings.utc_offset,
+        tilt,
     )
 
 
@@ -444,7 +450,7 @@ class TimelapseDialog(QDialog):
 
     def samples(self) -> list[tl.SunSample]:
         """The current sun path (ValueError when the settings are incomplete)."""
-        return samples_for(self.settings())
+        return samples_for(self.settings(), self.main.camera_tilt[:2])
 
     def _on_daylight_toggled(self, checked: bool) -> None:
         self.start_edit.setEnabled(not checked)
@@ -487,14 +493,18 @@ class TimelapseDialog(QDialog):
         offset = None
         if when.tzinfo is None:
             offset = self.offset_box.value()
-        return tl.solve_heading(when, lat, lon, self.main.original_sun.azimuth, offset)
+        sun = self.main.original_sun
+        return tl.solve_heading(when, lat, lon, sun.azimuth, offset,
+                                original_elevation=sun.elevation, tilt=self.main.camera_tilt[:2])
 
     def solve_heading(self) -> float | None:
         heading = self._solved_heading()
         if heading is not None:
             self.heading_box.setValue(round(heading, 1))
+            tilt = self.main.tilt_note()
             self.status.setText(
-                f"Heading {heading:.1f}° solved from the aligned sun and the photo's time and GPS."
+                f"Heading {heading:.1f}° solved from the aligned sun and the photo's time and GPS"
+                f"{f', for a {tilt}' if tilt else ''}."
             )
         return heading
 

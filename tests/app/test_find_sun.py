@@ -219,5 +219,13 @@ def test_find_sun_gets_the_camera_pose_from_the_photo(window, settle, monkeypatc
     monkeypatch.setattr(auto_sun, "find_sun", fake)
     window.find_sun()
     settle()
-    pose = captured["pose"]
-    assert pose is not None and pose.pitch_roll() == (-8.5, 2.0) and pose.source == "XMP GPano"
+    assert captured["pose"] == (-8.5, 2.0, "XMP GPano") == window.camera_tilt
+    # "Sun from EXIF" (here with a typed heading) in the camera's frame, not the horizon's.
+    from outcast_core.runtime.pipeline.timelapse import exif_sun
+
+    window.set_user_heading(100.0)
+    level = exif_sun(window.loaded.exif, heading=100.0)
+    tilted = exif_sun(window.loaded.exif, heading=100.0, tilt=(-8.5, 2.0))
+    assert window.exif_sun() == pytest.approx(tilted)
+    assert abs(tilted[1] - level[1]) > 3.0
+    assert window.tilt_note() == "camera pitched 8° down and rolled 2° clockwise (XMP GPano)"

@@ -17,7 +17,7 @@ from PySide6.QtCore import QMimeData, QPoint, QPointF, Qt, QUrl
 from PySide6.QtGui import QDropEvent, QImage
 
 from app import sun_dial_math as dm
-from app.state import Step, project_path_for
+from app.state import Step, Sun, project_path_for
 from outcast_core.runtime.pipeline.session import ground_plane_depth as _plain_ground
 
 
@@ -349,6 +349,17 @@ def test_exif_sun_and_timelapse_prefill(window, settle):
     times = [x.time.hour for x in dialog.samples()]
     assert times[0] in (5, 6) and times[-1] in (18, 19)  # sunrise to sunset, local time
     assert dialog.start_edit.time().hour() in (5, 6)
+    assert window.camera_tilt[2] == "level (no ground plane)"  # this photo at its working size
+    # A camera pitched down: the aligned sun is in its frame, the heading in the horizon's, and
+    # the path's frames are rendered in the camera's frame.
+    from outcast_core.runtime.geometry.camera import sun_angles, sun_vector
+
+    window.camera_tilt = (-20.0, 0.0, "ground plane")
+    level = window.original_sun.azimuth, window.original_sun.elevation
+    window.original_sun = Sun(*sun_angles(sun_vector(*level, -20.0, 0.0)))
+    assert dialog.solve_heading() == pytest.approx(163.7, abs=0.2)
+    assert "camera pitched 20° down (ground plane)" in dialog.status.text()
+    assert {x.tilt for x in dialog.samples()} == {(-20.0, 0.0)}
 
 
 def test_missing_recent_file_is_dropped(window, photo, settle, errors, tmp_path):

@@ -90,3 +90,28 @@ def test_panel_says_when_sun_is_in_frame(qtbot):
     assert panel.dial.sun_in_view() and "in the frame" in panel.shadow_label.text()
     panel.set_sun(180.0, 15.0)
     assert not panel.dial.sun_in_view() and "in the frame" not in panel.shadow_label.text()
+
+
+def test_a_tilted_camera_shades_the_suns_under_the_horizon(qtbot):
+    """Pitched 20 degrees down, the true horizon ahead lies 20 degrees up on the dial: a sun
+    there at 10 degrees is under the ground, and the panel says so; the EXIF ring follows."""
+    panel = SunDialPanel("Sun")
+    qtbot.addWidget(panel)
+    panel.resize(300, 380)
+    panel.dial.set_prior_elevation(40.0)
+    panel.set_sun(0.0, 10.0)
+    level = panel.dial.grab().toImage()
+    assert not panel.dial.below_horizon(0.0, 10.0) and "horizon" not in panel.shadow_label.text()
+    panel.set_tilt(-20.0, 0.0)
+    assert panel.dial.tilt() == (-20.0, 0.0)
+    assert panel.dial.below_horizon(0.0, 10.0) and not panel.dial.below_horizon(0.0, 25.0)
+    assert not panel.dial.below_horizon(180.0, 1.0)  # behind: the horizon is off the dial
+    assert "under the horizon" in panel.shadow_label.text()
+    tilted = panel.dial.grab().toImage()
+    # Ahead, between the rim and 20 degrees up, the dial is painted as ground now.
+    cx, cy, r = panel.dial.dial_geometry()
+    x, y = (round(v) for v in dm.sun_to_point(0.0, 8.0, cx, cy, r))
+    before, after = level.pixelColor(x, y), tilted.pixelColor(x, y)
+    assert after.blue() < before.blue() - 40 and after.red() >= before.red() - 10
+    with pytest.raises(ValueError, match="pitch"):
+        panel.dial.set_tilt(float("nan"), 0.0)

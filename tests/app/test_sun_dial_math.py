@@ -82,3 +82,17 @@ def test_rejects_non_finite(bad):
         dm.shadow_length_ratio(bad)
     with pytest.raises(ValueError, match="radius"):
         dm.sun_to_point(0.0, 0.0, 0.0, 0.0, 0.0)
+
+
+def test_tilted_ring_is_the_true_elevation_seen_by_a_tilted_camera():
+    from outcast_core.runtime.geometry.camera import sun_angles, sun_vector
+
+    level = dm.tilted_ring(30.0, 0.0, 0.0, step=30.0)
+    assert len(level) == 12 and all(e == pytest.approx(30.0) for _, e in level)
+    ring = dm.tilted_ring(30.0, -15.0, 5.0, step=10.0)
+    assert len(ring) == 36
+    # Each point, turned back into the horizon's frame, is 30 degrees up.
+    assert all(sun_angles(sun_vector(a, e), -15.0, 5.0)[1] == pytest.approx(30.0) for a, e in ring)
+    assert max(e for _, e in ring) > 40.0 > 20.0 > min(e for _, e in ring)
+    with pytest.raises(ValueError, match="step"):
+        dm.tilted_ring(30.0, 0.0, 0.0, step=0.0)

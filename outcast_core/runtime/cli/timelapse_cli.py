@@ -192,31 +192,49 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     return p
 
 
-def _samples_from_args(args: argparse.Namespace, exif: Any) -> list[SunSample]:
+def _check_sample_args(args: argparse.Namespace, exif: Any) -> None:
+    """The sun path's arguments, checked before any work (ValueError naming what is missing)."""
     if (args.sweep is None) == (args.date is None):
         raise ValueError("expected exactly one of --sweep or --date")
     if args.sweep is not None:
         if args.frames is None:
             raise ValueError("expected --frames N with --sweep")
-        return sweep_path(args.sweep[0], args.sweep[1], args.frames, args.easing)
+        return
+    if _place(args, exif) is None:
+        raise ValueError("expected --lat and --lon (the photo has no GPS position)")
+    if args.heading is None and getattr(exif, "capture_time", None) is None:
+        raise ValueError("expected --heading (the photo has no capture time to solve it from)")
+
+
+def _place(args: argparse.Namespace, exif: Any) -> tuple[float, float] | None:
     lat = args.lat if args.lat is not None else getattr(exif, "latitude", None)
     lon = args.lon if args.lon is not None else getattr(exif, "longitude", None)
-    if lat is None or lon is None:
-        raise ValueError("expected --lat and --lon (the photo has no GPS position)")
+    return None if lat is None or lon is None else (lat, lon)
+
+
+def _samples_from_args(
+    args: argparse.Namespace, exif: Any, tilt: Callable[[], tuple[float, float, str]] | None = None
+) -> list[SunSample]:
+    """The sun path; ``tilt`` gives the camera's ``(pitch, roll, source)`` for the real sun's
+    (:func:`~outcast_core.runtime.pipeline.auto_sun.camera_tilt`; level when None)."""
+    _check_sample_args(args, exif)
+    if args.sweep is not None:
+        return sweep_path(args.sweep[0], args.sweep[1], args.frames, args.easing)
+    lat, lon = _place(args, exif)  # type: ignore[misc]
+    pitch, roll, source = tilt() if tilt is not None else (0.0, 0.0, "level")
+    if abs(pitch) >= 0.5 or abs(roll) >= 0.5:
+        print(f"camera pitch {pitch:.1f} deg, roll {roll:.1f} deg ({source})", file=sys.stderr)
     heading = args.heading
     if heading is None:
-        when = getattr(exif, "capture_time", None)
-        if when is None:
-            raise ValueError("expected --heading (the photo has no capture time to solve it from)")
-        heading = solve_heading(when, lat, lon, args.from_sun[0], args.utc_offset)
+        heading = solve_heading(exif.capture_time, lat, lon, args.from_sun[0], args.utc_offset,
+                                original_elevation=args.from_sun[1], tilt=(pitch, roll))
         print(
             f"camera heading solved from the photo's time and GPS: {heading:.1f} deg",
             file=sys.stderr,
         )
     frames = 48 if args.frames is None else args.frames
-    return real_sun_path(
-        args.date, lat, lon, heading, frames, args.start, args.end, args.utc_offset
-    )
+    return real_sun_path(args.date, lat, lon, heading, frames, args.start, args.end,
+                         args.utc_offset, (pitch, roll))
 
 
 def check_timelapse_output(args: argparse.Namespace) -> None:
@@ -237,7 +255,7 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     check_timelapse_output(args)  # before the slow part
     loaded = read_image(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit (no float copy)
     exif = getattr(loaded, "exif", None)
-    samples = _samples_from_args(args, exif)
+    _check_sample_args(args, exif)  # before the slow part
     session = RelightSession(preset=args.preset)
 
     def report(stage: str, fraction: float) -> None:
@@ -246,6 +264,15 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     session.set_image(
         loaded.image_srgb, focal_35mm=getattr(exif, "focal_35mm", None), progress=report
     )
+
+    def tilt() -> tuple[float, float, str]:
+        from outcast_core.runtime.io.camera_pose import read_camera_pose
+        from outcast_core.runtime.pipeline.auto_sun import camera_tilt
+
+        return camera_tilt(session, read_camera_pose(args.image))
+
+    print(file=sys.stderr)
+    samples = _samples_from_args(args, exif, tilt)
     session.set_original_sun(sun_vector(*args.from_sun))
     size = args.size or ("full" if args.full_res else DEFAULT_FRAME_SIZE)
     if args.full_res and size != "full":

@@ -205,12 +205,18 @@ class SunPrior:
                 raise ValueError(f"expected {name} >= 0, got {val}")
 
 
-def exif_sun_prior(metadata: Any) -> SunPrior | None:
+def exif_sun_prior(metadata: Any, heading: float | None = None) -> SunPrior | None:
     """The sun prior of a photo's EXIF (:class:`~outcast_core.runtime.io.exif.PhotoMetadata`).
+
+    Args:
+        metadata: the photo's metadata.
+        heading: a compass heading the user gave, used when the EXIF records none.
 
     Returns:
         None without GPS and capture time, or when the sun was below the horizon then; else the
-        true elevation, with the camera-relative azimuth when a compass heading is recorded.
+        true elevation, with the azimuth relative to the camera's heading when a compass heading
+        is recorded or given (both in the horizon's frame: :func:`find_sun` turns them into the
+        camera's).
     """
     from outcast_core.runtime.pipeline.timelapse import relative_azimuth, true_sun_position
 
@@ -221,12 +227,13 @@ def exif_sun_prior(metadata: Any) -> SunPrior | None:
     true_az, el = true_sun_position(when, lat, lon)
     if el <= 0.0:
         return None
-    heading = getattr(metadata, "heading_deg", None)
-    if heading is None:
+    recorded = getattr(metadata, "heading_deg", None)
+    if recorded is None and heading is None:
         return SunPrior(el, description=f"elevation {el:.0f}° from the photo's time and place")
-    az = relative_azimuth(true_az, heading)
+    az = relative_azimuth(true_az, recorded if recorded is not None else heading)
+    whose = "compass heading" if recorded is not None else "the heading you gave"
     return SunPrior(el, az, description=f"azimuth {az:.0f}°, elevation {el:.0f}° from the "
-                                        "photo's time, place and compass heading")
+                                        f"photo's time, place and {whose}")
 
 
 @dataclass
@@ -496,7 +503,7 @@ class _Frame:
         return np.stack([self.vector(a, e) for a, e in points]) if points else np.zeros((0, 3))
 
 
-def _camera_tilt(session: Any) -> tuple[float, float, str]:
+def ground_plane_tilt(session: Any) -> tuple[float, float, str]:
     """Camera ``(pitch, roll, source)`` in degrees from the fitted ground plane; level without
     one (or with one tilted more than :data:`MAX_PLANE_TILT`)."""
     from outcast_core.runtime.pipeline.depth_post import fit_ground_plane
@@ -516,21 +523,35 @@ def _camera_tilt(session: Any) -> tuple[float, float, str]:
     return pitch, roll, "ground plane"
 
 
-def _pose(session: Any, pitch_roll: Any) -> tuple[float, float, str]:
-    """``(pitch, roll, source)``: the given pose (a pair or a
-    :class:`~outcast_core.runtime.io.camera_pose.CameraPose` with a pitch), else the ground
-    plane's."""
-    if pitch_roll is not None and hasattr(pitch_roll, "pitch_roll"):
-        pair = pitch_roll.pitch_roll()
+def camera_tilt(session: Any, pose: Any = None) -> tuple[float, float, str]:
+    """The camera's ``(pitch, roll, source)`` in degrees: the level frame in which EXIF suns
+    (true elevation above the horizon) are given, as the camera saw it.
+
+    Args:
+        session: a session after ``set_image`` (its depth gives the ground plane).
+        pose: a ``(pitch, roll)`` pair (or ``(pitch, roll, source)``: this function's own
+            result), or a :class:`~outcast_core.runtime.io.camera_pose.CameraPose` from the
+            photo's metadata;
+            None, or a pose without a pitch: the fitted ground plane's (level without one).
+            On held-out synthetic views whose plane is found (22 of 40), the plane's tilt puts
+            a true sun a median 2.2° from where the camera saw it; taking the camera as level,
+            4.7°.
+    """
+    if pose is not None and hasattr(pose, "pitch_roll"):
+        pair = pose.pitch_roll()
         if pair is not None:
-            return float(pair[0]), float(pair[1]), str(pitch_roll.source)
-        return _camera_tilt(session)
-    if pitch_roll is not None:
-        pitch, roll = (float(v) for v in pitch_roll)
+            return float(pair[0]), float(pair[1]), str(pose.source)
+        return ground_plane_tilt(session)
+    if pose is not None:
+        vals = tuple(pose)
+        if len(vals) not in (2, 3):
+            raise ValueError(f"expected a camera (pitch, roll) or (pitch, roll, source), "
+                             f"got {pose}")
+        pitch, roll = float(vals[0]), float(vals[1])
         if not (math.isfinite(pitch) and math.isfinite(roll)):
-            raise ValueError(f"expected a finite camera pitch and roll, got {pitch_roll}")
-        return pitch, roll, "given"
-    return _camera_tilt(session)
+            raise ValueError(f"expected a finite camera pitch and roll, got {pose}")
+        return pitch, roll, str(vals[2]) if len(vals) == 3 else "given"
+    return ground_plane_tilt(session)
 
 
 def _angle_between(a: np.ndarray, b: np.ndarray) -> float:
@@ -588,7 +609,8 @@ def find_sun(
         session: a :class:`~outcast_core.runtime.pipeline.session.RelightSession` after
         ``set_image``.
         prior: the EXIF prior (:func:`exif_sun_prior`); None searches the whole dome.
-        pitch_roll: the camera's ``(pitch, roll)`` in degrees for the prior's frame, or a
+        pitch_roll: the camera's ``(pitch, roll)`` in degrees for the prior's frame (or
+            :func:`camera_tilt`'s ``(pitch, roll, source)``), or a
             :class:`~outcast_core.runtime.io.camera_pose.CameraPose` from the photo's metadata
             (:func:`~outcast_core.runtime.io.camera_pose.read_camera_pose`); None, or a pose
             without a pitch: from the fitted ground plane (level when there is none). Unused
@@ -644,7 +666,7 @@ def find_sun(
 
     frame, pose_source = _Frame(), ""
     if prior is not None:
-        pitch, roll, pose_source = _pose(session, pitch_roll)
+        pitch, roll, pose_source = camera_tilt(session, pitch_roll)
         frame = _Frame(pitch, roll)
 
     def bias(pts: Sequence[tuple[float, float]]) -> np.ndarray:
@@ -783,7 +805,9 @@ __all__ = [
     "SunFit",
     "SunPrior",
     "agreement",
+    "camera_tilt",
     "exif_sun_prior",
     "find_sun",
+    "ground_plane_tilt",
     "shade_clarity",
 ]

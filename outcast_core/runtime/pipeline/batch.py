@@ -337,6 +337,7 @@ def original_sun_for(
     exif: Any,
     project_sun: Sun | None,
     auto: Callable[[], Sun | None] | None = None,
+    tilt: tuple[float, float] = (0.0, 0.0),
 ) -> tuple[Sun, str]:
     """The photo's original sun and where it came from (``csv`` or one of ``options.sources``).
 
@@ -347,6 +348,7 @@ def original_sun_for(
         project_sun: the project file's confirmed sun.
         auto: runs the automatic sun (slow: called only when its turn comes); returns None
             when it is not confident. None: the ``auto`` source is unavailable.
+        tilt: the camera's ``(pitch, roll)``: the EXIF sun is turned into the camera's frame.
 
     Raises:
         ValueError: none of the sources has a sun (the message lists what was tried).
@@ -359,7 +361,7 @@ def original_sun_for(
         if source == "exif":
             from outcast_core.runtime.pipeline.timelapse import exif_sun
 
-            sun = exif_sun(exif)
+            sun = exif_sun(exif, tilt=tilt)
             if sun is not None:
                 return sun, "exif"
         if source == "given" and options.from_sun is not None:
@@ -456,13 +458,14 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
             loaded.path, (height, width), model_path=options.depth_model,
             use_phone=options.use_phone_depth, strict=False, photo_srgb=loaded.image_srgb)
     session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm, depth=depth)
+    tilt = _tilt(session, job.image)
     sun, source = original_sun_for(job, options, loaded.exif, project_sun,
-                                   _auto_sun(session, loaded.exif, result))
+                                   _auto_sun(session, loaded.exif, result, tilt), tilt[:2])
     result.from_sun, result.sun_source = sun, source
     session.set_original_sun(sun_vector(*sun))
     Path(job.output).parent.mkdir(parents=True, exist_ok=True)
     if options.kind == "timelapse":
-        _render_timelapse(session, loaded, sun, job, options)
+        _render_timelapse(session, loaded, sun, job, options, tilt[:2])
     else:
         out = session.relight_full(sun_vector(*to_sun)) if to_sun else session.deshadow_full()
         sixteen = options.fmt == "tif"
@@ -470,10 +473,21 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
                     exif=None if sixteen else loaded.exif_bytes)
     result.details.update(shadows=session.shadow_mode, relighting=session.relight_mode,
                           depth=session.depth_source,
+                          camera={"pitch": round(tilt[0], 2), "roll": round(tilt[1], 2),
+                                  "source": tilt[2]},
                           timings={k: round(v, 3) for k, v in session.timings.items()})
 
 
-def _auto_sun(session: Any, exif: Any, result: JobResult) -> Callable[[], Sun | None] | None:
+def _tilt(session: Any, image: str) -> tuple[float, float, str]:
+    """The camera's ``(pitch, roll, source)``: its metadata's, else the ground plane's."""
+    from outcast_core.runtime.io.camera_pose import read_camera_pose
+    from outcast_core.runtime.pipeline.auto_sun import camera_tilt
+
+    return camera_tilt(session, read_camera_pose(image))
+
+
+def _auto_sun(session: Any, exif: Any, result: JobResult,
+              tilt: tuple[float, float, str]) -> Callable[[], Sun | None] | None:
     """The ``auto`` source for one photo, or None when this version has no automatic sun."""
     try:
         from outcast_core.runtime.pipeline.auto_sun import exif_sun_prior, find_sun
@@ -481,7 +495,7 @@ def _auto_sun(session: Any, exif: Any, result: JobResult) -> Callable[[], Sun | 
         return None
 
     def run() -> Sun | None:
-        fit = find_sun(session, prior=exif_sun_prior(exif))
+        fit = find_sun(session, prior=exif_sun_prior(exif), pitch_roll=tilt)
         result.details["auto_sun"] = {"azimuth": round(float(fit.azimuth), 2),
                                       "elevation": round(float(fit.elevation), 2),
                                       "confidence": round(float(fit.confidence), 3),
@@ -492,7 +506,7 @@ def _auto_sun(session: Any, exif: Any, result: JobResult) -> Callable[[], Sun | 
 
 
 def _render_timelapse(session: Any, loaded: Any, sun: Sun, job: BatchJob,
-                      options: BatchOptions) -> None:
+                      options: BatchOptions, tilt: tuple[float, float] = (0.0, 0.0)) -> None:
     from outcast_core.runtime.pipeline import timelapse as tl
 
     if options.sweep is not None:
@@ -503,8 +517,8 @@ def _render_timelapse(session: Any, loaded: Any, sun: Sun, job: BatchJob,
         when, lat, lon = exif.capture_time, exif.latitude, exif.longitude
         if when is None or lat is None or lon is None:
             raise ValueError("the capture day's sun path needs the photo's EXIF GPS and time")
-        heading = tl.solve_heading(when, lat, lon, sun[0])
-        samples = tl.real_sun_path(when.date(), lat, lon, heading, options.frames)
+        heading = tl.solve_heading(when, lat, lon, sun[0], original_elevation=sun[1], tilt=tilt)
+        samples = tl.real_sun_path(when.date(), lat, lon, heading, options.frames, tilt=tilt)
     tl.render_timelapse(session, samples, job.output, fps=options.fps, size=options.size,
                         force=options.force)
 

@@ -1,13 +1,20 @@
 """Time-lapse: sun paths (sweeps and the real sun), frame writers and the ``outcast timelapse`` CLI.
 
-Two kinds of sun path, both in the camera-relative angles every other part of OutCast speaks
+Two kinds of sun path, both relative to the camera as every other part of OutCast speaks
 (azimuth 0 = straight ahead, 90 = right; elevation 0 = horizon):
 
 * :func:`sweep_path`: azimuth and elevation from A to B over N frames with an easing curve.
 * :func:`real_sun_path`: the true sun for a date and place (``astral``), turned into
-  camera-relative angles with the camera's compass heading: ``relative = true_azimuth - heading``.
+  heading-relative angles with the camera's compass heading: ``relative = true_azimuth - heading``.
   The heading can be solved from the aligned original sun when the photo has GPS and a capture time
   (:func:`solve_heading`: ``heading = true_azimuth - relative_azimuth``).
+
+The true sun's angles are measured against the horizon, the camera's against its own axes: a
+camera pitched 20° down sees a sun 40° above the horizon behind it at 20° in its own frame, and
+one ahead of it at 60°. The real sun's samples keep the horizon's angles and carry the camera's
+pitch and roll (:attr:`SunSample.tilt`, e.g. from
+:func:`~outcast_core.runtime.pipeline.auto_sun.camera_tilt`), and :func:`sun_vectors` turns them
+into the camera's; :func:`exif_sun` and :func:`solve_heading` take the same tilt.
 
 Writers (:func:`export_frames`) produce MP4 (H.264 via PyAV, even size, yuv420p), GIF and WebP
 (Pillow) or a folder of PNGs. They report progress, can be cancelled, write to a temporary name
@@ -33,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from outcast_core.runtime.geometry.camera import sun_vector
+from outcast_core.runtime.geometry.camera import sun_angles, sun_vector
 
 ProgressFn = Callable[[str, float], None]
 CancelCheck = Callable[[], bool] | Any  # a callable returning bool, or a threading.Event
@@ -86,12 +93,15 @@ class SunSample:
         elevation: degrees above the horizon.
         time: local time of the sample (real sun paths only).
         true_azimuth: degrees clockwise from true north (real sun paths only).
+        tilt: the camera's ``(pitch, roll)`` in degrees against the horizon the angles are
+            measured from; ``(0, 0)``: the camera's own frame (sweeps, the dial's angles).
     """
 
     azimuth: float
     elevation: float
     time: dt.datetime | None = None
     true_azimuth: float | None = None
+    tilt: tuple[float, float] = (0.0, 0.0)
 
 
 def ease(t: np.ndarray | float, easing: str = "linear") -> np.ndarray:
@@ -175,11 +185,17 @@ def relative_azimuth(true_azimuth: float, heading: float) -> float:
     return (_check_angle("true azimuth", true_azimuth) - _check_angle("heading", heading)) % 360.0
 
 
-def exif_sun(exif: Any, heading: float | None = None) -> tuple[float, float] | None:
+def exif_sun(
+    exif: Any, heading: float | None = None, tilt: tuple[float, float] = (0.0, 0.0)
+) -> tuple[float, float] | None:
     """The photo's sun ``(azimuth, elevation)`` relative to the camera from its EXIF GPS,
     capture time and compass heading (``heading`` stands in when the EXIF has none: one typed
     by the user); None when one is missing or the sun is below the horizon. The one place the
-    app's "Sun from EXIF" and ``outcast batch`` take it from."""
+    app's "Sun from EXIF" and ``outcast batch`` take it from.
+
+    ``tilt`` is the camera's ``(pitch, roll)`` in degrees: the sun is returned in the camera's
+    frame (the dial's and the session's angles), its elevation clamped to [0, 90] as the dial's
+    (a camera pitched well up can have the sun ahead of it under its own horizon)."""
     when = getattr(exif, "capture_time", None)
     lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
     exif_heading = getattr(exif, "heading_deg", None)
@@ -189,7 +205,11 @@ def exif_sun(exif: Any, heading: float | None = None) -> tuple[float, float] | N
     true_az, el = true_sun_position(when, lat, lon)
     if el <= 0:
         return None
-    return relative_azimuth(true_az, heading), el
+    az = relative_azimuth(true_az, heading)
+    if not any(tilt):
+        return az, el
+    cam_az, cam_el = sun_angles(sun_vector(az, el, *tilt))
+    return cam_az, min(90.0, max(0.0, cam_el))
 
 
 def heading_from_sun(true_azimuth: float, relative_az: float) -> float:
@@ -243,6 +263,9 @@ def solve_heading(
     longitude: float,
     original_azimuth: float,
     utc_offset_hours: float | None = None,
+    *,
+    original_elevation: float | None = None,
+    tilt: tuple[float, float] = (0.0, 0.0),
 ) -> float:
     """Camera compass heading from the aligned original sun and the photo's time and GPS.
 
@@ -252,12 +275,20 @@ def solve_heading(
         longitude: degrees east.
         original_azimuth: the aligned original sun's azimuth relative to the camera, degrees.
         utc_offset_hours: offset of a naive ``capture_time`` from UTC.
+        original_elevation: the aligned sun's elevation in the camera's frame; needed with a
+            tilt (the horizon's azimuth of a sun depends on its height in a tilted frame).
+        tilt: the camera's ``(pitch, roll)`` in degrees.
 
     Returns:
         Heading in degrees clockwise from true north, in [0, 360).
     """
     true_az, _ = true_sun_position(capture_time, latitude, longitude, utc_offset_hours)
-    return heading_from_sun(true_az, original_azimuth)
+    azimuth = original_azimuth
+    if any(tilt):
+        if original_elevation is None:
+            raise ValueError("expected the original sun's elevation with a camera tilt")
+        azimuth, _ = sun_angles(sun_vector(original_azimuth, original_elevation), *tilt)
+    return heading_from_sun(true_az, azimuth)
 
 
 def default_utc_offset(longitude: float) -> float:
@@ -300,6 +331,7 @@ def real_sun_path(
     start: dt.time | None = None,
     end: dt.time | None = None,
     utc_offset_hours: float | None = None,
+    tilt: tuple[float, float] = (0.0, 0.0),
 ) -> list[SunSample]:
     """The real sun over a day, relative to a camera facing ``heading``.
 
@@ -312,14 +344,16 @@ def real_sun_path(
         start: local start time; sunrise when None.
         end: local end time; sunset when None.
         utc_offset_hours: local time's offset from UTC; guessed from longitude when None.
+        tilt: the camera's ``(pitch, roll)`` in degrees (:attr:`SunSample.tilt`).
 
     Returns:
-        ``frames`` samples with ``time`` and ``true_azimuth`` set.
+        ``frames`` samples with ``time`` and ``true_azimuth`` set, at the horizon's angles.
     """
     frames = _check_frames(frames)
     if frames < 2:
         raise ValueError(f"expected at least 2 frames for a sun path, got {frames}")
     heading = _check_angle("heading", heading)
+    tilt = (_check_angle("pitch", tilt[0], -90.0, 90.0), _check_angle("roll", tilt[1]))
     offset = default_utc_offset(longitude) if utc_offset_hours is None else float(utc_offset_hours)
     tz = dt.timezone(dt.timedelta(hours=offset))
     if start is None or end is None:
@@ -334,15 +368,16 @@ def real_sun_path(
     for i in range(frames):
         when = t0 + (t1 - t0) * (i / (frames - 1))
         true_az, el = true_sun_position(when, latitude, longitude)
-        samples.append(SunSample(relative_azimuth(true_az, heading), el, when, true_az))
+        samples.append(SunSample(relative_azimuth(true_az, heading), el, when, true_az, tilt))
     return samples
 
 
 def sun_vectors(
     samples: Sequence[SunSample], min_elevation: float = MIN_RENDER_ELEVATION
 ) -> list[np.ndarray]:
-    """Camera-space unit sun vectors to render; elevations under ``min_elevation`` are lifted."""
-    return [sun_vector(s.azimuth, max(s.elevation, min_elevation)) for s in samples]
+    """Camera-space unit sun vectors to render (each sample in its :attr:`SunSample.tilt`);
+    elevations under ``min_elevation`` (above the horizon, for the real sun) are lifted."""
+    return [sun_vector(s.azimuth, max(s.elevation, min_elevation), *s.tilt) for s in samples]
 
 
 # --------------------------------------------------------------------------------------------

@@ -18,8 +18,10 @@ from outcast_core.runtime.pipeline.auto_sun import (
     FindSunCancelledError,
     SunPrior,
     agreement,
+    camera_tilt,
     exif_sun_prior,
     find_sun,
+    ground_plane_tilt,
 )
 from outcast_core.runtime.pipeline.session import RelightSession
 from outcast_core.runtime.pipeline.timelapse import relative_azimuth, true_sun_position
@@ -134,6 +136,30 @@ def test_exif_sun_prior() -> None:
     night = PhotoMetadata(latitude=50.0, longitude=14.0,
                           capture_time=dt.datetime(2024, 6, 21, 23, 0, tzinfo=dt.UTC))
     assert exif_sun_prior(night) is None
+    # A heading the user typed stands in for a missing one, and says so; a recorded one wins.
+    typed = exif_sun_prior(meta, heading=200.0)
+    assert typed is not None and typed.azimuth == pytest.approx(relative_azimuth(true_az, 200.0))
+    assert "the heading you gave" in typed.description
+    recorded = exif_sun_prior(PhotoMetadata(latitude=50.0, longitude=14.0, capture_time=when,
+                                            heading_deg=90.0), heading=200.0)
+    assert recorded is not None and recorded.azimuth == pytest.approx(full.azimuth)
+    assert "compass heading" in recorded.description
+
+
+def test_camera_tilt_sources() -> None:
+    """The camera's tilt: a pair as given, this function's own triple, a metadata pose, else
+    the ground plane (this scene's camera looks straight at a wall-like ground: none)."""
+    from outcast_core.runtime.io.camera_pose import CameraPose
+
+    s = _session(_shadowless_photo())
+    assert camera_tilt(s, (-12.0, 3.0)) == (-12.0, 3.0, "given")
+    assert camera_tilt(s, (-12.0, 3.0, "ground plane")) == (-12.0, 3.0, "ground plane")
+    assert camera_tilt(s, None) == ground_plane_tilt(s)
+    pose = CameraPose(pitch=-8.5, roll=2.0, source="XMP GPano")
+    assert camera_tilt(s, pose) == (-8.5, 2.0, "XMP GPano")
+    for bad in [(1.0,), (1.0, 2.0, "x", 4.0), (float("nan"), 0.0)]:
+        with pytest.raises(ValueError, match="pitch"):
+            camera_tilt(s, bad)
 
 
 def test_cli_sun_json_and_text(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -11,6 +11,7 @@ import pytest
 from PIL import Image
 
 from outcast_core.runtime.cli.main import main
+from outcast_core.runtime.io.imageio import read_image
 from outcast_core.runtime.pipeline.batch import (
     PROJECT_SUFFIX,
     BatchJob,
@@ -21,6 +22,7 @@ from outcast_core.runtime.pipeline.batch import (
     run_batch,
     run_job,
 )
+from outcast_core.runtime.pipeline.timelapse import exif_sun
 
 ROOT = Path(__file__).resolve().parents[3]
 SAMPLE = ROOT / "samples" / "exif_003_th_pool.jpg"
@@ -118,7 +120,12 @@ def test_sun_sources(tmp_path: Path) -> None:
     assert got["exif.jpg"].status == "failed" and "no new sun" in got["exif.jpg"].message
     r = run_job(BatchJob(str(exif), str(tmp_path / "o" / "e.png"), to_sun=(90.0, 30.0)), opts)
     assert (r.status, r.sun_source) == ("done", "exif")
-    assert r.from_sun == pytest.approx(SAMPLE_SUN, abs=0.2)
+    # The EXIF sun in the camera's frame: its tilt from the ground plane of this thumbnail.
+    cam = r.details["camera"]
+    assert cam["source"] == "ground plane" and abs(cam["pitch"]) + abs(cam["roll"]) > 1.0
+    tilted = exif_sun(read_image(exif).exif, tilt=(cam["pitch"], cam["roll"]))
+    assert r.from_sun == pytest.approx(tilted, abs=0.2)
+    assert exif_sun(read_image(exif).exif) == pytest.approx(SAMPLE_SUN, abs=0.2)  # level
     assert got["plain.png"].status == "failed"
     assert got["aligned.png"].status == "done"
     with Image.open(tmp_path / "out" / "aligned.jpg") as im:

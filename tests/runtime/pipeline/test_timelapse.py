@@ -12,7 +12,7 @@ import pytest
 from PIL import Image
 
 from outcast_core.runtime.cli.timelapse_cli import _samples_from_args, register
-from outcast_core.runtime.geometry.camera import sun_angles
+from outcast_core.runtime.geometry.camera import sun_angles, sun_vector
 from outcast_core.runtime.pipeline import timelapse as tl
 
 
@@ -101,6 +101,47 @@ def test_heading_round_trip_and_solve():
     true_az, _ = tl.true_sun_position(when, 7.831431, 98.296653)
     rel = tl.relative_azimuth(true_az, 163.7)  # what a user aligning the pool photo should find
     assert tl.solve_heading(when, 7.831431, 98.296653, rel) == pytest.approx(163.7, abs=1e-6)
+
+
+def test_a_tilted_camera_sees_the_true_sun_in_its_own_frame():
+    """The EXIF sun, the solved heading and the real path's vectors take the camera's pitch and
+    roll: a camera pitched 20 deg down sees a sun 40 deg up behind it at 20 deg, ahead at 60."""
+    from outcast_core.runtime.geometry.camera import sun_vector
+
+    class Exif:
+        capture_time = dt.datetime(2019, 8, 21, 3, 57, 22, tzinfo=dt.UTC)
+        latitude, longitude, heading_deg = 7.831431, 98.296653, None
+
+    behind = tl.sun_vectors([tl.SunSample(180.0, 40.0, tilt=(-20.0, 0.0))])[0]
+    ahead = tl.sun_vectors([tl.SunSample(0.0, 40.0, tilt=(-20.0, 0.0))])[0]
+    assert sun_angles(behind) == pytest.approx((180.0, 20.0))
+    assert sun_angles(ahead) == pytest.approx((0.0, 60.0))
+    # A sun under the horizon is lifted in the horizon's frame, then turned into the camera's.
+    low = tl.sun_vectors([tl.SunSample(90.0, -5.0, tilt=(10.0, 5.0))])[0]
+    assert low == pytest.approx(sun_vector(90.0, tl.MIN_RENDER_ELEVATION, 10.0, 5.0))
+
+    level = tl.exif_sun(Exif(), heading=163.7)
+    assert level == pytest.approx((273.5, 66.8), abs=0.1)
+    for tilt in [(-25.0, 0.0), (-10.0, 6.0), (15.0, -3.0)]:
+        cam = tl.exif_sun(Exif(), heading=163.7, tilt=tilt)
+        assert cam == pytest.approx(sun_angles(sun_vector(*level, *tilt)), abs=1e-9)
+        assert abs(cam[1] - level[1]) > 2.0
+        # The heading solved from the sun aligned in the camera's frame is the compass's again.
+        solved = tl.solve_heading(Exif.capture_time, Exif.latitude, Exif.longitude, cam[0],
+                                  original_elevation=cam[1], tilt=tilt)
+        assert solved == pytest.approx(163.7, abs=1e-6)
+    with pytest.raises(ValueError, match="elevation"):
+        tl.solve_heading(Exif.capture_time, 7.8, 98.3, 10.0, tilt=(-5.0, 0.0))
+    # A camera pitched 80 deg up has the sun ahead of it, 67 deg up, under its own horizon:
+    # the dial's lowest elevation.
+    true_az, _ = tl.true_sun_position(Exif.capture_time, Exif.latitude, Exif.longitude)
+    ahead_up = tl.exif_sun(Exif(), heading=true_az, tilt=(80.0, 0.0))
+    assert ahead_up == pytest.approx((0.0, 0.0), abs=1e-9)
+    path = tl.real_sun_path(dt.date(2019, 8, 21), 7.83, 98.3, 163.7, 3, tilt=(-20.0, 1.0))
+    assert all(p.tilt == (-20.0, 1.0) for p in path)
+    want = [sun_vector(p.azimuth, max(p.elevation, tl.MIN_RENDER_ELEVATION), -20.0, 1.0)
+            for p in path]
+    assert np.allclose(tl.sun_vectors(path), want)
 
 
 def test_real_sun_path_day():
@@ -295,6 +336,15 @@ def test_cli_date_solves_heading_from_exif():
     )
     samples = _samples_from_args(args, _Exif())
     assert len(samples) == 3
+    for s in samples:
+        assert s.azimuth == pytest.approx((s.true_azimuth - 163.7) % 360.0, abs=1e-6)
+    # With the camera's tilt (the photo's pose, else its ground plane) the --from sun is in the
+    # camera's frame: the heading is solved in the horizon's, and the path carries the tilt.
+    tilt = (-15.0, 3.0)
+    cam_az, cam_el = sun_angles(sun_vector(rel, 66.0, *tilt))
+    args.from_sun = (cam_az, cam_el)
+    samples = _samples_from_args(args, _Exif(), lambda: (*tilt, "ground plane"))
+    assert [s.tilt for s in samples] == [tilt] * 3
     for s in samples:
         assert s.azimuth == pytest.approx((s.true_azimuth - 163.7) % 360.0, abs=1e-6)
 
