@@ -240,6 +240,53 @@ def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
     return _fill_holes(z_kept | prior | clear, sky_colour(image))
 
 
+#: :func:`refine_sky_edge`: how far (fraction of the longer side) the sky may grow past the
+#: combined mask's edge, and how close (largest sRGB channel difference) a pixel's colour must
+#: be to the sky's around it.
+SKY_EDGE_BAND = 0.03
+SKY_EDGE_TOL = 0.08
+
+
+def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
+    """Grow a sky mask up to the photo's own sky edge.
+
+    ``Z`` sees the sky at 128 px and :func:`sky_prior` needs a smooth window, so both stop a few
+    pixels short of every object standing against the sky, and miss the sky between a
+    chairlift's bars or a tree's branches. Relit, that band is a surface: it took the new
+    shadows' darkening as blocky halos round the ski-slope sample's chairlift and tree tops.
+    Here every pixel within :data:`SKY_EDGE_BAND` of the sky (straight-line distance, so sky
+    seen through a closed frame counts: a chair's bars, a pylon's triangle) whose colour is a
+    sky's (:func:`sky_colour`) and within :data:`SKY_EDGE_TOL` of the sky's around it (a
+    Gaussian average of the sky pixels, sigma the band) is sky: a dark pole, a tree or a roof
+    does not pass; a pale wall or snowfield next to a white sky can lose at most the band.
+
+    Args:
+        sky: ``H x W`` bool.
+        image_srgb: ``H x W x 3`` sRGB of the same size.
+
+    Returns:
+        ``H x W`` bool, a superset of ``sky``.
+    """
+    sky = np.asarray(sky, dtype=bool)
+    img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
+    if img.shape[:2] != sky.shape:
+        raise ValueError(f"expected a sky mask of the image's size {img.shape[:2]}, got "
+                         f"{sky.shape}")
+    band = round(SKY_EDGE_BAND * max(sky.shape))
+    if band < 1 or not sky.any() or sky.all():
+        return sky
+    sigma = float(band)
+    weight = cv2.GaussianBlur(sky.astype(np.float32), (0, 0), sigma)
+    local = cv2.GaussianBlur(img * sky[..., None], (0, 0), sigma) / np.maximum(weight, 1e-6)[
+        ..., None]
+    close = (np.abs(img - local).max(axis=2) < SKY_EDGE_TOL) & (weight > 1e-3)
+    candidate = close & sky_colour(img) & ~sky
+    if not candidate.any():
+        return sky
+    near = cv2.distanceTransform((~sky).astype(np.uint8), cv2.DIST_L2, 3) <= band
+    return sky | (candidate & near)
+
+
 def smooth_depth(depth: np.ndarray, sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
     """Edge-aware smoothing of a depth map guided by its photo (guided filter on log depth).
 
@@ -457,17 +504,18 @@ def postprocess_z(
     """``Z``'s raw outputs (``H x W`` depth and sky probability) to the runtime's depth and sky.
 
     The sky is ``Z``'s (probability > 0.5) combined with :func:`sky_prior`
-    (:func:`combine_sky`); the depth is clamped to be positive and smoothed by
-    :func:`smooth_depth`, and, given the ``camera`` (intrinsics of the same size), its ground is
-    snapped to a plane by :func:`snap_ground`. As everywhere for estimated depth (DESIGN.md), the
-    depth stays finite on sky pixels and the mask says where the sky is.
+    (:func:`combine_sky`), grown to the photo's sky edge (:func:`refine_sky_edge`); the depth is
+    clamped to be positive and smoothed by :func:`smooth_depth`, and, given the ``camera``
+    (intrinsics of the same size), its ground is snapped to a plane by :func:`snap_ground`. As
+    everywhere for estimated depth (DESIGN.md), the depth stays finite on sky pixels and the
+    mask says where the sky is.
 
     Returns:
         ``(depth, sky)``: ``H x W`` float32, finite and > 0, and ``H x W`` bool.
     """
     raw = np.asarray(depth, np.float32)
     depth = np.clip(np.nan_to_num(raw, nan=1e-6, posinf=1e6, neginf=1e-6), 1e-6, None)
-    sky = combine_sky(np.asarray(sky_prob) > 0.5, image_srgb)
+    sky = refine_sky_edge(combine_sky(np.asarray(sky_prob) > 0.5, image_srgb), image_srgb)
     depth = smooth_depth(depth, sky, image_srgb)
     if camera is not None:
         depth = snap_ground(depth, sky, camera)[0]

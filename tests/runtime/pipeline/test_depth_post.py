@@ -14,6 +14,7 @@ from outcast_core.runtime.pipeline.depth_post import (
     fit_ground_plane,
     plane_depth,
     postprocess_z,
+    refine_sky_edge,
     sky_prior,
     smooth_depth,
     snap_ground,
@@ -143,6 +144,44 @@ def test_combine_stops_below_zs_horizon() -> None:
     out = combine_sky(z_sky, img)
     limit = 30 + round(sky_mod.HORIZON_MARGIN * h)
     assert out[:30].all() and not out[limit:].any()
+
+
+def test_refine_sky_edge_reaches_the_objects_against_the_sky() -> None:
+    """A mask that stops short of a dark pole and a dark ring grows to them, fills the sky seen
+    through the ring, and neither enters them nor a pale beige wall; a white snowfield under a
+    white sky gains at most the band."""
+    h, w = 100, 300  # the band: 9 px
+    img = np.empty((h, w, 3), np.float32)
+    img[:] = np.stack([0.4 + 0.1 * np.linspace(0, 1, h)[:, None].repeat(w, 1),
+                       np.full((h, w), 0.6), np.full((h, w), 0.92)], -1)
+    img[60:] = (0.25, 0.35, 0.15)  # ground
+    img[10:60, 40:44] = 0.05  # a dark pole
+    yy, xx = np.mgrid[:h, :w]
+    ring = np.abs(np.hypot(yy - 25, xx - 100) - 5) < 1.5
+    img[ring] = 0.08  # a dark ring: sky seen through it
+    img[20:60, 250:270] = (0.75, 0.62, 0.45)  # a pale beige wall
+    truth = np.ones((h, w), bool)
+    truth[60:] = False
+    truth[10:60, 40:44] = False
+    truth[ring] = False
+    truth[20:60, 250:270] = False
+    # The coarse mask: the true sky eroded by 2 px around everything, the ring's inside lost.
+    coarse = cv2.erode(truth.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    coarse[np.hypot(yy - 25, xx - 100) < 8] = False
+    out = refine_sky_edge(coarse, img)
+    assert (out >= coarse).all()  # a superset
+    assert not (out & ~truth).any()  # nothing of the pole, the ring, the wall or the ground
+    assert (out[truth]).mean() > 0.99 and out[25, 100] and out[30, 46] and out[30, 38]
+    # Pale ground under a white sky with no edge between them: at most the band is taken.
+    snow = np.full((h, w, 3), 0.9, np.float32)
+    sky = np.zeros((h, w), bool)
+    sky[:40] = True
+    grown = refine_sky_edge(sky, snow)
+    band = round(sky_mod.SKY_EDGE_BAND * w)
+    assert grown[:40 + band].all() and not grown[40 + band + 1:].any()
+    assert (refine_sky_edge(np.zeros((h, w), bool), img) == 0).all()
+    with pytest.raises(ValueError, match="size"):
+        refine_sky_edge(sky[:, :10], img)
 
 
 def test_top_connected() -> None:
