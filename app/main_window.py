@@ -776,11 +776,11 @@ class MainWindow(QMainWindow):
         """The camera's tilt in words when it is not level ("camera pitched 21° down (ground
         plane)"), else ""."""
         pitch, roll, source = self.camera_tilt
-        if abs(pitch) < 0.5 and abs(roll) < 0.5:
+        if abs(pitch) < 1.0 and abs(roll) < 1.0:
             return ""
         words = [f"pitched {abs(pitch):.0f}° {'up' if pitch > 0 else 'down'}"] if abs(
-            pitch) >= 0.5 else []
-        if abs(roll) >= 0.5:
+            pitch) >= 1.0 else []
+        if abs(roll) >= 1.0:
             words.append(f"rolled {abs(roll):.0f}° {'clockwise' if roll > 0 else 'anticlockwise'}")
         return f"camera {' and '.join(words)} ({source})"
 
