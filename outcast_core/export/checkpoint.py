@@ -79,12 +79,16 @@ def export_checkpoint(
     ref: str | Path, out: Path, data_seed: int | None = None,
     kinds: tuple[str, ...] | None = None,
 ) -> list[Path]:
-    """Export every exportable network of a checkpoint into ``out``; returns the ONNX paths."""
+    """Export every exportable network of a checkpoint into ``out``; returns the ONNX paths.
+
+    A relight-stage run that fed ``L`` the photometric old shadow (``relight_old_shadow =
+    "photo"``) never trained ``R``: its ``refine`` is left out, so the shipped one stays."""
     path = resolve_checkpoint(ref)
     nets, ckpt = load_checkpoint_nets(path)
+    untrained = {"refine"} if ckpt.get("config", {}).get("relight_old_shadow") == "photo" else set()
     written = []
     for kind, net in nets.items():
-        if kind not in SPECS or (kinds is not None and kind not in kinds):
+        if kind not in SPECS or (kinds is not None and kind not in kinds) or kind in untrained:
             continue
         onnx_path = Path(out) / f"{kind}.onnx"
         parity = export_onnx(net, kind, onnx_path)

@@ -53,6 +53,16 @@ class TrainConfig:
             paper) or ``physics`` (the shading-ratio relighting, with the light ratio estimated
             from ``C_o`` and ``R``'s ``S_o`` as the app does; see
             :class:`outcast_core.nets.relight.RelightNet`).
+        relight_old_shadow: ``relight`` stage: the old shadow ``S_o`` fed to ``L``: ``refine``
+            (``R``'s refinement of ``S``, trained jointly: the paper) or ``photo`` (the app's
+            photometric stage on the input photo, gated by ``S`` at the original sun:
+            :func:`outcast_core.runtime.pipeline.photo_shadows.photo_shadow_probability` and
+            :func:`~outcast_core.runtime.pipeline.photo_shadows.original_shadow_from_photo`,
+            what the session feeds ``L`` since ``refine="photo"`` became its default; ``R`` is
+            then not trained). With ``photo``, ``L`` sees dark materials the photometric stage
+            calls shadow, as it does on real photos.
+        init_relight_onnx: ``relight`` stage: when this run has no checkpoint yet, start ``L``
+            from a shipped ``relight.onnx`` (its training checkpoint gone).
         postprocess_depth: pass ``Z``'s estimates through the app's post-processing
             (:func:`outcast_core.runtime.pipeline.depth_post.postprocess_z`: sky prior, guided
             smoothing)
@@ -114,6 +124,8 @@ class TrainConfig:
     shadow_checkpoint: str = ""
     new_shadow_gt_depth_prob: float = 0.0
     relight_base: str = "photo"
+    relight_old_shadow: str = "refine"
+    init_relight_onnx: str = ""
     postprocess_depth: bool = False
     snap_ground: bool = False
     resume_from: str = ""
@@ -161,6 +173,13 @@ class TrainConfig:
                                  f"stage {self.stage!r}")
         if self.relight_base not in ("photo", "physics"):
             raise ValueError(f"expected relight_base photo or physics, got {self.relight_base!r}")
+        if self.relight_old_shadow not in ("refine", "photo"):
+            raise ValueError(f"expected relight_old_shadow refine or photo, got "
+                             f"{self.relight_old_shadow!r}")
+        for key, default in (("relight_old_shadow", "refine"), ("init_relight_onnx", "")):
+            if getattr(self, key) != default and self.stage != "relight":
+                raise ValueError(f"expected {key} only for the relight stage, got stage "
+                                 f"{self.stage!r}")
         if self.relight_base != "photo" and self.stage != "relight":
             raise ValueError(f"expected relight_base only for the relight stage, got stage "
                              f"{self.stage!r}")
@@ -189,7 +208,7 @@ class TrainConfig:
                 f"expected extra_data to be a list of folders, got {self.extra_data!r}"
             )
         self.extra_data = [str(Path(d).expanduser()) for d in self.extra_data]
-        for key in ("depth_checkpoint", "shadow_checkpoint", "init_onnx"):
+        for key in ("depth_checkpoint", "shadow_checkpoint", "init_onnx", "init_relight_onnx"):
             value = getattr(self, key)
             if value:
                 setattr(self, key, str(Path(value).expanduser()))

@@ -194,6 +194,28 @@ def light_ratios(
     return torch.from_numpy(np.stack(out).astype(np.float32)).to(image.device)
 
 
+def photo_old_shadow(image: torch.Tensor, prior: torch.Tensor, depth: torch.Tensor,
+                     normals: torch.Tensor, sun: torch.Tensor) -> torch.Tensor:
+    """``B x 1 x H x W`` old shadow as the app's session makes it with ``refine="photo"``
+    (no gradient): the photo's shadow probability gated by ``S`` at the original sun
+    (``prior``), visibility times the lit level; the sky is where ``depth`` is 0."""
+    from outcast_core.runtime.geometry.camera import cosine_term
+    from outcast_core.runtime.pipeline.photo_shadows import (
+        original_shadow_from_photo,
+        photo_shadow_probability,
+    )
+
+    out = []
+    for b in range(image.shape[0]):
+        img = image[b].detach().cpu().permute(1, 2, 0).numpy()
+        sky = depth[b, 0].detach().cpu().numpy() <= 0
+        prob = photo_shadow_probability(img, sky, prior[b, 0].detach().cpu().numpy())
+        cos = cosine_term(normals[b].detach().cpu().permute(1, 2, 0).numpy(),
+                          sun[b].detach().cpu().numpy())
+        out.append(original_shadow_from_photo(prob, cos, sky))
+    return torch.from_numpy(np.stack(out)[:, None].astype(np.float32)).to(image.device)
+
+
 class _ShadowLogits(nn.Module):
     """``S``'s :meth:`logits` as ``forward``, so DistributedDataParallel (which hooks
     ``forward``) can wrap it; its parameters are the wrapped network's."""
@@ -343,6 +365,10 @@ class Trainer:
                 first = STAGE_NETS[self.cfg.stage][0]
                 load_onnx_weights(self.nets[first], self.cfg.init_onnx)
                 self.branched_from = onnx_origin(self.cfg.init_onnx)
+            if self.cfg.init_relight_onnx:
+                load_onnx_weights(self.nets["relight"], self.cfg.init_relight_onnx)
+                self.branched_from = {**(self.branched_from or {}),
+                                      "relight": onnx_origin(self.cfg.init_relight_onnx)}
             return
         if path != self.checkpoint_path:
             self.branched_from = {"run": self.cfg.resume_from, "step": int(ckpt["step"]),
@@ -504,7 +530,10 @@ class Trainer:
             with torch.no_grad():  # no gradient from R into S
                 s_o_raw = self.shadow_net(t["image"], depth_o, normals_o, sun_o, t["focal"])
                 s_n = self.shadow_net(t["image"], depth_n, normals_n, t["sun_new"], t["focal"])
-            s_o = self._forward("refine")(s_o_raw, t["image"], sun_o)
+            if self.cfg.relight_old_shadow == "photo":
+                s_o = photo_old_shadow(t["image"], s_o_raw, depth_o, normals_o, sun_o)
+            else:
+                s_o = self._forward("refine")(s_o_raw, t["image"], sun_o)
             extra = ()
             if self.cfg.relight_base == "physics":
                 extra = (light_ratios(t["image"], s_o.detach(), normals_o),)
@@ -513,7 +542,8 @@ class Trainer:
             )
             f_r = structural_loss(s_o, t["shadow_old"])
             logs["f_R"] = f_r.item()
-            loss_r = w["refine"] * f_r
+            # R is not trained when L sees the photometric S_o (nothing of R reaches it).
+            loss_r = w["refine"] * f_r if self.cfg.relight_old_shadow == "refine" else 0.0
         else:
             s_n = torch.zeros_like(t["shadow_new"])
             c_n = self._forward("relight_pix2pix")(

@@ -212,6 +212,68 @@ def test_relight_change_weight_and_gt_new_shadows_reach_the_step(fake_views) -> 
         _cfg("relight", shadow_checkpoint="x", new_shadow_gt_depth_prob=1.5)
 
 
+def test_relight_on_the_apps_photo_old_shadow_from_a_shipped_l(fake_views, tmp_path) -> None:
+    """``relight_old_shadow = "photo"``: L gets the session's photometric S_o (R untouched),
+    starting from a shipped relight.onnx."""
+    from outcast_core.export.onnx_export import export_onnx
+    from outcast_core.nets import build
+    from outcast_core.runtime.geometry.camera import cosine_term
+    from outcast_core.runtime.pipeline.photo_shadows import (
+        original_shadow_from_photo,
+        photo_shadow_probability,
+    )
+    from outcast_core.train.trainer import photo_old_shadow
+
+    views, s, z = _views_s_and_z(fake_views)
+    shipped = build("relight")
+    export_onnx(shipped, "relight", tmp_path / "relight.onnx", parity_sizes=[(32, 32)])
+    tr = Trainer(_cfg("relight", run="photo_so", steps=2, shadow_checkpoint=str(s.checkpoint_path),
+                      depth_checkpoint=str(z.checkpoint_path), relight_old_shadow="photo",
+                      init_relight_onnx=str(tmp_path / "relight.onnx")), views, progress=False)
+    for a, b in zip(tr.nets["relight"].state_dict().values(), shipped.state_dict().values(),
+                    strict=True):
+        torch.testing.assert_close(a, b)  # L starts as the shipped one
+    assert "relight" in tr.branched_from
+    r_before = [p.detach().clone() for p in tr.nets["refine"].parameters()]
+    args: list[tuple] = []
+    forward = tr.nets["relight"].forward
+    tr.nets["relight"].forward = lambda *a: args.append(a) or forward(*a)
+    logs = tr.train_step()
+    tr.nets["relight"].forward = forward
+    assert np.isfinite(logs["loss"])
+    assert all(torch.equal(a, b) for a, b in zip(r_before, tr.nets["refine"].parameters(),
+                                                strict=True))  # R is not trained
+    image, s_o = args[0][:2]
+    assert s_o.shape == (tr.cfg.batch, 1, 32, 32) and not s_o.requires_grad
+    # The helper is the session's two steps, item by item.
+    prior = torch.rand(1, 1, 16, 16)
+    depth = torch.ones(1, 1, 16, 16)
+    depth[..., :3, :] = 0.0  # sky
+    normals = torch.zeros(1, 3, 16, 16)
+    normals[:, 1] = -1.0
+    sun = torch.tensor([[0.3, -0.8, 0.5]])
+    img = torch.rand(1, 3, 16, 16)
+    got = photo_old_shadow(img, prior, depth, normals, sun)[0, 0].numpy()
+    sky = depth[0, 0].numpy() <= 0
+    prob = photo_shadow_probability(img[0].permute(1, 2, 0).numpy(), sky, prior[0, 0].numpy())
+    want = original_shadow_from_photo(prob, cosine_term(normals[0].permute(1, 2, 0).numpy(),
+                                                        sun[0].numpy()), sky)
+    np.testing.assert_allclose(got, want, atol=1e-6)
+    assert (got[:3] == 0).all()  # nothing on the sky
+    # Exported: L, not the untrained R (the shipped refine.onnx stays).
+    from outcast_core.export.checkpoint import export_checkpoint
+
+    tr.fit()
+    written = export_checkpoint(tr.checkpoint_path, tmp_path / "out")
+    assert [p.name for p in written] == ["relight.onnx"]
+    with pytest.raises(ValueError, match="relight_old_shadow"):
+        _cfg("relight", shadow_checkpoint="x", relight_old_shadow="guess")
+    with pytest.raises(ValueError, match="only for the relight stage"):
+        _cfg("shadow", relight_old_shadow="photo")
+    with pytest.raises(ValueError, match="only for the relight stage"):
+        _cfg("depth", init_relight_onnx="relight.onnx")
+
+
 def test_relight_physics_base_and_postprocessed_depth_reach_the_step(fake_views) -> None:
     views, s, z = _views_s_and_z(fake_views)
     tr = Trainer(_cfg("relight", run="phys", steps=2, shadow_checkpoint=str(s.checkpoint_path),
