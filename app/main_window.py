@@ -55,6 +55,7 @@ from PySide6.QtWidgets import (
 )
 
 from app import display
+from app import sun_dial_math as dm
 from app.canvas import ImageCanvas, qimage_from_array
 from app.errors import depth_file_problem, message_for
 from app.history import EditCommand, EditState
@@ -618,10 +619,9 @@ class MainWindow(QMainWindow):
         use_phone = self.use_phone_depth
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            from outcast_core.runtime.io.camera_pose import read_camera_pose
             from outcast_core.runtime.io.depth_models import pick_depth_source
             from outcast_core.runtime.io.imageio import read_depth, read_image
-            from outcast_core.runtime.pipeline.auto_sun import camera_tilt
+            from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
             from outcast_core.runtime.pipeline.session import RelightSession
 
             ctx.progress("reading", 0.02)
@@ -642,7 +642,7 @@ class MainWindow(QMainWindow):
                               progress=ctx.progress)
             # The camera's pitch and roll (its metadata's, else the ground plane's): the frame
             # in which the EXIF sun and the real sun path are given.
-            tilt = camera_tilt(session, read_camera_pose(path))
+            tilt = photo_camera_tilt(session, path)
             photo = display.to_uint8_rgb(loaded.image_srgb)
             return {"path": path, "loaded": loaded, "session": session, "photo": photo,
                     "depth_path": depth_path, "depth_note": note, "tilt": tilt}
@@ -660,9 +660,7 @@ class MainWindow(QMainWindow):
         old_path = self.image_path
         self.session = result["session"]
         self.loaded = result["loaded"]
-        self.camera_tilt = result.get("tilt", LEVEL_TILT)
-        for panel in (self.align_panel, self.relight_panel):
-            panel.sun_panel.set_tilt(*self.camera_tilt[:2])
+        self._set_camera_tilt(result.get("tilt", LEVEL_TILT))
         self.depth_path = result.get("depth_path", "")
         self.image_path = os.path.abspath(result["path"])
         if old_path != self.image_path and project is None:
@@ -769,20 +767,26 @@ class MainWindow(QMainWindow):
         and roll: :attr:`camera_tilt`)."""
         from outcast_core.runtime.pipeline.timelapse import exif_sun
 
-        return exif_sun(getattr(self.loaded, "exif", None), heading=self.user_heading,
-                        tilt=self.camera_tilt[:2])
+        sun = exif_sun(getattr(self.loaded, "exif", None), heading=self.user_heading,
+                       tilt=self.camera_tilt[:2])
+        # A camera pitched well up can have the sun under its own horizon: the dial's lowest.
+        return None if sun is None else (sun[0], dm.clamp_elevation(sun[1]))
 
     def tilt_note(self) -> str:
-        """The camera's tilt in words when it is not level ("camera pitched 21° down (ground
+        """The camera's tilt in words when it is not level ("camera pitched 21.0° down (ground
         plane)"), else ""."""
-        pitch, roll, source = self.camera_tilt
-        if abs(pitch) < 1.0 and abs(roll) < 1.0:
-            return ""
-        words = [f"pitched {abs(pitch):.0f}° {'up' if pitch > 0 else 'down'}"] if abs(
-            pitch) >= 1.0 else []
-        if abs(roll) >= 1.0:
-            words.append(f"rolled {abs(roll):.0f}° {'clockwise' if roll > 0 else 'anticlockwise'}")
-        return f"camera {' and '.join(words)} ({source})"
+        from outcast_core.runtime.pipeline.auto_sun import describe_tilt
+
+        return describe_tilt(*self.camera_tilt)
+
+    def _set_camera_tilt(self, tilt: tuple[float, float, str]) -> None:
+        """The photo's camera tilt (at load, and again when a preset changes the depth's
+        working size, and with it the ground plane): both dials and the EXIF controls."""
+        self.camera_tilt = tilt
+        for panel in (self.align_panel, self.relight_panel):
+            panel.sun_panel.set_tilt(*tilt[:2])
+        if self._timelapse_dialog is not None:
+            self._timelapse_dialog.refresh_path()
 
     def exif_prior(self) -> Any:
         """What the photo's EXIF (and a typed heading) says about its sun: an
@@ -972,9 +976,14 @@ class MainWindow(QMainWindow):
         if session is None:
             return
 
+        path = self.image_path
+
         def job(ctx: JobContext) -> dict[str, Any]:
+            from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
+
             session.set_preset(name, progress=ctx.progress)
-            return {"timings": _timings(session)}
+            return {"timings": _timings(session), "tilt": photo_camera_tilt(session, path),
+                    "session": session}
 
         self.runner.submit("preset", job, f"Switching to {name}")
         self._refresh_view()
@@ -1474,6 +1483,9 @@ class MainWindow(QMainWindow):
             self._on_shadow(result)
         elif channel == "find_sun":
             self._on_found_sun(result)
+        elif channel == "preset" and result.get("session") is self.session:
+            self._set_camera_tilt(result["tilt"])
+            self._update_exif_controls()
         elif channel == "confirm":
             self._on_confirmed(result)
         elif channel == "relight":

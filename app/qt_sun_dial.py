@@ -72,6 +72,7 @@ class QtSunDial(QWidget):
         self._heat_values: list[list[float]] = []
         self._prior_elevation: float | None = None
         self._tilt = (0.0, 0.0)
+        self._ring_cache: dict[tuple[float, ...], QPainterPath] = {}
         self.sun_colour = colour or QColor(255, 196, 40)
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.setMinimumSize(180, 180)
@@ -163,13 +164,16 @@ class QtSunDial(QWidget):
         if not (math.isfinite(pitch) and math.isfinite(roll)):
             raise ValueError(f"expected a finite camera pitch and roll, got {pitch}, {roll}")
         self._tilt = (float(pitch), float(roll))
+        self._ring_cache.clear()
         self.update()
 
     def tilt(self) -> tuple[float, float]:
         return self._tilt
 
     def _tilted(self) -> bool:
-        return abs(self._tilt[0]) >= 0.5 or abs(self._tilt[1]) >= 0.5
+        from outcast_core.runtime.pipeline.auto_sun import is_tilted
+
+        return is_tilted(*self._tilt)
 
     def below_horizon(self, azimuth: float, elevation: float) -> bool:
         """Whether a sun at these dial angles is under the true horizon (the camera's tilt)."""
@@ -179,13 +183,30 @@ class QtSunDial(QWidget):
             return elevation < 0.0
         return sun_angles(sun_vector(azimuth, elevation), *self._tilt)[1] < 0.0
 
-    def _ring_path(self, elevation: float, cx: float, cy: float, r: float) -> QPainterPath:
-        """The true-elevation circle on the dial, closed (points off the dial on its rim)."""
+    def _ring_path(self, elevation: float, cx: float, cy: float, r: float, *,
+                   closed: bool) -> QPainterPath:
+        """The true-elevation circle on the dial: ``closed``, with the points off the dial on
+        its rim (an area); else only its arcs on the dial (a line). Cached per geometry: the
+        dial repaints on every drag step."""
+        key = (elevation, cx, cy, r, float(closed))
+        path = self._ring_cache.get(key)
+        if path is not None:
+            return path
         pts = dm.tilted_ring(elevation, *self._tilt)
-        path = QPainterPath(QPointF(*dm.sun_to_point(*pts[0], cx, cy, r)))
-        for a, e in pts[1:]:
-            path.lineTo(QPointF(*dm.sun_to_point(a, e, cx, cy, r)))
-        path.closeSubpath()
+        path = QPainterPath()
+        pen_down = False
+        for a, e in [*pts, pts[0]] if not closed else pts:
+            p = QPointF(*dm.sun_to_point(a, e, cx, cy, r))
+            if not closed and e < 0.0:
+                pen_down = False
+            elif pen_down:
+                path.lineTo(p)
+            else:
+                path.moveTo(p)
+                pen_down = True
+        if closed:
+            path.closeSubpath()
+        self._ring_cache[key] = path
         return path
 
     # ------------------------------------------------------------------ geometry
@@ -262,9 +283,13 @@ class QtSunDial(QWidget):
         """For a tilted camera: the suns under the true horizon, shaded like ground."""
         if not self._tilted():
             return
-        disc = QPainterPath()
-        disc.addEllipse(QPointF(cx, cy), r, r)
-        ground = disc.subtracted(self._ring_path(0.0, cx, cy, r))
+        key = (-1.0, cx, cy, r, 2.0)  # the ground itself, cached with the rings
+        ground = self._ring_cache.get(key)
+        if ground is None:
+            disc = QPainterPath()
+            disc.addEllipse(QPointF(cx, cy), r, r)
+            ground = disc.subtracted(self._ring_path(0.0, cx, cy, r, closed=True))
+            self._ring_cache[key] = ground
         p.setPen(Qt.PenStyle.NoPen)
         p.setBrush(QColor(110, 84, 50, 170))
         p.drawPath(ground)
@@ -280,7 +305,7 @@ class QtSunDial(QWidget):
             rr = r * (90.0 - self._prior_elevation) / 90.0
             p.drawEllipse(QPointF(cx, cy), rr, rr)
             return
-        p.drawPath(self._ring_path(self._prior_elevation, cx, cy, r))
+        p.drawPath(self._ring_path(self._prior_elevation, cx, cy, r, closed=False))
 
     def paint_grid(self, p: QPainter, cx: float, cy: float, r: float) -> None:
         p.setBrush(Qt.BrushStyle.NoBrush)

@@ -452,6 +452,10 @@ class TimelapseDialog(QDialog):
         """The current sun path (ValueError when the settings are incomplete)."""
         return samples_for(self.settings(), self.main.camera_tilt[:2])
 
+    def refresh_path(self) -> None:
+        """Recompute the sun path (the photo's camera tilt has changed)."""
+        self._settings_changed()
+
     def _on_daylight_toggled(self, checked: bool) -> None:
         self.start_edit.setEnabled(not checked)
         self.end_edit.setEnabled(not checked)
@@ -516,9 +520,12 @@ class TimelapseDialog(QDialog):
         s = self._samples[index]
         when = f" · {s.time:%H:%M}" if s.time is not None else ""
         below = " (below the horizon: shown at the horizon)" if s.elevation < 0 else ""
+        # The real sun is given against the horizon and the camera's heading (its frame: the
+        # photo's tilt); a sweep in the dial's (the camera's) angles.
+        frame = " above the horizon" if any(s.tilt) and s.elevation >= 0 else ""
         self.caption.setText(
             f"Frame {index + 1}/{len(self._samples)}{when} · azimuth {s.azimuth:.1f}°, "
-            f"elevation {s.elevation:.1f}°{below}"
+            f"elevation {s.elevation:.1f}°{frame}{below}"
         )
         session = self.main.session
         if session is None or session.original_sun is None:

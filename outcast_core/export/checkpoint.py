@@ -86,6 +86,9 @@ def export_checkpoint(
     path = resolve_checkpoint(ref)
     nets, ckpt = load_checkpoint_nets(path)
     untrained = {"refine"} if ckpt.get("config", {}).get("relight_old_shadow") == "photo" else set()
+    if kinds is not None and untrained & set(kinds):
+        raise ValueError(f"expected networks this run trained, got {sorted(untrained & set(kinds))}"
+                         f" (not trained: relight_old_shadow = \"photo\")")
     written = []
     for kind, net in nets.items():
         if kind not in SPECS or (kinds is not None and kind not in kinds) or kind in untrained:

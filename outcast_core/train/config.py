@@ -192,6 +192,9 @@ class TrainConfig:
             raise ValueError("expected postprocess_depth = true for snap_ground, got false")
         if self.init_onnx and self.resume_from:
             raise ValueError("expected either init_onnx or resume_from, got both")
+        if self.init_relight_onnx and (self.init_onnx or self.resume_from):
+            raise ValueError("expected init_relight_onnx without init_onnx or resume_from (one "
+                             "origin per run: the model cards name one)")
         if self.resume_from == self.run:
             raise ValueError(f"expected resume_from to name another run, got {self.run!r}")
         if self.stage == "relight" and not self.shadow_checkpoint:

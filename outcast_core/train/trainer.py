@@ -365,10 +365,9 @@ class Trainer:
                 first = STAGE_NETS[self.cfg.stage][0]
                 load_onnx_weights(self.nets[first], self.cfg.init_onnx)
                 self.branched_from = onnx_origin(self.cfg.init_onnx)
-            if self.cfg.init_relight_onnx:
+            if self.cfg.init_relight_onnx:  # never with init_onnx (TrainConfig)
                 load_onnx_weights(self.nets["relight"], self.cfg.init_relight_onnx)
-                self.branched_from = {**(self.branched_from or {}),
-                                      "relight": onnx_origin(self.cfg.init_relight_onnx)}
+                self.branched_from = onnx_origin(self.cfg.init_relight_onnx)
             return
         if path != self.checkpoint_path:
             self.branched_from = {"run": self.cfg.resume_from, "step": int(ckpt["step"]),

@@ -228,4 +228,35 @@ def test_find_sun_gets_the_camera_pose_from_the_photo(window, settle, monkeypatc
     tilted = exif_sun(window.loaded.exif, heading=100.0, tilt=(-8.5, 2.0))
     assert window.exif_sun() == pytest.approx(tilted)
     assert abs(tilted[1] - level[1]) > 3.0
-    assert window.tilt_note() == "camera pitched 8° down and rolled 2° clockwise (XMP GPano)"
+    assert window.tilt_note() == "camera pitched 8.5° down and rolled 2.0° clockwise (XMP GPano)"
+
+
+def test_the_camera_tilt_follows_the_photo_and_the_preset(window, settle):
+    """The ski slope's ground plane tilts the camera: the dials shade under its horizon and the
+    EXIF sun is in its frame; a preset change refits the plane (the depth's working size
+    changes); the next photo without a plane or pose is level again."""
+    from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
+    from outcast_core.runtime.pipeline.timelapse import exif_sun
+
+    ski = os.path.join(ROOT, "samples", "exif_005_es_skislope.jpg")
+    window.open_path(ski)
+    settle()
+    pitch, roll, source = window.camera_tilt
+    assert source == "ground plane" and pitch < -3.0 and roll > 3.0
+    for panel in (window.align_panel, window.relight_panel):
+        assert panel.sun_panel.dial.tilt() == (pitch, roll)
+    level = exif_sun(window.loaded.exif)
+    assert window.exif_sun() == pytest.approx(
+        exif_sun(window.loaded.exif, tilt=(pitch, roll)), abs=1e-9)
+    assert window.exif_sun() != pytest.approx(level, abs=0.5)
+    assert "camera pitched" in window.tilt_note() and "(ground plane)" in window.tilt_note()
+    window.set_preset("balanced")
+    settle()
+    refit = photo_camera_tilt(window.session, ski)
+    assert refit[:2] != pytest.approx((pitch, roll), abs=1e-6)  # this photo's plane moves
+    assert window.camera_tilt == refit
+    assert window.align_panel.sun_panel.dial.tilt() == refit[:2]
+    window.open_path(os.path.join(ROOT, "samples", "exif_003_th_pool.jpg"))
+    settle()
+    assert window.camera_tilt[:2] == (0.0, 0.0) and window.tilt_note() == ""
+    assert window.relight_panel.sun_panel.dial.tilt() == (0.0, 0.0)

@@ -358,7 +358,7 @@ def test_exif_sun_and_timelapse_prefill(window, settle):
     level = window.original_sun.azimuth, window.original_sun.elevation
     window.original_sun = Sun(*sun_angles(sun_vector(*level, -20.0, 0.0)))
     assert dialog.solve_heading() == pytest.approx(163.7, abs=0.2)
-    assert "camera pitched 20° down (ground plane)" in dialog.status.text()
+    assert "camera pitched 20.0° down (ground plane)" in dialog.status.text()
     assert {x.tilt for x in dialog.samples()} == {(-20.0, 0.0)}
 
 

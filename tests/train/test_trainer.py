@@ -233,7 +233,7 @@ def test_relight_on_the_apps_photo_old_shadow_from_a_shipped_l(fake_views, tmp_p
     for a, b in zip(tr.nets["relight"].state_dict().values(), shipped.state_dict().values(),
                     strict=True):
         torch.testing.assert_close(a, b)  # L starts as the shipped one
-    assert "relight" in tr.branched_from
+    assert tr.branched_from["init_onnx"] == str(tmp_path / "relight.onnx")
     r_before = [p.detach().clone() for p in tr.nets["refine"].parameters()]
     args: list[tuple] = []
     forward = tr.nets["relight"].forward
@@ -266,12 +266,20 @@ def test_relight_on_the_apps_photo_old_shadow_from_a_shipped_l(fake_views, tmp_p
     tr.fit()
     written = export_checkpoint(tr.checkpoint_path, tmp_path / "out")
     assert [p.name for p in written] == ["relight.onnx"]
+    card = json.loads((tmp_path / "out" / "relight.json").read_text())["training"]
+    assert card["branched_from"]["init_onnx"] == str(tmp_path / "relight.onnx")
+    assert len(card["branched_from"]["sha256"]) == 64
+    with pytest.raises(ValueError, match="not trained"):
+        export_checkpoint(tr.checkpoint_path, tmp_path / "out2", kinds=("refine",))
     with pytest.raises(ValueError, match="relight_old_shadow"):
         _cfg("relight", shadow_checkpoint="x", relight_old_shadow="guess")
     with pytest.raises(ValueError, match="only for the relight stage"):
         _cfg("shadow", relight_old_shadow="photo")
     with pytest.raises(ValueError, match="only for the relight stage"):
         _cfg("depth", init_relight_onnx="relight.onnx")
+    for other in ({"init_onnx": "refine.onnx"}, {"resume_from": "relight_v6"}):
+        with pytest.raises(ValueError, match="init_relight_onnx without"):
+            _cfg("relight", shadow_checkpoint="x", init_relight_onnx="relight.onnx", **other)
 
 
 def test_relight_physics_base_and_postprocessed_depth_reach_the_step(fake_views) -> None:

@@ -221,9 +221,12 @@ def _samples_from_args(
     if args.sweep is not None:
         return sweep_path(args.sweep[0], args.sweep[1], args.frames, args.easing)
     lat, lon = _place(args, exif)  # type: ignore[misc]
+    from outcast_core.runtime.pipeline.auto_sun import describe_tilt
+
     pitch, roll, source = tilt() if tilt is not None else (0.0, 0.0, "level")
-    if abs(pitch) >= 0.5 or abs(roll) >= 0.5:
-        print(f"camera pitch {pitch:.1f} deg, roll {roll:.1f} deg ({source})", file=sys.stderr)
+    words = describe_tilt(pitch, roll, source)
+    if words:
+        print(f"{words}: the real sun is turned into its frame", file=sys.stderr)
     heading = args.heading
     if heading is None:
         heading = solve_heading(exif.capture_time, lat, lon, args.from_sun[0], args.utc_offset,
@@ -266,10 +269,9 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     )
 
     def tilt() -> tuple[float, float, str]:
-        from outcast_core.runtime.io.camera_pose import read_camera_pose
-        from outcast_core.runtime.pipeline.auto_sun import camera_tilt
+        from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
 
-        return camera_tilt(session, read_camera_pose(args.image))
+        return photo_camera_tilt(session, args.image)
 
     print(file=sys.stderr)
     samples = _samples_from_args(args, exif, tilt)

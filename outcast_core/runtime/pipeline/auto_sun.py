@@ -89,6 +89,7 @@ cores at load 3-10; seconds are under that load; ``models/EVAL.md`` has the tabl
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -554,6 +555,38 @@ def camera_tilt(session: Any, pose: Any = None) -> tuple[float, float, str]:
     return ground_plane_tilt(session)
 
 
+def photo_camera_tilt(session: Any, path: str | os.PathLike[str] | None
+                      ) -> tuple[float, float, str]:
+    """:func:`camera_tilt` of a photo file: its metadata's pose (``None``: no file), else the
+    session's ground plane."""
+    from outcast_core.runtime.io.camera_pose import read_camera_pose
+
+    return camera_tilt(session, read_camera_pose(path) if path else None)
+
+
+#: Below this (degrees of pitch and of roll) a camera counts as level wherever a tilt is shown
+#: or drawn (the dial's horizon, the app's and the CLI's words).
+LEVEL_TOLERANCE = 0.5
+
+
+def is_tilted(pitch: float, roll: float) -> bool:
+    """Whether a camera's tilt is worth showing (:data:`LEVEL_TOLERANCE`)."""
+    return abs(pitch) >= LEVEL_TOLERANCE or abs(roll) >= LEVEL_TOLERANCE
+
+
+def describe_tilt(pitch: float, roll: float, source: str) -> str:
+    """The tilt in words ("camera pitched 6.7° down and rolled 7.8° clockwise (ground
+    plane)"), or "" for a level camera."""
+    if not is_tilted(pitch, roll):
+        return ""
+    words = []
+    if abs(pitch) >= LEVEL_TOLERANCE:
+        words.append(f"pitched {abs(pitch):.1f}° {'up' if pitch > 0 else 'down'}")
+    if abs(roll) >= LEVEL_TOLERANCE:
+        words.append(f"rolled {abs(roll):.1f}° {'clockwise' if roll > 0 else 'anticlockwise'}")
+    return f"camera {' and '.join(words)} ({source})"
+
+
 def _angle_between(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.acos(max(-1.0, min(1.0, float(np.dot(a, b))))))
 
@@ -806,8 +839,11 @@ __all__ = [
     "SunPrior",
     "agreement",
     "camera_tilt",
+    "describe_tilt",
     "exif_sun_prior",
     "find_sun",
     "ground_plane_tilt",
+    "is_tilted",
+    "photo_camera_tilt",
     "shade_clarity",
 ]

@@ -458,7 +458,9 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
             loaded.path, (height, width), model_path=options.depth_model,
             use_phone=options.use_phone_depth, strict=False, photo_srgb=loaded.image_srgb)
     session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm, depth=depth)
-    tilt = _tilt(session, job.image)
+    from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
+
+    tilt = photo_camera_tilt(session, job.image)
     sun, source = original_sun_for(job, options, loaded.exif, project_sun,
                                    _auto_sun(session, loaded.exif, result, tilt), tilt[:2])
     result.from_sun, result.sun_source = sun, source
@@ -476,14 +478,6 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
                           camera={"pitch": round(tilt[0], 2), "roll": round(tilt[1], 2),
                                   "source": tilt[2]},
                           timings={k: round(v, 3) for k, v in session.timings.items()})
-
-
-def _tilt(session: Any, image: str) -> tuple[float, float, str]:
-    """The camera's ``(pitch, roll, source)``: its metadata's, else the ground plane's."""
-    from outcast_core.runtime.io.camera_pose import read_camera_pose
-    from outcast_core.runtime.pipeline.auto_sun import camera_tilt
-
-    return camera_tilt(session, read_camera_pose(image))
 
 
 def _auto_sun(session: Any, exif: Any, result: JobResult,

@@ -194,8 +194,9 @@ def exif_sun(
     app's "Sun from EXIF" and ``outcast batch`` take it from.
 
     ``tilt`` is the camera's ``(pitch, roll)`` in degrees: the sun is returned in the camera's
-    frame (the dial's and the session's angles), its elevation clamped to [0, 90] as the dial's
-    (a camera pitched well up can have the sun ahead of it under its own horizon)."""
+    frame (the dial's and the session's angles). Its elevation there may be negative (a camera
+    pitched well up can have the sun ahead of it under its own horizon); the app's dial clamps
+    it, a relighting takes the vector as it is."""
     when = getattr(exif, "capture_time", None)
     lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
     exif_heading = getattr(exif, "heading_deg", None)
@@ -208,8 +209,7 @@ def exif_sun(
     az = relative_azimuth(true_az, heading)
     if not any(tilt):
         return az, el
-    cam_az, cam_el = sun_angles(sun_vector(az, el, *tilt))
-    return cam_az, min(90.0, max(0.0, cam_el))
+    return sun_angles(sun_vector(az, el, *tilt))
 
 
 def heading_from_sun(true_azimuth: float, relative_az: float) -> float:

@@ -154,7 +154,23 @@ def test_camera_tilt_sources() -> None:
     s = _session(_shadowless_photo())
     assert camera_tilt(s, (-12.0, 3.0)) == (-12.0, 3.0, "given")
     assert camera_tilt(s, (-12.0, 3.0, "ground plane")) == (-12.0, 3.0, "ground plane")
-    assert camera_tilt(s, None) == ground_plane_tilt(s)
+    assert camera_tilt(s, None) == (0.0, 0.0, "level (no ground plane)")
+    # A pose without a pitch falls back to the ground plane too.
+    assert camera_tilt(s, CameraPose(pitch=None, roll=3.0, source="XMP")) == ground_plane_tilt(s)
+    # A camera 8 units above a flat ground, pitched 20 degrees down and rolled 5: the plane
+    # gives the tilt back.
+    from outcast_core.runtime.geometry.camera import backproject, camera_rotation
+
+    cam = Camera.from_fov(96, 128, 60.0)
+    up = camera_rotation(-20.0, 5.0) @ np.array([0.0, -1.0, 0.0])  # the ground's up, camera
+    rays = backproject(np.ones((96, 128), np.float32), cam)  # z = 1 along each ray
+    along = rays @ up
+    depth = np.where(along < -1e-3, -8.0 / np.minimum(along, -1e-3), 0.0).astype(np.float32)
+    ground = RelightSession(mode="classic", preset="fast")
+    ground.set_image(np.full((96, 128, 3), 0.5, np.float32), fov_deg=60.0,
+                     depth=np.where(depth > 0, depth, np.inf).astype(np.float32))
+    pitch, roll, source = camera_tilt(ground, None)
+    assert source == "ground plane" and (pitch, roll) == pytest.approx((-20.0, 5.0), abs=0.5)
     pose = CameraPose(pitch=-8.5, roll=2.0, source="XMP GPano")
     assert camera_tilt(s, pose) == (-8.5, 2.0, "XMP GPano")
     for bad in [(1.0,), (1.0, 2.0, "x", 4.0), (float("nan"), 0.0)]:
