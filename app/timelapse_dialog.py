@@ -583,6 +583,10 @@ class TimelapseDialog(QDialog):
         if not force and os.path.exists(path):
             self.main.show_error(FileExistsError(f"'{path}' already exists"), "export")
             return None
+        problem = tl.frames_folder_problem(path) if fmt == "png" else None
+        if problem:  # never empty a folder the user keeps other files in
+            self.main.show_error(FileExistsError(problem), "export")
+            return None
 
         def job(ctx: JobContext) -> dict[str, Any]:
             out = tl.render_timelapse(

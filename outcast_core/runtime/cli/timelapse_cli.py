@@ -11,6 +11,7 @@ import datetime as dt
 import math
 import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from outcast_core.runtime.cli.main import int_in
@@ -27,6 +28,7 @@ from outcast_core.runtime.pipeline.timelapse import (
     estimate_seconds,
     format_from_path,
     frame_shape,
+    frames_folder_problem,
     real_sun_path,
     render_timelapse,
     solve_heading,
@@ -242,11 +244,19 @@ def _samples_from_args(
 
 def check_timelapse_output(args: argparse.Namespace) -> None:
     """Check ``-o`` before any work: a known extension (or none: PNG folder), not the photo,
-    not an existing file without ``--force``, a folder that can be written."""
-    from outcast_core.runtime.cli.main import check_output_path
+    not an existing file without ``--force``, a folder that can be written; a PNG folder that
+    exists must be empty or hold only an earlier sequence (:func:`frames_folder_problem`)."""
+    from outcast_core.runtime.cli.main import CliError, check_output_path
 
     fmt = format_from_path(args.output)  # ValueError for out.avi
-    check_output_path(args.output, extensions=None, force=args.force, inputs=[args.image],
+    force = args.force
+    if fmt == "png":
+        problem = frames_folder_problem(Path(args.output).expanduser())
+        if problem:
+            raise CliError(f"cannot write '{args.output}': {problem}")
+        out = Path(args.output).expanduser()
+        force = force or (out.is_dir() and not any(out.iterdir()))  # an empty folder is new
+    check_output_path(args.output, extensions=None, force=force, inputs=[args.image],
                       folder_ok=fmt == "png")
 
 

@@ -30,6 +30,7 @@ import contextlib
 import datetime as dt
 import math
 import os
+import re
 import shutil
 import tempfile
 from abc import ABC, abstractmethod
@@ -189,8 +190,9 @@ def exif_sun(
     exif: Any, heading: float | None = None, tilt: tuple[float, float] = (0.0, 0.0)
 ) -> tuple[float, float] | None:
     """The photo's sun ``(azimuth, elevation)`` relative to the camera from its EXIF GPS,
-    capture time and compass heading (``heading`` stands in when the EXIF has none: one typed
-    by the user); None when one is missing or the sun is below the horizon. The one place the
+    capture time and compass heading (``heading``, one the user typed, replaces the EXIF's or
+    stands in for a missing one); None when one is missing or the sun is below the horizon.
+    The one place the
     app's "Sun from EXIF" and ``outcast batch`` take it from.
 
     ``tilt`` is the camera's ``(pitch, roll)`` in degrees: the sun is returned in the camera's
@@ -200,7 +202,7 @@ def exif_sun(
     when = getattr(exif, "capture_time", None)
     lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
     exif_heading = getattr(exif, "heading_deg", None)
-    heading = exif_heading if exif_heading is not None else heading
+    heading = heading if heading is not None else exif_heading
     if when is None or lat is None or lon is None or heading is None:
         return None
     true_az, el = true_sun_position(when, lat, lon)
@@ -635,8 +637,45 @@ class WebpWriter(_PillowAnimWriter):
         return {"quality": 90, "method": 4}
 
 
+#: The files of a PNG sequence (:class:`PngSequenceWriter`); a folder holding anything else is
+#: never written into nor emptied.
+FRAME_FILE = re.compile(r"frame_\d{4,}\.png")
+
+
+def frames_folder_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why an existing folder cannot receive a PNG sequence, or None when it can (it does not
+    exist, is empty, or holds only earlier ``frame_NNNN.png`` files, which ``force`` replaces).
+
+    A folder with any other file or folder in it is refused even with ``force``: replacing the
+    sequence must never delete what the user keeps there (``-o . --force`` once emptied the
+    working folder)."""
+    folder = Path(path)
+    if not folder.is_dir():
+        return None
+    others = sorted(p.name for p in folder.iterdir()
+                    if not (FRAME_FILE.fullmatch(p.name) and p.is_file()))
+    if not others:
+        return None
+    listed = ", ".join(others[:3]) + (", ..." if len(others) > 3 else "")
+    return (f"{folder} already holds other files ({listed}); a PNG sequence goes into a new or "
+            "empty folder, or one holding only an earlier sequence's frame_*.png")
+
+
 class PngSequenceWriter(FrameWriter):
-    """A folder of ``frame_0001.png`` ... written to a temp folder and renamed when complete."""
+    """A folder of ``frame_0001.png`` ... written to a temp folder and moved in when complete.
+
+    The output folder may already exist when it is empty or holds only an earlier sequence
+    (replaced with ``force``: its ``frame_*.png`` files are removed, nothing else); a folder
+    with other files in it is refused (:func:`frames_folder_problem`)."""
+
+    def __init__(self, path, fps=DEFAULT_FPS, force=False):
+        path = Path(path).absolute()  # "." has no name for the temp folder
+        problem = frames_folder_problem(path)
+        if problem:
+            raise FileExistsError(problem)
+        # An empty folder is a new one: nothing in it can be overwritten.
+        empty = path.is_dir() and not any(path.iterdir())
+        super().__init__(path, fps=fps, force=force or empty)
 
     def write(self, frame: np.ndarray) -> None:
         from PIL import Image
@@ -652,16 +691,25 @@ class PngSequenceWriter(FrameWriter):
     def commit(self) -> Path:
         if self._tmp is None:
             raise RuntimeError("no frames were written")
-        if self.path.exists():
+        if self.path.exists() and not self.path.is_dir():  # a file where the folder goes
             if not self.force:
                 self.abort()
                 raise FileExistsError(f"{self.path} already exists; choose another name or force")
-            if self.path.is_dir():
-                shutil.rmtree(self.path)
-            else:
-                self.path.unlink()
-        _follow_umask(self._tmp, folder=True)
-        os.rename(self._tmp, self.path)
+            self.path.unlink()
+        problem = frames_folder_problem(self.path)  # files may have appeared meanwhile
+        if problem or (self.path.is_dir() and any(self.path.iterdir()) and not self.force):
+            self.abort()
+            raise FileExistsError(problem or f"{self.path} already exists; choose another name "
+                                  "or force")
+        if not self.path.is_dir():
+            _follow_umask(self._tmp, folder=True)
+            os.rename(self._tmp, self.path)
+        else:  # an empty folder or an earlier sequence: only frame files go, and come
+            for old in self.path.iterdir():
+                old.unlink()
+            for new in sorted(self._tmp.iterdir()):
+                os.replace(new, self.path / new.name)
+            self._tmp.rmdir()
         self._tmp = None
         return self.path
 

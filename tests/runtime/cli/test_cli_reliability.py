@@ -200,6 +200,17 @@ def test_a_device_is_never_replaced(photo, tmp_path, capsys, no_work) -> None:
     assert Path("/dev/null").is_char_device() and link.is_symlink()
 
 
+def test_png_frames_never_empty_a_folder_of_other_files(photo, tmp_path, capsys,
+                                                        no_work) -> None:
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "note.txt").write_text("keep")
+    assert main(["timelapse", str(photo), "--from", "90,30", "--sweep", "1,2:3,4", "--frames",
+                 "2", "-o", str(folder), "--force"]) == 2
+    _one_line_error(capsys, "note.txt")
+    assert [p.name for p in folder.iterdir()] == ["note.txt"]
+
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
 def test_read_only_folder_is_refused_before_the_work(photo, tmp_path, capsys, no_work) -> None:
     folder = tmp_path / "ro"

@@ -218,6 +218,41 @@ def test_png_sequence(tmp_path):
     assert list(tmp_path.iterdir()) == [out]
 
 
+def test_png_sequence_replaces_only_its_own_frames(tmp_path, monkeypatch):
+    out = tmp_path / "frames"
+    tl.export_frames(lambda i: _frame(i), 3, out)
+    with pytest.raises(FileExistsError):  # an earlier sequence needs force
+        tl.export_frames(lambda i: _frame(i), 2, out)
+    tl.export_frames(lambda i: _frame(i), 2, out, force=True)
+    assert sorted(p.name for p in out.iterdir()) == ["frame_0001.png", "frame_0002.png"]
+    # A folder the user keeps other files in is refused, even with force, and left as it was.
+    (out / "notes.txt").write_text("keep")
+    with pytest.raises(FileExistsError, match="notes.txt"):
+        tl.export_frames(lambda i: _frame(i), 2, out, force=True)
+    assert sorted(p.name for p in out.iterdir()) == ["frame_0001.png", "frame_0002.png",
+                                                      "notes.txt"]
+    # "-o . --force" in a folder with the user's files: refused before any frame is drawn.
+    work = tmp_path / "work"
+    work.mkdir()
+    (work / "precious.txt").write_text("keep")
+    monkeypatch.chdir(work)
+    drawn = []
+    with pytest.raises(FileExistsError, match="precious.txt"):
+        tl.export_frames(lambda i: drawn.append(i) or _frame(i), 2, ".", force=True)
+    assert drawn == [] and sorted(p.name for p in work.iterdir()) == ["precious.txt"]
+
+
+def test_png_sequence_into_an_empty_folder(tmp_path, monkeypatch):
+    out = tmp_path / "empty"
+    out.mkdir()
+    tl.export_frames(lambda i: _frame(i), 2, out)  # nothing to overwrite: no force needed
+    assert sorted(p.name for p in out.iterdir()) == ["frame_0001.png", "frame_0002.png"]
+    monkeypatch.chdir(out)
+    tl.export_frames(lambda i: _frame(i), 1, ".", force=True)  # "." works as a folder
+    assert sorted(p.name for p in out.iterdir()) == ["frame_0001.png"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["empty"]  # no temp folder left
+
+
 @pytest.mark.parametrize("name", ["a.mp4", "a.gif", "a.webp", "seq"])
 def test_cancel_midway_leaves_nothing(tmp_path, name):
     stop = threading.Event()
