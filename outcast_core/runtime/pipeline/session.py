@@ -59,8 +59,11 @@ from outcast_core.runtime.pipeline.relight import (
     LightEstimate,
     estimate_light,
     guard_learned_relight,
+    original_share,
     physics_relight,
+    shadow_toward_original,
     snap_shadow_to_photo,
+    toward_photo,
     transfer_to_full_resolution,
 )
 
@@ -675,6 +678,8 @@ class RelightSession:
         image = resize(self.image_srgb, (h, w))
         normals = normals_from_depth(depth, cam)
         s_o = np.clip(resize(self.original_shadow, (h, w)), 0.0, 1.0).astype(np.float32)
+        assert self._original_geometry is not None
+        geometry_o = np.clip(resize(self._original_geometry, (h, w)), 0.0, 1.0).astype(np.float32)
 
         def nchw(a: np.ndarray) -> np.ndarray:
             a = a[..., None] if a.ndim == 2 else a
@@ -683,7 +688,8 @@ class RelightSession:
         self._relight_preview = st = {
             "original_shadow": self.original_shadow,
             "camera": cam, "image": image, "sky": sky, "depth": depth, "normals": normals,
-            "shadow_old": s_o, "sampler": RaySampler(depth, cam) if self.shadow_mode != "learned"
+            "shadow_old": s_o, "geometry_old": geometry_o,
+            "sampler": RaySampler(depth, cam) if self.shadow_mode != "learned"
             else None,
             # The working-size photo in 8 bits: the preview is moved onto it by tables only.
             "working_u8": np.rint(self.image_srgb * 255.0).astype(np.uint8),
@@ -732,7 +738,9 @@ class RelightSession:
                 steps=int(math.ceil(1.0 / step)), step=step, thickness=self.thickness,
                 sampler=st["sampler"],
             )
-        s_new = s_new.astype(np.float32)
+        share = original_share(self.original_sun, wv)
+        s_new = shadow_toward_original(s_new.astype(np.float32), st["shadow_old"],
+                                       st["geometry_old"], share)
         t1 = time.perf_counter()
         self.timings["shadow_preview"] = t1 - t0
         image = st["image"]
@@ -743,10 +751,11 @@ class RelightSession:
             })
             relit = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
             relit = self._guard(image, relit, st["shadow_old"], s_new, st["sky"], self._light,
-                                self.camera, self.original_sun, wv)
+                                self.camera, self.original_sun, wv, keep_old=share)
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=self._light, snap=False)
+        relit = toward_photo(image, relit, share)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
                                           threads=1)
         self._time("relight_preview", t1)
@@ -770,14 +779,18 @@ class RelightSession:
             "normals": self.normals, "view_dirs": self.view_dirs, "depth": self.depth,
             "sampler": self._sampler, "original_sun": self.original_sun,
             "original_shadow": self.original_shadow, "light": self._light,
-            "preset": self.preset,
+            "original_geometry": self._original_geometry, "preset": self.preset,
         }
 
     def _relight_from(
         self, inp: dict[str, Any], wv: np.ndarray, s_new: np.ndarray, threads: int | None = None
     ) -> np.ndarray:
-        """The relighting of ``inp`` (:meth:`_working_inputs`) for sun ``wv`` with its shadow."""
+        """The relighting of ``inp`` (:meth:`_working_inputs`) for sun ``wv`` with its shadow
+        ``s_new`` (the geometry's), drawn toward the photo near its own sun
+        (:func:`~outcast_core.runtime.pipeline.relight.original_share`)."""
         image, s_o, w_o = inp["image"], inp["original_shadow"], inp["original_sun"]
+        share = original_share(w_o, wv)
+        s_new = shadow_toward_original(s_new, s_o, inp["original_geometry"], share)
         if self.relight_mode == "learned":
             model = self.registry.load("relight", threads=threads)
             out = model.run({
@@ -793,14 +806,15 @@ class RelightSession:
             })
             img = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
             img = self._guard(image, img, s_o, s_new, inp["sky"], inp["light"], inp["camera"],
-                              w_o, wv)
+                              w_o, wv, keep_old=share)
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
-        return img.astype(np.float32)
+        return toward_photo(image, img, share).astype(np.float32)
 
     def _guard(
         self, image: np.ndarray, relit: np.ndarray, s_o: np.ndarray, s_new: np.ndarray,
         sky: np.ndarray, light: LightEstimate, cam: Camera, w_o: np.ndarray, w_n: np.ndarray,
+        keep_old: float = 0.0,
     ) -> np.ndarray:
         """The learned relighting with the guards this session turns on
         (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`)."""
@@ -808,7 +822,7 @@ class RelightSession:
         lift = self.lift_new_light and self.contrast_floor
         return guard_learned_relight(image, relit, s_o, s_new, sky, light, keep_sky=keep_sky,
                                      colour=self.colour_guard, floor=self.contrast_floor,
-                                     anchor=self.exposure_anchor, lift=lift,
+                                     anchor=self.exposure_anchor, lift=lift, keep_old=keep_old,
                                      **(self._lift_inputs(s_o.shape) if lift else {}))
 
     def _lift_inputs(self, shape: tuple[int, int]) -> dict[str, Any]:

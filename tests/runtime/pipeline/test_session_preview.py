@@ -175,3 +175,36 @@ def test_lift_runs_at_working_and_preview_sizes_and_only_brightens(scene) -> Non
     keys = set(s._lift_guards)
     s.relight(SUNS[1], preview=True)
     assert set(s._lift_guards) == keys
+
+
+def _turned(w: tuple[float, float, float], deg: float) -> np.ndarray:
+    """``w`` (made unit) turned by ``deg`` degrees, away from the camera's x axis."""
+    u = np.asarray(w, float) / np.linalg.norm(w)
+    p = np.cross(u, (1.0, 0.0, 0.0))
+    p /= np.linalg.norm(p)
+    return math.cos(math.radians(deg)) * u + math.sin(math.radians(deg)) * p
+
+
+@pytest.mark.parametrize("mode", ["learned", "classic"])
+def test_relit_to_its_own_sun_the_photo_comes_back(scene, mode) -> None:
+    """The new sun starts at the original one (and a time-lapse passes through it): the relit
+    photo is then the photo, at every size, and it leaves it smoothly as the sun moves away."""
+    image, depth = scene
+    s = RelightSession(preset="balanced", mode=mode)
+    s.set_image(image, depth=depth)
+    s.set_original_sun(W_O)
+    assert np.array_equal(s.relight(W_O), s.image_srgb)
+    assert np.abs(s.relight(W_O, preview=True) - s.image_srgb).max() <= 1.0 / 255 + 1e-6
+    assert np.abs(s.relight_full(W_O) - image).max() < 1e-5
+    far = s.relight(_turned(W_O, 90.0))
+    changes = [np.abs(s.relight(_turned(W_O, d)) - s.image_srgb).mean() for d in (0, 4, 8, 16)]
+    assert changes[0] == 0.0 and np.all(np.diff(changes) >= -1e-6)
+    assert np.abs(far - s.image_srgb).mean() > changes[1]
+
+
+def test_far_suns_are_relit_from_the_geometry_alone(scene) -> None:
+    """Past ``ORIGINAL_FADE_DEG`` nothing of the photo's own state is mixed in."""
+    from outcast_core.runtime.pipeline.relight import ORIGINAL_FADE_DEG, original_share
+
+    assert original_share(np.array(W_O), _turned(W_O, ORIGINAL_FADE_DEG + 1.0)) == 0.0
+    assert 0.0 < original_share(np.array(W_O), _turned(W_O, ORIGINAL_FADE_DEG / 2)) < 1.0
