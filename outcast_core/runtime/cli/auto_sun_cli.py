@@ -1,8 +1,9 @@
 """``outcast sun IMAGE [--json]``: the photo's sun from its shadows (and its EXIF).
 
 Prints the sun's azimuth and elevation relative to the camera and a confidence; with no clear
-shadows in the photo it says so instead of guessing (and, with ``--json``, gives the best guess
-under ``best_guess`` with ``azimuth`` and ``elevation`` null), unless the EXIF's compass heading
+shadows in the photo it says so on stderr instead of guessing and exits with
+:data:`NO_SUN_STATUS` (with ``--json`` the JSON is printed all the same, with the best guess
+under ``best_guess`` and ``azimuth`` and ``elevation`` null), unless the EXIF's compass heading
 gives a full sun. See :mod:`outcast_core.runtime.pipeline.auto_sun`.
 """
 
@@ -10,7 +11,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from typing import Any
+
+#: Exit status when the photo's sun cannot be told (no clear shadows, no EXIF heading): a
+#: script can tell "no answer" from a sun and from an error (2).
+NO_SUN_STATUS = 3
 
 
 def cmd_sun(args: argparse.Namespace) -> int:
@@ -38,17 +44,17 @@ def cmd_sun(args: argparse.Namespace) -> int:
         out["exif_azimuth"] = (None if prior is None or prior.azimuth is None
                                else round(prior.azimuth, 2))
         print(json.dumps(out, indent=2, ensure_ascii=False))
-        return 0
+        return 0 if sure else NO_SUN_STATUS
     if sure:
         print(f"azimuth {fit.azimuth:.1f}  elevation {fit.elevation:.1f}  "
               f"confidence {fit.confidence:.2f}")
     else:
-        print(fit.note)
+        print(f"outcast sun: {fit.note}", file=sys.stderr)  # said even with -q
     said = fit.note if sure else (f"best guess: azimuth {fit.azimuth:.1f}, elevation "
                                   f"{fit.elevation:.1f}")
     _say(args, f"{said} · source: {fit.source} · depth: {session.depth_source} · "
                f"{fit.evaluations} suns tried in {fit.seconds:.2f} s")
-    return 0
+    return 0 if sure else NO_SUN_STATUS
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -56,7 +62,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     from outcast_core.runtime.cli.main import add_input_options
 
     p = sub.add_parser("sun", help="find the photo's sun from its shadows (and its EXIF GPS, "
-                                   "time and heading)")
+                                   "time and heading)",
+                       epilog=f"Exit status: 0 with a sun, {NO_SUN_STATUS} when the photo's "
+                              "shadows do not tell it (said on stderr), 2 on an error.")
     p.add_argument("image")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--no-exif", action="store_true",

@@ -3,8 +3,9 @@
 Registered by :data:`outcast_core.runtime.cli.main.OPTIONAL_COMMANDS`; the work is
 :mod:`outcast_core.runtime.pipeline.batch`. One line per photo as it finishes (``-q``: only
 failures), a
-summary at the end; exit status 0 when every photo is done or was already done, 2 when one
-failed (the rest are still done). Running the same command again resumes a batch.
+summary at the end; exit status 0 when every photo is done or was already done with the same
+settings, 2 when one failed (the rest are still done) or an output made with other settings was
+kept (``--force`` redoes it). Running the same command again resumes a batch.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from outcast_core.runtime.pipeline.batch import (
     JobResult,
     plan_batch,
     read_targets_csv,
+    record_done,
     run_batch,
     summarize,
 )
@@ -123,7 +125,7 @@ def _options(args: argparse.Namespace) -> BatchOptions:
 
 def check_batch_output(args: argparse.Namespace) -> None:
     """Before any work: IN_DIR is a folder, OUT_DIR is not it and can be made or written."""
-    from outcast_core.runtime.cli.main import CliError, check_output_path
+    from outcast_core.runtime.cli.main import CliError, check_folder_writable, check_output_path
 
     folder, out = Path(args.folder).expanduser(), Path(args.output).expanduser()
     if not folder.is_dir():
@@ -133,6 +135,7 @@ def check_batch_output(args: argparse.Namespace) -> None:
     if out.exists() and out.resolve() == folder.resolve():
         raise CliError("expected an output folder other than the input folder (the outputs "
                        "have the photos' names)")
+    check_folder_writable(out, f"cannot write into '{args.output}'")  # before any photo
     if args.report:
         check_output_path(args.report, extensions=(".json",), force=args.force)
 
@@ -142,8 +145,8 @@ def _line(r: JobResult, index: int, total: int) -> str:
     head = f"[{index:>{len(str(total))}}/{total}] {name}"
     if r.status == "failed":
         return f"{head}: failed: {r.message}"
-    if r.status == "skipped":
-        return f"{head}: skipped: {r.message}"
+    if r.status in ("skipped", "stale"):
+        return f"{head}: {'skipped' if r.status == 'skipped' else 'kept'}: {r.message}"
     sun = f"sun {r.from_sun[0]:.1f},{r.from_sun[1]:.1f} from {r.sun_source}" if r.from_sun else ""
     to = f" -> {r.to_sun[0]:g},{r.to_sun[1]:g}" if r.to_sun else ""
     return f"{head} -> {Path(r.output).name} ({sun}{to}; {r.seconds:.1f} s)"
@@ -166,9 +169,13 @@ def run_batch_command(args: argparse.Namespace) -> int:
     count = 0
     t0 = time.perf_counter()
 
+    settings = {job.output: job for job in jobs}
+
     def show(r: JobResult) -> None:
         nonlocal count
         count += 1
+        if r.status == "done" and r.output in settings:
+            record_done(out_dir, settings[r.output])  # a rerun skips it only with these settings
         if r.status == "failed" or not args.quiet:
             print(_line(r, count, total), file=sys.stderr, flush=True)
 
@@ -188,12 +195,21 @@ def run_batch_command(args: argparse.Namespace) -> int:
                 "results": [vars(r) for r in results]}
         with atomic_output(args.report, force=args.force, make_parents=True) as tmp:
             tmp.write_text(json.dumps(data, indent=2, default=list) + "\n", encoding="utf-8")
-    if not args.quiet or counts["failed"]:
-        print(f"{counts['done']} done, {counts['skipped']} skipped (already done), "
+    if not args.quiet or counts["failed"] or counts["stale"]:
+        stale = f"{counts['stale']} kept from other settings, " if counts["stale"] else ""
+        print(f"{counts['done']} done, {counts['skipped']} skipped (already done), {stale}"
               f"{counts['failed']} failed in {seconds:.1f} s", file=sys.stderr)
+    if counts["stale"]:
+        kept = _names(results, "stale")
+        print(f"outcast batch: error: {counts['stale']} of {total} outputs exist from other "
+              f"settings and were kept, not redone: {kept} (use --force to redo them)",
+              file=sys.stderr)
     if counts["failed"]:
-        failed = [Path(r.image).name for r in results if r.status == "failed"]
         print(f"outcast batch: error: {counts['failed']} of {total} photos failed: "
-              f"{', '.join(failed[:10])}{' ...' if len(failed) > 10 else ''}", file=sys.stderr)
-        return 2
-    return 0
+              f"{_names(results, 'failed')}", file=sys.stderr)
+    return 2 if counts["failed"] or counts["stale"] else 0
+
+
+def _names(results: list[JobResult], status: str) -> str:
+    names = [Path(r.image).name for r in results if r.status == status]
+    return ", ".join(names[:10]) + (" ..." if len(names) > 10 else "")

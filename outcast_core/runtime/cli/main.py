@@ -12,6 +12,7 @@ import argparse
 import importlib
 import math
 import os
+import re
 import signal
 import sys
 import tempfile
@@ -142,6 +143,11 @@ def _set_image(session, loaded, args: argparse.Namespace) -> None:
     _set_depth_source(session, loaded, args)
     focal35 = None if args.fov is not None else loaded.exif.focal_35mm
     session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth)
+    if session.depth_source.startswith("ground-plane prior"):  # said even with -q
+        folder = session.registry.directory_for("depth")
+        print(f"outcast: warning: no depth model in '{folder}': the depth is a flat ground "
+              "plane, so the predicted shadows will be poor (see 'outcast models')",
+              file=sys.stderr)
 
 
 def _say(args: argparse.Namespace, text: str) -> None:
@@ -210,7 +216,7 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     w_from = parse_azel(args.from_sun)
     if args.mask:  # the main output is checked before the work by _check_output
         check_output_path(args.mask, extensions=(".png",), force=args.force,
-                          inputs=[args.image, args.depth, args.output])
+                          inputs=[args.image, args.depth], outputs=[args.output])
     loaded = _load(args.image)
     session = _make_session(args, shadow_mode="auto")
     _set_image(session, loaded, args)
@@ -421,6 +427,7 @@ def check_output_path(
     force: bool,
     inputs: Sequence[str | None] = (),
     folder_ok: bool = False,
+    outputs: Sequence[str | None] = (),
 ) -> Path:
     """Check, before any work, that ``output`` can be written; return it as a ``Path``.
 
@@ -431,6 +438,7 @@ def check_output_path(
         force: whether an existing file may be replaced.
         inputs: input files; the output may never be one of them, even with ``force``.
         folder_ok: the output is a folder (PNG frames): an existing folder is like a file.
+        outputs: the command's other outputs; ``output`` may not be one of them.
 
     Raises:
         CliError: wrong extension, a folder, an input file, a parent that is a file, or a
@@ -449,20 +457,34 @@ def check_output_path(
         if source and path.exists() and Path(source).exists() and os.path.samefile(path, source):
             raise CliError(f"cannot write '{output}': it is the input file '{source}'; "
                            "choose another output name")
+    for other in outputs:  # neither may exist yet: compare the paths themselves
+        if other and Path(other).expanduser().resolve() == path.resolve():
+            raise CliError(f"cannot write '{output}': the command writes '{other}' there too; "
+                           "choose another name")
     if path.exists() and not force:
         raise FileExistsError(f"'{output}' already exists; use --force to overwrite it")
-    folder = path.parent
+    check_folder_writable(path.parent, f"cannot write '{output}'")
+    return path
+
+
+def check_folder_writable(folder: Path, what: str) -> None:
+    """Check that files can be made in ``folder`` (or in its nearest existing ancestor, where
+    the missing folders will be made); ``what`` starts the error message.
+
+    Raises:
+        CliError: the nearest existing ancestor is a file, or it is not writable.
+    """
+    folder = Path(folder).expanduser()
     while not folder.exists() and folder != folder.parent:
         folder = folder.parent
     if not folder.is_dir():
-        raise CliError(f"cannot write '{output}': '{folder}' is a file, not a folder")
+        raise CliError(f"{what}: '{folder}' is a file, not a folder")
     try:
         with tempfile.TemporaryFile(dir=folder):
             pass
     except OSError as exc:
-        raise CliError(f"cannot write '{output}': folder '{folder}' is not writable "
+        raise CliError(f"{what}: folder '{folder}' is not writable "
                        f"({exc.strerror or exc})") from exc
-    return path
 
 
 def _check_output(args: argparse.Namespace) -> None:
@@ -494,6 +516,38 @@ def _catch_sigterm() -> object:
     return signal.signal(signal.SIGTERM, _on_sigterm)
 
 
+#: A value that starts with a minus sign and a digit: ``-90,30``, ``-90,30:90,30``, ``-5``.
+_NEGATIVE_VALUE = re.compile(r"-\d[\d.,:eE+-]*")
+
+
+def join_negative_values(argv: Sequence[str]) -> list[str]:
+    """``--to -90,30`` as ``--to=-90,30``: argparse takes a value that starts with ``-`` for an
+    option unless it is a plain number, so a sun west of the camera was refused with "expected
+    one argument". Every ``--option`` followed by such a value is joined to it.
+
+    Example:
+        >>> join_negative_values(["relight", "p.jpg", "--to", "-90,30", "-o", "x.jpg"])
+        ['relight', 'p.jpg', '--to=-90,30', '-o', 'x.jpg']
+    """
+    out: list[str] = []
+    args = list(argv)
+    i = 0
+    while i < len(args):
+        a = args[i]
+        nxt = args[i + 1] if i + 1 < len(args) else None
+        if (a.startswith("--") and "=" not in a and a != "--" and nxt is not None
+                and _NEGATIVE_VALUE.fullmatch(nxt)):
+            out.append(f"{a}={nxt}")
+            i += 2
+            continue
+        if a == "--":  # everything after it is positional
+            out.extend(args[i:])
+            break
+        out.append(a)
+        i += 1
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``outcast``; returns the exit status.
 
@@ -507,7 +561,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if argv[:2] == ["eval", "real"]:
         # ``outcast eval real DIR`` (runtime only) beside ``outcast eval`` (synthetic, torch).
         argv = ["eval-real", *argv[2:]]
-    args = parser.parse_args(argv)
+    args = parser.parse_args(join_negative_values(argv))
     previous_sigterm = _catch_sigterm()
     try:
         output = getattr(args, "output", None)

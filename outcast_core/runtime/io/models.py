@@ -171,6 +171,7 @@ class ModelRegistry:
         self.search_path = (
             [Path(directory)] if directory is not None else model_search_path()
         )
+        self._from_environment = directory is None
         self.threads = threads
         self._loaded: dict[str, Model] = {}
         self._lock = threading.Lock()
@@ -192,9 +193,12 @@ class ModelRegistry:
     def manifest(self, name: str) -> dict[str, Any]:
         path = self.manifest_path(name)
         if not path.is_file():
+            where = "" if path.parent.is_dir() else f"; the folder {path.parent} does not exist"
+            if os.environ.get("OUTCAST_MODEL_DIR") and self._from_environment:
+                where += " (OUTCAST_MODEL_DIR points there: unset it for the shipped models)"
             raise ModelError(
-                f"model '{name}' is not installed: {path} is missing "
-                "(run 'outcast export' or use a Direct / physics mode)"
+                f"model '{name}' is not installed: {path} is missing{where}; reinstall "
+                "OutCast, or use Direct shadows and physics relighting, which need no model"
             )
         try:
             data = json.loads(path.read_text(encoding="utf-8"))

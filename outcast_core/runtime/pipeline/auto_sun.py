@@ -211,7 +211,8 @@ def exif_sun_prior(metadata: Any, heading: float | None = None) -> SunPrior | No
 
     Args:
         metadata: the photo's metadata.
-        heading: a compass heading the user gave, used when the EXIF records none.
+        heading: a compass heading the user gave: it replaces the EXIF's (phone compasses
+            are often off by tens of degrees) or stands in for a missing one.
 
     Returns:
         None without GPS and capture time, or when the sun was below the horizon then; else the
@@ -231,8 +232,8 @@ def exif_sun_prior(metadata: Any, heading: float | None = None) -> SunPrior | No
     recorded = getattr(metadata, "heading_deg", None)
     if recorded is None and heading is None:
         return SunPrior(el, description=f"elevation {el:.0f}° from the photo's time and place")
-    az = relative_azimuth(true_az, recorded if recorded is not None else heading)
-    whose = "compass heading" if recorded is not None else "the heading you gave"
+    az = relative_azimuth(true_az, heading if heading is not None else recorded)
+    whose = "the heading you gave" if heading is not None else "compass heading"
     return SunPrior(el, az, description=f"azimuth {az:.0f}°, elevation {el:.0f}° from the "
                                         f"photo's time, place and {whose}")
 
@@ -280,7 +281,10 @@ class SunFit:
             ``"EXIF"`` (no clear shadows; the EXIF sun stands).
         note: one line for the user.
         map: the coarse agreement map (the dial's heat map).
-        candidates: ``(azimuth, elevation, agreement)`` of the last candidates, best first.
+        candidates: ``(azimuth, elevation, agreement)`` of the last candidates, best first
+            as the search ranks them: agreement, the shading term and the EXIF prior's pull
+            together, so a candidate with a little more agreement may follow one the prior
+            prefers.
         true_elevation: the sun's elevation above the ground's horizon (differs from
             ``elevation`` when the camera is pitched or rolled).
         pitch: camera pitch used (degrees; 0 without a prior).
@@ -326,6 +330,7 @@ class SunFit:
             "evaluations": self.evaluations,
             "seconds": round(self.seconds, 3), "stage_seconds": self.stage_seconds,
             "candidates": [[round(a, 2), round(e, 2), round(s, 4)] for a, e, s in self.candidates],
+            "candidates_ranked_by": "agreement, shading and the EXIF prior's pull",
         }  # fmt: skip
 
 

@@ -31,7 +31,7 @@ import signal
 import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -49,6 +49,11 @@ FORMATS = {"relight": ("jpg", "png", "tif", "webp"), "deshadow": ("jpg", "png", 
 #: The app's project files (``app.state.PROJECT_SUFFIX``; a test keeps them equal).
 PROJECT_SUFFIX = ".outcast.json"
 MAX_PROJECT_BYTES = 1_000_000
+#: A batch's record in its output folder: the settings each finished output was made with
+#: (:func:`job_settings`). A batch run again skips an output only when it was made with the
+#: same settings; one made otherwise (another sun, preset, format...) or not by a batch is
+#: kept and reported as ``stale`` until ``force`` redoes it.
+RECORD_NAME = ".outcast-batch.json"
 
 Sun = tuple[float, float]
 
@@ -127,6 +132,7 @@ class BatchJob:
     output: str
     to_sun: Sun | None = None
     from_sun: Sun | None = None
+    settings: str = ""
 
 
 @dataclass
@@ -136,7 +142,9 @@ class JobResult:
     Attributes:
         image: the photo.
         output: the output file.
-        status: ``done``, ``skipped`` (the output exists) or ``failed``.
+        status: ``done``, ``skipped`` (the output exists, made with the same settings),
+            ``stale`` (the output exists, made with other settings or not by a batch: kept)
+            or ``failed``.
         message: one line: the error, or why it was skipped.
         from_sun: the original sun used.
         sun_source: where it came from (``project``, ``exif``, ``given``, ``csv``).
@@ -228,7 +236,9 @@ def plan_batch(
     """The jobs of a batch, and the photos that need none (finished, or impossible to plan).
 
     Output ``OUT_DIR/NAME.FMT`` for each photo ``NAME.*`` (a CSV ``output`` name instead). An
-    existing output is ``skipped`` unless ``options.force``: running a batch again resumes it.
+    existing output is ``skipped`` when the folder's record (:data:`RECORD_NAME`) says it was
+    made with these settings, else ``stale`` (kept); ``options.force`` redoes both. Running a
+    batch again resumes it.
 
     Args:
         in_dir: the folder of photos.
@@ -237,8 +247,8 @@ def plan_batch(
         targets: rows of :func:`read_targets_csv`; None: every photo in ``in_dir``.
 
     Returns:
-        ``(jobs, results)``: the jobs to run and the ``skipped`` / ``failed`` results of the
-        photos not to run.
+        ``(jobs, results)``: the jobs to run and the ``skipped`` / ``stale`` / ``failed``
+        results of the photos not to run.
 
     Raises:
         ValueError: ``out_dir`` is ``in_dir``.
@@ -254,6 +264,7 @@ def plan_batch(
     else:
         rows = list(targets)
     names = {p.name for p in photos}
+    record = read_record(out_dir)
     jobs: list[BatchJob] = []
     results: list[JobResult] = []
     claimed: dict[str, str] = {}
@@ -276,12 +287,52 @@ def plan_batch(
                 "targets CSV's 'output' column"))
             continue
         claimed[name] = row["image"]
+        job = BatchJob(str(image), str(output), row["to_sun"], row["from_sun"])
+        job = replace(job, settings=job_settings(job, options))
         if output.exists() and not options.force:
-            results.append(JobResult(str(image), str(output), "skipped",
-                                     "the output exists (use --force to redo it)"))
+            if record.get(name) == job.settings:
+                results.append(JobResult(str(image), str(output), "skipped",
+                                         "done with these settings (use --force to redo it)"))
+            else:
+                results.append(JobResult(
+                    str(image), str(output), "stale",
+                    "the output exists, made with other settings or not by a batch: kept "
+                    "(use --force to redo it)"))
             continue
-        jobs.append(BatchJob(str(image), str(output), row["to_sun"], row["from_sun"]))
+        jobs.append(job)
     return jobs, results
+
+
+def job_settings(job: BatchJob, options: BatchOptions) -> str:
+    """Everything that decides a job's output, as one string (compared, not parsed): the
+    batch options but ``force`` and ``threads``, the photo's name and the job's own suns."""
+    keys = {k: v for k, v in asdict(options).items() if k not in ("force", "threads")}
+    keys.update(image=Path(job.image).name, job_to_sun=job.to_sun, job_from_sun=job.from_sun)
+    return json.dumps(keys, sort_keys=True, default=list)
+
+
+def read_record(out_dir: str | os.PathLike[str]) -> dict[str, str]:
+    """The output folder's :data:`RECORD_NAME` (output name -> settings); empty when it is
+    missing or unreadable (every existing output is then ``stale``, never overwritten)."""
+    path = Path(out_dir) / RECORD_NAME
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(data, dict):
+        return {}
+    return {str(k): v for k, v in data.items() if isinstance(v, str)}
+
+
+def record_done(out_dir: str | os.PathLike[str], job: BatchJob) -> None:
+    """Add a finished job to the output folder's record (replaced atomically, so an
+    interrupted batch leaves the record of what it finished)."""
+    from outcast_core.runtime.io.imageio import atomic_output
+
+    record = read_record(out_dir)
+    record[Path(job.output).name] = job.settings
+    with atomic_output(Path(out_dir) / RECORD_NAME, force=True) as tmp:
+        tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
 
 
 # -------------------------------------------------------------------------------- suns
@@ -616,8 +667,8 @@ def _stop_workers(pool: ProcessPoolExecutor) -> None:
 
 
 def summarize(results: Sequence[JobResult]) -> dict[str, int]:
-    """Counts of ``done``, ``skipped`` and ``failed`` results."""
-    counts = {"done": 0, "skipped": 0, "failed": 0}
+    """Counts of ``done``, ``skipped``, ``stale`` and ``failed`` results."""
+    counts = {"done": 0, "skipped": 0, "stale": 0, "failed": 0}
     for r in results:
         counts[r.status] = counts.get(r.status, 0) + 1
     return counts

@@ -147,3 +147,18 @@ def test_fps_has_one_range_for_every_video_command(command, capsys) -> None:
         with pytest.raises(SystemExit):
             main([*command, "--fps", bad])
         assert f"frames per second in [{MIN_FPS:g}, {MAX_FPS:g}]" in capsys.readouterr().err
+
+
+def test_negative_azimuths_are_values_not_options() -> None:
+    """``--to -90,30`` (a sun west of the camera) used to be refused with "expected one
+    argument"; it is read as ``--to=-90,30``."""
+    from outcast_core.runtime.cli.main import build_parser, join_negative_values
+
+    argv = join_negative_values(["timelapse", "p.jpg", "--from", "-90,30", "--sweep",
+                                 "-90,30:90,30", "-o", "o.mp4", "--frames", "-3"])
+    assert argv == ["timelapse", "p.jpg", "--from=-90,30", "--sweep=-90,30:90,30", "-o", "o.mp4",
+                    "--frames=-3"]
+    args = build_parser().parse_args(join_negative_values(
+        ["relight", "p.jpg", "--from", "-90,30", "--to", "-45.5,10", "-o", "o.jpg"]))
+    assert (args.from_sun, args.to_sun) == ("-90,30", "-45.5,10")
+    assert join_negative_values(["relight", "--", "-1"]) == ["relight", "--", "-1"]

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from outcast_core.runtime.cli.main import main
 from outcast_core.runtime.io.imageio import read_image
 from outcast_core.runtime.pipeline.batch import (
     PROJECT_SUFFIX,
+    RECORD_NAME,
     BatchJob,
     BatchOptions,
     plan_batch,
@@ -75,7 +77,8 @@ def test_folder_with_a_corrupt_photo_is_done_and_resumable(
             "--preset", "fast", "--workers", "2"]
     assert main(args) == 2
     err = capsys.readouterr().err
-    assert sorted(p.name for p in out.iterdir()) == [f"p{i}.jpg" for i in range(9)]
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [RECORD_NAME] + [f"p{i}.jpg" for i in range(9)]
     failed = [line for line in err.splitlines() if ": failed: " in line]
     assert len(failed) == 1 and "p9.jpg" in failed[0] and "cannot read image" in failed[0]
     assert "9 done, 0 skipped (already done), 1 failed" in err
@@ -91,12 +94,37 @@ def test_folder_with_a_corrupt_photo_is_done_and_resumable(
     _photo(folder / "p9.jpg", 9)  # the photo is fixed: only it is done
     assert main(args) == 0
     assert "1 done, 9 skipped (already done), 0 failed" in capsys.readouterr().err
-    assert {k: v for k, v in _mtimes(out).items() if k != "p9.jpg"} == before
-    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no partial files
+    after = {k: v for k, v in _mtimes(out).items() if k not in ("p9.jpg", RECORD_NAME)}
+    assert after == {k: v for k, v in before.items() if k != RECORD_NAME}
+    hidden = [p.name for p in out.iterdir() if p.name.startswith(".")]
+    assert hidden == [RECORD_NAME]  # no partial files
 
     assert main([*args, "--force", "--workers", "1", "-q"]) == 0  # --force redoes them all
     assert capsys.readouterr().err == ""
-    assert all(_mtimes(out)[k] != v for k, v in before.items())
+    assert all(_mtimes(out)[k] != v for k, v in before.items() if k != RECORD_NAME)
+
+
+def test_a_rerun_with_other_settings_keeps_the_outputs_and_says_so(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    photos, out = tmp_path / "in", tmp_path / "out"
+    photos.mkdir()
+    for i in range(2):
+        _photo(photos / f"p{i}.jpg", i)
+    args = ["batch", str(photos), "-o", str(out), "--from", "200,40", "--preset", "fast", "-q"]
+    assert main([*args, "--to", "90,30"]) == 0
+    before = _mtimes(out)
+    assert main([*args, "--to", "180,20"]) == 2  # another sun: not "already done"
+    err = capsys.readouterr().err
+    assert "0 done, 0 skipped (already done), 2 kept from other settings" in err
+    assert "use --force to redo them" in err.strip().splitlines()[-1]
+    assert _mtimes(out) == before  # nothing overwritten
+    assert main([*args, "--to", "90,30"]) == 0  # the first settings: done already
+    assert main([*args, "--to", "180,20", "--force"]) == 0
+    assert main([*args, "--to", "180,20"]) == 0  # now recorded with the new sun
+    (out / "p0.jpg").write_bytes((out / "p1.jpg").read_bytes())  # no record says how: kept
+    (out / RECORD_NAME).write_text("not json")
+    assert main([*args, "--to", "180,20"]) == 2
 
 
 def test_sun_sources(tmp_path: Path) -> None:
@@ -180,10 +208,11 @@ def test_targets_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
                  "--report", str(tmp_path / "report.json")])
     err = capsys.readouterr().err
     assert code == 2
-    assert sorted(p.name for p in out.iterdir()) == ["a_morning.png", "a_noon.png", "b.png"]
+    assert sorted(p.name for p in out.iterdir()) == [RECORD_NAME, "a_morning.png", "a_noon.png",
+                                                     "b.png"]
     assert "is also the output of 'b.png'" in err and "'missing.png' is not a photo" in err
     report = json.loads((tmp_path / "report.json").read_text())
-    assert report["counts"] == {"done": 3, "skipped": 0, "failed": 2}
+    assert report["counts"] == {"done": 3, "skipped": 0, "stale": 0, "failed": 2}
     by_out = {Path(r["output"]).name: r for r in report["results"]}
     assert by_out["a_noon.png"]["sun_source"] == "csv"
     assert by_out["a_noon.png"]["to_sun"] == [270.0, 60.0]
@@ -229,6 +258,21 @@ def test_command_errors(tmp_path: Path, folder: Path, capsys: pytest.CaptureFixt
     with pytest.raises(SystemExit) as stop:
         main(["batch", str(folder), "-o", str(tmp_path / "o"), "--to", "10,-5"])
     assert stop.value.code == 2 and "horizon" in capsys.readouterr().err
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_read_only_output_folder_is_refused_before_any_photo(
+    tmp_path: Path, folder: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o555)
+    try:
+        assert main(["batch", str(folder), "-o", str(ro / "out"), "--to", "1,2"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "not writable" in err
+    finally:
+        ro.chmod(0o755)
 
 
 def test_automatic_sun_source(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -285,7 +329,8 @@ def test_sigterm_stops_the_workers_and_leaves_no_partial_file(tmp_path: Path) ->
     proc.send_signal(signal.SIGTERM)
     err = proc.communicate(timeout=60)[1]
     assert proc.returncode == 143 and "outcast batch: terminated" in err
-    assert not [p.name for p in out.iterdir() if p.name.startswith(".")]  # no partial files
+    partial = [p.name for p in out.iterdir() if p.name.startswith(".") and p.name != RECORD_NAME]
+    assert not partial
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)  # resumed
     assert done.returncode == 0, done.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["p0.jpg", "p1.jpg", "p2.jpg"]
+    assert sorted(p.name for p in out.iterdir()) == [RECORD_NAME, "p0.jpg", "p1.jpg", "p2.jpg"]

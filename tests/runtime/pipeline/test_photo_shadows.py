@@ -247,6 +247,11 @@ def test_shadows_for_full_resolution_outputs_are_found_at_the_detail_size(tmp_pa
     assert main(["deshadow", str(photo), "--from", "45,35", "--depth", str(dpath), "-o",
                  str(out), "--mask", str(mask), "-q"]) == 0
     assert read_shadow_png(mask).shape == (h, w)
+    before = out.read_bytes()  # the mask may not be the de-shadowed photo's own file
+    for force in ([], ["--force"]):
+        assert main(["deshadow", str(photo), "--from", "45,35", "--depth", str(dpath), "-o",
+                     str(out), "--mask", str(out), "-q", *force]) == 2
+        assert out.read_bytes() == before
 
 
 def test_deshadow_keeps_fine_dark_texture_and_lifts_wide_shadows() -> None:
