@@ -25,6 +25,21 @@ class UserMessage:
 
 
 def _one_line(exc: BaseException) -> str:
+    """The exception in one line for a dialog: an operating-system error as its plain reason
+    and the file (not ``[Errno 13] ...``), and an output's temporary file (``.NAME.part...``,
+    :func:`~outcast_core.runtime.io.imageio.atomic_output`) as the folder it was written in.
+
+    Example:
+        >>> _one_line(PermissionError(13, "Permission denied", "/photos/.t.x1.part.gif"))
+        "Permission denied: cannot write in the folder '/photos'"
+    """
+    if isinstance(exc, OSError) and exc.strerror:
+        if not exc.filename:
+            return exc.strerror
+        path = Path(os.fsdecode(exc.filename))
+        if path.name.startswith(".") and ".part" in path.name:
+            return f"{exc.strerror}: cannot write in the folder '{path.parent}'"
+        return f"{exc.strerror}: '{path}'"
     text = str(exc).strip().splitlines()
     return text[0] if text else type(exc).__name__
 

@@ -50,8 +50,11 @@ from PySide6.QtWidgets import (
     QMessageBox,
     QProgressBar,
     QScrollArea,
+    QSizePolicy,
     QSplitter,
     QStackedWidget,
+    QVBoxLayout,
+    QWidget,
 )
 
 from app import display
@@ -224,11 +227,24 @@ class MainWindow(QMainWindow):
         self.steps = QStackedWidget(self)
         self.steps.addWidget(self.align_panel)
         self.steps.addWidget(self.relight_panel)
-        side = QScrollArea(self)
-        side.setWidget(self.steps)
-        side.setWidgetResizable(True)
+        scroll = QScrollArea(self)
+        scroll.setWidget(self.steps)
+        scroll.setWidgetResizable(True)
+        scroll.setFrameShape(QScrollArea.Shape.NoFrame)
+        # Each step's main buttons (Confirm sun; Export, Time-lapse) stay below the scrolling
+        # panel, in view on a 768-pixel-high screen too.
+        self.footers = QStackedWidget(self)
+        self.footers.addWidget(self.align_panel.footer)
+        self.footers.addWidget(self.relight_panel.footer)
+        self.footers.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
+        self.steps.currentChanged.connect(self.footers.setCurrentIndex)
+        side = QWidget(self)
         side.setMinimumWidth(290)
-        side.setFrameShape(QScrollArea.Shape.NoFrame)
+        side_layout = QVBoxLayout(side)
+        side_layout.setContentsMargins(0, 0, 0, 0)
+        side_layout.setSpacing(0)
+        side_layout.addWidget(scroll, 1)
+        side_layout.addWidget(self.footers)
         splitter = QSplitter(Qt.Orientation.Horizontal, self)
         splitter.addWidget(self.canvas)
         splitter.addWidget(side)
@@ -440,8 +456,17 @@ class MainWindow(QMainWindow):
         self.align_panel.setEnabled(has_photo)
         for act in (self.act_save, self.act_save_as, self.act_depth):
             act.setEnabled(has_photo)
-        for act in (self.act_export, self.act_export_deshadow, self.act_timelapse):
+        tips = {self.act_export: "Save the relit photo at full resolution (Ctrl+E)",
+                self.act_export_deshadow: "Save the photo with its own shadows removed, at "
+                                          "full resolution (Ctrl+Shift+E)",
+                self.act_timelapse: "Render the photo along a path of suns as a video, an "
+                                    "animation or PNG frames (Ctrl+T)"}
+        for act, tip in tips.items():
             act.setEnabled(step is Step.RELIGHT)
+            # Say why a greyed-out button is grey (Qt shows tooltips of disabled buttons).
+            act.setToolTip(tip if step is Step.RELIGHT else
+                           f"{tip}. First confirm the photo's sun (step 1)"
+                           if has_photo else f"{tip}. First open a photo")
         self.act_confirm.setEnabled(step is Step.ALIGN)
         self.act_find_sun.setEnabled(step is Step.ALIGN)
         if step is Step.RELIGHT:
@@ -689,11 +714,9 @@ class MainWindow(QMainWindow):
             )
         elif source == "model":
             notice = (
-                "Depth comes from OutCast's small depth network, trained on synthetic scenes "
-                "only: on real photos it is rough, and so are the predicted shadows. For "
-                "accurate shadows load a depth map from your phone or another estimator "
-                "(File \u25b8 Load depth map\u2026) or use a depth model of your own "
-                "(File \u25b8 Use depth model\u2026)."
+                "Depth is from OutCast's small network, trained on synthetic scenes: rough on "
+                "real photos, and so are the shadows. For accurate ones: File \u25b8 Load "
+                "depth map\u2026 or Use depth model\u2026"
             )
         else:
             notice = ""
@@ -704,7 +727,7 @@ class MainWindow(QMainWindow):
         self.align_panel.show_notice(self._load_notice)
         if restore is None:  # another photo: its own heading, no search result yet
             self.user_heading = None
-            self.align_panel.set_heading(None)
+            self.align_panel.set_heading(self._exif_heading(), recorded=True)
             self.sun_fit = None
             self.align_panel.sun_panel.dial.set_heat_map(None)
         self._update_exif_controls()
@@ -828,15 +851,27 @@ class MainWindow(QMainWindow):
         exif = getattr(self.loaded, "exif", None)
         has_place = exif is not None and getattr(exif, "has_gps", False) and getattr(
             exif, "capture_time", None) is not None
-        # A heading only helps with a time and a place; one recorded in the EXIF is used as is.
-        self.align_panel.heading_box.setEnabled(
-            bool(has_place) and getattr(exif, "heading_deg", None) is None)
+        # A heading only helps with a time and a place. One recorded in the EXIF is shown and
+        # may be corrected (phone compasses are often tens of degrees off).
+        self.align_panel.heading_box.setEnabled(bool(has_place))
+
+    def _exif_heading(self) -> float | None:
+        """The compass heading the photo's EXIF records, or None."""
+        heading = getattr(getattr(self.loaded, "exif", None), "heading_deg", None)
+        return None if heading is None else float(heading) % 360.0
 
     def set_user_heading(self, heading: float | None) -> None:
-        """The camera heading typed in step 1 (degrees from true north; None: unknown)."""
+        """The camera heading typed in step 1 (degrees from true north; None: unknown, or the
+        EXIF's when it records one). A typed heading replaces the EXIF's."""
         self.user_heading = None if heading is None else float(heading) % 360.0
-        if self.align_panel.heading() != self.user_heading:
-            self.align_panel.set_heading(self.user_heading)
+        if self.user_heading is not None and self.user_heading == self._exif_heading():
+            self.user_heading = None  # the recorded one, as it is
+        shown = self.user_heading if self.user_heading is not None else self._exif_heading()
+        if self.align_panel.heading() != shown:
+            self.align_panel.set_heading(shown, recorded=self.user_heading is None)
+        else:
+            self.align_panel.mark_heading(recorded=self.user_heading is None
+                                          and shown is not None)
         self._update_exif_controls()
 
     # ---- automatic sun

@@ -88,10 +88,12 @@ class AlignPanel(QWidget):
         self.heading_box.setSpecialValueText("unknown")
         self.heading_box.setValue(-1.0)
         self.heading_box.setKeyboardTracking(False)
-        self.heading_box.setToolTip(
-            "The camera's compass heading (degrees clockwise from true north) when the photo "
-            "does not record it: with the photo's GPS position and time it gives the full sun"
+        self._heading_tip = (
+            "The camera's compass heading (degrees clockwise from true north): with the "
+            "photo's GPS position and time it gives the full sun. It replaces the one the "
+            "photo's EXIF records, if any."
         )
+        self.heading_box.setToolTip(self._heading_tip)
         self.heading_box.valueChanged.connect(
             lambda v: self.heading_changed.emit(None if v < 0 else float(v))
         )
@@ -131,19 +133,34 @@ class AlignPanel(QWidget):
         heading_row.addWidget(self.heading_box, 1)
         layout.addLayout(heading_row)
         layout.addLayout(row)
-        layout.addWidget(self.confirm_button)
         layout.addStretch(1)
+        # The step's main button sits below the scrolling panel (the window places
+        # ``footer``), so it stays in view on a small screen.
+        self.footer = QWidget(self)
+        foot = QVBoxLayout(self.footer)
+        foot.setContentsMargins(9, 4, 9, 6)
+        foot.addWidget(self.confirm_button)
 
     def heading(self) -> float | None:
         """The heading typed by the user (degrees from north), or None."""
         v = self.heading_box.value()
         return None if v < 0 else float(v)
 
-    def set_heading(self, heading: float | None) -> None:
-        """Show a heading without emitting ``heading_changed``."""
+    def set_heading(self, heading: float | None, recorded: bool = False) -> None:
+        """Show a heading without emitting ``heading_changed``; ``recorded``: it is the one the
+        photo's EXIF records (said in the box and its tooltip)."""
         self.heading_box.blockSignals(True)
         self.heading_box.setValue(-1.0 if heading is None else float(heading) % 360.0)
         self.heading_box.blockSignals(False)
+        self.mark_heading(recorded and heading is not None)
+
+    def mark_heading(self, recorded: bool) -> None:
+        """Say whether the heading shown is the EXIF's (``recorded``) or one typed."""
+        self.heading_box.setPrefix("EXIF " if recorded else "")
+        self.heading_box.setToolTip(
+            "The camera's compass heading recorded in the photo's EXIF (degrees clockwise from "
+            "true north); phone compasses are often off by tens of degrees: type another to "
+            "correct it" if recorded else self._heading_tip)
 
     def set_finding(self, running: bool) -> None:
         """The find button becomes a cancel button while a search runs."""
@@ -206,9 +223,11 @@ class RelightPanel(QWidget):
         layout.addWidget(body)
         layout.addWidget(self.sun_panel)
         layout.addLayout(form)
-        layout.addLayout(buttons)
         layout.addWidget(self.realign_button, 0, Qt.AlignmentFlag.AlignLeft)
         layout.addStretch(1)
+        self.footer = QWidget(self)  # below the scrolling panel, always in view
+        buttons.setContentsMargins(9, 4, 9, 6)
+        self.footer.setLayout(buttons)
 
     def view(self) -> str:
         return str(self.view_combo.currentData())

@@ -543,7 +543,8 @@ class SunDialPanel(QWidget):
         in_frame = " · in the frame" if self.dial.sun_in_view() else ""
         if self.dial.below_horizon(az, el):
             in_frame += " · under the horizon for this camera's tilt"
-        self.shadow_label.setText(f"Shadow: {length} · {dm.describe_sun(az, el)}{in_frame}")
+        self.shadow_label.setText(f"Sun {dm.describe_sun(az, el)} · shadows {length}"
+                                  f"{in_frame}")
 
     def _on_dial_changed(self, az: float, el: float) -> None:
         self._sync_fields()

@@ -153,6 +153,24 @@ def test_a_wrong_compass_heading_is_pointed_out(window, settle, monkeypatch):
     assert notice.isVisibleTo(window) and "compass heading" in notice.text()
 
 
+def test_a_recorded_heading_is_shown_and_can_be_corrected(window, settle):
+    window.open_path(os.path.join(ROOT, "samples", "exif_003_th_pool.jpg"))
+    settle()
+    ap = window.align_panel
+    assert ap.heading_box.isEnabled() and ap.heading_box.text() == "EXIF 163.7°"
+    before = window.exif_sun()
+    assert before is not None and window.user_heading is None
+    ap.heading_box.setValue(183.7)  # the compass was 20° off: the sun moves 20° the other way
+    assert window.user_heading == pytest.approx(183.7)
+    assert ap.heading_box.prefix() == "" and "replaces" in ap.heading_box.toolTip()
+    after = window.exif_sun()
+    assert (before[0] - after[0]) % 360.0 == pytest.approx(20.0, abs=0.05)
+    assert "the heading you gave" in window.exif_prior().description
+    ap.heading_box.setValue(-1.0)  # "unknown": back to the recorded heading
+    assert window.user_heading is None and ap.heading_box.text() == "EXIF 163.7°"
+    assert window.exif_sun() == pytest.approx(before)
+
+
 def test_typed_heading_is_saved_in_the_project_and_restored(
     qtbot, window, settle, settings, tmp_path
 ):

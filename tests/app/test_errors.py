@@ -1,0 +1,17 @@
+"""Dialog texts for exceptions (``app.errors``, Qt-free)."""
+
+from __future__ import annotations
+
+from app.errors import message_for
+
+
+def test_os_errors_read_as_plain_words_and_never_name_a_temporary_file() -> None:
+    temp = PermissionError(13, "Permission denied", "/photos/.day.qza7hje1.part.gif")
+    msg = message_for(temp, "export")
+    assert msg.title == "Export failed"
+    assert msg.what == "Permission denied: cannot write in the folder '/photos'"
+    assert "Errno" not in msg.text() and ".part" not in msg.text()
+    assert "folder you can write to" in msg.todo
+    plain = message_for(FileNotFoundError(2, "No such file or directory", "/x/p.jpg"), "open")
+    assert plain.what == "No such file or directory: '/x/p.jpg'"
+    assert message_for(ValueError("expected a photo\nmore"), "open").what == "expected a photo"
