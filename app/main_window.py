@@ -81,6 +81,7 @@ from app.state import (
 from app.workers import JobContext, TaskRunner
 from outcast_core.runtime.geometry.camera import cosine_term, sun_vector
 from outcast_core.runtime.io.models import ModelError
+from outcast_core.runtime.pipeline.session import elongation_note
 
 APP_NAME = "OutCast"
 STAGE_WORDS = {
@@ -723,6 +724,10 @@ class MainWindow(QMainWindow):
         note = str(result.get("depth_note", ""))  # a depth source that could not be used
         if note:
             notice = f"{note[:1].upper()}{note[1:]}. " + notice
+        loaded = result.get("loaded")
+        long_note = elongation_note(*loaded.original_size) if loaded is not None else ""
+        if long_note:  # a panorama strip: the depth sees a few rows of it
+            notice = f"{long_note[:1].upper()}{long_note[1:]}. " + notice
         self._load_notice = notice.strip()
         self.align_panel.show_notice(self._load_notice)
         if restore is None:  # another photo: its own heading, no search result yet

@@ -101,10 +101,23 @@ def _sun_from_args(args: argparse.Namespace) -> np.ndarray:
     return parse_vector(args.sun_dir)
 
 
-def _load(path: str, max_pixels: int | None = None):  # -> LoadedImage
+def _load(path: str, max_pixels: int | None = None, **kw):  # -> LoadedImage
     from outcast_core.runtime.io.imageio import read_image
 
-    return read_image(path, max_pixels=max_pixels)
+    loaded = read_image(path, max_pixels=max_pixels, **kw)
+    if loaded.has_alpha:  # said even with -q: the output differs from the input there
+        print(f"outcast: note: '{path}' has transparency; it is filled with white and the "
+              "output has none", file=sys.stderr)
+    return loaded
+
+
+def _output_bits(output: str, loaded) -> int:
+    """Bits per sample of an output image: 16 for TIFF, and for a PNG made from a 16-bit
+    photo (8 bits would throw away the photo's own precision); else 8."""
+    suffix = Path(output).suffix.lower()
+    if suffix in {".tif", ".tiff"} or (suffix == ".png" and loaded.bit_depth > 8):
+        return 16
+    return 8
 
 
 def _make_session(args: argparse.Namespace, *, shadow_mode: str, relight_mode: str = "auto"):
@@ -143,6 +156,11 @@ def _set_image(session, loaded, args: argparse.Namespace) -> None:
     _set_depth_source(session, loaded, args)
     focal35 = None if args.fov is not None else loaded.exif.focal_35mm
     session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth)
+    from outcast_core.runtime.pipeline.session import elongation_note
+
+    note = elongation_note(*loaded.original_size)
+    if note:
+        print(f"outcast: warning: {note}", file=sys.stderr)
     if session.depth_source.startswith("ground-plane prior"):  # said even with -q
         folder = session.registry.directory_for("depth")
         print(f"outcast: warning: no depth model in '{folder}': the depth is a flat ground "
@@ -188,10 +206,8 @@ def cmd_relight(args: argparse.Namespace) -> int:
 
     w_from = parse_azel(args.from_sun)
     w_to = parse_azel(args.to_sun)
-    from outcast_core.runtime.io.imageio import read_image
-
-    bit_depth = 16 if Path(args.output).suffix.lower() in {".tif", ".tiff"} else 8
-    loaded = read_image(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit end to end
+    loaded = _load(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit end to end
+    bit_depth = _output_bits(args.output, loaded)
     session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
     _set_image(session, loaded, args)
     session.set_original_sun(w_from)
@@ -222,7 +238,7 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     _set_image(session, loaded, args)
     session.set_original_sun(w_from)
     out = session.deshadow_full()
-    bit_depth = 16 if Path(args.output).suffix.lower() in {".tif", ".tiff"} else 8
+    bit_depth = _output_bits(args.output, loaded)
     write_image(args.output, out, bit_depth=bit_depth, force=args.force,
                 exif=loaded.exif_bytes)
     if args.mask:  # where the shadows were found, at the photo's size

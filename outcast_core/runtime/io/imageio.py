@@ -110,6 +110,7 @@ class LoadedImage:
             for copying into an output file; ``None`` when the file had no EXIF.
         format: Pillow's format name (``"JPEG"``, ``"PNG"``, ...).
         bit_depth: bits per sample in the file (8 or 16; 32 for float TIFF).
+        has_alpha: the file has transparency (composited on white: a relit photo has none).
     """
 
     image_srgb: np.ndarray
@@ -119,6 +120,7 @@ class LoadedImage:
     exif_bytes: bytes | None = None
     format: str = ""
     bit_depth: int = 8
+    has_alpha: bool = False
 
     @property
     def size(self) -> tuple[int, int]:
@@ -174,6 +176,7 @@ def read_image(
             meta = metadata_from_exif(exif)
             target = _fit_size(stored_w, stored_h, max_pixels)
             bits = _bits_per_sample(im, path)
+            alpha = im.mode in ("RGBA", "LA", "PA", "La", "RGBa") or "transparency" in im.info
             if bits > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I;16N", "I", "F"):
                 image = _decode_cv2(path, target)
             else:
@@ -203,6 +206,7 @@ def read_image(
         exif_bytes=exif_bytes,
         format=fmt,
         bit_depth=bits,
+        has_alpha=alpha,
     )
 
 

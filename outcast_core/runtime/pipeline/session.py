@@ -120,6 +120,27 @@ def working_shape(height: int, width: int, longer_side: int) -> tuple[int, int]:
     return max(1, round(height * scale)), max(1, round(width * scale))
 
 
+#: Longer over shorter side beyond which a photo is said to be too elongated for the depth.
+MAX_ASPECT = 4.0
+
+
+def elongation_note(width: int, height: int) -> str:
+    """A warning for a photo much longer than it is wide (a panorama), else "": the depth
+    network sees the whole photo at its own small size, so a 4000 x 300 strip becomes a
+    handful of rows.
+
+    Example:
+        >>> elongation_note(4000, 300)[:40]
+        'the photo is 13.3:1 (4000 x 300): depth '
+    """
+    long, short = max(width, height), max(1, min(width, height))
+    if long / short <= MAX_ASPECT:
+        return ""
+    return (f"the photo is {long / short:.1f}:1 ({width} x {height}): depth and shadows are "
+            f"estimated on a strip only a few pixels {'high' if width > height else 'wide'}; "
+            "crop it to its part of interest for useful shadows")
+
+
 def resize(image: np.ndarray, shape: tuple[int, int], *, nearest: bool = False) -> np.ndarray:
     """Resize ``H x W [x C]`` to ``shape`` (area when shrinking, linear when enlarging)."""
     h, w = shape
@@ -1016,6 +1037,7 @@ __all__ = [
     "Preset",
     "RelightSession",
     "depth_for_display",
+    "elongation_note",
     "ground_plane_depth",
     "normals_for_display",
     "working_shape",

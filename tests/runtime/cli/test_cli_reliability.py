@@ -343,3 +343,23 @@ def test_relight_keeps_the_photos_exif(tmp_path) -> None:
         got = im.getexif()
         assert got[0x0132] == "2024:06:21 12:00:00"
         assert got.get_ifd(0x8825)[1] == "N"
+
+
+def test_sixteen_bit_png_stays_sixteen_bit_and_transparency_is_said(tmp_path, capsys) -> None:
+    import cv2
+
+    rng = np.random.default_rng(5)
+    deep = (rng.random((60, 80, 3)) * 65535).astype(np.uint16)
+    cv2.imwrite(str(tmp_path / "deep.png"), deep)
+    for cmd in (["relight", "--to", "200,40"], ["deshadow"]):
+        out = tmp_path / f"{cmd[0]}.png"
+        assert main([cmd[0], str(tmp_path / "deep.png"), "--from", "90,30", *cmd[1:], "-o",
+                     str(out), "--preset", "fast", "-q"]) == 0
+        assert cv2.imread(str(out), cv2.IMREAD_UNCHANGED).dtype == np.uint16, cmd[0]
+    rgba = np.dstack([deep[..., :3] // 257, np.full((60, 80), 255)]).astype(np.uint8)
+    rgba[:20, :20, 3] = 0
+    cv2.imwrite(str(tmp_path / "alpha.png"), rgba)
+    capsys.readouterr()
+    assert main(["relight", str(tmp_path / "alpha.png"), "--from", "90,30", "--to", "200,40",
+                 "-o", str(tmp_path / "a.png"), "--preset", "fast", "-q"]) == 0
+    assert "has transparency; it is filled with white" in capsys.readouterr().err
