@@ -455,6 +455,7 @@ class MainWindow(QMainWindow):
             self.relight_panel if step is Step.RELIGHT else self.align_panel
         )
         self.align_panel.setEnabled(has_photo)
+        self.align_panel.footer.setEnabled(has_photo)  # below the panel, not inside it
         for act in (self.act_save, self.act_save_as, self.act_depth):
             act.setEnabled(has_photo)
         tips = {self.act_export: "Save the relit photo at full resolution (Ctrl+E)",

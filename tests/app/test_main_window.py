@@ -60,6 +60,21 @@ def _confirm(window, settle):
     assert window.step is Step.RELIGHT
 
 
+def test_step_buttons_stay_in_view_and_follow_the_step(window, photo, settle):
+    """Confirm sun (step 1) and Export / Time-lapse (step 2) sit below the scrolling panel:
+    in view on a small screen, greyed out with no photo, switched with the step."""
+    ap, rp = window.align_panel, window.relight_panel
+    assert not ap.confirm_button.isEnabled()  # no photo yet
+    window.resize(1024, 560)
+    _load(window, photo, settle)
+    assert ap.confirm_button.isEnabled() and ap.confirm_button.isVisible()
+    assert not ap.confirm_button.visibleRegion().isEmpty()
+    assert not rp.export_button.isVisible()
+    _confirm(window, settle)
+    assert rp.export_button.isVisible() and not ap.confirm_button.isVisible()
+    assert "First confirm" not in window.act_export.toolTip()
+
+
 def test_load_photo(window, photo, settle, errors):
     _load(window, photo, settle)
     assert errors == []
