@@ -37,8 +37,10 @@ def _one_line(exc: BaseException) -> str:
         if not exc.filename:
             return exc.strerror
         path = Path(os.fsdecode(exc.filename))
-        if path.name.startswith(".") and ".part" in path.name:
-            return f"{exc.strerror}: cannot write in the folder '{path.parent}'"
+        temp = next((i for i, part in enumerate(path.parts)
+                     if part.startswith(".") and ".part" in part), None)
+        if temp is not None:  # a temporary file, or a file in a temporary folder
+            return f"{exc.strerror}: cannot write in the folder '{Path(*path.parts[:temp])}'"
         return f"{exc.strerror}: '{path}'"
     text = str(exc).strip().splitlines()
     return text[0] if text else type(exc).__name__

@@ -172,7 +172,8 @@ class MainWindow(QMainWindow):
         self.step = Step.EMPTY
         self.original_sun: Sun | None = None
         self.timelapse_settings = TimelapseSettings()
-        #: A compass heading typed in step 1 for a photo whose EXIF has none (None: unknown).
+        #: A compass heading typed in step 1 (None: unknown, or the EXIF's when it records one,
+        #: which a typed heading replaces).
         self.user_heading: float | None = None
         #: The loaded photo's camera ``(pitch, roll, source)`` (auto_sun.camera_tilt).
         self.camera_tilt: tuple[float, float, str] = LEVEL_TILT
@@ -791,8 +792,8 @@ class MainWindow(QMainWindow):
         return f"{shadow} · {relight} · depth: {short}"
 
     def exif_sun(self) -> tuple[float, float] | None:
-        """The photo's sun relative to the camera from EXIF GPS, time and compass heading (or
-        the heading typed in step 1 when the EXIF has none), in the camera's frame (its pitch
+        """The photo's sun relative to the camera from EXIF GPS, time and compass heading (the
+        heading typed in step 1 replaces the EXIF's), in the camera's frame (its pitch
         and roll: :attr:`camera_tilt`)."""
         from outcast_core.runtime.pipeline.timelapse import exif_sun
 
@@ -945,9 +946,11 @@ class MainWindow(QMainWindow):
         if not notice and prior is not None and prior.azimuth is not None:
             off = abs((fit.azimuth - prior.azimuth + 180.0) % 360.0 - 180.0)
             if off > 45.0:
-                notice = (f"The photo's shadows put the sun {off:.0f}° away from where the EXIF "
-                          "compass heading puts it: the heading may be wrong (\"Sun from "
-                          "photo's EXIF\" puts the sun there).")
+                whose = ("the heading you typed" if self.user_heading is not None
+                         else "the EXIF compass heading")
+                notice = (f"The photo's shadows put the sun {off:.0f}° away from where {whose} "
+                          "puts it: the heading may be wrong (\"Sun from photo's EXIF\" puts "
+                          "the sun there; correct the camera heading below).")
         # The load's warning (the depth source) stays under what the search says.
         self.align_panel.show_notice("\n\n".join(t for t in (notice, self._load_notice) if t))
 
@@ -958,7 +961,8 @@ class MainWindow(QMainWindow):
         self.align_panel.sun_panel.set_sun(*sun)
         self.request_shadow(*sun, preview=False)
         self._record(text="Sun from EXIF")
-        magnetic = getattr(getattr(self.loaded, "exif", None), "heading_ref", None) == "M"
+        magnetic = self.user_heading is None and getattr(
+            getattr(self.loaded, "exif", None), "heading_ref", None) == "M"  # the EXIF's
         note = "; the heading is magnetic, so allow for the local declination" if magnetic else ""
         tilt = self.tilt_note()
         self.stage_label.setText(
@@ -1285,12 +1289,16 @@ class MainWindow(QMainWindow):
             self.export_still(path, force=True)
 
     def export_still(self, path: str, force: bool = False) -> int | None:
-        """Relight at full resolution and write PNG, JPEG or 16-bit TIFF (atomic)."""
+        """Relight at full resolution and write PNG, JPEG or 16-bit TIFF (atomic); a PNG of a
+        16-bit photo is 16-bit too."""
+        from outcast_core.runtime.io.imageio import output_bit_depth
+
         session = self.session
         if session is None or self.step is not Step.RELIGHT:
             return None
         w = sun_vector(*self.relight_panel.sun_panel.sun())
-        dtype = np.float32 if Path(path).suffix.lower() in {".tif", ".tiff"} else np.uint8
+        bits = output_bit_depth(path, getattr(self.loaded, "bit_depth", 8))
+        dtype = np.float32 if bits == 16 else np.uint8
         return self._export_image(
             "export_still", path, force, lambda: session.relight_full(w, dtype=dtype),
             "relighting at full resolution",
@@ -1324,7 +1332,9 @@ class MainWindow(QMainWindow):
     ) -> int | None:
         """Render one full-resolution image in the worker and write it atomically.
 
-        PNG and JPEG keep the photo's EXIF; ``.tif`` is 16-bit. Without ``force`` an existing
+        PNG and JPEG keep the photo's EXIF; ``.tif``, and a PNG of a 16-bit photo, are 16-bit
+        (without EXIF: :func:`~outcast_core.runtime.io.imageio.output_bit_depth`). Without
+        ``force`` an existing
         file is refused (here at once, and again by the writer).
 
         Args:
@@ -1343,17 +1353,14 @@ class MainWindow(QMainWindow):
             return None
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            from outcast_core.runtime.io.imageio import write_image
+            from outcast_core.runtime.io.imageio import output_bit_depth, write_image
 
             ctx.progress(stage, 0.1)
             img = render()
             ctx.progress("writing", 0.8)
-            suffix = Path(path).suffix.lower()
-            sixteen = suffix in (".tif", ".tiff")
-            exif = None if sixteen else getattr(loaded, "exif_bytes", None)
-            write_image(
-                path, img, bit_depth=16 if sixteen else 8, force=force, quality=95, exif=exif
-            )
+            bits = output_bit_depth(path, getattr(loaded, "bit_depth", 8))
+            exif = None if bits == 16 else getattr(loaded, "exif_bytes", None)
+            write_image(path, img, bit_depth=bits, force=force, quality=95, exif=exif)
             return {"path": path, "timings": _timings(session)}
 
         return self.runner.submit(channel, job, f"Exporting {os.path.basename(path)}")

@@ -172,8 +172,8 @@ class ProjectState:
     split: float = 0.5
     buffer_view: str = "output"
     timelapse: TimelapseSettings = field(default_factory=TimelapseSettings)
-    #: The camera's compass heading typed in step 1 (degrees from true north), for a photo whose
-    #: EXIF has none; None when not typed.
+    #: The camera's compass heading typed in step 1 (degrees from true north); it replaces the
+    #: one the photo's EXIF records, if any. None when not typed.
     heading: float | None = None
 
     @property

@@ -12,6 +12,9 @@ def test_os_errors_read_as_plain_words_and_never_name_a_temporary_file() -> None
     assert msg.what == "Permission denied: cannot write in the folder '/photos'"
     assert "Errno" not in msg.text() and ".part" not in msg.text()
     assert "folder you can write to" in msg.todo
+    frames = OSError(28, "No space left on device", "/photos/.day.part-x1/frame_0007.png")
+    assert message_for(frames, "export").what == ("No space left on device: cannot write in "
+                                                  "the folder '/photos'")
     plain = message_for(FileNotFoundError(2, "No such file or directory", "/x/p.jpg"), "open")
     assert plain.what == "No such file or directory: '/x/p.jpg'"
     assert message_for(ValueError("expected a photo\nmore"), "open").what == "expected a photo"

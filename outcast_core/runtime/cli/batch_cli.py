@@ -27,7 +27,9 @@ from outcast_core.runtime.cli.timelapse_cli import (
 )
 from outcast_core.runtime.pipeline.batch import (
     FORMATS,
+    RECORD_NAME,
     SUN_SOURCES,
+    BatchJob,
     BatchOptions,
     JobResult,
     plan_batch,
@@ -169,13 +171,25 @@ def run_batch_command(args: argparse.Namespace) -> int:
     count = 0
     t0 = time.perf_counter()
 
-    settings = {job.output: job for job in jobs}
+    # The record of each output's settings: a rerun skips an output only when it was made with
+    # the same ones. New outputs are recorded before the work (written atomically, one that
+    # exists is finished), redone ones (--force) as they finish.
+    redone = {job.output: job for job in jobs if Path(job.output).exists()}
+
+    def record(done: list[BatchJob]) -> None:
+        try:
+            record_done(out_dir, done)
+        except OSError as exc:  # the outputs matter more than the record
+            print(f"outcast batch: warning: cannot update {RECORD_NAME}: "
+                  f"{exc.strerror or exc}", file=sys.stderr)
+
+    record([job for job in jobs if job.output not in redone])
 
     def show(r: JobResult) -> None:
         nonlocal count
         count += 1
-        if r.status == "done" and r.output in settings:
-            record_done(out_dir, settings[r.output])  # a rerun skips it only with these settings
+        if r.status == "done" and r.output in redone:
+            record([redone[r.output]])
         if r.status == "failed" or not args.quiet:
             print(_line(r, count, total), file=sys.stderr, flush=True)
 

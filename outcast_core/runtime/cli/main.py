@@ -111,15 +111,6 @@ def _load(path: str, max_pixels: int | None = None, **kw):  # -> LoadedImage
     return loaded
 
 
-def _output_bits(output: str, loaded) -> int:
-    """Bits per sample of an output image: 16 for TIFF, and for a PNG made from a 16-bit
-    photo (8 bits would throw away the photo's own precision); else 8."""
-    suffix = Path(output).suffix.lower()
-    if suffix in {".tif", ".tiff"} or (suffix == ".png" and loaded.bit_depth > 8):
-        return 16
-    return 8
-
-
 def _make_session(args: argparse.Namespace, *, shadow_mode: str, relight_mode: str = "auto"):
     from outcast_core.runtime.pipeline.session import RelightSession
 
@@ -202,12 +193,12 @@ def cmd_shadow(args: argparse.Namespace) -> int:
 
 
 def cmd_relight(args: argparse.Namespace) -> int:
-    from outcast_core.runtime.io.imageio import write_image
+    from outcast_core.runtime.io.imageio import output_bit_depth, write_image
 
     w_from = parse_azel(args.from_sun)
     w_to = parse_azel(args.to_sun)
     loaded = _load(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit end to end
-    bit_depth = _output_bits(args.output, loaded)
+    bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
     _set_image(session, loaded, args)
     session.set_original_sun(w_from)
@@ -226,7 +217,7 @@ def cmd_relight(args: argparse.Namespace) -> int:
 def cmd_deshadow(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from outcast_core.runtime.io.imageio import write_image, write_shadow_png
+    from outcast_core.runtime.io.imageio import output_bit_depth, write_image, write_shadow_png
     from outcast_core.runtime.pipeline.session import resize
 
     w_from = parse_azel(args.from_sun)
@@ -238,9 +229,9 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     _set_image(session, loaded, args)
     session.set_original_sun(w_from)
     out = session.deshadow_full()
-    bit_depth = _output_bits(args.output, loaded)
+    bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     write_image(args.output, out, bit_depth=bit_depth, force=args.force,
-                exif=loaded.exif_bytes)
+                exif=loaded.exif_bytes if bit_depth == 8 else None)  # 16 bits carry none
     if args.mask:  # where the shadows were found, at the photo's size
         prob = session.found_shadows_detail()["probability"]
         full_hw = session.full_image_srgb.shape[:2]

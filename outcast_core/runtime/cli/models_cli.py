@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -96,9 +97,10 @@ def run_models_command(args: argparse.Namespace) -> int:
                           "models": rows}, indent=2))
     else:
         print("search path: " + " -> ".join(str(p) for p in registry.search_path))
-        for folder in registry.search_path:
-            if not folder.is_dir():
-                print(f"note: {folder} is not a folder", file=sys.stderr)
+        if args.dir or os.environ.get("OUTCAST_MODEL_DIR"):  # one folder the user named
+            for folder in registry.search_path:
+                if not folder.is_dir():
+                    print(f"note: {folder} is not a folder", file=sys.stderr)
         for r in rows:
             where = r["file"] or r["folder"]
             extra = f" ({r['message']})" if r["message"] else ""

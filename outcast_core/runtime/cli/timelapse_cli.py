@@ -262,11 +262,13 @@ def check_timelapse_output(args: argparse.Namespace) -> None:
 
 def run_timelapse_command(args: argparse.Namespace) -> int:
     """Handler of ``outcast timelapse``; returns the process exit code."""
-    from outcast_core.runtime.io.imageio import read_image
-    from outcast_core.runtime.pipeline.session import RelightSession
+    from outcast_core.runtime.cli.main import _load
+    from outcast_core.runtime.pipeline.session import RelightSession, elongation_note
 
     check_timelapse_output(args)  # before the slow part
-    loaded = read_image(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit (no float copy)
+    loaded = _load(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit (no float copy)
+    if elongation_note(*loaded.original_size):
+        print(f"outcast: warning: {elongation_note(*loaded.original_size)}", file=sys.stderr)
     exif = getattr(loaded, "exif", None)
     _check_sample_args(args, exif)  # before the slow part
     session = RelightSession(preset=args.preset)

@@ -110,7 +110,8 @@ class LoadedImage:
             for copying into an output file; ``None`` when the file had no EXIF.
         format: Pillow's format name (``"JPEG"``, ``"PNG"``, ...).
         bit_depth: bits per sample in the file (8 or 16; 32 for float TIFF).
-        has_alpha: the file has transparency (composited on white: a relit photo has none).
+        has_alpha: some pixel of the file is not fully opaque (composited on white: a relit
+            photo has no transparency).
     """
 
     image_srgb: np.ndarray
@@ -176,7 +177,7 @@ def read_image(
             meta = metadata_from_exif(exif)
             target = _fit_size(stored_w, stored_h, max_pixels)
             bits = _bits_per_sample(im, path)
-            alpha = im.mode in ("RGBA", "LA", "PA", "La", "RGBa") or "transparency" in im.info
+            alpha = _has_transparency(im)
             if bits > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I;16N", "I", "F"):
                 image = _decode_cv2(path, target)
             else:
@@ -443,6 +444,16 @@ def _srgb_profile() -> ImageCms.ImageCmsProfile:
     return ImageCms.ImageCmsProfile(ImageCms.createProfile("sRGB"))
 
 
+def _has_transparency(im: Image.Image) -> bool:
+    """Whether a pixel of ``im`` is not fully opaque where the decoder composites it on white
+    (an alpha channel, or a palette's transparent entry; an opaque RGBA export is not)."""
+    if im.mode in ("RGBA", "LA", "PA", "La", "RGBa"):
+        return im.getchannel("A").getextrema()[0] < 255
+    if im.mode == "P" and "transparency" in im.info:
+        return im.convert("RGBA").getchannel("A").getextrema()[0] < 255
+    return False
+
+
 def _composite_on_white(im: Image.Image) -> Image.Image:
     rgba = im.convert("RGBA")
     white = Image.new("RGBA", rgba.size, (255, 255, 255, 255))
@@ -587,6 +598,19 @@ def _umask() -> int:
     except (OSError, ValueError):
         pass
     return 0o022
+
+
+def output_bit_depth(path: str | os.PathLike[str], source_bits: int = 8) -> int:
+    """Bits per sample to write an image made from a photo of ``source_bits``: 16 for TIFF,
+    and for a PNG made from a 16-bit photo (8 bits would throw away its precision); else 8.
+    16-bit files carry no EXIF (:func:`write_image`).
+
+    Example:
+        >>> output_bit_depth("a.tif"), output_bit_depth("a.png", 16), output_bit_depth("a.png")
+        (16, 16, 8)
+    """
+    suffix = Path(path).suffix.lower()
+    return 16 if suffix in (".tif", ".tiff") or (suffix == ".png" and source_bits > 8) else 8
 
 
 def write_image(

@@ -31,7 +31,7 @@ import signal
 import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -303,12 +303,56 @@ def plan_batch(
     return jobs, results
 
 
+#: :func:`job_settings`: the options each kind of batch reads (the rest cannot change its output).
+_KIND_OPTIONS = {
+    "relight": ("to_sun",),
+    "deshadow": (),
+    "timelapse": ("sweep", "day", "frames", "easing", "fps", "size"),
+}
+
+
+def _sun_key(sun: Any) -> Any:
+    """A sun as the record compares it: azimuth in [0, 360), both rounded (-90 and 270, -0.0
+    and 0.0 are one sun)."""
+    if sun is None:
+        return None
+    az, el = (float(v) for v in sun)
+    return [round(az % 360.0, 3) + 0.0, round(el, 3) + 0.0]
+
+
+def _file_key(path: Path | None) -> Any:
+    """A file as the record compares it: its absolute path, size and modification time."""
+    if path is None or not path.is_file():
+        return None
+    st = path.stat()
+    return [str(path.resolve()), st.st_size, st.st_mtime_ns]
+
+
 def job_settings(job: BatchJob, options: BatchOptions) -> str:
     """Everything that decides a job's output, as one string (compared, not parsed): the
-    batch options but ``force`` and ``threads``, the photo's name and the job's own suns."""
-    keys = {k: v for k, v in asdict(options).items() if k not in ("force", "threads")}
-    keys.update(image=Path(job.image).name, job_to_sun=job.to_sun, job_from_sun=job.from_sun)
-    return json.dumps(keys, sort_keys=True, default=list)
+    options its kind reads (suns normalised), the photo and its project file (path, size and
+    time: another photo of the same name, or an edited project, is not the same job) and the
+    job's own suns from a targets CSV."""
+    keys: dict[str, Any] = {
+        "kind": options.kind, "fmt": options.fmt, "preset": options.preset,
+        "mode": options.mode, "sources": list(options.sources),
+        "from_sun": _sun_key(options.from_sun),
+        "depth_model": _file_key(Path(options.depth_model).expanduser())
+        if options.depth_model else None,
+        "use_phone_depth": options.use_phone_depth,
+    }
+    for name in _KIND_OPTIONS[options.kind]:
+        value = getattr(options, name)
+        if name == "to_sun":
+            value = _sun_key(value)
+        elif name == "sweep" and value is not None:
+            value = [_sun_key(v) for v in value]
+        keys[name] = value
+    image = Path(job.image)
+    keys.update(photo=_file_key(image),
+                project=_file_key(image.with_name(image.stem + PROJECT_SUFFIX)),
+                job_to_sun=_sun_key(job.to_sun), job_from_sun=_sun_key(job.from_sun))
+    return json.dumps(keys, sort_keys=True)
 
 
 def read_record(out_dir: str | os.PathLike[str]) -> dict[str, str]:
@@ -324,13 +368,18 @@ def read_record(out_dir: str | os.PathLike[str]) -> dict[str, str]:
     return {str(k): v for k, v in data.items() if isinstance(v, str)}
 
 
-def record_done(out_dir: str | os.PathLike[str], job: BatchJob) -> None:
-    """Add a finished job to the output folder's record (replaced atomically, so an
-    interrupted batch leaves the record of what it finished)."""
+def record_done(out_dir: str | os.PathLike[str], jobs: Sequence[BatchJob]) -> None:
+    """Add jobs to the output folder's record (one write, replaced atomically). The batch
+    command records the jobs whose outputs are new before it runs them (an output is written
+    atomically, so an existing one is then finished and made with these settings, even when
+    the batch was stopped before it heard so), and a redone output when it is done."""
     from outcast_core.runtime.io.imageio import atomic_output
 
+    if not jobs:
+        return
     record = read_record(out_dir)
-    record[Path(job.output).name] = job.settings
+    for job in jobs:
+        record[Path(job.output).name] = job.settings
     with atomic_output(Path(out_dir) / RECORD_NAME, force=True) as tmp:
         tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
 
@@ -491,7 +540,12 @@ def run_job(job: BatchJob, options: BatchOptions) -> JobResult:
 def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
     from outcast_core.runtime.geometry.camera import sun_vector
     from outcast_core.runtime.io.depth_models import pick_depth_source
-    from outcast_core.runtime.io.imageio import read_depth, read_image, write_image
+    from outcast_core.runtime.io.imageio import (
+        output_bit_depth,
+        read_depth,
+        read_image,
+        write_image,
+    )
     from outcast_core.runtime.pipeline.session import RelightSession
 
     project_sun, project_target, depth_path = project_suns(job.image)
@@ -521,9 +575,9 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
         _render_timelapse(session, loaded, sun, job, options, tilt[:2])
     else:
         out = session.relight_full(sun_vector(*to_sun)) if to_sun else session.deshadow_full()
-        sixteen = options.fmt == "tif"
-        write_image(job.output, out, bit_depth=16 if sixteen else 8, force=options.force,
-                    exif=None if sixteen else loaded.exif_bytes)
+        bits = output_bit_depth(job.output, loaded.bit_depth)
+        write_image(job.output, out, bit_depth=bits, force=options.force,
+                    exif=None if bits == 16 else loaded.exif_bytes)
     result.details.update(shadows=session.shadow_mode, relighting=session.relight_mode,
                           depth=session.depth_source,
                           camera={"pitch": round(tilt[0], 2), "roll": round(tilt[1], 2),

@@ -640,11 +640,20 @@ class WebpWriter(_PillowAnimWriter):
 #: The files of a PNG sequence (:class:`PngSequenceWriter`); a folder holding anything else is
 #: never written into nor emptied.
 FRAME_FILE = re.compile(r"frame_\d{4,}\.png")
+#: Files a file manager leaves in a folder it showed; they neither block nor go.
+DESKTOP_FILES = frozenset({".DS_Store", "Thumbs.db", "desktop.ini", ".directory"})
+#: Prefix of the hidden folder a sequence is written to inside an existing output folder.
+PART_PREFIX = ".outcast-part-"
+
+
+def _frame_files(folder: Path) -> list[Path]:
+    return [p for p in folder.iterdir() if FRAME_FILE.fullmatch(p.name) and p.is_file()]
 
 
 def frames_folder_problem(path: str | os.PathLike[str]) -> str | None:
     """Why an existing folder cannot receive a PNG sequence, or None when it can (it does not
-    exist, is empty, or holds only earlier ``frame_NNNN.png`` files, which ``force`` replaces).
+    exist, is empty, or holds only earlier ``frame_NNNN.png`` files, which ``force`` replaces;
+    a file manager's own files (:data:`DESKTOP_FILES`) are ignored and left).
 
     A folder with any other file or folder in it is refused even with ``force``: replacing the
     sequence must never delete what the user keeps there (``-o . --force`` once emptied the
@@ -653,7 +662,8 @@ def frames_folder_problem(path: str | os.PathLike[str]) -> str | None:
     if not folder.is_dir():
         return None
     others = sorted(p.name for p in folder.iterdir()
-                    if not (FRAME_FILE.fullmatch(p.name) and p.is_file()))
+                    if not (FRAME_FILE.fullmatch(p.name) and p.is_file())
+                    and p.name not in DESKTOP_FILES and not p.name.startswith(PART_PREFIX))
     if not others:
         return None
     listed = ", ".join(others[:3]) + (", ..." if len(others) > 3 else "")
@@ -664,52 +674,67 @@ def frames_folder_problem(path: str | os.PathLike[str]) -> str | None:
 class PngSequenceWriter(FrameWriter):
     """A folder of ``frame_0001.png`` ... written to a temp folder and moved in when complete.
 
-    The output folder may already exist when it is empty or holds only an earlier sequence
-    (replaced with ``force``: its ``frame_*.png`` files are removed, nothing else); a folder
-    with other files in it is refused (:func:`frames_folder_problem`)."""
+    A new folder is written as a hidden temp folder beside it and renamed. An existing folder
+    may be empty or hold only an earlier sequence (replaced with ``force``); the frames are then
+    written to a hidden temp folder inside it (the same file system, so the moves cannot fail
+    half-way for a mount point or a link to another disk), moved in, and only then are the
+    earlier sequence's surplus ``frame_*.png`` removed: nothing else in the folder is touched
+    (:func:`frames_folder_problem` refuses a folder with other files)."""
 
     def __init__(self, path, fps=DEFAULT_FPS, force=False):
         path = Path(path).absolute()  # "." has no name for the temp folder
         problem = frames_folder_problem(path)
         if problem:
             raise FileExistsError(problem)
-        # An empty folder is a new one: nothing in it can be overwritten.
-        empty = path.is_dir() and not any(path.iterdir())
-        super().__init__(path, fps=fps, force=force or empty)
+        # An existing folder is checked here and again at commit (frames, not its existence).
+        super().__init__(path, fps=fps, force=force or path.is_dir())
+        self.force = bool(force)
+        if path.is_dir() and _frame_files(path) and not self.force:
+            raise FileExistsError(f"{path} already holds a sequence; choose another name or force")
 
     def write(self, frame: np.ndarray) -> None:
         from PIL import Image
 
         img = to_uint8(frame)
         if self._tmp is None:
-            self._tmp = Path(
-                tempfile.mkdtemp(prefix=f".{self.path.name}.part-", dir=self.path.parent)
-            )
+            if self.path.is_dir():
+                self._tmp = Path(tempfile.mkdtemp(prefix=PART_PREFIX, dir=self.path))
+            else:
+                self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.part-",
+                                                  dir=self.path.parent))
         Image.fromarray(img, "RGB").save(self._tmp / f"frame_{self.frames_written + 1:04d}.png")
         self.frames_written += 1
 
     def commit(self) -> Path:
         if self._tmp is None:
             raise RuntimeError("no frames were written")
-        if self.path.exists() and not self.path.is_dir():  # a file where the folder goes
-            if not self.force:
+        inside = self._tmp.parent == self.path
+        if not inside and self.path.exists():
+            if self.path.is_dir() or not self.force:  # appeared meanwhile, or a file
                 self.abort()
-                raise FileExistsError(f"{self.path} already exists; choose another name or force")
-            self.path.unlink()
-        problem = frames_folder_problem(self.path)  # files may have appeared meanwhile
-        if problem or (self.path.is_dir() and any(self.path.iterdir()) and not self.force):
-            self.abort()
-            raise FileExistsError(problem or f"{self.path} already exists; choose another name "
-                                  "or force")
-        if not self.path.is_dir():
+                raise FileExistsError(f"{self.path} already exists; choose another name or "
+                                      "force")
+            self.path.unlink()  # a file where the folder goes, with force
+        if not inside:
             _follow_umask(self._tmp, folder=True)
             os.rename(self._tmp, self.path)
-        else:  # an empty folder or an earlier sequence: only frame files go, and come
-            for old in self.path.iterdir():
-                old.unlink()
-            for new in sorted(self._tmp.iterdir()):
-                os.replace(new, self.path / new.name)
-            self._tmp.rmdir()
+            self._tmp = None
+            return self.path
+        problem = frames_folder_problem(self.path)  # files may have appeared meanwhile
+        old = _frame_files(self.path)
+        if problem or (old and not self.force):
+            self.abort()
+            raise FileExistsError(problem or f"{self.path} already holds a sequence; choose "
+                                  "another name or force")
+        new = sorted(self._tmp.iterdir())
+        for f in new:  # the same file system: renames, each replacing its namesake
+            _follow_umask(f)
+            os.replace(f, self.path / f.name)
+        names = {f.name for f in new}
+        for f in old:
+            if f.name not in names:
+                f.unlink(missing_ok=True)
+        self._tmp.rmdir()
         self._tmp = None
         return self.path
 

@@ -363,3 +363,8 @@ def test_sixteen_bit_png_stays_sixteen_bit_and_transparency_is_said(tmp_path, ca
     assert main(["relight", str(tmp_path / "alpha.png"), "--from", "90,30", "--to", "200,40",
                  "-o", str(tmp_path / "a.png"), "--preset", "fast", "-q"]) == 0
     assert "has transparency; it is filled with white" in capsys.readouterr().err
+    rgba[..., 3] = 255  # an opaque RGBA export: nothing to say
+    cv2.imwrite(str(tmp_path / "opaque.png"), rgba)
+    assert main(["relight", str(tmp_path / "opaque.png"), "--from", "90,30", "--to", "200,40",
+                 "-o", str(tmp_path / "o.png"), "--preset", "fast", "-q"]) == 0
+    assert "transparency" not in capsys.readouterr().err

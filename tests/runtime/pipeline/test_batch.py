@@ -86,22 +86,23 @@ def test_folder_with_a_corrupt_photo_is_done_and_resumable(
     assert "Traceback" not in err
 
     before = _mtimes(out)
+    del before[RECORD_NAME]  # the record may be rewritten; the outputs may not
     assert main(args) == 2  # resumed: the finished photos are skipped
     err = capsys.readouterr().err
     assert "0 done, 9 skipped (already done), 1 failed" in err
-    assert _mtimes(out) == before
+    assert {k: v for k, v in _mtimes(out).items() if k != RECORD_NAME} == before
 
     _photo(folder / "p9.jpg", 9)  # the photo is fixed: only it is done
     assert main(args) == 0
     assert "1 done, 9 skipped (already done), 0 failed" in capsys.readouterr().err
     after = {k: v for k, v in _mtimes(out).items() if k not in ("p9.jpg", RECORD_NAME)}
-    assert after == {k: v for k, v in before.items() if k != RECORD_NAME}
+    assert after == before
     hidden = [p.name for p in out.iterdir() if p.name.startswith(".")]
     assert hidden == [RECORD_NAME]  # no partial files
 
     assert main([*args, "--force", "--workers", "1", "-q"]) == 0  # --force redoes them all
     assert capsys.readouterr().err == ""
-    assert all(_mtimes(out)[k] != v for k, v in before.items() if k != RECORD_NAME)
+    assert all(_mtimes(out)[k] != v for k, v in before.items())
 
 
 def test_a_rerun_with_other_settings_keeps_the_outputs_and_says_so(
@@ -258,6 +259,29 @@ def test_command_errors(tmp_path: Path, folder: Path, capsys: pytest.CaptureFixt
     with pytest.raises(SystemExit) as stop:
         main(["batch", str(folder), "-o", str(tmp_path / "o"), "--to", "10,-5"])
     assert stop.value.code == 2 and "horizon" in capsys.readouterr().err
+
+
+def test_job_settings_name_what_decides_an_output(tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    from outcast_core.runtime.pipeline.batch import job_settings
+
+    photo = _photo(tmp_path / "p.jpg", 0)
+    job = BatchJob(str(photo), str(tmp_path / "out" / "p.jpg"))
+    relight = BatchOptions(kind="relight", to_sun=(-90.0, 30.0), from_sun=(200.0, 40.0))
+    key = job_settings(job, relight)
+    assert key == job_settings(job, replace(relight, to_sun=(270.0, 30.0)))  # the same sun
+    assert key == job_settings(job, replace(relight, frames=12, force=True, threads=3))
+    assert key != job_settings(job, replace(relight, to_sun=(90.0, 30.0)))
+    assert key != job_settings(job, replace(relight, preset="fast"))
+    (tmp_path / "other").mkdir()
+    other = _photo(tmp_path / "other" / "p.jpg", 1)  # another photo of the same name
+    assert key != job_settings(replace(job, image=str(other)), relight)
+    _photo(photo, 2)  # the photo itself changed
+    os.utime(photo, ns=(1, 1))
+    assert key != job_settings(job, relight)
+    deshadow = BatchOptions(kind="deshadow", from_sun=(200.0, 40.0))
+    assert job_settings(job, deshadow) == job_settings(job, replace(deshadow, to_sun=(1.0, 2.0)))
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")

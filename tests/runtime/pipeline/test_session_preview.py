@@ -202,7 +202,7 @@ def test_relit_to_its_own_sun_the_photo_comes_back(scene, mode) -> None:
     assert np.abs(far - s.image_srgb).mean() > changes[1]
 
 
-def test_far_suns_are_relit_from_the_geometry_alone(scene) -> None:
+def test_the_original_share_fades_out_at_the_fade_angle() -> None:
     """Past ``ORIGINAL_FADE_DEG`` nothing of the photo's own state is mixed in."""
     from outcast_core.runtime.pipeline.relight import ORIGINAL_FADE_DEG, original_share
 

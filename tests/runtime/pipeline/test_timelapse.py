@@ -242,6 +242,23 @@ def test_png_sequence_replaces_only_its_own_frames(tmp_path, monkeypatch):
     assert drawn == [] and sorted(p.name for p in work.iterdir()) == ["precious.txt"]
 
 
+def test_png_sequence_keeps_the_old_frames_when_a_file_appears_meanwhile(tmp_path):
+    out = tmp_path / "frames"
+    tl.export_frames(lambda i: _frame(i), 3, out)
+    (out / ".DS_Store").write_text("a file manager's")  # ignored, and left
+
+    def render(i):
+        if i == 1:  # the user saves a file into the folder while the frames render
+            (out / "notes.txt").write_text("keep")
+        return _frame(i)
+
+    with pytest.raises(FileExistsError, match="notes.txt"):
+        tl.export_frames(render, 2, out, force=True)
+    names = sorted(p.name for p in out.iterdir())
+    assert names == [".DS_Store", "frame_0001.png", "frame_0002.png", "frame_0003.png",
+                     "notes.txt"]  # no temp folder, nothing lost
+
+
 def test_png_sequence_into_an_empty_folder(tmp_path, monkeypatch):
     out = tmp_path / "empty"
     out.mkdir()
