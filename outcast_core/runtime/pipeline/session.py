@@ -748,6 +748,9 @@ class RelightSession:
         working-size photo (:func:`~outcast_core.runtime.geometry.fullres.apply_gain`)."""
         t0 = time.perf_counter()
         st = self._relight_preview_state()
+        share = original_share(self.original_sun, wv)
+        if share >= 1.0:  # the photo's own sun: the photo, nothing to compute
+            return st["working_u8"].astype(np.float32) * np.float32(1.0 / 255.0)
         if self.shadow_mode == "learned":
             out = self.registry.load("shadow", threads=PREVIEW_THREADS).run({**st["feeds_s"],
                                                     "sun": wv.astype(np.float32)[None]})
@@ -759,7 +762,6 @@ class RelightSession:
                 steps=int(math.ceil(1.0 / step)), step=step, thickness=self.thickness,
                 sampler=st["sampler"],
             )
-        share = original_share(self.original_sun, wv)
         s_new = shadow_toward_original(s_new.astype(np.float32), st["shadow_old"],
                                        st["geometry_old"], share)
         t1 = time.perf_counter()
@@ -811,6 +813,8 @@ class RelightSession:
         (:func:`~outcast_core.runtime.pipeline.relight.original_share`)."""
         image, s_o, w_o = inp["image"], inp["original_shadow"], inp["original_sun"]
         share = original_share(w_o, wv)
+        if share >= 1.0:  # the photo's own sun: the photo, no network runs
+            return np.array(image, np.float32)
         s_new = shadow_toward_original(s_new, s_o, inp["original_geometry"], share)
         if self.relight_mode == "learned":
             model = self.registry.load("relight", threads=threads)
