@@ -79,7 +79,7 @@ from app.state import (
     save_project,
 )
 from app.workers import JobContext, TaskRunner
-from outcast_core.runtime.geometry.camera import cosine_term, sun_vector
+from outcast_core.runtime.geometry.camera import cosine_term, sun_angles, sun_vector
 from outcast_core.runtime.io.models import ModelError
 from outcast_core.runtime.pipeline.session import elongation_note
 
@@ -649,7 +649,7 @@ class MainWindow(QMainWindow):
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.io.depth_models import pick_depth_source
             from outcast_core.runtime.io.imageio import read_depth, read_image
-            from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
+            from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt, sun_in_photo
             from outcast_core.runtime.pipeline.session import RelightSession
 
             ctx.progress("reading", 0.02)
@@ -671,9 +671,11 @@ class MainWindow(QMainWindow):
             # The camera's pitch and roll (its metadata's, else the ground plane's): the frame
             # in which the EXIF sun and the real sun path are given.
             tilt = photo_camera_tilt(session, path)
+            # The sun itself in the frame: the dial starts there (a few ms).
+            seen = sun_in_photo(session.image_srgb, session.sky, session.camera)
             photo = display.to_uint8_rgb(loaded.image_srgb)
             return {"path": path, "loaded": loaded, "session": session, "photo": photo,
-                    "depth_path": depth_path, "depth_note": note, "tilt": tilt}
+                    "depth_path": depth_path, "depth_note": note, "tilt": tilt, "seen": seen}
 
         self._pending_project = project
         self._pending_restore = restore
@@ -739,15 +741,20 @@ class MainWindow(QMainWindow):
             self.align_panel.sun_panel.dial.set_heat_map(None)
         self._update_exif_controls()
         self._set_step(Step.ALIGN)
-        exif_sun = None
+        exif_sun = seen_sun = None
         if restore is None:  # another photo: nothing of the previous one stays on screen
             self.timings = StageTimings()
             self.timings_label.setText("")
             self.timings_label.setToolTip("How long each stage took, last run")
             self.relight_panel.sun_panel.dial.set_reference(None)
             if project is None:
-                exif_sun = self.exif_sun()
-                self.align_panel.sun_panel.set_sun(*(exif_sun or DEFAULT_SUN))
+                seen = result.get("seen")
+                if seen is not None:  # exact, whatever the compass says
+                    az, el = sun_angles(seen.w)
+                    seen_sun = (az, dm.clamp_elevation(el))
+                else:
+                    exif_sun = self.exif_sun()
+                self.align_panel.sun_panel.set_sun(*(seen_sun or exif_sun or DEFAULT_SUN))
                 self.relight_panel.sun_panel.set_sun(*DEFAULT_SUN)
         self._applying_edit = True
         try:
@@ -762,6 +769,9 @@ class MainWindow(QMainWindow):
         finally:
             self._applying_edit = False
         opened = f"Opened {os.path.basename(self.image_path)}"
+        if seen_sun is not None:
+            opened += (f" · the sun is in the frame: azimuth {seen_sun[0]:.1f}°, elevation "
+                       f"{seen_sun[1]:.1f}°")
         if exif_sun is not None:
             tilt = self.tilt_note()
             opened += (

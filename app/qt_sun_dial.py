@@ -495,7 +495,9 @@ class SunDialPanel(QWidget):
             box.setKeyboardTracking(False)
             box.setAccelerated(True)
         self.shadow_label = QLabel(self)
-        self.shadow_label.setToolTip("Length of the shadow of an upright pole on flat ground")
+        self.shadow_label.setWordWrap(True)  # "· in the frame" must not widen the panel
+        self.shadow_label.setToolTip("Where the sun is, and the length of the shadow of an "
+                                     "upright pole on flat ground")
 
         grid = QGridLayout()
         grid.addWidget(QLabel("Azimuth", self), 0, 0)

@@ -250,9 +250,10 @@ def test_find_sun_gets_the_camera_pose_from_the_photo(window, settle, monkeypatc
 
 
 def test_the_camera_tilt_follows_the_photo_and_the_preset(window, settle):
-    """The ski slope's ground plane tilts the camera: the dials shade under its horizon and the
-    EXIF sun is in its frame; a preset change refits the plane (the depth's working size
-    changes); the next photo without a plane or pose is level again."""
+    """The ski slope shows its sun: with the EXIF's elevation it gives the camera's pitch, the
+    dials shade under that horizon and the EXIF sun is in that frame. The field path's tilt is
+    its ground plane's, refitted when a preset changes the depth's working size. The pool,
+    with neither, is level."""
     from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
     from outcast_core.runtime.pipeline.timelapse import exif_sun
 
@@ -260,18 +261,21 @@ def test_the_camera_tilt_follows_the_photo_and_the_preset(window, settle):
     window.open_path(ski)
     settle()
     pitch, roll, source = window.camera_tilt
-    assert source == "ground plane" and pitch < -3.0 and roll > 3.0
+    assert source == "sun in the frame" and 7.0 < pitch < 13.0 and roll == 0.0
     for panel in (window.align_panel, window.relight_panel):
         assert panel.sun_panel.dial.tilt() == (pitch, roll)
     level = exif_sun(window.loaded.exif)
     assert window.exif_sun() == pytest.approx(
         exif_sun(window.loaded.exif, tilt=(pitch, roll)), abs=1e-9)
     assert window.exif_sun() != pytest.approx(level, abs=0.5)
-    assert "camera pitched" in window.tilt_note() and "(ground plane)" in window.tilt_note()
+    assert "camera pitched" in window.tilt_note() and "(sun in the frame)" in window.tilt_note()
+    field = os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg")
+    window.open_path(field)
+    settle()
+    assert window.camera_tilt[2] == "ground plane"
     window.set_preset("balanced")
     settle()
-    refit = photo_camera_tilt(window.session, ski)
-    assert refit[:2] != pytest.approx((pitch, roll), abs=1e-6)  # this photo's plane moves
+    refit = photo_camera_tilt(window.session, field)
     assert window.camera_tilt == refit
     assert window.align_panel.sun_panel.dial.tilt() == refit[:2]
     window.open_path(os.path.join(ROOT, "samples", "exif_003_th_pool.jpg"))

@@ -41,6 +41,11 @@ the shadows clearly say otherwise (compasses are often off, sometimes wildly: th
 sample's heading puts the sun 130° from where it is in the frame), and that stands when the
 photo has no clear shadows.
 
+The sun in the frame (:func:`sun_in_photo`): when the photo shows the sun itself, its direction
+is exact; :func:`find_sun` returns it (source ``"sun in the frame"``, confidence 1) after the
+search, which still draws the heat map of what the shadows say, and :func:`photo_camera_tilt`
+takes the camera's pitch from it and the EXIF elevation (:func:`sun_frame_pitch`).
+
 Confidence (:attr:`SunFit.confidence`, 0-1) is the product of how clearly the photo has sun and
 shade (the gap between the lit and shaded surface's log luminance, and a shade fraction that is
 neither nothing nor everything), how clearly one part of the dome explains them (the best
@@ -95,6 +100,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 
 from outcast_core.runtime.geometry.camera import (
@@ -563,10 +569,53 @@ def camera_tilt(session: Any, pose: Any = None) -> tuple[float, float, str]:
 def photo_camera_tilt(session: Any, path: str | os.PathLike[str] | None
                       ) -> tuple[float, float, str]:
     """:func:`camera_tilt` of a photo file: its metadata's pose (``None``: no file), else the
-    session's ground plane."""
+    pitch that puts the sun seen in the frame at the EXIF's true elevation
+    (:func:`sun_frame_pitch`), else the session's ground plane."""
     from outcast_core.runtime.io.camera_pose import read_camera_pose
 
-    return camera_tilt(session, read_camera_pose(path) if path else None)
+    pose = read_camera_pose(path) if path else None
+    if (pose is None or pose.pitch_roll() is None) and path:
+        pitch = sun_frame_pitch(session, path)
+        if pitch is not None:
+            return pitch, 0.0, "sun in the frame"
+    return camera_tilt(session, pose)
+
+
+def sun_frame_pitch(session: Any, path: str | os.PathLike[str]) -> float | None:
+    """The camera's pitch (degrees, up positive; roll taken as 0) at which the sun seen in the
+    frame (:func:`sun_in_photo`) stands at its true elevation from the photo's EXIF GPS and
+    time; None without either. Depth cannot tell a slope from level ground, the sun can: on the
+    ski-slope sample the ground plane (the slope) says 6.7° down, the sun about 10° up."""
+    from PIL import Image
+
+    from outcast_core.runtime.io.exif import metadata_from_exif
+    from outcast_core.runtime.pipeline.timelapse import true_sun_position
+
+    seen = sun_in_photo(session.image_srgb, session.sky, session.camera)
+    if seen is None:
+        return None
+    try:
+        with Image.open(path) as im:
+            meta = metadata_from_exif(im.getexif())
+    except (OSError, ValueError):
+        return None
+    when, lat, lon = meta.capture_time, meta.latitude, meta.longitude
+    if when is None or lat is None or lon is None:
+        return None
+    _, true_el = true_sun_position(when, lat, lon)
+    if true_el <= 0.0:
+        return None
+    # Above the horizon the sun stands higher the further the camera looks up: bisect.
+    lo, hi = -80.0, 80.0
+    if not sun_angles(seen.w, lo, 0.0)[1] <= true_el <= sun_angles(seen.w, hi, 0.0)[1]:
+        return None
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if sun_angles(seen.w, mid, 0.0)[1] < true_el:
+            lo = mid
+        else:
+            hi = mid
+    return round(0.5 * (lo + hi), 2)
 
 
 #: Below this (degrees of pitch and of roll) a camera counts as level wherever a tilt is shown
@@ -630,6 +679,113 @@ def _dedupe(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
             seen.add(key)
             out.append((a % 360.0, e))
     return out
+
+
+#: :func:`sun_in_photo`: a sun in the frame is a white, clipped spot (every channel at least
+#: ``SUN_SATURATED``) on or within ``SUN_SKY_REACH`` of the longer side of the sky, where the
+#: sky is at least ``SUN_MIN_SKY`` of the frame and at least ``SUN_RING_SKY`` of a ring round
+#: the spot; at least ``SUN_MIN_AREA`` and at most ``SUN_MAX_AREA`` of the frame, round
+#: (circularity at least ``SUN_MIN_ROUND``), inside colourless glare (the ring's mean saturation
+#: at most ``SUN_RING_SATURATION``: round a white cloud the sky is blue) that falls off outward
+#: (the inner ring's linear brightness at least ``SUN_FALLOFF`` times the outer ring's: a white
+#: wall is flat). Chosen on the samples and the 47 dev photos (/tmp scripts; nothing fitted):
+#: the ski slope's sun is found, no other photo gives one (without the last three tests a white
+#: cloud on the pool and field-path samples, a pipe's white label and a garage door did).
+SUN_SATURATED = 0.97
+SUN_SKY_REACH = 0.03
+SUN_MIN_SKY = 0.05
+SUN_RING_SKY = 0.4
+SUN_MIN_AREA = 2e-4
+SUN_MAX_AREA = 0.06
+SUN_MIN_ROUND = 0.4
+SUN_RING_SATURATION = 0.15
+SUN_FALLOFF = 1.2
+
+
+@dataclass(frozen=True)
+class SunInPhoto:
+    """The sun seen in the photo (:func:`sun_in_photo`).
+
+    Attributes:
+        w: camera-space unit vector toward it.
+        u: its column at the image's size (pixels, centre of the glare's brightest part).
+        v: its row.
+        area: the saturated spot's share of the frame.
+    """
+
+    w: np.ndarray
+    u: float
+    v: float
+    area: float
+
+
+def sun_in_photo(image_srgb: np.ndarray, sky: np.ndarray, camera: Any) -> SunInPhoto | None:
+    """The sun, when the photo shows it: then its direction is known exactly, whatever the
+    shadows and the compass say (see the ``SUN_*`` constants for the tests).
+
+    Args:
+        image_srgb: ``H x W x 3`` sRGB in [0, 1] (the session's working image).
+        sky: ``H x W`` bool sky mask.
+        camera: the :class:`~outcast_core.runtime.geometry.camera.Camera` of that size.
+
+    Returns:
+        A :class:`SunInPhoto`, or None.
+    """
+    img = np.asarray(image_srgb, np.float32)
+    sky = np.asarray(sky, bool)
+    if img.ndim != 3 or img.shape[2] != 3 or sky.shape != img.shape[:2]:
+        raise ValueError(f"expected an H x W x 3 image and an H x W sky, got {img.shape} and "
+                         f"{sky.shape}")
+    h, w = sky.shape
+    if sky.mean() < SUN_MIN_SKY:
+        return None
+    side = max(h, w)
+    lum = img.max(axis=2)
+    low = img.min(axis=2)
+    r = max(2, round(SUN_SKY_REACH * side))
+    near_sky = cv2.dilate(sky.astype(np.uint8),
+                          cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)) > 0
+    # White, every channel clipped (a bright blue sky clips its blue channel alone).
+    spots = ((low >= SUN_SATURATED) & near_sky).astype(np.uint8)
+    if spots.sum() < max(3.0, SUN_MIN_AREA * h * w):
+        return None
+    # The brightest place of the sky at a wide scale: the sun's glare, not a bright cloud edge.
+    glare = cv2.GaussianBlur(np.where(near_sky, lum, 0.0).astype(np.float32), (0, 0),
+                             0.04 * side)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(spots, connectivity=8)
+    y0, x0 = np.unravel_index(int(np.argmax(np.where(spots > 0, glare, -1.0))), glare.shape)
+    k = int(labels[y0, x0])
+    area = float(stats[k, cv2.CC_STAT_AREA])
+    if k == 0 or not SUN_MIN_AREA * h * w <= area <= SUN_MAX_AREA * h * w:
+        return None
+    spot = labels == k
+    contours, _ = cv2.findContours(spot.astype(np.uint8), cv2.RETR_EXTERNAL,
+                                   cv2.CHAIN_APPROX_NONE)
+    roundness = 4.0 * math.pi * area / max(cv2.arcLength(contours[0], True), 1.0) ** 2
+    if roundness < SUN_MIN_ROUND:
+        return None
+    rad = math.sqrt(area / math.pi)
+    yc = stats[k, cv2.CC_STAT_TOP] + stats[k, cv2.CC_STAT_HEIGHT] / 2.0
+    xc = stats[k, cv2.CC_STAT_LEFT] + stats[k, cv2.CC_STAT_WIDTH] / 2.0
+    yy, xx = np.mgrid[0:h, 0:w]
+    dist = np.hypot(yy + 0.5 - yc, xx + 0.5 - xc)  # H x W
+    ring = (dist > 1.5 * rad + 1.0) & (dist < 3.0 * rad + 3.0)
+    outer = (dist > 3.0 * rad + 3.0) & (dist < 6.0 * rad + 6.0) & near_sky
+    if (ring & sky).sum() < SUN_RING_SKY * ring.sum():
+        return None
+    ring &= near_sky
+    if ring.sum() < 5 or not outer.any():
+        return None
+    saturation = float(np.mean((lum[ring] - low[ring]) / np.maximum(lum[ring], 1e-3)))
+    linear = luminance(srgb_to_linear(img))  # H x W
+    if saturation > SUN_RING_SATURATION or linear[ring].mean() < SUN_FALLOFF * linear[outer].mean():
+        return None
+    weights = glare[spot]
+    ys, xs = np.nonzero(spot)
+    u = float((xs + 0.5) @ weights / weights.sum())
+    v = float((ys + 0.5) @ weights / weights.sum())
+    ray = np.array([(u - camera.cx) / camera.focal, (v - camera.cy) / camera.focal, 1.0])
+    return SunInPhoto(w=ray / np.linalg.norm(ray), u=u, v=v, area=area / (h * w))
 
 
 def find_sun(
@@ -821,6 +977,26 @@ def find_sun(
         else:
             note = (f"{why}: its sun cannot be told from them (confidence {confidence:.2f}); "
                     "set it by eye")
+    true_el = float(best_e) if prior is not None else float(cam_el)
+    # -- the sun itself in the frame: its direction is exact, whatever the shadows say (the
+    #    search above still draws the heat map of what they say)
+    seen = sun_in_photo(session.image_srgb, session.sky, session.camera)
+    if seen is not None:
+        w_best = seen.w
+        cam_az, cam_el = sun_angles(seen.w)
+        ag, sh = measures(session.shadow(seen.w)[None], found_full, ~session.sky, y_full)
+        best_score, best_shading = float(ag[0]), float(sh[0])
+        evaluations += 1
+        found, confidence, source = True, 1.0, "sun in the frame"
+        true_el = float(prior.elevation) if prior is not None else float(cam_el)
+        note = (f"the sun is in the frame (at pixel {seen.u:.0f}, {seen.v:.0f} of the working "
+                "image): its direction is taken from there")
+        if prior is not None and prior.azimuth is not None:
+            seen_az = sun_angles(seen.w, frame.pitch, frame.roll)[0]  # the horizon's frame
+            off = abs((seen_az - prior.azimuth + 180.0) % 360.0 - 180.0)
+            if off > 10.0:
+                note += f"; the EXIF compass heading puts it {off:.0f}° away"
+        cam_el = min(90.0, max(0.0, cam_el))
     stages["finals"] = time.perf_counter() - lap[0]
     report("done", 1.0)
     return SunFit(
@@ -829,8 +1005,7 @@ def find_sun(
         candidates=[(float(sun_angles(frame.vector(a, e))[0]),
                      float(max(0.0, sun_angles(frame.vector(a, e))[1])), s)
                     for a, e, s, _ in finals],
-        shading=best_shading, measure=measure,
-        true_elevation=float(best_e) if prior is not None else float(cam_el),
+        shading=best_shading, measure=measure, true_elevation=true_el,
         pitch=frame.pitch, roll=frame.roll, pose_source=pose_source, evaluations=evaluations,
         stage_seconds={k: round(v, 4) for k, v in stages.items()},
         seconds=time.perf_counter() - t0,
@@ -841,11 +1016,14 @@ __all__ = [
     "AgreementMap",
     "FindSunCancelledError",
     "SunFit",
+    "SunInPhoto",
     "SunPrior",
     "agreement",
     "camera_tilt",
     "describe_tilt",
     "exif_sun_prior",
+    "sun_frame_pitch",
+    "sun_in_photo",
     "find_sun",
     "ground_plane_tilt",
     "is_tilted",

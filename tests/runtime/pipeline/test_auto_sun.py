@@ -232,3 +232,69 @@ def test_fine_dark_texture_is_not_taken_for_shadows(monkeypatch: pytest.MonkeyPa
     monkeypatch.setattr(auto_sun, "without_texture", lambda p: p)
     textured = find_sun(_session(photo))
     assert fit.agreement > 0.85 and fit.agreement > textured.agreement + 0.1
+
+
+def _sky_photo(h: int = 120, w: int = 160) -> tuple[np.ndarray, np.ndarray]:
+    """A blue sky over grey ground (the top half is sky)."""
+    img = np.empty((h, w, 3), np.float32)
+    img[: h // 2] = (0.35, 0.55, 0.9)
+    img[h // 2 :] = (0.45, 0.42, 0.38)
+    sky = np.zeros((h, w), bool)
+    sky[: h // 2] = True
+    return img, sky
+
+
+def test_the_sun_in_the_frame_is_found_where_it_is_and_a_white_cloud_is_not() -> None:
+    from outcast_core.runtime.geometry.camera import Camera, project
+    from outcast_core.runtime.pipeline.auto_sun import sun_in_photo
+
+    img, sky = _sky_photo()
+    cam = Camera.from_fov(120, 160, 60.0)
+    yy, xx = np.mgrid[0:120, 0:160]
+    r = np.hypot(xx + 0.5 - 40.0, yy + 0.5 - 25.0)
+    # A clipped white disc in a white haze that fades into the blue sky.
+    glare = np.clip(np.where(r <= 8.0, 1.0, 0.95 - r / 100.0), 0.0, 1.0)[..., None]
+    sunny = np.where(sky[..., None], img + (1.0 - img) * glare, img).astype(np.float32)
+    seen = sun_in_photo(sunny, sky, cam)
+    assert seen is not None and abs(seen.u - 40.0) < 1.5 and abs(seen.v - 25.0) < 1.5
+    u, v = project(seen.w, cam)
+    assert abs(u - seen.u) < 1e-6 and abs(v - seen.v) < 1e-6
+    cloud = img.copy()
+    cloud[15:35, 30:60] = 1.0  # a sunlit white cloud: blue sky right round it
+    assert sun_in_photo(cloud, sky, cam) is None
+    wall = np.full_like(img, 0.6)
+    wall[10:40, 20:70] = 1.0  # a white wall, no sky
+    assert sun_in_photo(wall, np.zeros_like(sky), cam) is None
+    assert sun_in_photo(img, sky, cam) is None  # no sun
+
+
+def test_find_sun_takes_the_sun_in_the_frame(capsys: pytest.CaptureFixture[str]) -> None:
+    """The ski-slope sample shows its sun: found there, whatever its wrong compass says."""
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_005_es_skislope.jpg"
+    assert main(["sun", str(sample), "--json", "--preset", "fast"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["source"] == "sun in the frame" and out["confidence"] == 1.0
+    assert abs((out["azimuth"] - 354.0 + 180.0) % 360.0 - 180.0) < 4.0
+    assert 10.0 < out["elevation"] < 20.0
+    assert "compass heading puts it" in out["note"]
+
+
+def test_the_sun_in_the_frame_and_the_exif_elevation_give_the_camera_pitch() -> None:
+    """The ski slope's ground plane is the slope (pitched down); the sun in the frame, 15°
+    above the camera's horizon while astral puts it 25° above the true one, says the camera
+    looked 10° up."""
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt, sun_frame_pitch
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_005_es_skislope.jpg"
+    loaded = read_image(sample)
+    s = RelightSession(preset="fast")
+    s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
+    pitch, roll, source = photo_camera_tilt(s, sample)
+    assert source == "sun in the frame" and roll == 0.0 and 7.0 < pitch < 13.0
+    pool = Path(__file__).resolve().parents[3] / "samples" / "exif_003_th_pool.jpg"
+    assert sun_frame_pitch(s, pool) is not None  # this photo's sun, the pool's time and place
+    loaded = read_image(pool)
+    s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
+    assert sun_frame_pitch(s, pool) is None  # no sun in the pool's frame
