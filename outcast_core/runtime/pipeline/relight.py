@@ -339,6 +339,51 @@ def toward_photo(image_srgb: np.ndarray, relit_srgb: np.ndarray, share: float) -
     return linear_to_srgb(lin).astype(np.float32)
 
 
+#: :func:`remove_sun_glare`: the glare of a sun in the frame reaches this many times the
+#: radius of its clipped core; the sky there is refilled from the sky around it.
+GLARE_REACH = 4.0
+
+
+def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float,
+                     core_radius: float, strength: float = 1.0) -> np.ndarray:
+    """The relit photo without the sun it showed (``H x W x 3`` sRGB): the new sun has left
+    the frame, so its disc and glare must go too (``L`` kept them). On the sky within
+    :data:`GLARE_REACH` core radii of the sun at pixel ``(u, v)``, the sky is refilled from
+    the sky around it (inpainted) and blended in, fully near the sun and fading to nothing at
+    the edge; ``strength`` scales it (near the original sun the relit photo is still mostly
+    the photo: :func:`original_share`)."""
+    relit = np.asarray(relit_srgb, np.float32)
+    sky = np.asarray(sky, bool)
+    if relit.shape[:2] != sky.shape:
+        raise ValueError(f"expected a sky of the image's size {relit.shape[:2]}, got {sky.shape}")
+    if strength <= 0.0 or core_radius <= 0.0:
+        return relit
+    h, w = sky.shape
+    reach = GLARE_REACH * core_radius + 2.0
+    # Work in a box round the glare with a margin of sky to fill from.
+    m = int(math.ceil(1.5 * reach))
+    y0, y1 = max(0, int(v) - m), min(h, int(v) + m + 1)
+    x0, x1 = max(0, int(u) - m), min(w, int(u) + m + 1)
+    if y0 >= y1 or x0 >= x1:
+        return relit
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    dist = np.hypot(xx + 0.5 - u, yy + 0.5 - v)  # box
+    box_sky = sky[y0:y1, x0:x1]
+    region = box_sky & (dist < reach)
+    if not region.any() or not (box_sky & ~region).any():
+        return relit
+    box = relit[y0:y1, x0:x1]
+    u8 = np.rint(np.clip(box, 0.0, 1.0) * 255.0).astype(np.uint8)
+    # Filled from the sky around only: what is not sky is filled too, then left as it was.
+    fill = cv2.inpaint(u8, ((dist < reach) | ~box_sky).astype(np.uint8) * 255,
+                       max(3.0, 0.5 * core_radius), cv2.INPAINT_TELEA)
+    weight = np.clip((reach - dist) / max(reach - 1.5 * core_radius, 1.0), 0.0, 1.0)
+    weight = np.where(region, weight * float(np.clip(strength, 0.0, 1.0)), 0.0)[..., None]
+    out = relit.copy()
+    out[y0:y1, x0:x1] = box + weight * (fill.astype(np.float32) / 255.0 - box)
+    return out
+
+
 def shadow_contrast_floor(
     image_srgb: np.ndarray,
     relit_srgb: np.ndarray,

@@ -41,6 +41,7 @@ from outcast_core.runtime.geometry.fullres import resize_to_working
 from outcast_core.runtime.geometry.raymarch import RaySampler
 from outcast_core.runtime.geometry.shadows import DirectStats, direct_shadow
 from outcast_core.runtime.io.models import ModelError, ModelRegistry
+from outcast_core.runtime.pipeline.auto_sun import SunInPhoto, sun_in_photo
 from outcast_core.runtime.pipeline.depth_post import postprocess_z, run_depth_model
 from outcast_core.runtime.pipeline.photo_shadows import (
     LIT_FLOOR,
@@ -61,6 +62,7 @@ from outcast_core.runtime.pipeline.relight import (
     guard_learned_relight,
     original_share,
     physics_relight,
+    remove_sun_glare,
     shadow_toward_original,
     snap_shadow_to_photo,
     toward_photo,
@@ -323,6 +325,9 @@ class RelightSession:
         self._lift_guards: dict[Any, Any] = {}
         #: The shadow network's ``S`` at the original sun (the geometry's prior for ``S_o``).
         self._original_geometry: np.ndarray | None = None
+        #: The sun the photo shows (:func:`~outcast_core.runtime.pipeline.auto_sun.sun_in_photo`)
+        #: at working size, or None.
+        self.sun_seen: SunInPhoto | None = None
         #: :meth:`found_shadows_detail`'s arrays, for one ``S_o``.
         self._detail: dict[str, Any] | None = None
 
@@ -419,6 +424,9 @@ class RelightSession:
         t0 = time.perf_counter()
         depth, sky = self._estimate_depth()
         self.depth, self.sky = depth, sky
+        # The sun itself in the frame, if the photo shows it: relit to a sun outside the frame,
+        # its disc and glare go (relight.remove_sun_glare).
+        self.sun_seen = sun_in_photo(self.image_srgb, sky, self.camera)
         self._time("depth", t0)
         report("normals", 0.6)
         t0 = time.perf_counter()
@@ -778,6 +786,8 @@ class RelightSession:
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=self._light, snap=False)
+        relit = self._without_old_sun(relit, st["sky"], self.sun_seen, st["camera"], wv,
+                                      st["camera"].width / self.camera.width)
         relit = toward_photo(image, relit, share)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
                                           threads=1)
@@ -803,6 +813,7 @@ class RelightSession:
             "sampler": self._sampler, "original_sun": self.original_sun,
             "original_shadow": self.original_shadow, "light": self._light,
             "original_geometry": self._original_geometry, "preset": self.preset,
+            "sun_seen": self.sun_seen,
         }
 
     def _relight_from(
@@ -834,7 +845,20 @@ class RelightSession:
                               w_o, wv, keep_old=share)
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
+        img = self._without_old_sun(img, inp["sky"], inp["sun_seen"], inp["camera"], wv, 1.0)
         return toward_photo(image, img, share).astype(np.float32)
+
+    @staticmethod
+    def _without_old_sun(img: np.ndarray, sky: np.ndarray, seen: SunInPhoto | None,
+                         cam: Camera, w_new: np.ndarray, scale: float) -> np.ndarray:
+        """A relighting for a new sun outside the frame loses the sun the photo shows
+        (:func:`~outcast_core.runtime.pipeline.relight.remove_sun_glare`); ``scale``: this
+        image's size over the working size (the drag preview's is smaller)."""
+        if seen is None or sun_in_frame(w_new, cam):
+            return img
+        h, w = sky.shape
+        core = math.sqrt(seen.area * h * w / math.pi)
+        return remove_sun_glare(img, sky, seen.u * scale, seen.v * scale, core)
 
     def _guard(
         self, image: np.ndarray, relit: np.ndarray, s_o: np.ndarray, s_new: np.ndarray,

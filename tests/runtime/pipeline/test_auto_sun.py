@@ -298,3 +298,22 @@ def test_the_sun_in_the_frame_and_the_exif_elevation_give_the_camera_pitch() -> 
     loaded = read_image(pool)
     s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
     assert sun_frame_pitch(s, pool) is None  # no sun in the pool's frame
+
+
+def test_relit_to_a_sun_outside_the_frame_the_photo_loses_its_sun() -> None:
+    from outcast_core.runtime.geometry.camera import sun_vector
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_005_es_skislope.jpg"
+    loaded = read_image(sample)
+    s = RelightSession(preset="fast")
+    s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
+    seen = s.sun_seen
+    assert seen is not None
+    s.set_original_sun(seen.w)
+    u, v = round(seen.u), round(seen.v)
+    assert s.relight(seen.w)[v, u].min() > 0.95  # its own sun: the photo, sun and all
+    for preview in (False, True):
+        behind = s.relight(sun_vector(180.0, 25.0), preview=preview)
+        assert behind[v, u].min() < 0.9, preview  # the disc is sky now

@@ -350,3 +350,25 @@ def test_lifted_old_shadow_takes_the_lit_surroundings_colour() -> None:
     assert np.hypot(*(ab(plain, shade) - sand)) > 10  # the shade's cast stays without it
     assert np.hypot(*(ab(coloured, shade) - sand)) < 3
     assert np.allclose(ab(coloured, material), ab(plain, material), atol=0.1)
+
+
+def test_the_sun_the_photo_showed_leaves_with_it() -> None:
+    from outcast_core.runtime.pipeline.relight import remove_sun_glare
+
+    h, w = 90, 120
+    img = np.empty((h, w, 3), np.float32)
+    img[:45] = (0.4, 0.55, 0.85)
+    img[45:] = (0.5, 0.45, 0.4)
+    sky = np.zeros((h, w), bool)
+    sky[:45] = True
+    yy, xx = np.mgrid[0:h, 0:w]
+    r = np.hypot(xx + 0.5 - 60.0, yy + 0.5 - 20.0)
+    glare = np.clip(np.where(r <= 5.0, 1.0, 0.9 - r / 40.0), 0.0, 1.0)[..., None]
+    sunny = np.where(sky[..., None], img + (1.0 - img) * glare, img).astype(np.float32)
+    out = remove_sun_glare(sunny, sky, 60.0, 20.0, 5.0)
+    # The disc is the sky round it again (just outside the glare's reach, 4 core radii).
+    assert np.abs(out[20, 60] - sunny[20, 60 + 23]).max() < 0.08
+    assert np.abs(sunny[20, 60] - sunny[20, 60 + 23]).max() > 0.3
+    assert np.array_equal(out[~sky], sunny[~sky])  # the ground is untouched
+    assert np.array_equal(out[:, :10], sunny[:, :10])  # and so is the sky far from the sun
+    assert np.array_equal(remove_sun_glare(sunny, sky, 60.0, 20.0, 5.0, strength=0.0), sunny)
