@@ -881,7 +881,9 @@ class MainWindow(QMainWindow):
         """The camera heading typed in step 1 (degrees from true north; None: unknown, or the
         EXIF's when it records one). A typed heading replaces the EXIF's."""
         self.user_heading = None if heading is None else float(heading) % 360.0
-        if self.user_heading is not None and self.user_heading == self._exif_heading():
+        recorded = self._exif_heading()
+        if (self.user_heading is not None and recorded is not None
+                and abs(self.user_heading - recorded) < 0.05):  # the box shows one decimal
             self.user_heading = None  # the recorded one, as it is
         shown = self.user_heading if self.user_heading is not None else self._exif_heading()
         if self.align_panel.heading() != shown:

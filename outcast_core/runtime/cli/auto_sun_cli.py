@@ -23,15 +23,20 @@ def cmd_sun(args: argparse.Namespace) -> int:
     """Run :func:`~outcast_core.runtime.pipeline.auto_sun.find_sun` on one photo and print the
     result."""
     from outcast_core.runtime.cli.main import _load, _make_session, _say, _set_image
-    from outcast_core.runtime.io.camera_pose import read_camera_pose
-    from outcast_core.runtime.pipeline.auto_sun import exif_sun_prior, find_sun
+    from outcast_core.runtime.pipeline.auto_sun import (
+        exif_sun_prior,
+        find_sun,
+        photo_camera_tilt,
+    )
 
     loaded = _load(args.image)
     session = _make_session(args, shadow_mode=args.mode)
     _set_image(session, loaded, args)
     prior = None if args.no_exif else exif_sun_prior(loaded.exif)
-    pose = None if args.no_exif else read_camera_pose(args.image)
-    fit = find_sun(session, prior=prior, pitch_roll=pose)
+    # The camera's tilt as the app and batch take it: metadata, the sun in the frame, the
+    # ground plane.
+    tilt = None if args.no_exif else photo_camera_tilt(session, args.image)
+    fit = find_sun(session, prior=prior, pitch_roll=tilt)
     sure = fit.found or fit.source == "EXIF"
     if args.json:
         out: dict[str, Any] = fit.as_dict()

@@ -20,6 +20,7 @@ from outcast_core.runtime.pipeline.timelapse import (
     DEFAULT_FPS,
     DEFAULT_FRAME_SIZE,
     EASINGS,
+    FRAME_FILE,
     FRAME_SIZES,
     MAX_FPS,
     MIN_FPS,
@@ -255,7 +256,9 @@ def check_timelapse_output(args: argparse.Namespace) -> None:
         if problem:
             raise CliError(f"cannot write '{args.output}': {problem}")
         out = Path(args.output).expanduser()
-        force = force or (out.is_dir() and not any(out.iterdir()))  # an empty folder is new
+        # A folder without frames (empty, or a file manager's files only) is a new one.
+        force = force or (out.is_dir() and not any(FRAME_FILE.fullmatch(p.name)
+                                                   for p in out.iterdir()))
     check_output_path(args.output, extensions=None, force=force, inputs=[args.image],
                       folder_ok=fmt == "png")
 

@@ -296,7 +296,7 @@ def plan_batch(
             else:
                 results.append(JobResult(
                     str(image), str(output), "stale",
-                    "the output exists, made with other settings or not by a batch: kept "
+                    "the output exists, made with other settings or not by a batch "
                     "(use --force to redo it)"))
             continue
         jobs.append(job)
@@ -438,8 +438,10 @@ def original_sun_for(
     project_sun: Sun | None,
     auto: Callable[[], Sun | None] | None = None,
     tilt: tuple[float, float] = (0.0, 0.0),
+    seen: Sun | None = None,
 ) -> tuple[Sun, str]:
-    """The photo's original sun and where it came from (``csv`` or one of ``options.sources``).
+    """The photo's original sun and where it came from (``csv``, ``sun in the frame`` or one of
+    ``options.sources``).
 
     Args:
         job: the photo (a CSV ``from_sun`` wins).
@@ -449,6 +451,10 @@ def original_sun_for(
         auto: runs the automatic sun (slow: called only when its turn comes); returns None
             when it is not confident. None: the ``auto`` source is unavailable.
         tilt: the camera's ``(pitch, roll)``: the EXIF sun is turned into the camera's frame.
+        seen: the sun the photo shows (:func:`~outcast_core.runtime.pipeline.auto_sun.
+            sun_in_photo`): exact, so it takes the place of the first of ``exif`` and ``auto``
+            in ``options.sources`` (a compass heading can be off by 130°, as on the ski-slope
+            sample's).
 
     Raises:
         ValueError: none of the sources has a sun (the message lists what was tried).
@@ -458,6 +464,8 @@ def original_sun_for(
     for source in options.sources:
         if source == "project" and project_sun is not None:
             return project_sun, "project"
+        if seen is not None and source in ("exif", "auto"):  # the first found-by-itself one
+            return seen, "sun in the frame"
         if source == "exif":
             from outcast_core.runtime.pipeline.timelapse import exif_sun
 
@@ -538,7 +546,7 @@ def run_job(job: BatchJob, options: BatchOptions) -> JobResult:
 
 
 def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
-    from outcast_core.runtime.geometry.camera import sun_vector
+    from outcast_core.runtime.geometry.camera import sun_angles, sun_vector
     from outcast_core.runtime.io.depth_models import pick_depth_source
     from outcast_core.runtime.io.imageio import (
         output_bit_depth,
@@ -566,8 +574,10 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
     from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
 
     tilt = photo_camera_tilt(session, job.image)
+    seen = session.sun_seen  # the sun the photo shows, if it does
     sun, source = original_sun_for(job, options, loaded.exif, project_sun,
-                                   _auto_sun(session, loaded.exif, result, tilt), tilt[:2])
+                                   _auto_sun(session, loaded.exif, result, tilt), tilt[:2],
+                                   seen=None if seen is None else sun_angles(seen.w))
     result.from_sun, result.sun_source = sun, source
     session.set_original_sun(sun_vector(*sun))
     Path(job.output).parent.mkdir(parents=True, exist_ok=True)

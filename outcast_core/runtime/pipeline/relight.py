@@ -347,11 +347,12 @@ GLARE_REACH = 4.0
 def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float,
                      core_radius: float, strength: float = 1.0) -> np.ndarray:
     """The relit photo without the sun it showed (``H x W x 3`` sRGB): the new sun has left
-    the frame, so its disc and glare must go too (``L`` kept them). On the sky within
-    :data:`GLARE_REACH` core radii of the sun at pixel ``(u, v)``, the sky is refilled from
-    the sky around it (inpainted) and blended in, fully near the sun and fading to nothing at
-    the edge; ``strength`` scales it (near the original sun the relit photo is still mostly
-    the photo: :func:`original_share`)."""
+    the frame, so its disc and glare must go too (``L`` kept them). Within
+    :data:`GLARE_REACH` core radii of the sun at pixel ``(u, v)``, the sky around is inpainted
+    over the glare (smoothed), and every pixel brighter than that loses its excess, fully near
+    the sun and fading to nothing at the edge: darker things (trees, a cable) keep theirs.
+    ``strength`` scales it (near the original sun the relit photo is still mostly the photo:
+    :func:`original_share`)."""
     relit = np.asarray(relit_srgb, np.float32)
     sky = np.asarray(sky, bool)
     if relit.shape[:2] != sky.shape:
@@ -369,18 +370,21 @@ def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float
     yy, xx = np.mgrid[y0:y1, x0:x1]
     dist = np.hypot(xx + 0.5 - u, yy + 0.5 - v)  # box
     box_sky = sky[y0:y1, x0:x1]
-    region = box_sky & (dist < reach)
-    if not region.any() or not (box_sky & ~region).any():
+    region = dist < reach
+    if not (box_sky & ~region).any():
         return relit
     box = relit[y0:y1, x0:x1]
     u8 = np.rint(np.clip(box, 0.0, 1.0) * 255.0).astype(np.uint8)
-    # Filled from the sky around only: what is not sky is filled too, then left as it was.
-    fill = cv2.inpaint(u8, ((dist < reach) | ~box_sky).astype(np.uint8) * 255,
+    # Filled from the sky around the glare only (what is not sky is no source).
+    fill = cv2.inpaint(u8, (region | ~box_sky).astype(np.uint8) * 255,
                        max(3.0, 0.5 * core_radius), cv2.INPAINT_TELEA)
+    fill = cv2.GaussianBlur(fill.astype(np.float32) / 255.0, (0, 0), max(1.0, 0.5 * core_radius))
     weight = np.clip((reach - dist) / max(reach - 1.5 * core_radius, 1.0), 0.0, 1.0)
-    weight = np.where(region, weight * float(np.clip(strength, 0.0, 1.0)), 0.0)[..., None]
+    weight = (weight * float(np.clip(strength, 0.0, 1.0)))[..., None]
+    # Only the glare's excess light goes: a tree or a cable against the sun keeps its own
+    # darkness, and sky the mask missed (a band of it, say) loses its glare like the rest.
     out = relit.copy()
-    out[y0:y1, x0:x1] = box + weight * (fill.astype(np.float32) / 255.0 - box)
+    out[y0:y1, x0:x1] = box - weight * np.maximum(box - fill, 0.0)
     return out
 
 

@@ -368,3 +368,13 @@ def test_sixteen_bit_png_stays_sixteen_bit_and_transparency_is_said(tmp_path, ca
     assert main(["relight", str(tmp_path / "opaque.png"), "--from", "90,30", "--to", "200,40",
                  "-o", str(tmp_path / "o.png"), "--preset", "fast", "-q"]) == 0
     assert "transparency" not in capsys.readouterr().err
+
+
+def test_png_frames_go_into_a_folder_holding_only_a_file_managers_files(photo, tmp_path) -> None:
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    (folder / ".DS_Store").write_text("")
+    assert main(["timelapse", str(photo), "--from", "90,30", "--sweep", "1,20:3,20", "--frames",
+                 "2", "--size", "working", "-o", str(folder), "--preset", "fast"]) == 0
+    assert sorted(p.name for p in folder.iterdir()) == [".DS_Store", "frame_0001.png",
+                                                        "frame_0002.png"]

@@ -358,3 +358,19 @@ def test_sigterm_stops_the_workers_and_leaves_no_partial_file(tmp_path: Path) ->
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=300)  # resumed
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in out.iterdir()) == [RECORD_NAME, "p0.jpg", "p1.jpg", "p2.jpg"]
+
+
+def test_a_photo_that_shows_its_sun_is_relit_from_it(tmp_path: Path) -> None:
+    """The ski slope's compass heading is 126° off the sun in its frame: the sun wins."""
+    import shutil
+
+    d = tmp_path / "in"
+    d.mkdir()
+    ski = Path(SAMPLE).with_name("exif_005_es_skislope.jpg")
+    shutil.copy2(ski, d / ski.name)
+    report = tmp_path / "r.json"
+    assert main(["batch", str(d), "-o", str(tmp_path / "out"), "--to", "180,20", "--preset",
+                 "fast", "-q", "--report", str(report)]) == 0
+    r = json.loads(report.read_text())["results"][0]
+    assert r["sun_source"] == "sun in the frame"
+    assert abs((r["from_sun"][0] - 354.0 + 180.0) % 360.0 - 180.0) < 4.0
