@@ -344,21 +344,10 @@ def toward_photo(image_srgb: np.ndarray, relit_srgb: np.ndarray, share: float) -
 GLARE_REACH = 4.0
 
 
-def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float,
-                     core_radius: float, strength: float = 1.0) -> np.ndarray:
-    """The relit photo without the sun it showed (``H x W x 3`` sRGB): the new sun has left
-    the frame, so its disc and glare must go too (``L`` kept them). Within
-    :data:`GLARE_REACH` core radii of the sun at pixel ``(u, v)``, the sky around is inpainted
-    over the glare (smoothed), and every pixel brighter than that loses its excess, fully near
-    the sun and fading to nothing at the edge: darker things (trees, a cable) keep theirs.
-    ``strength`` scales it (near the original sun the relit photo is still mostly the photo:
-    :func:`original_share`)."""
-    relit = np.asarray(relit_srgb, np.float32)
-    sky = np.asarray(sky, bool)
-    if relit.shape[:2] != sky.shape:
-        raise ValueError(f"expected a sky of the image's size {relit.shape[:2]}, got {sky.shape}")
-    if strength <= 0.0 or core_radius <= 0.0:
-        return relit
+def _sun_glare(relit: np.ndarray, sky: np.ndarray, u: float, v: float, core_radius: float,
+               strength: float) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
+    """The light a sun at pixel ``(u, v)`` adds to ``relit`` (sRGB), in a box round it:
+    ``((y0, y1, x0, x1), excess)``, or None (see :func:`remove_sun_glare`)."""
     h, w = sky.shape
     reach = GLARE_REACH * core_radius + 2.0
     # Work in a box round the glare with a margin of sky to fill from.
@@ -366,13 +355,13 @@ def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float
     y0, y1 = max(0, int(v) - m), min(h, int(v) + m + 1)
     x0, x1 = max(0, int(u) - m), min(w, int(u) + m + 1)
     if y0 >= y1 or x0 >= x1:
-        return relit
+        return None
     yy, xx = np.mgrid[y0:y1, x0:x1]
     dist = np.hypot(xx + 0.5 - u, yy + 0.5 - v)  # box
     box_sky = sky[y0:y1, x0:x1]
     region = dist < reach
     if not (box_sky & ~region).any():
-        return relit
+        return None
     box = relit[y0:y1, x0:x1]
     u8 = np.rint(np.clip(box, 0.0, 1.0) * 255.0).astype(np.uint8)
     # Filled from the sky around the glare only (what is not sky is no source).
@@ -381,10 +370,45 @@ def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float
     fill = cv2.GaussianBlur(fill.astype(np.float32) / 255.0, (0, 0), max(1.0, 0.5 * core_radius))
     weight = np.clip((reach - dist) / max(reach - 1.5 * core_radius, 1.0), 0.0, 1.0)
     weight = (weight * float(np.clip(strength, 0.0, 1.0)))[..., None]
-    # Only the glare's excess light goes: a tree or a cable against the sun keeps its own
-    # darkness, and sky the mask missed (a band of it, say) loses its glare like the rest.
+    # Only light above the sky round it: a tree or a cable against the sun keeps its own
+    # darkness, and sky the mask missed (a band of it, say) counts like the rest.
+    return (y0, y1, x0, x1), (weight * np.maximum(box - fill, 0.0)).astype(np.float32)
+
+
+def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float,
+                     core_radius: float, strength: float = 1.0,
+                     to: tuple[float, float] | None = None) -> np.ndarray:
+    """The relit photo without the sun it showed (``H x W x 3`` sRGB): the new sun has left
+    the frame, so its disc and glare must go too (``L`` kept them). Within
+    :data:`GLARE_REACH` core radii of the sun at pixel ``(u, v)``, the sky around is inpainted
+    over the glare (smoothed), and every pixel brighter than that loses its excess, fully near
+    the sun and fading to nothing at the edge: darker things (trees, a cable) keep theirs.
+    ``strength`` scales it (near the original sun the relit photo is still mostly the photo:
+    :func:`original_share`). ``to``: the new sun's pixel when it is in the frame too; the
+    glare's light is added there (in linear light), so the sun moves with it."""
+    relit = np.asarray(relit_srgb, np.float32)
+    sky = np.asarray(sky, bool)
+    if relit.shape[:2] != sky.shape:
+        raise ValueError(f"expected a sky of the image's size {relit.shape[:2]}, got {sky.shape}")
+    if strength <= 0.0 or core_radius <= 0.0:
+        return relit
+    glare = _sun_glare(relit, sky, u, v, core_radius, strength)
+    if glare is None:
+        return relit
+    (y0, y1, x0, x1), excess = glare
     out = relit.copy()
-    out[y0:y1, x0:x1] = box - weight * np.maximum(box - fill, 0.0)
+    out[y0:y1, x0:x1] -= excess
+    if to is not None:  # the same light, moved: add it in linear light where it lands
+        h, w = sky.shape
+        dy, dx = round(to[1] - v), round(to[0] - u)
+        ty0, ty1 = max(0, y0 + dy), min(h, y1 + dy)
+        tx0, tx1 = max(0, x0 + dx), min(w, x1 + dx)
+        if ty0 < ty1 and tx0 < tx1:
+            src = relit[y0:y1, x0:x1]
+            light = srgb_to_linear(src) - srgb_to_linear(np.clip(src - excess, 0.0, 1.0))
+            part = light[ty0 - y0 - dy:ty1 - y0 - dy, tx0 - x0 - dx:tx1 - x0 - dx]
+            dst = out[ty0:ty1, tx0:tx1]
+            out[ty0:ty1, tx0:tx1] = linear_to_srgb(np.clip(srgb_to_linear(dst) + part, 0, 1))
     return out
 
 

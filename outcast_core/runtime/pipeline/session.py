@@ -33,6 +33,7 @@ from outcast_core.runtime.geometry.camera import (
     network_depth,
     normalize_sun,
     normals_from_depth,
+    project,
     sun_in_frame,
     view_directions,
 )
@@ -786,9 +787,9 @@ class RelightSession:
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=self._light, snap=False)
+        relit = toward_photo(image, relit, share)
         relit = self._without_old_sun(relit, st["sky"], self.sun_seen, st["camera"], wv,
                                       st["camera"].width / self.camera.width)
-        relit = toward_photo(image, relit, share)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
                                           threads=1)
         self._time("relight_preview", t1)
@@ -845,20 +846,27 @@ class RelightSession:
                               w_o, wv, keep_old=share)
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
+        img = toward_photo(image, img, share)
+        # Last, on the blend too: near the original sun the photo's own sun must not stay.
         img = self._without_old_sun(img, inp["sky"], inp["sun_seen"], inp["camera"], wv, 1.0)
-        return toward_photo(image, img, share).astype(np.float32)
+        return img.astype(np.float32)
 
     @staticmethod
     def _without_old_sun(img: np.ndarray, sky: np.ndarray, seen: SunInPhoto | None,
                          cam: Camera, w_new: np.ndarray, scale: float) -> np.ndarray:
-        """A relighting for a new sun outside the frame loses the sun the photo shows
+        """The sun the photo shows leaves with the old sun: gone for a new sun outside the
+        frame, moved to a new sun inside it
         (:func:`~outcast_core.runtime.pipeline.relight.remove_sun_glare`); ``scale``: this
         image's size over the working size (the drag preview's is smaller)."""
-        if seen is None or sun_in_frame(w_new, cam):
+        if seen is None:
             return img
         h, w = sky.shape
         core = math.sqrt(seen.area * h * w / math.pi)
-        return remove_sun_glare(img, sky, seen.u * scale, seen.v * scale, core)
+        to = None
+        if sun_in_frame(w_new, cam):
+            u1, v1 = project(normalize_sun(w_new), cam)
+            to = (float(u1), float(v1))
+        return remove_sun_glare(img, sky, seen.u * scale, seen.v * scale, core, to=to)
 
     def _guard(
         self, image: np.ndarray, relit: np.ndarray, s_o: np.ndarray, s_new: np.ndarray,

@@ -317,3 +317,12 @@ def test_relit_to_a_sun_outside_the_frame_the_photo_loses_its_sun() -> None:
     for preview in (False, True):
         behind = s.relight(sun_vector(180.0, 25.0), preview=preview)
         assert behind[v, u].min() < 0.9, preview  # the disc is sky now
+    # A new sun inside the frame takes the glare with it (and nothing stays behind).
+    from outcast_core.runtime.geometry.camera import project, sun_angles
+
+    az, el = sun_angles(seen.w)
+    w_new = sun_vector(az - 20.0, max(el - 8.0, 2.0))
+    u1, v1 = (round(float(c)) for c in project(w_new, s.camera))
+    moved = s.relight(w_new)
+    assert moved[v, u].min() < 0.9 and moved[v1, u1].min() > 0.9
+    assert s.relight(w_new)[v1, u1].min() > s.image_srgb[v1, u1].min()
