@@ -32,7 +32,8 @@ def cmd_sun(args: argparse.Namespace) -> int:
     loaded = _load(args.image)
     session = _make_session(args, shadow_mode=args.mode)
     _set_image(session, loaded, args)
-    prior = None if args.no_exif else exif_sun_prior(loaded.exif)
+    heading = None if args.heading is None else args.heading % 360.0
+    prior = None if args.no_exif else exif_sun_prior(loaded.exif, heading=heading)
     # The camera's tilt as the app and batch take it: metadata, the sun in the frame, the
     # ground plane.
     tilt = None if args.no_exif else photo_camera_tilt(session, args.image)
@@ -65,6 +66,7 @@ def cmd_sun(args: argparse.Namespace) -> int:
 def register(sub: argparse._SubParsersAction) -> None:
     """Add ``outcast sun`` to the ``outcast`` command line."""
     from outcast_core.runtime.cli.main import add_input_options
+    from outcast_core.runtime.cli.timelapse_cli import _number
 
     p = sub.add_parser("sun", help="find the photo's sun from its shadows (and its EXIF GPS, "
                                    "time and heading)",
@@ -75,6 +77,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-exif", action="store_true",
                    help="ignore the photo's GPS, time, heading and camera pitch/roll (shadows "
                         "only)")
+    p.add_argument("--heading", type=_number(-360.0, 360.0, "a heading"),
+                   help="the camera's compass heading, deg from true north: it replaces the "
+                        "photo's EXIF one (phone compasses are often tens of degrees off) or "
+                        "gives the missing one")
     p.add_argument("--mode", choices=["auto", "direct", "learned"], default="auto",
                    help="predicted shadows: learned S network (default when installed) or Direct")
     add_input_options(p)

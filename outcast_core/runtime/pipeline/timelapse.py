@@ -671,6 +671,21 @@ def frames_folder_problem(path: str | os.PathLike[str]) -> str | None:
             "empty folder, or one holding only an earlier sequence's frame_*.png")
 
 
+def _remove_dead_parts(folder: Path) -> None:
+    """Remove the temp folders (:data:`PART_PREFIX`) that exports killed before they finished
+    left in ``folder``: those whose process is gone."""
+    for part in folder.glob(f"{PART_PREFIX}*"):
+        pid = part.name[len(PART_PREFIX):].split("-", 1)[0]
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:  # gone: its frames will never be moved in
+            shutil.rmtree(part, ignore_errors=True)
+        except OSError:  # alive (another user's): leave it
+            pass
+
+
 class PngSequenceWriter(FrameWriter):
     """A folder of ``frame_0001.png`` ... written to a temp folder and moved in when complete.
 
@@ -697,8 +712,9 @@ class PngSequenceWriter(FrameWriter):
 
         img = to_uint8(frame)
         if self._tmp is None:
-            if self.path.is_dir():
-                self._tmp = Path(tempfile.mkdtemp(prefix=PART_PREFIX, dir=self.path))
+            if self.path.is_dir():  # the process id tells a killed export's leftovers
+                self._tmp = Path(tempfile.mkdtemp(prefix=f"{PART_PREFIX}{os.getpid()}-",
+                                                  dir=self.path))
             else:
                 self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.part-",
                                                   dir=self.path.parent))
@@ -726,6 +742,7 @@ class PngSequenceWriter(FrameWriter):
             self.abort()
             raise FileExistsError(problem or f"{self.path} already holds a sequence; choose "
                                   "another name or force")
+        _remove_dead_parts(self.path)
         new = sorted(self._tmp.iterdir())
         for f in new:  # the same file system: renames, each replacing its namesake
             _follow_umask(f)

@@ -326,3 +326,17 @@ def test_relit_to_a_sun_outside_the_frame_the_photo_loses_its_sun() -> None:
     moved = s.relight(w_new)
     assert moved[v, u].min() < 0.9 and moved[v1, u1].min() > 0.9
     assert s.relight(w_new)[v1, u1].min() > s.image_srgb[v1, u1].min()
+
+
+def test_cli_sun_takes_a_heading(capsys: pytest.CaptureFixture[str]) -> None:
+    """The field path records GPS and time but no heading: --heading gives it (and would
+    replace a recorded one)."""
+    from outcast_core.runtime.io.imageio import read_image
+
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_001_cz_fieldpath.jpg"
+    exif = read_image(sample).exif
+    true_az, _ = true_sun_position(exif.capture_time, exif.latitude, exif.longitude)
+    assert main(["sun", str(sample), "--json", "--preset", "fast", "--heading", "200"]) in (0, 3)
+    out = json.loads(capsys.readouterr().out)
+    assert out["exif_azimuth"] == pytest.approx(relative_azimuth(true_az, 200.0), abs=0.01)
+    assert "the heading you gave" in out["note"] or out["source"] != "EXIF"

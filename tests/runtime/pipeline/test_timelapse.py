@@ -259,6 +259,20 @@ def test_png_sequence_keeps_the_old_frames_when_a_file_appears_meanwhile(tmp_pat
                      "notes.txt"]  # no temp folder, nothing lost
 
 
+def test_png_sequence_clears_what_a_killed_export_left(tmp_path):
+    out = tmp_path / "frames"
+    tl.export_frames(lambda i: _frame(i), 2, out)
+    dead = out / f"{tl.PART_PREFIX}999999999-abc"  # no such process
+    dead.mkdir()
+    (dead / "frame_0001.png").write_bytes(b"half")
+    alive = out / f"{tl.PART_PREFIX}1-xyz"  # init: always there
+    alive.mkdir()
+    tl.export_frames(lambda i: _frame(i), 2, out, force=True)
+    assert not dead.exists() and alive.is_dir()
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == [
+        "frame_0001.png", "frame_0002.png"]
+
+
 def test_png_sequence_into_an_empty_folder(tmp_path, monkeypatch):
     out = tmp_path / "empty"
     out.mkdir()
