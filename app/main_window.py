@@ -649,7 +649,7 @@ class MainWindow(QMainWindow):
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.io.depth_models import pick_depth_source
             from outcast_core.runtime.io.imageio import read_depth, read_image
-            from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt, sun_in_photo
+            from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
             from outcast_core.runtime.pipeline.session import RelightSession
 
             ctx.progress("reading", 0.02)
@@ -671,11 +671,9 @@ class MainWindow(QMainWindow):
             # The camera's pitch and roll (its metadata's, else the ground plane's): the frame
             # in which the EXIF sun and the real sun path are given.
             tilt = photo_camera_tilt(session, path)
-            # The sun itself in the frame: the dial starts there (a few ms).
-            seen = sun_in_photo(session.image_srgb, session.sky, session.camera)
             photo = display.to_uint8_rgb(loaded.image_srgb)
             return {"path": path, "loaded": loaded, "session": session, "photo": photo,
-                    "depth_path": depth_path, "depth_note": note, "tilt": tilt, "seen": seen}
+                    "depth_path": depth_path, "depth_note": note, "tilt": tilt}
 
         self._pending_project = project
         self._pending_restore = restore
@@ -748,7 +746,7 @@ class MainWindow(QMainWindow):
             self.timings_label.setToolTip("How long each stage took, last run")
             self.relight_panel.sun_panel.dial.set_reference(None)
             if project is None:
-                seen = result.get("seen")
+                seen = getattr(self.session, "sun_seen", None)  # the sun the photo shows
                 if seen is not None:  # exact, whatever the compass says
                     az, el = sun_angles(seen.w)
                     seen_sun = (az, dm.clamp_elevation(el))

@@ -271,15 +271,24 @@ def test_relight_on_the_apps_photo_old_shadow_from_a_shipped_l(fake_views, tmp_p
     assert len(card["branched_from"]["sha256"]) == 64
     with pytest.raises(ValueError, match="not trained"):
         export_checkpoint(tr.checkpoint_path, tmp_path / "out2", kinds=("refine",))
-    with pytest.raises(ValueError, match="relight_old_shadow"):
-        _cfg("relight", shadow_checkpoint="x", relight_old_shadow="guess")
-    with pytest.raises(ValueError, match="only for the relight stage"):
-        _cfg("shadow", relight_old_shadow="photo")
-    with pytest.raises(ValueError, match="only for the relight stage"):
-        _cfg("depth", init_relight_onnx="relight.onnx")
-    for other in ({"init_onnx": "refine.onnx"}, {"resume_from": "relight_v6"}):
-        with pytest.raises(ValueError, match="init_relight_onnx without"):
-            _cfg("relight", shadow_checkpoint="x", init_relight_onnx="relight.onnx", **other)
+
+
+@pytest.mark.parametrize(("stage", "options", "message"), [
+    ("relight", {"shadow_checkpoint": "x", "relight_old_shadow": "guess"}, "relight_old_shadow"),
+    ("shadow", {"relight_old_shadow": "photo"}, "only for the relight stage"),
+    ("depth", {"init_relight_onnx": "relight.onnx"}, "only for the relight stage"),
+    ("relight", {"shadow_checkpoint": "x", "init_relight_onnx": "relight.onnx",
+                 "init_onnx": "refine.onnx"}, "init_relight_onnx without"),
+    ("relight", {"shadow_checkpoint": "x", "init_relight_onnx": "relight.onnx",
+                 "resume_from": "relight_v6"}, "init_relight_onnx without"),
+    ("relight", {"shadow_checkpoint": "x", "relight_base": "paint"}, "relight_base"),
+    ("shadow", {"relight_base": "physics"}, "relight_base only"),
+    ("shadow", {"postprocess_depth": "False"}, "postprocess_depth"),
+    ("shadow", {"postprocess_depth": True}, "depth_checkpoint"),
+])
+def test_stage_options_are_checked(stage: str, options: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        _cfg(stage, **options)
 
 
 def test_relight_physics_base_and_postprocessed_depth_reach_the_step(fake_views) -> None:
@@ -318,14 +327,6 @@ def test_relight_physics_base_and_postprocessed_depth_reach_the_step(fake_views)
     tr.fit()
     nets, ckpt = load_checkpoint_nets(tr.checkpoint_path)  # what the exporter rebuilds
     assert nets["relight"].base == "physics" and ckpt["step"] == 2
-    with pytest.raises(ValueError, match="relight_base"):
-        _cfg("relight", shadow_checkpoint="x", relight_base="paint")
-    with pytest.raises(ValueError, match="relight_base only"):
-        _cfg("shadow", relight_base="physics")
-    with pytest.raises(ValueError, match="postprocess_depth"):
-        _cfg("shadow", postprocess_depth="False")
-    with pytest.raises(ValueError, match="depth_checkpoint"):
-        _cfg("shadow", postprocess_depth=True)
     with pytest.raises(ValueError, match="built as in its checkpoint"):
         Trainer(_cfg("relight", run="phys", steps=2, shadow_checkpoint=str(s.checkpoint_path)),
                 views, progress=False)  # its own checkpoint has a physics-base L

@@ -591,7 +591,7 @@ def sun_frame_pitch(session: Any, path: str | os.PathLike[str]) -> float | None:
     from outcast_core.runtime.io.exif import metadata_from_exif
     from outcast_core.runtime.pipeline.timelapse import true_sun_position
 
-    seen = sun_in_photo(session.image_srgb, session.sky, session.camera)
+    seen = getattr(session, "sun_seen", None)  # found once, by set_image
     if seen is None:
         return None
     try:
@@ -980,7 +980,7 @@ def find_sun(
     true_el = float(best_e) if prior is not None else float(cam_el)
     # -- the sun itself in the frame: its direction is exact, whatever the shadows say (the
     #    search above still draws the heat map of what they say)
-    seen = sun_in_photo(session.image_srgb, session.sky, session.camera)
+    seen = getattr(session, "sun_seen", None)  # found once, by set_image
     if seen is not None:
         w_best = seen.w
         cam_az, cam_el = sun_angles(seen.w)

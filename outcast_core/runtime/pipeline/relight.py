@@ -344,8 +344,8 @@ def toward_photo(image_srgb: np.ndarray, relit_srgb: np.ndarray, share: float) -
 GLARE_REACH = 4.0
 
 
-def _sun_glare(relit: np.ndarray, sky: np.ndarray, u: float, v: float, core_radius: float,
-               strength: float) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
+def _sun_glare(relit: np.ndarray, sky: np.ndarray, u: float, v: float, core_radius: float
+               ) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
     """The light a sun at pixel ``(u, v)`` adds to ``relit`` (sRGB), in a box round it:
     ``((y0, y1, x0, x1), excess)``, or None (see :func:`remove_sun_glare`)."""
     h, w = sky.shape
@@ -368,31 +368,28 @@ def _sun_glare(relit: np.ndarray, sky: np.ndarray, u: float, v: float, core_radi
     fill = cv2.inpaint(u8, (region | ~box_sky).astype(np.uint8) * 255,
                        max(3.0, 0.5 * core_radius), cv2.INPAINT_TELEA)
     fill = cv2.GaussianBlur(fill.astype(np.float32) / 255.0, (0, 0), max(1.0, 0.5 * core_radius))
-    weight = np.clip((reach - dist) / max(reach - 1.5 * core_radius, 1.0), 0.0, 1.0)
-    weight = (weight * float(np.clip(strength, 0.0, 1.0)))[..., None]
+    weight = np.clip((reach - dist) / max(reach - 1.5 * core_radius, 1.0), 0.0, 1.0)[..., None]
     # Only light above the sky round it: a tree or a cable against the sun keeps its own
     # darkness, and sky the mask missed (a band of it, say) counts like the rest.
     return (y0, y1, x0, x1), (weight * np.maximum(box - fill, 0.0)).astype(np.float32)
 
 
 def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float,
-                     core_radius: float, strength: float = 1.0,
-                     to: tuple[float, float] | None = None) -> np.ndarray:
+                     core_radius: float, to: tuple[float, float] | None = None) -> np.ndarray:
     """The relit photo without the sun it showed (``H x W x 3`` sRGB): the new sun has left
     the frame, so its disc and glare must go too (``L`` kept them). Within
     :data:`GLARE_REACH` core radii of the sun at pixel ``(u, v)``, the sky around is inpainted
     over the glare (smoothed), and every pixel brighter than that loses its excess, fully near
     the sun and fading to nothing at the edge: darker things (trees, a cable) keep theirs.
-    ``strength`` scales it (near the original sun the relit photo is still mostly the photo:
-    :func:`original_share`). ``to``: the new sun's pixel when it is in the frame too; the
+    ``to``: the new sun's pixel when it is in the frame too; the
     glare's light is added there (in linear light), so the sun moves with it."""
     relit = np.asarray(relit_srgb, np.float32)
     sky = np.asarray(sky, bool)
     if relit.shape[:2] != sky.shape:
         raise ValueError(f"expected a sky of the image's size {relit.shape[:2]}, got {sky.shape}")
-    if strength <= 0.0 or core_radius <= 0.0:
+    if core_radius <= 0.0:
         return relit
-    glare = _sun_glare(relit, sky, u, v, core_radius, strength)
+    glare = _sun_glare(relit, sky, u, v, core_radius)
     if glare is None:
         return relit
     (y0, y1, x0, x1), excess = glare
