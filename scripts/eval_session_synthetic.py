@@ -32,8 +32,9 @@ from outcast_core.train.data import auto_exposure, tonemap  # noqa: E402
 
 #: (label, session keyword arguments): the app's default first.
 CONFIGS: list[tuple[str, dict]] = [
-    ("learned L, S_o from the photo, colour guard, shade floor and guarded lift (app default)",
-     {}),
+    ("learned L, S_o from the photo, photo's detail, colour guard, shade floor and guarded lift "
+     "(app default)", {}),
+    ("the default without the photo's detail", {"keep_detail": False}),
     ("learned L, S_o from the photo, colour guard, shade floor, no lift",
      {"lift_new_light": False}),
     ("learned L, S_o from the photo, colour guard, no floor", {"contrast_floor": False}),
@@ -56,8 +57,10 @@ def _session(kwargs: dict) -> RelightSession:
     guard = kwargs.pop("colour_guard", True)
     floor = kwargs.pop("contrast_floor", True)
     lift = kwargs.pop("lift_new_light", True)
+    detail = kwargs.pop("keep_detail", True)
     s = RelightSession(preset="fast", shadow_mode="learned", **kwargs)
     s.colour_guard, s.contrast_floor, s.lift_new_light = guard, floor, lift
+    s.keep_detail = detail
     return s
 
 

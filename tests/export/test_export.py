@@ -98,8 +98,9 @@ def test_session_relights_with_a_physics_base_l_as_the_physics_mode_does(tmp_pat
                        preset="fast")
     assert s.relight_mode == "learned"
     # Compare L's own output (the colour guard, the shade floor, which colours new shadows as
-    # physics on the smoothed new shadow, and the lift are tested in test_relight).
-    s.colour_guard = s.lift_new_light = s.contrast_floor = False
+    # physics on the smoothed new shadow, the lift and the photo's detail are tested in
+    # test_relight).
+    s.colour_guard = s.lift_new_light = s.contrast_floor = s.keep_detail = False
     s.set_image(image, depth=depth, fov_deg=30.0)
     # Shade the photo by its own shadows so the session measures its light ratio.
     from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear

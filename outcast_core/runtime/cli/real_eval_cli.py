@@ -168,7 +168,8 @@ def _summary_line(preset: str, report: dict[str, Any]) -> str:
 def render_trade(reports: dict[str, Any]) -> str:
     """One row per preset: the mean figures beside the time per photo."""
     lines = ["| Preset | Overlay BER | Opposite | S_o BER | Otsu | Shuffled | Sky claim | "
-             "De-shadow in / out | Relit chroma / sky / new shade / old shade | s / photo |",
+             "De-shadow in / out | Relit chroma / sky / new shade / old shade / detail | "
+             "s / photo |",
              "|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(m: dict[str, float], k: str, d: int = 3) -> str:
@@ -182,6 +183,6 @@ def render_trade(reports: dict[str, Any]) -> str:
                      f"{f(m, 'refined_ber')} | {f(m, 'otsu_ber')} | {f(m, 'shuffled_ber')} | "
                      f"{f(m, 'sky_claim')} | {ds} | {f(m, 'relit_chroma', 2)} / "
                      f"{f(m, 'relit_sky', 2)} / {f(m, 'new_shade', 2)} / "
-                     f"{f(m, 'old_shade', 2)} | "
+                     f"{f(m, 'old_shade', 2)} / {f(m, 'relit_detail', 2)} | "
                      f"{f(m, 'seconds', 2)} |")
     return "\n".join(lines)

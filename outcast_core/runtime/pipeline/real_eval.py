@@ -34,6 +34,12 @@ photo and on average (DESIGN.md, "Real photographs: how we measure"):
   shadow (:data:`OLD_SHADE_RING` of the longer side) and the shadow itself, both where
   ``S_n`` is above :data:`LIT_BOTH`, as a fraction of the photo's own ratio there: 0 is the old
   shadow gone, 1 unchanged (added 2026-12-01);
+* ``relit_detail``: how much fine texture that relit photo keeps where both suns light the
+  surface (as ``relit_chroma``): the standard deviation of log luminance's finest band (its
+  difference from a Gaussian blur of :data:`DETAIL_BAND` of the longer side) there, relit over
+  the photo's. Only the sun's cosine changes on such a surface, so 1 is right; below it the
+  relit photo is blurred and looks hazy, above it the relighting embosses (added 2026-12-01,
+  fourth session);
 * ``seconds``: wall time for the photo (depth, 24 suns, confirmation, de-shadowing, one relight).
 
 Masks are compared at the mask's size: shadow images are resized to it (bilinear) before the
@@ -68,6 +74,10 @@ RELIGHT_TURN = 120.0
 LIT_BOTH = 0.3
 #: ``old_shade``: width of the lit ring outside a marked shadow (fraction of the longer side).
 OLD_SHADE_RING = 0.03
+#: ``relit_detail``: Gaussian sigma (fraction of the longer side) under which texture counts as
+#: fine, and the fewest both-lit pixels it needs.
+DETAIL_BAND = 1.0 / 128
+DETAIL_MIN_PIXELS = 100
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp")
 
 Progress = Callable[[str, float], None]
@@ -184,6 +194,7 @@ class PhotoResult:
     relit_sky: float | None = None
     new_shade: float | None = None
     old_shade: float | None = None
+    relit_detail: float | None = None
     depth_source: str = ""
     extra: dict[str, float] = field(default_factory=dict)
 
@@ -279,7 +290,7 @@ def evaluate_photo(
 
 def _relight_checks(session: Any, res: PhotoResult, az: float, el: float,
                     truth: np.ndarray) -> None:
-    """``relit_chroma``, ``relit_sky``, ``new_shade`` and ``old_shade`` of
+    """``relit_chroma``, ``relit_sky``, ``new_shade``, ``old_shade`` and ``relit_detail`` of
     :class:`PhotoResult` (module docstring)."""
     w_o, w_n = sun_vector(az, el), sun_vector((az + RELIGHT_TURN) % 360.0, el)
     relit = session.relight(w_n)
@@ -290,6 +301,7 @@ def _relight_checks(session: Any, res: PhotoResult, az: float, el: float,
     if lit.any():
         d = lab_b[lit, 1:] - lab_a[lit, 1:]
         res.relit_chroma = float(np.mean(np.hypot(d[:, 0], d[:, 1])))
+    res.relit_detail = detail_ratio(image, relit, lit)
     if session.sky.any() and not (sun_in_frame(w_o, session.camera)
                                   or sun_in_frame(w_n, session.camera)):
         d = lab_b[session.sky] - lab_a[session.sky]
@@ -333,6 +345,34 @@ def new_shade_ratio(
     if own > -1e-3:
         return None
     return float(np.median((log_r - log_y)[newly]) / own)
+
+
+def detail_ratio(image_srgb: np.ndarray, relit_srgb: np.ndarray,
+                 where: np.ndarray) -> float | None:
+    """``relit_detail`` (module docstring) over the pixels ``where``; None below
+    :data:`DETAIL_MIN_PIXELS` of them or on a photo without texture there.
+
+    Example:
+        >>> rng = np.random.default_rng(0)
+        >>> img = np.clip(0.5 + 0.1 * rng.standard_normal((128, 128, 3)), 0, 1)
+        >>> every = np.ones((128, 128), bool)
+        >>> detail_ratio(img, img, every)
+        1.0
+        >>> bool(detail_ratio(img, cv2.GaussianBlur(img, (0, 0), 1.0), every) < 0.5)
+        True
+    """
+    where = np.asarray(where, bool)
+    if where.sum() < DETAIL_MIN_PIXELS:
+        return None
+    sigma = DETAIL_BAND * max(where.shape)
+
+    def band_std(x: np.ndarray) -> float:
+        y = np.log(luminance(srgb_to_linear(np.clip(np.asarray(x, np.float32), 0.0, 1.0)))
+                   + 1e-3)
+        return float(np.std((y - cv2.GaussianBlur(y, (0, 0), sigma))[where]))
+
+    own = band_std(image_srgb)
+    return None if own < 1e-4 else round(band_std(relit_srgb) / own, 6)
 
 
 def old_shade_ratio(
@@ -391,7 +431,7 @@ def shuffled_control(
 SUMMARY_KEYS = ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuffled_ber",
                 "sky_claim", "overlay_fraction", "shadow_fraction", "seconds",
                 "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky", "new_shade",
-                "old_shade")
+                "old_shade", "relit_detail")
 
 
 def summarize(results: Sequence[PhotoResult]) -> dict[str, float]:
@@ -500,7 +540,7 @@ def _write_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
 def render_table(report: dict[str, Any]) -> str:
     """The per-photo results and their means as a Markdown table."""
     head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | Shuffled | Sky claim |"
-            " De-shadow in / out | Relit chroma / sky / new shade / old shade | s |")
+            " De-shadow in / out | Relit chroma / sky / new shade / old shade / detail | s |")
     lines = [head, "|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(v: Any, d: int = 3) -> str:
@@ -514,7 +554,7 @@ def render_table(report: dict[str, Any]) -> str:
             f"{f(r['overlay_ber'])} | {f(r['opposite_ber'])} | {f(r['refined_ber'])} | "
             f"{f(r['otsu_ber'])} | {f(r['shuffled_ber'])} | {f(r['sky_claim'])} | {ds} | "
             f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} / {f(r.get('new_shade'), 2)} / "
-            f"{f(r.get('old_shade'), 2)} | "
+            f"{f(r.get('old_shade'), 2)} / {f(r.get('relit_detail'), 2)} | "
             f"{f(r['seconds'], 1)} |")
     m = report["mean"]
     ds = ("-" if "deshadow_in" not in m
@@ -524,7 +564,8 @@ def render_table(report: dict[str, Any]) -> str:
         f"{f(m.get('opposite_ber'))} | **{f(m.get('refined_ber'))}** | {f(m.get('otsu_ber'))} | "
         f"{f(m.get('shuffled_ber'))} | {f(m.get('sky_claim'))} | {ds} | "
         f"{f(m.get('relit_chroma'), 2)} / {f(m.get('relit_sky'), 2)} / "
-        f"{f(m.get('new_shade'), 2)} / {f(m.get('old_shade'), 2)} | {f(m.get('seconds'), 1)} |")
+        f"{f(m.get('new_shade'), 2)} / {f(m.get('old_shade'), 2)} / "
+        f"{f(m.get('relit_detail'), 2)} | {f(m.get('seconds'), 1)} |")
     return "\n".join(lines)
 
 

@@ -250,6 +250,9 @@ class RelightSession:
         #: Learned relighting takes its exposure from physics on the surfaces both suns light
         #: (:func:`~outcast_core.runtime.pipeline.relight.anchor_exposure`).
         self.exposure_anchor = True
+        #: Learned relighting keeps the photo's fine texture where no shadow changes (``L``
+        #: blurs it; :func:`~outcast_core.runtime.pipeline.relight.restore_detail`).
+        self.keep_detail = True
         #: With the floor, learned relighting also brightens newly lit surfaces toward physics
         #: (:func:`~outcast_core.runtime.pipeline.relight.shadow_contrast_floor`'s ``lift``),
         #: only where the photo's found shadow is shade and not dark material and the geometry
@@ -744,7 +747,8 @@ class RelightSession:
                 raise RuntimeError("set_original_sun() must be called before "
                                    "prepare_relight_preview()")
             st = self._relight_preview_state()
-            if self.relight_mode == "learned" and self.lift_new_light and self.contrast_floor:
+            if self.relight_mode == "learned" and (
+                    self.lift_new_light and self.contrast_floor or self.keep_detail):
                 self._lift_inputs(st["shadow_old"].shape)  # not on the first drag frame
             if self.shadow_mode == "learned":
                 self.registry.load("shadow", threads=PREVIEW_THREADS)
@@ -877,10 +881,12 @@ class RelightSession:
         (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`)."""
         keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(w_n, cam))
         lift = self.lift_new_light and self.contrast_floor
+        # The detail's lifted texture is the lift's de-shadowed photo, lift or not.
+        inputs = self._lift_inputs(s_o.shape) if lift or self.keep_detail else {}
         return guard_learned_relight(image, relit, s_o, s_new, sky, light, keep_sky=keep_sky,
                                      colour=self.colour_guard, floor=self.contrast_floor,
-                                     anchor=self.exposure_anchor, lift=lift, keep_old=keep_old,
-                                     **(self._lift_inputs(s_o.shape) if lift else {}))
+                                     anchor=self.exposure_anchor, detail=self.keep_detail,
+                                     lift=lift, keep_old=keep_old, **inputs)
 
     def _lift_inputs(self, shape: tuple[int, int]) -> dict[str, Any]:
         """:func:`guard_learned_relight`'s ``lift_guard``, ``lift_base`` and ``lift_colour`` at

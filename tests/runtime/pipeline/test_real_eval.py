@@ -241,3 +241,23 @@ def test_old_shade_ratio_measures_the_old_shadow_left_where_the_new_sun_lights_i
     assert old_shade_ratio(img, img, marked, np.zeros_like(lit), sky) is None
     # A marked region no darker than its surroundings says nothing about a relighting.
     assert old_shade_ratio(np.full_like(img, 0.8), img, marked, lit, sky) is None
+
+
+def test_detail_ratio_measures_the_fine_texture_a_relighting_keeps() -> None:
+    """1 for the photo's own texture whatever the exposure (a gain is no loss of detail),
+    below 1 for a blurred relighting, None with too few pixels or no texture."""
+    from outcast_core.runtime.pipeline.real_eval import detail_ratio
+
+    rng = np.random.default_rng(4)
+    img = np.clip(0.4 + 0.08 * rng.standard_normal((128, 160, 3)), 0.05, 1).astype(np.float32)
+    where = np.zeros((128, 160), bool)
+    where[20:100, 20:140] = True
+    from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
+
+    brighter = linear_to_srgb(srgb_to_linear(img) * 1.5)
+    assert detail_ratio(img, brighter, where) == pytest.approx(1.0, abs=0.02)
+    blurred = cv2.GaussianBlur(img, (0, 0), 1.5)
+    assert detail_ratio(img, blurred, where) < 0.5
+    assert detail_ratio(img, img, np.zeros_like(where)) is None
+    flat = np.full_like(img, 0.5)
+    assert detail_ratio(flat, img, where) is None

@@ -225,6 +225,95 @@ def test_guarded_relight_keeps_the_photos_colour_where_both_suns_light_it() -> N
     assert np.abs(lab_o[newly][..., 1:] - lab_i[newly][..., 1:]).mean() > 1.0
 
 
+def _textured(h: int = 128, w: int = 192, seed: int = 3) -> np.ndarray:
+    """A smooth ramp with fine sRGB texture on it."""
+    rng = np.random.default_rng(seed)
+    ramp = np.linspace(0.3, 0.6, w, dtype=np.float32)[None, :, None]
+    return np.clip(ramp + 0.08 * rng.standard_normal((h, w, 3)), 0.02, 1).astype(np.float32)
+
+
+def test_restore_detail_puts_the_photos_texture_back_where_no_shadow_changes() -> None:
+    """``L`` blurs; where both suns light a surface the relit image takes the photo's fine
+    band and keeps its own coarse level (a brighter relighting stays brighter); where a
+    shadow comes or goes ``L``'s own image stays, and so does the sky."""
+    from outcast_core.runtime.pipeline.relight import restore_detail
+
+    photo = _textured()
+    h, w = photo.shape[:2]
+    relit = np.clip(cv2.GaussianBlur(photo, (0, 0), 1.5) * 1.3, 0, 1)  # blurred, brighter
+    s_old = np.full((h, w), 0.8, np.float32)
+    s_new = np.full((h, w), 0.8, np.float32)
+    s_new[:, 150:] = 0.0  # newly shadowed there
+    sky = np.zeros((h, w), bool)
+    sky[:20] = True
+    out = restore_detail(photo, relit, s_old, s_new, sky)
+
+    def fine(x: np.ndarray) -> np.ndarray:
+        return x - cv2.GaussianBlur(x, (0, 0), 2.0)
+
+    both = np.s_[30:-10, 10:130]
+    corr = np.corrcoef(fine(out)[both].ravel(), fine(photo)[both].ravel())[0, 1]
+    corr_before = np.corrcoef(fine(relit)[both].ravel(), fine(photo)[both].ravel())[0, 1]
+    assert corr > 0.9 > corr_before + 0.2
+    assert abs(out[both].mean() / relit[both].mean() - 1.0) < 0.03  # L's level kept
+    np.testing.assert_allclose(out[30:, 160:], relit[30:, 160:], atol=1e-4)  # shadow changed
+    np.testing.assert_allclose(out[:20], relit[:20], atol=1e-4)  # sky
+    np.testing.assert_allclose(restore_detail(photo, relit, s_old, s_new, sky, sigma=0.0),
+                               relit)
+    with pytest.raises(ValueError, match="sky mask"):
+        restore_detail(photo, relit, s_old, s_new, sky[:4])
+    with pytest.raises(ValueError, match="lifted photo"):
+        restore_detail(photo, relit, s_old, s_new, sky, photo[:4])
+
+
+def test_restore_detail_takes_the_lifted_texture_where_the_new_sun_lights() -> None:
+    """Where the new sun lights the surface the band is the lifted photo's (the photo's
+    shadow edges are not put back), where it shades it the photo's own."""
+    from outcast_core.runtime.pipeline.relight import restore_detail
+
+    photo, lifted = _textured(seed=5), _textured(seed=6)
+    h, w = photo.shape[:2]
+    relit = cv2.GaussianBlur(photo, (0, 0), 1.5)
+    shade = np.zeros((h, w), np.float32)
+    lit = np.full((h, w), 0.8, np.float32)
+    sky = np.zeros((h, w), bool)
+
+    def fine(x: np.ndarray) -> np.ndarray:
+        return (x - cv2.GaussianBlur(x, (0, 0), 2.0))[10:-10, 10:-10].ravel()
+
+    def corr(a: np.ndarray, b: np.ndarray) -> float:
+        return float(np.corrcoef(fine(a), fine(b))[0, 1])
+
+    lit_out = restore_detail(photo, relit, lit, lit, sky, lifted)
+    assert corr(lit_out, lifted) > 0.8 > corr(lit_out, photo) + 0.4
+    kept = restore_detail(photo, relit, shade, shade, sky, lifted)  # shadow under both
+    assert corr(kept, photo) > 0.8 > corr(kept, lifted) + 0.4
+
+
+def test_guarded_relight_restores_detail_only_when_asked() -> None:
+    """``detail`` runs :func:`restore_detail` first, from the de-shadowed photo when the lift
+    gives one; without it the guards are as before."""
+    from outcast_core.runtime.pipeline.relight import guard_learned_relight, restore_detail
+
+    photo = _textured()
+    h, w = photo.shape[:2]
+    relit = cv2.GaussianBlur(photo, (0, 0), 1.5)
+    lit = np.full((h, w), 0.8, np.float32)
+    sky = np.zeros((h, w), bool)
+    light = estimate_light(srgb_to_linear(photo), lit)
+    kw = {"keep_sky": True, "floor": False, "anchor": False, "colour": False}
+    np.testing.assert_allclose(
+        guard_learned_relight(photo, relit, lit, lit, sky, light, detail=False, **kw), relit)
+    np.testing.assert_allclose(
+        guard_learned_relight(photo, relit, lit, lit, sky, light, **kw),
+        restore_detail(photo, relit, lit, lit, sky), atol=1e-6)
+    other = _textured(seed=9)  # the lift's de-shadowed photo is the lifted texture
+    np.testing.assert_allclose(
+        guard_learned_relight(photo, relit, lit, lit, sky, light,
+                              lift_base=(other, lit), **kw),
+        restore_detail(photo, relit, lit, lit, sky, other), atol=1e-6)
+
+
 def test_guarded_relight_lifts_newly_lit_surfaces_to_physics_only_when_asked() -> None:
     from outcast_core.runtime.geometry.colour import luminance
     from outcast_core.runtime.pipeline.relight import guard_learned_relight, physics_relight
