@@ -175,6 +175,9 @@ class MainWindow(QMainWindow):
         #: A compass heading typed in step 1 (None: unknown, or the EXIF's when it records one,
         #: which a typed heading replaces).
         self.user_heading: float | None = None
+        #: The heading the sun in the frame implies (None: no sun in the frame, or no GPS and
+        #: time); said under the EXIF button while the heading box holds it.
+        self.seen_heading: float | None = None
         #: The loaded photo's camera ``(pitch, roll, source)`` (auto_sun.camera_tilt).
         self.camera_tilt: tuple[float, float, str] = LEVEL_TILT
         #: The last automatic sun (``auto_sun.SunFit``) of this photo, or None.
@@ -733,13 +736,13 @@ class MainWindow(QMainWindow):
         self._load_notice = notice.strip()
         self.align_panel.show_notice(self._load_notice)
         if restore is None:  # another photo: its own heading, no search result yet
-            self.user_heading = None
+            self.user_heading = self.seen_heading = None
             self.align_panel.set_heading(self._exif_heading(), recorded=True)
             self.sun_fit = None
             self.align_panel.sun_panel.dial.set_heat_map(None)
         self._update_exif_controls()
         self._set_step(Step.ALIGN)
-        exif_sun = seen_sun = None
+        exif_sun = seen_sun = seen_heading = None
         if restore is None:  # another photo: nothing of the previous one stays on screen
             self.timings = StageTimings()
             self.timings_label.setText("")
@@ -750,6 +753,7 @@ class MainWindow(QMainWindow):
                 if seen is not None:  # exact, whatever the compass says
                     az, el = sun_angles(seen.w)
                     seen_sun = (az, dm.clamp_elevation(el))
+                    seen_heading = self._heading_from_seen_sun(az, el)
                 else:
                     exif_sun = self.exif_sun()
                 self.align_panel.sun_panel.set_sun(*(seen_sun or exif_sun or DEFAULT_SUN))
@@ -770,6 +774,8 @@ class MainWindow(QMainWindow):
         if seen_sun is not None:
             opened += (f" · the sun is in the frame: azimuth {seen_sun[0]:.1f}°, elevation "
                        f"{seen_sun[1]:.1f}°")
+        if seen_heading is not None:
+            opened += f" · camera heading {seen_heading:.1f}° from it"
         if exif_sun is not None:
             tilt = self.tilt_note()
             opened += (
@@ -855,6 +861,12 @@ class MainWindow(QMainWindow):
             return (f"No compass heading in the photo's EXIF: Find sun uses the elevation "
                     f"{el:.0f}° from the photo's time and place. Type the camera heading below "
                     "for the full sun.")
+        seen, typed = self.seen_heading, self.user_heading
+        if seen is not None and typed is not None and abs(seen - typed) < 0.05:
+            recorded = self._exif_heading()
+            compass = "" if recorded is None else f" (its EXIF compass says {recorded:.1f}°)"
+            return (f"Camera heading {seen:.1f}° from the sun in the frame and the photo's time "
+                    f"and place{compass}.")
         return ""
 
     def _update_exif_controls(self) -> None:
@@ -869,6 +881,21 @@ class MainWindow(QMainWindow):
         # A heading only helps with a time and a place. One recorded in the EXIF is shown and
         # may be corrected (phone compasses are often tens of degrees off).
         self.align_panel.heading_box.setEnabled(bool(has_place))
+
+    def _heading_from_seen_sun(self, azimuth: float, elevation: float) -> float | None:
+        """The compass heading the sun in the frame implies with the photo's GPS and time, put
+        in step 1's heading box (it replaces the EXIF's, often wrong: the ski-slope sample's
+        is off by about 126°), so that "Sun from EXIF" and the time-lapse's real sun path
+        agree with the sun the photo shows; None without GPS and time."""
+        from outcast_core.runtime.pipeline.timelapse import exif_heading_from_sun
+
+        heading = exif_heading_from_sun(getattr(self.loaded, "exif", None), azimuth, elevation,
+                                        tilt=self.camera_tilt[:2])
+        if heading is None:
+            return None
+        self.seen_heading = round(heading, 1) % 360.0  # as the box shows it
+        self.set_user_heading(self.seen_heading)
+        return self.seen_heading
 
     def _exif_heading(self) -> float | None:
         """The compass heading the photo's EXIF records, or None."""

@@ -264,10 +264,22 @@ def test_the_camera_tilt_follows_the_photo_and_the_preset(window, settle):
     assert source == "sun in the frame" and 7.0 < pitch < 13.0 and roll == 0.0
     for panel in (window.align_panel, window.relight_panel):
         assert panel.sun_panel.dial.tilt() == (pitch, roll)
-    level = exif_sun(window.loaded.exif)
-    assert window.exif_sun() == pytest.approx(
-        exif_sun(window.loaded.exif, tilt=(pitch, roll)), abs=1e-9)
-    assert window.exif_sun() != pytest.approx(level, abs=0.5)
+    # The seen sun gives the compass heading too (the EXIF's is about 126° off): it goes in
+    # the heading box, and the EXIF sun is then the seen sun, in the camera's frame.
+    from outcast_core.runtime.geometry.camera import sun_angles
+
+    seen = sun_angles(window.session.sun_seen.w)
+    compass = exif_sun(window.loaded.exif, tilt=(pitch, roll))
+    assert window.user_heading is not None
+    assert window.align_panel.heading() == pytest.approx(window.user_heading)
+    assert window.exif_sun() == pytest.approx(seen, abs=0.1)
+    assert abs((compass[0] - seen[0] + 180.0) % 360.0 - 180.0) > 90.0
+    note = window.align_panel.exif_note.text()  # said under the EXIF button, and kept
+    assert f"Camera heading {window.user_heading:.1f}° from the sun in the frame" in note
+    assert "its EXIF compass says" in note
+    window.set_user_heading(10.0)  # typed: the note goes
+    assert window.align_panel.exif_note.text() == ""
+    assert window.exif_sun() != pytest.approx(exif_sun(window.loaded.exif), abs=0.5)  # level
     assert "camera pitched" in window.tilt_note() and "(sun in the frame)" in window.tilt_note()
     field = os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg")
     window.open_path(field)
@@ -278,6 +290,7 @@ def test_the_camera_tilt_follows_the_photo_and_the_preset(window, settle):
     refit = photo_camera_tilt(window.session, field)
     assert window.camera_tilt == refit
     assert window.align_panel.sun_panel.dial.tilt() == refit[:2]
+    assert window.user_heading is None  # another photo: its own heading
     window.open_path(os.path.join(ROOT, "samples", "exif_003_th_pool.jpg"))
     settle()
     assert window.camera_tilt[:2] == (0.0, 0.0) and window.tilt_note() == ""

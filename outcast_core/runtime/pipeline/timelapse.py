@@ -214,6 +214,23 @@ def exif_sun(
     return sun_angles(sun_vector(az, el, *tilt))
 
 
+def exif_heading_from_sun(
+    exif: Any, azimuth: float, elevation: float, tilt: tuple[float, float] = (0.0, 0.0)
+) -> float | None:
+    """The camera's compass heading that a sun known in the camera's frame (the sun the photo
+    shows, :func:`~outcast_core.runtime.pipeline.auto_sun.sun_in_photo`) implies with the
+    photo's EXIF GPS and capture time, read as :func:`exif_sun` reads them, so that
+    ``exif_sun(exif, heading=...)`` gives that sun back; None without them.
+
+    ``tilt``: the camera's ``(pitch, roll)`` in degrees (:func:`solve_heading`).
+    """
+    when = getattr(exif, "capture_time", None)
+    lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
+    if when is None or lat is None or lon is None:
+        return None
+    return solve_heading(when, lat, lon, azimuth, original_elevation=elevation, tilt=tilt)
+
+
 def heading_from_sun(true_azimuth: float, relative_az: float) -> float:
     """Camera compass heading from the sun's true and camera-relative azimuths.
 

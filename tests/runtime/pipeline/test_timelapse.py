@@ -130,6 +130,12 @@ def test_a_tilted_camera_sees_the_true_sun_in_its_own_frame():
         solved = tl.solve_heading(Exif.capture_time, Exif.latitude, Exif.longitude, cam[0],
                                   original_elevation=cam[1], tilt=tilt)
         assert solved == pytest.approx(163.7, abs=1e-6)
+        # So is the heading a sun seen in the frame implies (exif_sun gives that sun back).
+        seen = tl.exif_heading_from_sun(Exif(), *cam, tilt=tilt)
+        assert seen == pytest.approx(163.7, abs=1e-6)
+    wrong_compass = tl.exif_sun(Exif(), heading=40.0)
+    assert tl.exif_heading_from_sun(Exif(), *wrong_compass) == pytest.approx(40.0, abs=1e-6)
+    assert tl.exif_heading_from_sun(object(), *level) is None  # no GPS and time
     with pytest.raises(ValueError, match="elevation"):
         tl.solve_heading(Exif.capture_time, 7.8, 98.3, 10.0, tilt=(-5.0, 0.0))
     # A camera pitched 80 deg up has the sun ahead of it, 66.8 deg up, 13.2 deg under its own
