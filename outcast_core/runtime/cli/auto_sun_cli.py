@@ -4,7 +4,9 @@ Prints the sun's azimuth and elevation relative to the camera and a confidence; 
 shadows in the photo it says so on stderr instead of guessing and exits with
 :data:`NO_SUN_STATUS` (with ``--json`` the JSON is printed all the same, with the best guess
 under ``best_guess`` and ``azimuth`` and ``elevation`` null), unless the EXIF's compass heading
-gives a full sun. See :mod:`outcast_core.runtime.pipeline.auto_sun`.
+gives a full sun. A sun seen in the frame, with the photo's GPS and time, also gives the
+camera's compass heading (``camera heading`` / ``camera_heading``). See
+:mod:`outcast_core.runtime.pipeline.auto_sun`.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ def cmd_sun(args: argparse.Namespace) -> int:
         find_sun,
         photo_camera_tilt,
     )
+    from outcast_core.runtime.pipeline.timelapse import exif_heading_from_sun
 
     loaded = _load(args.image)
     session = _make_session(args, shadow_mode=args.mode)
@@ -39,6 +42,11 @@ def cmd_sun(args: argparse.Namespace) -> int:
     tilt = None if args.no_exif else photo_camera_tilt(session, args.image)
     fit = find_sun(session, prior=prior, pitch_roll=tilt)
     sure = fit.found or fit.source == "EXIF"
+    # A sun seen in the frame and the photo's GPS and time give the compass heading.
+    seen_heading = None
+    if fit.source == "sun in the frame" and tilt is not None:
+        seen_heading = exif_heading_from_sun(loaded.exif, fit.azimuth, fit.elevation,
+                                             tilt=tilt[:2])
     if args.json:
         out: dict[str, Any] = fit.as_dict()
         out["image"] = str(args.image)
@@ -49,11 +57,13 @@ def cmd_sun(args: argparse.Namespace) -> int:
         out["exif_elevation"] = None if prior is None else round(prior.elevation, 2)
         out["exif_azimuth"] = (None if prior is None or prior.azimuth is None
                                else round(prior.azimuth, 2))
+        out["camera_heading"] = None if seen_heading is None else round(seen_heading, 2)
         print(json.dumps(out, indent=2, ensure_ascii=False))
         return 0 if sure else NO_SUN_STATUS
     if sure:
+        heading = "" if seen_heading is None else f"  camera heading {seen_heading:.1f}"
         print(f"azimuth {fit.azimuth:.1f}  elevation {fit.elevation:.1f}  "
-              f"confidence {fit.confidence:.2f}")
+              f"confidence {fit.confidence:.2f}{heading}")
     else:
         print(f"outcast sun: {fit.note}", file=sys.stderr)  # said even with -q
     said = fit.note if sure else (f"best guess: azimuth {fit.azimuth:.1f}, elevation "

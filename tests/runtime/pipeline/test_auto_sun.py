@@ -277,6 +277,17 @@ def test_find_sun_takes_the_sun_in_the_frame(capsys: pytest.CaptureFixture[str])
     assert abs((out["azimuth"] - 354.0 + 180.0) % 360.0 - 180.0) < 4.0
     assert 10.0 < out["elevation"] < 20.0
     assert "compass heading puts it" in out["note"]
+    # The seen sun, GPS and time give the camera's heading: the EXIF sun at that heading is the
+    # seen sun (the compass records about 93°).
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.pipeline.timelapse import exif_sun
+
+    assert abs(out["camera_heading"] - 222.0) < 5.0
+    exif = read_image(sample).exif
+    want = exif_sun(exif, heading=out["camera_heading"], tilt=(out["pitch"], out["roll"]))
+    assert want == pytest.approx((out["azimuth"], out["elevation"]), abs=0.05)
+    assert main(["sun", str(sample), "--preset", "fast", "-q"]) == 0
+    assert "camera heading 222." in capsys.readouterr().out
 
 
 def test_the_sun_in_the_frame_and_the_exif_elevation_give_the_camera_pitch() -> None:
