@@ -93,7 +93,10 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
             "The photo, its depth and your suns are unchanged.",
         )
     if action == "export":
-        if isinstance(exc, FileExistsError):
+        if isinstance(exc, IsADirectoryError):  # a frames folder that holds other files
+            todo = ("Nothing in that folder was changed. Choose a new or empty folder for the "
+                    "frames.")
+        elif isinstance(exc, FileExistsError):
             todo = "Nothing was overwritten. Choose another name, or confirm replacing the file."
         elif isinstance(exc, PermissionError):
             todo = "Nothing was written. Choose a folder you can write to."

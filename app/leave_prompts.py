@@ -13,6 +13,8 @@ from dataclasses import dataclass
 STOP, SAVE, DISCARD = "stop", "save", "discard"
 #: Answers that keep everything as it is and abandon the quit or open.
 KEEP, CANCEL = "keep", "cancel"
+#: The answer that replaces a project file this window did not open or save.
+REPLACE = "replace"
 
 
 @dataclass(frozen=True)
@@ -84,7 +86,7 @@ def leave_questions(
                 text=f"OutCast is still exporting {names}.",
                 detail=(
                     f"If you stop it now, nothing is written and the file is not created. "
-                    f"Or keep exporting, and {then} when it has finished."
+                    f"Or keep exporting; you can {then} once it has finished."
                 ),
                 choices=(
                     Choice(KEEP, "Keep exporting", "reject"),
@@ -110,3 +112,31 @@ def leave_questions(
             )
         )
     return questions
+
+
+def replace_project_question(project_name: str, saved: str) -> Question:
+    """Asked before saving over a project file this window neither opened nor saved (the
+    photo was opened on its own while a project of it exists): saving would replace the
+    suns kept there, which ``outcast batch`` reads too.
+
+    Args:
+        project_name: the project file's name.
+        saved: when it was last saved, in words.
+
+    Example:
+        >>> q = replace_project_question("a.outcast.json", "2026-12-01 08:00")
+        >>> [c.key for c in q.choices], q.default
+        (['replace', 'cancel'], 'cancel')
+    """
+    return Question(
+        title="Replace the saved project?",
+        text=f"{project_name} already holds a project of this photo (saved {saved}).",
+        detail=("You opened the photo on its own, so saving replaces the suns and settings kept "
+                "there. Open the project file instead to continue that work."),
+        choices=(
+            Choice(REPLACE, "Replace it", "destructive"),
+            Choice(CANCEL, "Cancel", "reject"),
+        ),
+        default=CANCEL,
+        escape=CANCEL,
+    )

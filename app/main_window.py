@@ -62,7 +62,15 @@ from app import sun_dial_math as dm
 from app.canvas import ImageCanvas, qimage_from_array
 from app.errors import depth_file_problem, message_for
 from app.history import EditCommand, EditState
-from app.leave_prompts import SAVE, STOP, Question, RunningExport, leave_questions
+from app.leave_prompts import (
+    REPLACE,
+    SAVE,
+    STOP,
+    Question,
+    RunningExport,
+    leave_questions,
+    replace_project_question,
+)
 from app.panels import VIEW_CHOICES, AlignPanel, RelightPanel
 from app.state import (
     IMAGE_SUFFIXES,
@@ -141,6 +149,15 @@ class WindowShortcutsWin(QObject):
         return False
 
 
+class StatusText(QLabel):
+    """The status bar's message, whole in its tooltip too: a long one (a found sun with its
+    EXIF prior) is cut off at the window's edge at 1366 x 768."""
+
+    def setText(self, text: str) -> None:  # noqa: N802 (Qt's name)
+        super().setText(text)
+        self.setToolTip(text)
+
+
 class MainWindow(QMainWindow):
     """OutCast's main window.
 
@@ -175,6 +192,10 @@ class MainWindow(QMainWindow):
         #: A compass heading typed in step 1 (None: unknown, or the EXIF's when it records one,
         #: which a typed heading replaces).
         self.user_heading: float | None = None
+        #: The project file this window opened or saved for the photo on screen ("" if none):
+        #: saving over another one asks first (:meth:`save_project`).
+        self._project_file = ""
+        self._opening_project_file = ""
         #: The heading the sun in the frame implies (None: no sun in the frame, or no GPS and
         #: time); said under the EXIF button while the heading box holds it.
         self.seen_heading: float | None = None
@@ -232,7 +253,7 @@ class MainWindow(QMainWindow):
         self.steps = QStackedWidget(self)
         self.steps.addWidget(self.align_panel)
         self.steps.addWidget(self.relight_panel)
-        scroll = QScrollArea(self)
+        scroll = self.side_scroll = QScrollArea(self)
         scroll.setWidget(self.steps)
         scroll.setWidgetResizable(True)
         scroll.setFrameShape(QScrollArea.Shape.NoFrame)
@@ -390,7 +411,7 @@ class MainWindow(QMainWindow):
         tb.addAction(self.act_timelapse)
 
         # Status bar: running stage + progress on the left, stage timings and modes on the right.
-        self.stage_label = QLabel("Ready", self)
+        self.stage_label = StatusText("Ready", self)
         self.progress_bar = QProgressBar(self)
         self.progress_bar.setMaximumWidth(180)
         self.progress_bar.setRange(0, 100)
@@ -453,6 +474,8 @@ class MainWindow(QMainWindow):
         self.recent_menu.setEnabled(bool(paths))
 
     def _set_step(self, step: Step) -> None:
+        if step is not self.step:  # a new step's panel starts at its top
+            self.side_scroll.verticalScrollBar().setValue(0)
         self.step = step
         has_photo = step is not Step.EMPTY
         self.steps.setCurrentWidget(
@@ -622,8 +645,10 @@ class MainWindow(QMainWindow):
                 return
             self.recent.add(path)
             self._save_recent()
+            self._opening_project_file = os.path.abspath(path)
             self.open_image(state.image_path, project=state)
         else:
+            self._opening_project_file = ""
             self.open_image(path)
 
     def open_image(
@@ -733,10 +758,15 @@ class MainWindow(QMainWindow):
         long_note = elongation_note(*loaded.original_size) if loaded is not None else ""
         if long_note:  # a panorama strip: the depth sees a few rows of it
             notice = f"{long_note[:1].upper()}{long_note[1:]}. " + notice
+        saved = project_path_for(self.image_path)
+        if project is None and restore is None and saved.exists():  # the photo on its own
+            notice = (f"This photo has a saved project, {saved.name}: open it (File \u25b8 "
+                      "Open) to continue that work. ") + notice
         self._load_notice = notice.strip()
         self.align_panel.show_notice(self._load_notice)
         if restore is None:  # another photo: its own heading, no search result yet
             self.user_heading = self.seen_heading = None
+            self._project_file = self._opening_project_file if project is not None else ""
             self.align_panel.set_heading(self._exif_heading(), recorded=True)
             self.sun_fit = None
             self.align_panel.sun_panel.dial.set_heat_map(None)
@@ -1385,6 +1415,11 @@ class MainWindow(QMainWindow):
             The job's id, or ``None`` when the file exists and ``force`` is off.
         """
         session, loaded = self.session, self.loaded
+        own = self._own_file(path)
+        if own:  # never, even confirmed in the file dialog (as the command line)
+            self.show_error(ValueError(f"'{os.path.basename(path)}' is {own}; choose another "
+                                       "name"), "export")
+            return None
         if not force and os.path.exists(path):
             self.show_error(FileExistsError(f"'{path}' already exists"), "export")
             return None
@@ -1401,6 +1436,20 @@ class MainWindow(QMainWindow):
             return {"path": path, "timings": _timings(session)}
 
         return self.runner.submit(channel, job, f"Exporting {os.path.basename(path)}")
+
+    def _own_file(self, path: str) -> str:
+        """What ``path`` is to the open work ("the photo you opened", its depth map, its
+        project file), or "" when it is none of them: an export may never replace those."""
+        if not path or not os.path.exists(path):
+            return ""
+        project = str(project_path_for(self.image_path)) if self.image_path else ""
+        mine = [(self.image_path, "the photo you opened"),
+                (self.depth_path, "the photo's depth map"),
+                (project, "the photo's project file")]
+        for other, what in mine:
+            if other and os.path.exists(other) and os.path.samefile(path, other):
+                return what
+        return ""
 
     # ================================================================== time-lapse
     def open_timelapse(self) -> Any:
@@ -1507,16 +1556,31 @@ class MainWindow(QMainWindow):
         if not self.image_path:
             return None
         target = path or str(project_path_for(self.image_path))
+        if path is None and not self._may_replace_project(target):
+            return None
         try:
             save_project(self.project_state(), target)
         except (OSError, ValueError) as exc:
             self.show_error(exc, "project")
             return None
+        self._project_file = os.path.abspath(target)
         self.recent.add(target)
         self._save_recent()
         self.undo_stack.setClean()
         self.stage_label.setText(f"Saved project {os.path.basename(target)}")
         return target
+
+    def _may_replace_project(self, target: str) -> bool:
+        """Whether saving may write ``target``: it does not exist, or this window opened or
+        saved it, or the user says to replace it (the photo was opened on its own while a
+        project of it exists; the file dialog asks by itself)."""
+        if not os.path.exists(target):
+            return True
+        own = self._project_file
+        if own and os.path.exists(own) and os.path.samefile(target, own):
+            return True
+        saved = time.strftime("%Y-%m-%d %H:%M", time.localtime(os.path.getmtime(target)))
+        return self.ask(replace_project_question(os.path.basename(target), saved)) == REPLACE
 
     def save_project_dialog(self) -> None:
         if not self.image_path:

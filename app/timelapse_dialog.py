@@ -585,7 +585,7 @@ class TimelapseDialog(QDialog):
             return None
         problem = tl.frames_folder_problem(path) if fmt == "png" else None
         if problem:  # never empty a folder the user keeps other files in
-            self.main.show_error(FileExistsError(problem), "export")
+            self.main.show_error(IsADirectoryError(problem), "export")
             return None
 
         def job(ctx: JobContext) -> dict[str, Any]:

@@ -165,7 +165,7 @@ def test_a_recorded_heading_is_shown_and_can_be_corrected(window, settle):
     assert ap.heading_box.prefix() == "" and "replaces" in ap.heading_box.toolTip()
     after = window.exif_sun()
     assert (before[0] - after[0]) % 360.0 == pytest.approx(20.0, abs=0.05)
-    assert "the heading you gave" in window.exif_prior().description
+    assert "the camera heading given" in window.exif_prior().description
     ap.heading_box.setValue(-1.0)  # "unknown": back to the recorded heading
     assert window.user_heading is None and ap.heading_box.text() == "EXIF 163.7°"
     assert window.exif_sun() == pytest.approx(before)

@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import av
 import cv2
@@ -70,7 +71,12 @@ def test_step_buttons_stay_in_view_and_follow_the_step(window, photo, settle):
     assert ap.confirm_button.isEnabled() and ap.confirm_button.isVisible()
     assert not ap.confirm_button.visibleRegion().isEmpty()
     assert not rp.export_button.isVisible()
+    bar = window.side_scroll.verticalScrollBar()
+    assert bar.maximum() > 0  # step 1 scrolls at this size
+    bar.setValue(bar.maximum())
     _confirm(window, settle)
+    assert bar.value() == 0  # step 2 opens at its top (its title in view)
+    assert window.stage_label.toolTip() == window.stage_label.text()  # cut off: whole here
     assert rp.export_button.isVisible() and not ap.confirm_button.isVisible()
     assert "First confirm" not in window.act_export.toolTip()
 
@@ -467,3 +473,57 @@ def test_bad_depth_map_shows_an_error_and_keeps_the_photo(window, photo, settle,
     settle()
     assert errors and window.step is Step.ALIGN
     assert window.session.depth_source == before != "given"
+
+
+def test_exports_never_replace_the_photo_or_its_project(window, photo, settle, errors,
+                                                        tmp_path):
+    """Even confirmed in the file dialog (``force``), an export may not write over the photo
+    on screen, through another name for it either, nor over its project file."""
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    before = Path(photo).read_bytes()
+    window.export_still(photo, force=True)
+    settle()
+    assert errors and "the photo you opened" in errors[-1][1]
+    alias = tmp_path / "alias.jpg"
+    os.link(photo, alias)  # the same file under another name
+    window.export_shadows_removed(str(alias), force=True)
+    settle()
+    assert "the photo you opened" in errors[-1][1]
+    assert Path(photo).read_bytes() == before
+    saved = window.save_project()
+    window.export_still(saved, force=True)
+    settle()
+    assert "project file" in errors[-1][1] and Path(saved).read_text().startswith("{")
+
+
+def test_saving_over_a_project_the_window_did_not_open_asks(qtbot, window, photo, settle,
+                                                            settings, leave_answers):
+    """A photo opened on its own while a project of it exists: the notice says so, and
+    Save asks before replacing that project (Cancel keeps it); a project the window opened or
+    saved is saved without a question."""
+    from app.leave_prompts import CANCEL, REPLACE
+
+    _load(window, photo, settle)
+    window.align_panel.sun_panel.set_sun(100.0, 35.0)
+    _confirm(window, settle)
+    saved = window.save_project()
+    assert saved and not leave_answers.asked  # a new file
+    window.relight_panel.sun_panel.set_sun(200.0, 30.0)
+    assert window.save_project() == saved and not leave_answers.asked  # its own
+    kept = Path(saved).read_text()
+    window.open_path(photo)  # the photo again, on its own
+    settle()
+    assert "has a saved project" in window.align_panel.notice.text()
+    leave_answers.asked.clear()
+    leave_answers.script[:] = [CANCEL]
+    assert window.save_project() is None
+    assert leave_answers.asked[-1].title == "Replace the saved project?"
+    assert Path(saved).read_text() == kept
+    leave_answers.script[:] = [REPLACE]
+    assert window.save_project() == saved and Path(saved).read_text() != kept
+    leave_answers.asked.clear()
+    window.open_path(saved)  # the project itself: saved again without a question
+    settle()
+    assert "has a saved project" not in window.align_panel.notice.text()
+    assert window.save_project() == saved and not leave_answers.asked

@@ -74,12 +74,11 @@ def parse_azel(text: str) -> np.ndarray:
         az, el = (float(p) for p in parts)
     except ValueError as exc:
         raise ValueError(f"expected AZ,EL in degrees (e.g. 135,40), got {text!r}") from exc
-    if not (math.isfinite(az) and math.isfinite(el)) or not -90.0 <= el <= 90.0:
-        raise ValueError(
-            f"expected AZ,EL with a finite azimuth and an elevation in [-90, 90], got {text!r}"
-        )
-    if el < 0.0:
+    if math.isfinite(az) and math.isfinite(el) and el < 0.0:
         raise ValueError(BELOW_HORIZON.format(text=text))
+    if not (math.isfinite(az) and math.isfinite(el)) or el > 90.0:
+        raise ValueError(f"expected AZ,EL with a finite azimuth and an elevation from 0 (the "
+                         f"horizon) to 90 (overhead), got {text!r}")
     return sun_vector(az, el)
 
 

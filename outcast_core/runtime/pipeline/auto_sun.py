@@ -239,7 +239,7 @@ def exif_sun_prior(metadata: Any, heading: float | None = None) -> SunPrior | No
     if recorded is None and heading is None:
         return SunPrior(el, description=f"elevation {el:.0f}° from the photo's time and place")
     az = relative_azimuth(true_az, heading if heading is not None else recorded)
-    whose = "the heading you gave" if heading is not None else "compass heading"
+    whose = "the camera heading given" if heading is not None else "compass heading"
     return SunPrior(el, az, description=f"azimuth {az:.0f}°, elevation {el:.0f}° from the "
                                         f"photo's time, place and {whose}")
 

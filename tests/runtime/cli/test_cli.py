@@ -31,6 +31,8 @@ def test_parse_angles() -> None:
     for bad in ("90", "a,b", "10,95", "nan,10"):
         with pytest.raises(ValueError, match="AZ,EL"):
             parse_azel(bad)
+    with pytest.raises(ValueError, match=r"from 0 \(the horizon\) to 90"):  # not "[-90, 90]"
+        parse_azel("10,95")
     with pytest.raises(ValueError):
         parse_vector("0,0,0")
 

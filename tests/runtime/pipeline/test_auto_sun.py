@@ -140,11 +140,11 @@ def test_exif_sun_prior() -> None:
     # recorded one (phone compasses are often tens of degrees off).
     typed = exif_sun_prior(meta, heading=200.0)
     assert typed is not None and typed.azimuth == pytest.approx(relative_azimuth(true_az, 200.0))
-    assert "the heading you gave" in typed.description
+    assert "the camera heading given" in typed.description
     corrected = exif_sun_prior(PhotoMetadata(latitude=50.0, longitude=14.0, capture_time=when,
                                              heading_deg=90.0), heading=200.0)
     assert corrected is not None and corrected.azimuth == pytest.approx(typed.azimuth)
-    assert "the heading you gave" in corrected.description
+    assert "the camera heading given" in corrected.description
     assert "compass heading" in full.description
 
 
@@ -350,4 +350,4 @@ def test_cli_sun_takes_a_heading(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["sun", str(sample), "--json", "--preset", "fast", "--heading", "200"]) in (0, 3)
     out = json.loads(capsys.readouterr().out)
     assert out["exif_azimuth"] == pytest.approx(relative_azimuth(true_az, 200.0), abs=0.01)
-    assert "the heading you gave" in out["note"] or out["source"] != "EXIF"
+    assert "the camera heading given" in out["note"] or out["source"] != "EXIF"
