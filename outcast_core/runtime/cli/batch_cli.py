@@ -14,6 +14,7 @@ import argparse
 import json
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -36,6 +37,7 @@ from outcast_core.runtime.pipeline.batch import (
     read_targets_csv,
     record_done,
     run_batch,
+    settings_for_source,
     summarize,
 )
 from outcast_core.runtime.pipeline.timelapse import MAX_FPS, MIN_FPS
@@ -173,8 +175,10 @@ def run_batch_command(args: argparse.Namespace) -> int:
 
     # The record of each output's settings: a rerun skips an output only when it was made with
     # the same ones. New outputs are recorded before the work (written atomically, one that
-    # exists is finished), redone ones (--force) as they finish.
+    # exists is finished), and every output again as it finishes, with the source its sun came
+    # from (--from did not decide a sun from the project, EXIF or the frame).
     redone = {job.output: job for job in jobs if Path(job.output).exists()}
+    by_output = {job.output: job for job in jobs}
 
     def record(done: list[BatchJob]) -> None:
         try:
@@ -188,8 +192,9 @@ def run_batch_command(args: argparse.Namespace) -> int:
     def show(r: JobResult) -> None:
         nonlocal count
         count += 1
-        if r.status == "done" and r.output in redone:
-            record([redone[r.output]])
+        if r.status == "done" and r.output in by_output:
+            job = by_output[r.output]
+            record([replace(job, settings=settings_for_source(job, options, r.sun_source))])
         if r.status == "failed" or not args.quiet:
             print(_line(r, count, total), file=sys.stderr, flush=True)
 

@@ -290,7 +290,7 @@ def plan_batch(
         job = BatchJob(str(image), str(output), row["to_sun"], row["from_sun"])
         job = replace(job, settings=job_settings(job, options))
         if output.exists() and not options.force:
-            if record.get(name) == job.settings:
+            if record.get(name) in (job.settings, settings_for_source(job, options, None)):
                 results.append(JobResult(str(image), str(output), "skipped",
                                          "done with these settings (use --force to redo it)"))
             else:
@@ -352,6 +352,41 @@ def job_settings(job: BatchJob, options: BatchOptions) -> str:
     keys.update(photo=_file_key(image),
                 project=_file_key(image.with_name(image.stem + PROJECT_SUFFIX)),
                 job_to_sun=_sun_key(job.to_sun), job_from_sun=_sun_key(job.from_sun))
+    return json.dumps(keys, sort_keys=True)
+
+
+#: :func:`settings_for_source`: the ``from_sun`` of an output whose sun came from elsewhere.
+FROM_SUN_NOT_USED = "not used"
+
+
+def settings_for_source(job: BatchJob, options: BatchOptions, source: str | None) -> str:
+    """``job``'s settings as its record keeps them once its sun came from ``source``: when
+    ``--from`` (the ``given`` source) could not have decided it (a CSV sun, or a source before
+    ``given`` in ``options.sources``; the sun in the frame stands where the first of ``exif``
+    and ``auto`` stands), ``from_sun`` reads :data:`FROM_SUN_NOT_USED`, so a rerun that adds
+    or changes ``--from`` keeps that output as done. ``source`` None: the settings such a
+    record holds (what :func:`plan_batch` compares too).
+
+    Example:
+        >>> opts = BatchOptions(kind="deshadow", from_sun=(120.0, 39.0))
+        >>> job = BatchJob("a.jpg", "out/a.jpg")
+        >>> job = replace(job, settings=job_settings(job, opts))
+        >>> settings_for_source(job, opts, "given") == job.settings
+        True
+        >>> '"from_sun": "not used"' in settings_for_source(job, opts, "exif")
+        True
+    """
+    keys = json.loads(job.settings or job_settings(job, options))
+    if source is not None:
+        order = list(options.sources)
+        if source == "sun in the frame":
+            source = next((s for s in order if s in ("exif", "auto")), source)
+        used = source == "given" or (
+            source != "csv" and "given" in order and source in order
+            and order.index(source) > order.index("given"))
+        if used:
+            return json.dumps(keys, sort_keys=True)
+    keys["from_sun"] = FROM_SUN_NOT_USED
     return json.dumps(keys, sort_keys=True)
 
 

@@ -128,6 +128,30 @@ def test_a_rerun_with_other_settings_keeps_the_outputs_and_says_so(
     assert main([*args, "--to", "180,20"]) == 2
 
 
+def test_adding_from_redoes_only_the_photos_it_gives_a_sun(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A photo with an EXIF sun was done; one without failed ("no --from"). Rerun with
+    ``--from``, as the message says: the EXIF photo's output is still done (``--from`` does
+    not decide its sun), only the other is made; a project then would come before both."""
+    photos, out = tmp_path / "in", tmp_path / "out"
+    photos.mkdir()
+    _exif_photo(photos / "exif.jpg")
+    _photo(photos / "plain.png", 1)
+    args = ["batch", str(photos), "-o", str(out), "--to", "90,30", "--preset", "fast",
+            "--mode", "classic", "--sources", "project,exif,given"]  # no automatic sun
+    assert main(args) == 2
+    assert "1 done, 0 skipped (already done), 1 failed" in capsys.readouterr().err
+    before = _mtimes(out)
+    assert main([*args, "--from", "120,39"]) == 0
+    err = capsys.readouterr().err
+    assert "1 done, 1 skipped (already done)" in err and "kept from other settings" not in err
+    assert _mtimes(out)["exif.jpg"] == before["exif.jpg"]
+    assert main([*args, "--from", "200,20"]) == 2  # the plain photo's sun came from --from
+    err = capsys.readouterr().err
+    assert "1 kept from other settings" in err and "plain.png" in err.strip().splitlines()[-1]
+
+
 def test_sun_sources(tmp_path: Path) -> None:
     from app.state import ProjectState, Sun, save_project
 
