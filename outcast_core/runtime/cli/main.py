@@ -242,6 +242,8 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
                f"photo's sun with {session.shadow_mode} S as the prior, depth: "
                f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
          + ")")
+    if args.mask:
+        _say(args, f"wrote {args.mask} (where the shadows were found, 255 = shadow)")
     return 0
 
 

@@ -297,8 +297,11 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     work = session.image_srgb.shape[:2]
     shape = frame_shape(size, session.full_image_srgb.shape[:2], work)
     guess = estimate_seconds(len(samples), shape, work, dict(session.timings))
+    odd = format_from_path(args.output) == "mp4" and (shape[0] % 2 or shape[1] % 2)
+    padded = (f", written as {shape[1] + shape[1] % 2}x{shape[0] + shape[0] % 2} (H.264 needs "
+              "even sides: the edge is repeated)" if odd else "")
     print(
-        f"\nrendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}), "
+        f"\nrendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}){padded}, "
         f"{describe_seconds(guess)}",
         file=sys.stderr,
     )

@@ -164,3 +164,25 @@ def test_negative_azimuths_are_values_not_options() -> None:
         ["relight", "p.jpg", "--from", "-90,30", "--to", "-45.5,10", "-o", "o.jpg"]))
     assert (args.from_sun, args.to_sun) == ("-90,30", "-45.5,10")
     assert join_negative_values(["relight", "--", "-1"]) == ["relight", "--", "-1"]
+
+
+def test_timelapse_says_an_odd_frame_size_is_padded_for_h264(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A 61 x 41 photo at full size: the MP4 is 62 x 42 (H.264 needs even sides), and the
+    command says so instead of announcing the photo's size."""
+    import av
+
+    from outcast_core.runtime.io.imageio import write_image
+
+    photo = tmp_path / "odd.png"
+    rng = np.random.default_rng(0)
+    write_image(photo, rng.uniform(0.2, 0.8, (41, 61, 3)).astype(np.float32))
+    out = tmp_path / "odd.mp4"
+    assert main(["timelapse", str(photo), "--from", "120,40", "--sweep", "90,30:270,30",
+                 "--frames", "2", "--size", "full", "--preset", "fast",
+                 "-o", str(out)]) == 0
+    assert "61x41 (full), written as 62x42 (H.264 needs even sides" in capsys.readouterr().err
+    with av.open(str(out)) as c:
+        ctx = c.streams.video[0].codec_context
+        assert (ctx.width, ctx.height) == (62, 42)

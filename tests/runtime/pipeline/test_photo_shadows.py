@@ -157,6 +157,9 @@ def test_cli_deshadow(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert read_shadow_png(mask)[35:45, 25:55].mean() > 0.8
     assert main(args) == 2  # nothing overwritten without --force
     assert "exists" in capsys.readouterr().err
+    assert main([a for a in args if a != "-q"] + ["--force"]) == 0
+    said = capsys.readouterr().err
+    assert f"wrote {out} (" in said and f"wrote {mask} (where the shadows were found" in said
 
 
 def test_deshadow_keeps_black_things_in_the_shade_black() -> None:
