@@ -344,10 +344,11 @@ def toward_photo(image_srgb: np.ndarray, relit_srgb: np.ndarray, share: float) -
 GLARE_REACH = 4.0
 
 
-def _sun_glare(relit: np.ndarray, sky: np.ndarray, u: float, v: float, core_radius: float
-               ) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
-    """The light a sun at pixel ``(u, v)`` adds to ``relit`` (sRGB), in a box round it:
-    ``((y0, y1, x0, x1), excess)``, or None (see :func:`remove_sun_glare`)."""
+def _glare_fill(relit: np.ndarray, sky: np.ndarray, u: float, v: float, core_radius: float
+                ) -> tuple[tuple[int, int, int, int], np.ndarray, np.ndarray] | None:
+    """The sky round a sun at pixel ``(u, v)`` filled in over its glare, in a box round it:
+    ``((y0, y1, x0, x1), fill, weight)`` (sRGB ``h x w x 3``; how fully each pixel of the box
+    loses its light above ``fill``, ``h x w x 1``), or None (see :func:`remove_sun_glare`)."""
     h, w = sky.shape
     reach = GLARE_REACH * core_radius + 2.0
     # Work in a box round the glare with a margin of sky to fill from.
@@ -369,9 +370,59 @@ def _sun_glare(relit: np.ndarray, sky: np.ndarray, u: float, v: float, core_radi
                        max(3.0, 0.5 * core_radius), cv2.INPAINT_TELEA)
     fill = cv2.GaussianBlur(fill.astype(np.float32) / 255.0, (0, 0), max(1.0, 0.5 * core_radius))
     weight = np.clip((reach - dist) / max(reach - 1.5 * core_radius, 1.0), 0.0, 1.0)[..., None]
+    return (y0, y1, x0, x1), fill, weight.astype(np.float32)
+
+
+def _sun_glare(relit: np.ndarray, sky: np.ndarray, u: float, v: float, core_radius: float
+               ) -> tuple[tuple[int, int, int, int], np.ndarray] | None:
+    """The light a sun at pixel ``(u, v)`` adds to ``relit`` (sRGB), in a box round it:
+    ``((y0, y1, x0, x1), excess)``, or None (see :func:`remove_sun_glare`)."""
+    found = _glare_fill(relit, sky, u, v, core_radius)
+    if found is None:
+        return None
+    (y0, y1, x0, x1), fill, weight = found
+    box = relit[y0:y1, x0:x1]
     # Only light above the sky round it: a tree or a cable against the sun keeps its own
     # darkness, and sky the mask missed (a band of it, say) counts like the rest.
     return (y0, y1, x0, x1), (weight * np.maximum(box - fill, 0.0)).astype(np.float32)
+
+
+def glare_gone_full(full: np.ndarray, relit_srgb: np.ndarray, sky: np.ndarray, u: float,
+                    v: float, core_radius: float) -> np.ndarray:
+    """A full-resolution relighting (``H x W x 3``, float sRGB or uint8) whose working-size
+    relighting ``relit_srgb`` lost the photo's sun (:func:`remove_sun_glare`, at working pixel
+    ``(u, v)``), with that removal finished at full resolution: every pixel brighter than the
+    sky filled in round the old glare loses its excess, as at working size.
+
+    The full-resolution transfer moves the working size's gain onto the photo, and a working
+    pixel that mixes a thin dark bar with the bright glare round it keeps the glare (it is no
+    brighter than the sky round it), so its gain, spread over the bar's full-resolution sky
+    neighbours, left a bright halo round every bar and branch against the old sun (the ski
+    slope's chairlift, found by a user trial). Here the bars keep their darkness and the sky
+    beside them loses its glare. Returns ``full`` (changed in place where it is float32).
+    """
+    found = _glare_fill(np.asarray(relit_srgb, np.float32), np.asarray(sky, bool), u, v,
+                        core_radius)
+    if found is None:
+        return full
+    (y0, y1, x0, x1), fill, weight = found
+    h, w = sky.shape
+    big_h, big_w = full.shape[:2]
+    sy, sx = big_h / h, big_w / w
+    ys0, ys1 = int(math.floor(y0 * sy)), min(big_h, int(math.ceil(y1 * sy)))
+    xs0, xs1 = int(math.floor(x0 * sx)), min(big_w, int(math.ceil(x1 * sx)))
+    size = (xs1 - xs0, ys1 - ys0)
+    fill_up = cv2.resize(fill, size, interpolation=cv2.INTER_LINEAR)
+    weight_up = cv2.resize(weight[..., 0], size, interpolation=cv2.INTER_LINEAR)[..., None]
+    box = full[ys0:ys1, xs0:xs1]
+    scale = 255.0 if box.dtype == np.uint8 else 1.0
+    vals = box.astype(np.float32) / np.float32(scale)
+    vals -= weight_up * np.maximum(vals - fill_up, 0.0)
+    if box.dtype == np.uint8:
+        full[ys0:ys1, xs0:xs1] = np.rint(np.clip(vals, 0.0, 1.0) * 255.0).astype(np.uint8)
+    else:
+        full[ys0:ys1, xs0:xs1] = vals.astype(full.dtype)
+    return full
 
 
 def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float,

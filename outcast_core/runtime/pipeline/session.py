@@ -60,6 +60,7 @@ from outcast_core.runtime.pipeline.relight import (
     LIFT_SHADE_SHIFT,
     LightEstimate,
     estimate_light,
+    glare_gone_full,
     guard_learned_relight,
     original_share,
     physics_relight,
@@ -1025,6 +1026,13 @@ class RelightSession:
         with self._lock:
             out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit,
                                               out_dtype=dtype)
+            seen, cam = self.sun_seen, self.camera
+            if seen is not None and not sun_in_frame(normalize_sun(w_new), cam):
+                # The photo's sun left the frame: its glare goes at full resolution too, so
+                # that no bar or branch against it keeps a halo of it.
+                h, w = self.sky.shape
+                core = math.sqrt(seen.area * h * w / math.pi)
+                out = glare_gone_full(out, relit, self.sky, seen.u, seen.v, core)
         self._time("full_resolution", t0)
         return out
 

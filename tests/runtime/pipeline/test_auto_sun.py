@@ -328,6 +328,20 @@ def test_relit_to_a_sun_outside_the_frame_the_photo_loses_its_sun() -> None:
     for preview in (False, True):
         behind = s.relight(sun_vector(180.0, 25.0), preview=preview)
         assert behind[v, u].min() < 0.9, preview  # the disc is sky now
+    # At full resolution the glare's excess goes pixel by pixel too (no halo of it round what
+    # stands against it): darker than the working size's gain alone made it, near the old sun
+    # only, never brighter.
+    from outcast_core.runtime.pipeline.relight import transfer_to_full_resolution
+
+    w_behind = sun_vector(180.0, 25.0)
+    full = s.relight_full(w_behind)
+    gain_only = transfer_to_full_resolution(s.full_image_srgb, s.image_srgb, s.relight(w_behind))
+    lower = (gain_only - full).max(axis=-1)
+    assert (full <= gain_only + 1e-6).all() and (lower > 0.05).sum() > 500
+    fy, fx = full.shape[0] / s.sky.shape[0], full.shape[1] / s.sky.shape[1]
+    ys, xs = np.nonzero(lower > 0.01)
+    reach = 4.0 * math.sqrt(seen.area * s.sky.size / math.pi) + 2.0
+    assert (np.hypot(ys / fy - v, xs / fx - u) < 1.6 * reach).all()
     # A new sun inside the frame takes the glare with it (and nothing stays behind).
     from outcast_core.runtime.geometry.camera import project, sun_angles
 

@@ -464,3 +464,33 @@ def test_the_sun_the_photo_showed_leaves_with_it() -> None:
     assert moved[25, 90].min() > max(0.9, sunny[25, 90].min() + 0.2)
     assert moved[20, 60].min() < sunny[20, 60].min() - 0.2  # no longer white
     assert np.array_equal(moved[70:], sunny[70:])  # far from both suns, nothing changes
+
+
+def test_the_old_suns_glare_leaves_no_halo_round_a_thin_bar_at_full_resolution() -> None:
+    """A bar thinner than a working pixel against the photo's sun: the working size removes
+    the glare but keeps the mixed pixels (no brighter than the sky round them), and their gain,
+    upsampled, left the full-resolution sky beside the bar bright. ``glare_gone_full`` takes
+    the excess off there too and keeps the bar dark."""
+    from outcast_core.runtime.pipeline.relight import glare_gone_full, remove_sun_glare
+
+    big, small = 400, 100
+    yy, xx = np.mgrid[0:big, 0:big]
+    glare = np.exp(-(np.hypot(xx - 200.0, yy - 150.0) / 40.0) ** 2)
+    full = np.repeat((0.55 + 0.45 * glare)[..., None], 3, axis=-1).astype(np.float32)
+    full[:, 229:232] = 0.08  # the bar: 3 px, under a working pixel
+    work = cv2.resize(full, (small, small), interpolation=cv2.INTER_AREA)
+    sky = np.ones((small, small), bool)
+    sky[:, 57] = False  # the working column the bar darkens
+    u, v, core = 50.0, 37.5, 4.0
+    relit = remove_sun_glare(work, sky, u, v, core)
+    out = transfer_to_full_resolution(full, work, relit)
+    beside = np.s_[140:160, 233:236]  # sky just right of the bar, in the glare
+    far = float(out[140:160, 300:330].mean())  # sky in the glare, away from the bar
+    assert out[beside].mean() > far + 0.05  # the halo
+    halo = float(out[beside].mean()) - far
+    fixed = glare_gone_full(out.copy(), relit, sky, u, v, core)
+    assert abs(float(fixed[beside].mean()) - far) < min(0.04, 0.5 * halo)
+    assert fixed[140:160, 229:232].mean() < 0.2  # the bar keeps its darkness
+    assert np.allclose(fixed[:, :150][360:], out[:, :150][360:])  # far from the sun: as it was
+    as_u8 = glare_gone_full(np.rint(out * 255).astype(np.uint8), relit, sky, u, v, core)
+    assert as_u8.dtype == np.uint8 and abs(as_u8[beside].mean() / 255 - far) < 0.04
