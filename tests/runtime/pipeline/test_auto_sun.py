@@ -365,3 +365,29 @@ def test_cli_sun_takes_a_heading(capsys: pytest.CaptureFixture[str]) -> None:
     out = json.loads(capsys.readouterr().out)
     assert out["exif_azimuth"] == pytest.approx(relative_azimuth(true_az, 200.0), abs=0.01)
     assert "the camera heading given" in out["note"] or out["source"] != "EXIF"
+
+
+def test_the_pool_samples_right_compass_holds_against_a_slight_shadow_preference() -> None:
+    """The pool's compass heading is right (samples/suns.json): its shadows, through rough
+    depth, fit a sun 61° away a little better (0.03 of agreement), which the compass's pull
+    must outweigh."""
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.pipeline.auto_sun import exif_sun_prior, find_sun
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_003_th_pool.jpg"
+    loaded = read_image(sample)
+    from dataclasses import replace
+
+    from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
+
+    s = RelightSession(preset="balanced")  # the app's and the command line's
+    s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
+    prior, tilt = exif_sun_prior(loaded.exif), photo_camera_tilt(s, sample)
+
+    def off(weight: float) -> float:
+        fit = find_sun(s, prior=replace(prior, azimuth_weight=weight), pitch_roll=tilt)
+        return abs((fit.azimuth - prior.azimuth + 180.0) % 360.0 - 180.0)
+
+    assert off(prior.azimuth_weight) < 10.0
+    assert off(0.05) > 45.0  # the earlier, weaker pull
