@@ -137,7 +137,7 @@ def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:
     session.depth_provider = provider
 
 
-def _set_image(session, loaded, args: argparse.Namespace) -> None:
+def _set_image(session, loaded, args: argparse.Namespace, progress=None) -> None:
     depth = None
     if getattr(args, "depth", None):
         from outcast_core.runtime.io.imageio import read_depth
@@ -145,7 +145,8 @@ def _set_image(session, loaded, args: argparse.Namespace) -> None:
         depth = read_depth(args.depth)
     _set_depth_source(session, loaded, args)
     focal35 = None if args.fov is not None else loaded.exif.focal_35mm
-    session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth)
+    session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth,
+                      progress=progress)
     from outcast_core.runtime.pipeline.session import elongation_note
 
     note = elongation_note(*loaded.original_size)

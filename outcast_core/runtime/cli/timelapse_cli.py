@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from outcast_core.runtime.cli.main import int_in
+from outcast_core.runtime.cli.main import add_input_options, int_in
 from outcast_core.runtime.geometry.camera import sun_vector
 from outcast_core.runtime.pipeline.timelapse import (
     DEFAULT_FPS,
@@ -190,7 +190,11 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     )  # fmt: skip
     p.add_argument("--full-res", action="store_true", help="the same as --size full")
     p.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
-    p.add_argument("--preset", choices=("fast", "balanced", "accurate"), default="balanced")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="print only warnings and errors (no estimate, progress or summary)")
+    # Depth from a file, a model or the photo itself, the field of view and the preset, as
+    # the other commands take them (a time-lapse's frames match a relit still).
+    add_input_options(p)
     p.set_defaults(func=run_timelapse_command, check_output=check_timelapse_output)
     return p
 
@@ -265,30 +269,29 @@ def check_timelapse_output(args: argparse.Namespace) -> None:
 
 def run_timelapse_command(args: argparse.Namespace) -> int:
     """Handler of ``outcast timelapse``; returns the process exit code."""
-    from outcast_core.runtime.cli.main import _load
-    from outcast_core.runtime.pipeline.session import RelightSession, elongation_note
+    from outcast_core.runtime.cli.main import _load, _set_image
+    from outcast_core.runtime.pipeline.session import RelightSession
 
     check_timelapse_output(args)  # before the slow part
     loaded = _load(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit (no float copy)
-    if elongation_note(*loaded.original_size):
-        print(f"outcast: warning: {elongation_note(*loaded.original_size)}", file=sys.stderr)
     exif = getattr(loaded, "exif", None)
     _check_sample_args(args, exif)  # before the slow part
     session = RelightSession(preset=args.preset)
+    quiet = getattr(args, "quiet", False)
 
     def report(stage: str, fraction: float) -> None:
-        print(f"\r{stage}: {100.0 * fraction:5.1f} %", end="", file=sys.stderr, flush=True)
+        if not quiet:
+            print(f"\r{stage}: {100.0 * fraction:5.1f} %", end="", file=sys.stderr, flush=True)
 
-    session.set_image(
-        loaded.image_srgb, focal_35mm=getattr(exif, "focal_35mm", None), progress=report
-    )
+    _set_image(session, loaded, args, progress=report)
 
     def tilt() -> tuple[float, float, str]:
         from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
 
         return photo_camera_tilt(session, args.image)
 
-    print(file=sys.stderr)
+    if not quiet:
+        print(file=sys.stderr)
     samples = _samples_from_args(args, exif, tilt)
     session.set_original_sun(sun_vector(*args.from_sun))
     size = args.size or ("full" if args.full_res else DEFAULT_FRAME_SIZE)
@@ -300,11 +303,9 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     odd = format_from_path(args.output) == "mp4" and (shape[0] % 2 or shape[1] % 2)
     padded = (f", written as {shape[1] + shape[1] % 2}x{shape[0] + shape[0] % 2} (H.264 needs "
               "even sides: the edge is repeated)" if odd else "")
-    print(
-        f"\nrendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}){padded}, "
-        f"{describe_seconds(guess)}",
-        file=sys.stderr,
-    )
+    if not quiet:
+        print(f"\nrendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}){padded}, "
+              f"{describe_seconds(guess)}", file=sys.stderr)
     out = render_timelapse(
         session,
         samples,
@@ -314,5 +315,6 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
         force=args.force,
         progress=report,
     )
-    print(f"\nwrote {len(samples)} frames to {out}", file=sys.stderr)
+    if not quiet:
+        print(f"\nwrote {len(samples)} frames to {out}", file=sys.stderr)
     return 0

@@ -186,3 +186,11 @@ def test_timelapse_says_an_odd_frame_size_is_padded_for_h264(
     with av.open(str(out)) as c:
         ctx = c.streams.video[0].codec_context
         assert (ctx.width, ctx.height) == (62, 42)
+    # The input options of the other commands (depth from a file or a model, the field of
+    # view), and -q says nothing on success.
+    depth = tmp_path / "d.npy"
+    np.save(depth, np.full((41, 61), 5.0, np.float32))
+    assert main(["timelapse", str(photo), "--from", "120,40", "--sweep", "90,30:270,30",
+                 "--frames", "2", "--preset", "fast", "--depth", str(depth), "--fov", "50",
+                 "-o", str(out), "--force", "-q"]) == 0
+    assert capsys.readouterr().err == ""
