@@ -153,6 +153,10 @@ class StatusText(QLabel):
     """The status bar's message, whole in its tooltip too: a long one (a found sun with its
     EXIF prior) is cut off at the window's edge at 1366 x 768."""
 
+    def __init__(self, text: str, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setText(text)
+
     def setText(self, text: str) -> None:  # noqa: N802 (Qt's name)
         super().setText(text)
         self.setToolTip(text)
@@ -192,9 +196,9 @@ class MainWindow(QMainWindow):
         #: A compass heading typed in step 1 (None: unknown, or the EXIF's when it records one,
         #: which a typed heading replaces).
         self.user_heading: float | None = None
-        #: The project file this window opened or saved for the photo on screen ("" if none):
-        #: saving over another one asks first (:meth:`save_project`).
-        self._project_file = ""
+        #: The project files this window opened or saved for the photo on screen: saving over
+        #: another one asks first (:meth:`save_project`).
+        self._project_files: set[str] = set()
         self._opening_project_file = ""
         #: The heading the sun in the frame implies (None: no sun in the frame, or no GPS and
         #: time); said under the EXIF button while the heading box holds it.
@@ -766,7 +770,9 @@ class MainWindow(QMainWindow):
         self.align_panel.show_notice(self._load_notice)
         if restore is None:  # another photo: its own heading, no search result yet
             self.user_heading = self.seen_heading = None
-            self._project_file = self._opening_project_file if project is not None else ""
+            opened = self._opening_project_file if project is not None else ""
+            self._project_files = {opened} if opened else set()
+            self.side_scroll.verticalScrollBar().setValue(0)  # another photo: from the top
             self.align_panel.set_heading(self._exif_heading(), recorded=True)
             self.sun_fit = None
             self.align_panel.sun_panel.dial.set_heat_map(None)
@@ -1415,7 +1421,7 @@ class MainWindow(QMainWindow):
             The job's id, or ``None`` when the file exists and ``force`` is off.
         """
         session, loaded = self.session, self.loaded
-        own = self._own_file(path)
+        own = self.own_file(path)
         if own:  # never, even confirmed in the file dialog (as the command line)
             self.show_error(ValueError(f"'{os.path.basename(path)}' is {own}; choose another "
                                        "name"), "export")
@@ -1437,15 +1443,16 @@ class MainWindow(QMainWindow):
 
         return self.runner.submit(channel, job, f"Exporting {os.path.basename(path)}")
 
-    def _own_file(self, path: str) -> str:
-        """What ``path`` is to the open work ("the photo you opened", its depth map, its
-        project file), or "" when it is none of them: an export may never replace those."""
+    def own_file(self, path: str) -> str:
+        """What ``path`` is to the open work ("the photo you opened", its depth map, a project
+        file of it), or "" when it is none of them: an export may never replace those."""
         if not path or not os.path.exists(path):
             return ""
         project = str(project_path_for(self.image_path)) if self.image_path else ""
         mine = [(self.image_path, "the photo you opened"),
                 (self.depth_path, "the photo's depth map"),
-                (project, "the photo's project file")]
+                (project, "the photo's project file"),
+                *((p, "a project file of the photo") for p in self._project_files)]
         for other, what in mine:
             if other and os.path.exists(other) and os.path.samefile(path, other):
                 return what
@@ -1563,7 +1570,7 @@ class MainWindow(QMainWindow):
         except (OSError, ValueError) as exc:
             self.show_error(exc, "project")
             return None
-        self._project_file = os.path.abspath(target)
+        self._project_files.add(os.path.abspath(target))
         self.recent.add(target)
         self._save_recent()
         self.undo_stack.setClean()
@@ -1576,8 +1583,8 @@ class MainWindow(QMainWindow):
         project of it exists; the file dialog asks by itself)."""
         if not os.path.exists(target):
             return True
-        own = self._project_file
-        if own and os.path.exists(own) and os.path.samefile(target, own):
+        if any(os.path.exists(own) and os.path.samefile(target, own)
+               for own in self._project_files):
             return True
         saved = time.strftime("%Y-%m-%d %H:%M", time.localtime(os.path.getmtime(target)))
         return self.ask(replace_project_question(os.path.basename(target), saved)) == REPLACE

@@ -495,6 +495,11 @@ def test_exports_never_replace_the_photo_or_its_project(window, photo, settle, e
     window.export_still(saved, force=True)
     settle()
     assert "project file" in errors[-1][1] and Path(saved).read_text().startswith("{")
+    dialog = _timelapse(window, 3, "webp")  # a time-lapse neither
+    dialog.export(photo, force=True)
+    settle()
+    assert "the photo you opened" in errors[-1][1] and Path(photo).read_bytes() == before
+    dialog.close()
 
 
 def test_saving_over_a_project_the_window_did_not_open_asks(qtbot, window, photo, settle,
@@ -526,4 +531,7 @@ def test_saving_over_a_project_the_window_did_not_open_asks(qtbot, window, photo
     window.open_path(saved)  # the project itself: saved again without a question
     settle()
     assert "has a saved project" not in window.align_panel.notice.text()
+    assert window.save_project() == saved and not leave_answers.asked
+    other = str(Path(saved).with_name("copy.outcast.json"))  # "Save as", then Save
+    assert window.save_project(other) == other
     assert window.save_project() == saved and not leave_answers.asked

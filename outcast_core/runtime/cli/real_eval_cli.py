@@ -150,7 +150,10 @@ def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
         "photo's own shade/lit log ratio (1: as dark as the photo's own shadows); "
         "old shade = the relit photo's log-luminance ratio between the lit ring outside each "
         "marked shadow and the shadow, where the new sun lights both, over the photo's own "
-        "(0: the old shadow is gone, 1: unchanged). "
+        "(0: the old shadow is gone, 1: unchanged); detail = the standard deviation of log "
+        "luminance's finest band (minus a Gaussian of 1/128 of the longer side) where both suns "
+        "light the surface, relit over the photo's (1: the photo's texture kept; below: "
+        "blurred). "
         "The photos are research data kept "
         "outside the repository; only these numbers are here.", "",
         "### Speed / accuracy", "", render_trade(reports), "",

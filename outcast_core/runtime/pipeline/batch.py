@@ -381,10 +381,9 @@ def settings_for_source(job: BatchJob, options: BatchOptions, source: str | None
         order = list(options.sources)
         if source == "sun in the frame":
             source = next((s for s in order if s in ("exif", "auto")), source)
-        used = source == "given" or (
-            source != "csv" and "given" in order and source in order
-            and order.index(source) > order.index("given"))
-        if used:
+        before_given = source in order and source != "given" and (
+            "given" not in order or order.index(source) < order.index("given"))
+        if not (source == "csv" or before_given):  # an unknown source counts as used
             return json.dumps(keys, sort_keys=True)
     keys["from_sun"] = FROM_SUN_NOT_USED
     return json.dumps(keys, sort_keys=True)

@@ -399,8 +399,12 @@ def glare_gone_full(full: np.ndarray, relit_srgb: np.ndarray, sky: np.ndarray, u
     brighter than the sky round it), so its gain, spread over the bar's full-resolution sky
     neighbours, left a bright halo round every bar and branch against the old sun (the ski
     slope's chairlift, found by a user trial). Here the bars keep their darkness and the sky
-    beside them loses its glare. Returns ``full`` (changed in place where it is float32).
+    beside them loses its glare. The photo's finest grain inside the glare is lost with its
+    upper half (the glare's core is mostly clipped white in photos anyway). Returns ``full``,
+    changed in place.
     """
+    if core_radius <= 0.0:
+        return full
     found = _glare_fill(np.asarray(relit_srgb, np.float32), np.asarray(sky, bool), u, v,
                         core_radius)
     if found is None:

@@ -1021,20 +1021,29 @@ class RelightSession:
             dtype: ``np.float32`` (sRGB in [0, 1]) or ``np.uint8`` (for writing 8-bit files:
                 with an 8-bit photo no full-size float buffer is made at all).
         """
-        relit = self.relight(w_new)
+        relit = self.relight(w_new)  # (not under the lock: the drag preview goes on)
         t0 = time.perf_counter()
         with self._lock:
             out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit,
                                               out_dtype=dtype)
-            seen, cam = self.sun_seen, self.camera
-            if seen is not None and not sun_in_frame(normalize_sun(w_new), cam):
-                # The photo's sun left the frame: its glare goes at full resolution too, so
-                # that no bar or branch against it keeps a halo of it.
-                h, w = self.sky.shape
-                core = math.sqrt(seen.area * h * w / math.pi)
-                out = glare_gone_full(out, relit, self.sky, seen.u, seen.v, core)
+            out = self.without_old_sun_full(out, relit, w_new)
         self._time("full_resolution", t0)
         return out
+
+    def without_old_sun_full(self, out: np.ndarray, relit: np.ndarray, w_new: Any
+                             ) -> np.ndarray:
+        """``out``, the working-size relighting ``relit`` for ``w_new`` moved to a larger size,
+        with the photo's sun gone pixel by pixel when ``w_new`` takes it out of the frame
+        (:func:`~outcast_core.runtime.pipeline.relight.glare_gone_full`: no halo of its glare
+        round a bar or a branch against it). Unchanged at the photo's own sun (the relighting
+        is the photo there) and for a photo that shows no sun."""
+        seen, wv = self.sun_seen, normalize_sun(w_new)
+        if (seen is None or self.original_sun is None or sun_in_frame(wv, self.camera)
+                or original_share(self.original_sun, wv) >= 1.0):
+            return out
+        h, w = self.sky.shape
+        core = math.sqrt(seen.area * h * w / math.pi)
+        return glare_gone_full(out, relit, self.sky, seen.u, seen.v, core)
 
     def buffers(self, w_new: Any) -> dict[str, np.ndarray]:
         """Display-ready intermediate buffers for the paper-style figure.

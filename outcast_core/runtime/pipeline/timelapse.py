@@ -220,13 +220,17 @@ def exif_heading_from_sun(
     """The camera's compass heading that a sun known in the camera's frame (the sun the photo
     shows, :func:`~outcast_core.runtime.pipeline.auto_sun.sun_in_photo`) implies with the
     photo's EXIF GPS and capture time, read as :func:`exif_sun` reads them, so that
-    ``exif_sun(exif, heading=...)`` gives that sun back; None without them.
+    ``exif_sun(exif, heading=..., tilt=tilt)`` gives that sun's azimuth back (and its elevation
+    too with the pitch the seen sun implies, :func:`~outcast_core.runtime.pipeline.auto_sun.
+    sun_frame_pitch`); None without them, or when they put the sun below the horizon.
 
     ``tilt``: the camera's ``(pitch, roll)`` in degrees (:func:`solve_heading`).
     """
     when = getattr(exif, "capture_time", None)
     lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
     if when is None or lat is None or lon is None:
+        return None
+    if true_sun_position(when, lat, lon)[1] <= 0.0:  # a wrong clock: no heading from it
         return None
     return solve_heading(when, lat, lon, azimuth, original_elevation=elevation, tilt=tilt)
 
@@ -958,10 +962,11 @@ def describe_seconds(seconds: float) -> str:
     return f"about {minutes // 60} h {minutes % 60} min"
 
 
-def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray], np.ndarray]:
-    """``working-size relit frame -> frame at size`` (uint8 above the working size): moved
-    onto the photo at the frame's size (its detail kept) with the banded 8-bit transfer, the
-    photo resized to that size once."""
+def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``(working-size relit frame, its sun) -> frame at size`` (uint8 above the working
+    size): moved onto the photo at the frame's size (its detail kept) with the banded 8-bit
+    transfer, the photo resized to that size once, and a sun the photo shows taken out there
+    too when the frame's sun leaves the frame (as a relit still)."""
     from outcast_core.runtime.pipeline.relight import transfer_to_full_resolution
     from outcast_core.runtime.pipeline.session import resize
 
@@ -969,11 +974,16 @@ def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray], np.ndarray]:
     work = session.image_srgb
     shape = frame_shape(size, full.shape[:2], work.shape[:2])
     if size == "working" or shape == work.shape[:2]:
-        return lambda relit: relit
+        return lambda relit, _sun: relit
     if shape[0] * shape[1] <= work.shape[0] * work.shape[1]:
-        return lambda relit: resize(relit, shape)
+        return lambda relit, _sun: resize(relit, shape)
     photo = full if shape == full.shape[:2] else resize(full, shape)  # once, uint8 if 8-bit
-    return lambda relit: transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8)
+
+    def make(relit: np.ndarray, sun: np.ndarray) -> np.ndarray:
+        out = transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8)
+        return session.without_old_sun_full(out, relit, sun)
+
+    return make
 
 
 def render_timelapse(
@@ -1020,8 +1030,8 @@ def render_timelapse(
     to_frame = _frame_maker(session, size)
     stream = session.relight_stream(suns)
 
-    def render_frame(_i: int) -> np.ndarray:
-        return to_frame(next(stream))
+    def render_frame(i: int) -> np.ndarray:
+        return to_frame(next(stream), suns[i])
 
     try:
         return export_frames(

