@@ -61,14 +61,15 @@ def test_estimate_grows_with_size_and_frames():
 class _FakeSession:
     """What render_timelapse uses of RelightSession: a 600 x 800 photo, working size 150 x 200,
     ``relight`` / ``relight_full`` and ``relight_stream`` (``relight`` for each sun in order,
-    at working size, as the real one gives)."""
+    at working size, as the real one gives), and ``without_old_sun_full`` for the frames above
+    the working size."""
 
     def __init__(self):
         rng = np.random.default_rng(0)
         self.full_image_srgb = rng.random((600, 800, 3), dtype=np.float32)
         self.image_srgb = self.full_image_srgb[::4, ::4].copy()
         self.original_sun = np.array([0.0, -1.0, 0.0])
-        self.calls = SimpleNamespace(relight=0, full=0, stream=0)
+        self.calls = SimpleNamespace(relight=0, full=0, stream=0, glare=0)
 
     def relight(self, w, preview=False):
         self.calls.relight += 1
@@ -77,6 +78,10 @@ class _FakeSession:
     def relight_full(self, w):
         self.calls.full += 1
         return self.full_image_srgb * 0.8
+
+    def without_old_sun_full(self, out, relit, w):  # this photo shows no sun
+        self.calls.glare += 1
+        return out
 
     def relight_stream(self, suns):
         if self.original_sun is None:
@@ -95,7 +100,10 @@ def test_render_timelapse_sizes(tmp_path, size, shape):
     with av.open(str(out)) as c:
         frames = [f.to_ndarray(format="rgb24") for f in c.decode(video=0)]
     assert len(frames) == 3 and frames[0].shape[:2] == shape
-    assert session.calls == SimpleNamespace(relight=3, full=0, stream=1)  # one stream, no full
+    # One stream, no full-resolution relighting; above the working size each frame is offered
+    # to the old sun's full-size removal.
+    glare = 0 if size == "working" else 3
+    assert session.calls == SimpleNamespace(relight=3, full=0, stream=1, glare=glare)
 
 
 def test_render_timelapse_between_working_and_full(tmp_path, monkeypatch):
