@@ -637,6 +637,7 @@ def restore_detail(
     sky: np.ndarray,
     lifted_srgb: np.ndarray | None = None,
     sigma: float = DETAIL_SIGMA,
+    cache: dict | None = None,
 ) -> np.ndarray:
     """A learned relighting with the photo's fine texture put back where neither sun's shadow
     changes.
@@ -676,6 +677,9 @@ def restore_detail(
         shadow_old, shadow_new: ``H x W`` shadow images in [0, 1] of the two suns.
         sky: ``H x W`` bool.
         lifted_srgb: ``H x W x 3`` sRGB, the photo with its shadows lifted, or None.
+        cache: a dict kept by the caller for one photo, lifted photo, sky and size: the
+            photo's bands, which no sun changes, are made once there (a time-lapse relights
+            the same photo for every frame).
         sigma: the band's Gaussian sigma as a fraction of the longer side (0: unchanged).
 
     Returns:
@@ -707,16 +711,22 @@ def restore_detail(
     def log(img: np.ndarray) -> np.ndarray:
         return np.log(srgb_to_linear(np.clip(img, 0.0, 1.0)) + _DETAIL_EPS)
 
+    if lifted_srgb is not None and np.shape(lifted_srgb) != image.shape:
+        raise ValueError(f"expected a lifted photo of shape {image.shape}, got "
+                         f"{np.shape(lifted_srgb)}")
+    key = (image.shape, px, lifted_srgb is not None)
+    entry = None if cache is None else cache.get("bands")
+    if entry is None or entry[0] != key:  # one tuple: a racing thread sees all or nothing
+        entry = (key, band(log(image)), None if lifted_srgb is None
+                 else band(log(np.asarray(lifted_srgb, np.float32))))
+        if cache is not None:
+            cache["bands"] = entry
+    _, fine, fine_lifted = entry
     log_r = log(relit)
-    fine = band(log(image))
     lit_new = _lit(s_new)
-    if lifted_srgb is not None:
-        lifted = np.asarray(lifted_srgb, np.float32)
-        if lifted.shape != image.shape:
-            raise ValueError(f"expected a lifted photo of shape {image.shape}, got "
-                             f"{lifted.shape}")
+    if fine_lifted is not None:
         k = lit_new[..., None]
-        fine = k * band(log(lifted)) + (1.0 - k) * fine
+        fine = k * fine_lifted + (1.0 - k) * fine
     same = (1.0 - np.abs(lit_new - _lit(s_old))) * ground  # H x W
     out = log_r + same[..., None] * (fine - band(log_r))
     lin = np.clip(np.exp(out) - _DETAIL_EPS, 0.0, 1.0)
@@ -741,6 +751,7 @@ def guard_learned_relight(
     lift_base: tuple[np.ndarray, np.ndarray] | None = None,
     lift_colour: np.ndarray | None = None,
     keep_old: float = 0.0,
+    detail_cache: dict | None = None,
 ) -> np.ndarray:
     """A learned relighting with the real-photo guards the session turns on: first, with
     ``detail``, the photo's fine texture where no shadow changes (:func:`restore_detail`, from
@@ -772,7 +783,8 @@ def guard_learned_relight(
     surroundings' ``a*, b*``) is the colour the lifted surface takes (:func:`lifted_colour`,
     with the colour guard). ``keep_old``: the share of the photo's own ``S_o`` in ``shadow_new``
     near the original sun (:func:`shadow_toward_original`); that part is not smoothed, so that
-    at the original sun the guards see ``S_n = S_o`` and change nothing.
+    at the original sun the guards see ``S_n = S_o`` and change nothing. ``detail_cache``:
+    :func:`restore_detail`'s ``cache``.
 
     Example:
         >>> img = np.full((8, 8, 3), 0.5, np.float32); ones = np.ones((8, 8), np.float32)
@@ -785,7 +797,8 @@ def guard_learned_relight(
     out = np.asarray(relit_srgb, np.float32)
     if detail:
         lifted = None if lift_base is None else lift_base[0]
-        out = restore_detail(image_srgb, out, shadow_old, shadow_new, sky, lifted)
+        out = restore_detail(image_srgb, out, shadow_old, shadow_new, sky, lifted,
+                             cache=detail_cache)
     s_new = smooth_new_shadow(shadow_new) if floor or anchor else shadow_new
     if (floor or anchor) and keep_old > 0.0:  # the photo's own shadows stay sharp
         s_old = np.asarray(shadow_old, np.float32)

@@ -750,7 +750,9 @@ class RelightSession:
             st = self._relight_preview_state()
             if self.relight_mode == "learned" and (
                     self.lift_new_light and self.contrast_floor or self.keep_detail):
-                self._lift_inputs(st["shadow_old"].shape)  # not on the first drag frame
+                shape = tuple(st["shadow_old"].shape)
+                self._lift_inputs(shape)  # not on the first drag frame
+                self._lift_guards.setdefault(("detail", shape), {})
             if self.shadow_mode == "learned":
                 self.registry.load("shadow", threads=PREVIEW_THREADS)
             if self.relight_mode == "learned":
@@ -882,12 +884,14 @@ class RelightSession:
         (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`)."""
         keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(w_n, cam))
         lift = self.lift_new_light and self.contrast_floor
-        # The detail's lifted texture is the lift's de-shadowed photo, lift or not.
+        # The detail's lifted texture is the lift's de-shadowed photo, lift or not; the
+        # photo's bands are kept per size with the lift's inputs (per S_o).
         inputs = self._lift_inputs(s_o.shape) if lift or self.keep_detail else {}
+        cache = self._lift_guards.setdefault(("detail", tuple(s_o.shape)), {})
         return guard_learned_relight(image, relit, s_o, s_new, sky, light, keep_sky=keep_sky,
                                      colour=self.colour_guard, floor=self.contrast_floor,
                                      anchor=self.exposure_anchor, detail=self.keep_detail,
-                                     lift=lift, keep_old=keep_old, **inputs)
+                                     lift=lift, keep_old=keep_old, detail_cache=cache, **inputs)
 
     def _lift_inputs(self, shape: tuple[int, int]) -> dict[str, Any]:
         """:func:`guard_learned_relight`'s ``lift_guard``, ``lift_base`` and ``lift_colour`` at

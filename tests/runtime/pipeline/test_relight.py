@@ -494,3 +494,27 @@ def test_the_old_suns_glare_leaves_no_halo_round_a_thin_bar_at_full_resolution()
     assert np.allclose(fixed[:, :150][360:], out[:, :150][360:])  # far from the sun: as it was
     as_u8 = glare_gone_full(np.rint(out * 255).astype(np.uint8), relit, sky, u, v, core)
     assert as_u8.dtype == np.uint8 and abs(as_u8[beside].mean() / 255 - far) < 0.04
+
+
+def test_restore_detail_makes_the_photos_bands_once_per_cache() -> None:
+    """The photo's (and the lifted photo's) bands do not depend on the sun: made once in the
+    caller's cache, the same result for every sun; another size or no lifted photo remakes
+    them."""
+    from outcast_core.runtime.pipeline.relight import restore_detail
+
+    photo, lifted = _textured(seed=7), _textured(seed=8)
+    h, w = photo.shape[:2]
+    sky = np.zeros((h, w), bool)
+    s_o = np.full((h, w), 0.8, np.float32)
+    cache: dict = {}
+    made = []
+    for k, s_n in enumerate((np.full((h, w), 0.8, np.float32), np.zeros((h, w), np.float32))):
+        relit = cv2.GaussianBlur(photo, (0, 0), 1.0 + k)
+        np.testing.assert_array_equal(
+            restore_detail(photo, relit, s_o, s_n, sky, lifted, cache=cache),
+            restore_detail(photo, relit, s_o, s_n, sky, lifted))
+        made.append(cache["bands"])
+    first = made[0]
+    assert made[1] is first  # made once, for the first sun
+    restore_detail(photo, photo, s_o, s_o, sky, None, cache=cache)
+    assert cache["bands"] is not first and cache["bands"][2] is None
