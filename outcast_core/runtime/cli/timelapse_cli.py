@@ -232,16 +232,16 @@ def _samples_from_args(
 
     pitch, roll, source = tilt() if tilt is not None else (0.0, 0.0, "level")
     words = describe_tilt(pitch, roll, source)
-    if words:
+    quiet = getattr(args, "quiet", False)
+    if words and not quiet:
         print(f"{words}: the real sun is turned into its frame", file=sys.stderr)
     heading = args.heading
     if heading is None:
         heading = solve_heading(exif.capture_time, lat, lon, args.from_sun[0], args.utc_offset,
                                 original_elevation=args.from_sun[1], tilt=(pitch, roll))
-        print(
-            f"camera heading solved from the photo's time and GPS: {heading:.1f} deg",
-            file=sys.stderr,
-        )
+        if not quiet:
+            print(f"camera heading solved from the photo's time and GPS: {heading:.1f} deg",
+                  file=sys.stderr)
     frames = 48 if args.frames is None else args.frames
     return real_sun_path(args.date, lat, lon, heading, frames, args.start, args.end,
                          args.utc_offset, (pitch, roll))

@@ -194,3 +194,16 @@ def test_timelapse_says_an_odd_frame_size_is_padded_for_h264(
                  "--frames", "2", "--preset", "fast", "--depth", str(depth), "--fov", "50",
                  "-o", str(out), "--force", "-q"]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_timelapse_of_a_day_says_nothing_with_q(tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
+    """The field path has GPS and time but no compass: without -q the heading solved from the
+    aligned sun is said, with -q nothing is."""
+    photo = Path(__file__).resolve().parents[3] / "samples" / "exif_001_cz_fieldpath.jpg"
+    args = ["timelapse", str(photo), "--from", "120,39", "--date", "2023-06-01", "--frames",
+            "2", "--size", "working", "--preset", "fast", "-o", str(tmp_path / "day.gif")]
+    assert main(args) == 0
+    assert "camera heading solved" in capsys.readouterr().err
+    assert main([*args, "--force", "-q"]) == 0
+    assert capsys.readouterr().err == ""
