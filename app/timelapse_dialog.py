@@ -160,6 +160,7 @@ class TimelapseDialog(QDialog):
         g.addWidget(self.easing_combo, 3, 1, 1, 2)
         g.addWidget(QLabel("Go"), 4, 0)
         g.addWidget(self.way_combo, 4, 1, 1, 2)
+        g.setRowStretch(5, 1)  # the rows stay together when the day's page is taller
 
         sun = QWidget(self)
         self.date_edit = QDateEdit(self)
@@ -253,6 +254,8 @@ class TimelapseDialog(QDialog):
         self.scrubber.setRange(0, 47)
         self.scrubber.valueChanged.connect(self._on_scrub)
         self.caption = QLabel("", self)
+        self.preview.setToolTip("A quick preview at a small size; the export is drawn at the "
+                                "size chosen under Output")
         self._preview_pixmap: QPixmap | None = None
 
         # ---- export row
@@ -525,7 +528,7 @@ class TimelapseDialog(QDialog):
         frame = " above the horizon" if any(s.tilt) and s.elevation >= 0 else ""
         self.caption.setText(
             f"Frame {index + 1}/{len(self._samples)}{when} · azimuth {s.azimuth:.1f}°, "
-            f"elevation {s.elevation:.1f}°{frame}{below}"
+            f"elevation {s.elevation:.1f}°{frame}{below} · quick preview"
         )
         session = self.main.session
         if session is None or session.original_sun is None:
