@@ -253,6 +253,8 @@ def check_timelapse_output(args: argparse.Namespace) -> None:
     exists must be empty or hold only an earlier sequence (:func:`frames_folder_problem`)."""
     from outcast_core.runtime.cli.main import CliError, check_output_path
 
+    if (args.sweep is None) == (args.date is None):  # what is missing before what exists
+        raise ValueError("expected exactly one of --sweep or --date")
     fmt = format_from_path(args.output)  # ValueError for out.avi
     force = args.force
     if fmt == "png":

@@ -207,3 +207,13 @@ def test_timelapse_of_a_day_says_nothing_with_q(tmp_path: Path,
     assert "camera heading solved" in capsys.readouterr().err
     assert main([*args, "--force", "-q"]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_timelapse_says_a_missing_sun_path_before_an_existing_output(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "a.gif"
+    out.write_bytes(b"GIF89a")
+    assert main(["timelapse", "p.jpg", "--from", "90,30", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "exactly one of --sweep or --date" in err and "already exists" not in err
