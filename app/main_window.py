@@ -88,6 +88,7 @@ from app.state import (
 )
 from app.workers import JobContext, TaskRunner
 from outcast_core.runtime.geometry.camera import cosine_term, sun_angles, sun_vector
+from outcast_core.runtime.io.imageio import same_file
 from outcast_core.runtime.io.models import ModelError
 from outcast_core.runtime.pipeline.session import elongation_note
 
@@ -1454,7 +1455,7 @@ class MainWindow(QMainWindow):
                 (project, "the photo's project file"),
                 *((p, "a project file of the photo") for p in self._project_files)]
         for other, what in mine:
-            if other and os.path.exists(other) and os.path.samefile(path, other):
+            if same_file(path, other):
                 return what
         return ""
 
@@ -1583,8 +1584,7 @@ class MainWindow(QMainWindow):
         project of it exists; the file dialog asks by itself)."""
         if not os.path.exists(target):
             return True
-        if any(os.path.exists(own) and os.path.samefile(target, own)
-               for own in self._project_files):
+        if any(same_file(target, own) for own in self._project_files):
             return True
         saved = time.strftime("%Y-%m-%d %H:%M", time.localtime(os.path.getmtime(target)))
         return self.ask(replace_project_question(os.path.basename(target), saved)) == REPLACE

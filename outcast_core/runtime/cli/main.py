@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
-import os
 import re
 import signal
 import sys
@@ -462,8 +461,10 @@ def check_output_path(
         raise CliError(f"cannot write '{output}': it is a folder")
     if path.exists() and not path.is_dir() and not path.is_file():
         raise CliError(f"cannot write '{output}': it is not a regular file (a device or pipe)")
+    from outcast_core.runtime.io.imageio import same_file
+
     for source in inputs:
-        if source and path.exists() and Path(source).exists() and os.path.samefile(path, source):
+        if same_file(path, source):
             raise CliError(f"cannot write '{output}': it is the input file '{source}'; "
                            "choose another output name")
     for other in outputs:  # neither may exist yet: compare the paths themselves

@@ -211,6 +211,29 @@ def read_image(
     )
 
 
+def read_metadata(path: str | os.PathLike[str]) -> PhotoMetadata:
+    """A photo's EXIF metadata (GPS, time, heading, focal length...) without decoding its
+    pixels: a PNG's ``eXIf`` chunk is found by walking the chunks, as :func:`read_image` does.
+    A file without EXIF gives empty metadata.
+
+    Raises:
+        ImageReadError: the file cannot be opened as an image.
+    """
+    path = Path(path)
+    try:
+        with _open_pil(path) as im:
+            exif, _ = _exif_of(im, path)
+    except (OSError, UnidentifiedImageError) as exc:
+        raise ImageReadError(f"cannot read '{path}': {_one_line(exc)}") from exc
+    return metadata_from_exif(exif)
+
+
+def same_file(a: str | os.PathLike[str] | None, b: str | os.PathLike[str] | None) -> bool:
+    """Whether ``a`` and ``b`` name one existing file, through links and other spellings too
+    (an output must never replace an input, whatever its name)."""
+    return bool(a and b and os.path.exists(a) and os.path.exists(b) and os.path.samefile(a, b))
+
+
 def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
     """``(width, height)`` of the upright image, from the header only (no pixel decoding).
 

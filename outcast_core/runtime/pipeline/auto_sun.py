@@ -593,17 +593,14 @@ def sun_frame_pitch(session: Any, path: str | os.PathLike[str]) -> float | None:
     frame (:func:`sun_in_photo`) stands at its true elevation from the photo's EXIF GPS and
     time; None without either. Depth cannot tell a slope from level ground, the sun can: on the
     ski-slope sample the ground plane (the slope) says 6.7° down, the sun about 10° up."""
-    from PIL import Image
-
-    from outcast_core.runtime.io.exif import metadata_from_exif
+    from outcast_core.runtime.io.imageio import read_metadata
     from outcast_core.runtime.pipeline.timelapse import true_sun_position
 
     seen = getattr(session, "sun_seen", None)  # found once, by set_image
     if seen is None:
         return None
     try:
-        with Image.open(path) as im:
-            meta = metadata_from_exif(im.getexif())
+        meta = read_metadata(path)  # (Pillow's own reader decodes a whole PNG for its EXIF)
     except (OSError, ValueError):
         return None
     when, lat, lon = meta.capture_time, meta.latitude, meta.longitude
@@ -724,6 +721,10 @@ class SunInPhoto:
     u: float
     v: float
     area: float
+
+    def core_radius(self, shape: tuple[int, ...]) -> float:
+        """The clipped core's radius in pixels of an image of ``shape`` (``H x W``...)."""
+        return math.sqrt(self.area * shape[0] * shape[1] / math.pi)
 
 
 def sun_in_photo(image_srgb: np.ndarray, sky: np.ndarray, camera: Any) -> SunInPhoto | None:

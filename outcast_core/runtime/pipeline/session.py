@@ -867,8 +867,7 @@ class RelightSession:
         image's size over the working size (the drag preview's is smaller)."""
         if seen is None:
             return img
-        h, w = sky.shape
-        core = math.sqrt(seen.area * h * w / math.pi)
+        core = seen.core_radius(sky.shape)
         to = None
         if sun_in_frame(w_new, cam):
             u1, v1 = project(normalize_sun(w_new), cam)
@@ -1045,9 +1044,8 @@ class RelightSession:
         if (seen is None or self.original_sun is None or sun_in_frame(wv, self.camera)
                 or original_share(self.original_sun, wv) >= 1.0):
             return out
-        h, w = self.sky.shape
-        core = math.sqrt(seen.area * h * w / math.pi)
-        return glare_gone_full(out, relit, self.sky, seen.u, seen.v, core)
+        return glare_gone_full(out, relit, self.sky, seen.u, seen.v,
+                               seen.core_radius(self.sky.shape))
 
     def buffers(self, w_new: Any) -> dict[str, np.ndarray]:
         """Display-ready intermediate buffers for the paper-style figure.

@@ -667,8 +667,12 @@ DESKTOP_FILES = frozenset({".DS_Store", "Thumbs.db", "desktop.ini", ".directory"
 PART_PREFIX = ".outcast-part-"
 
 
+def _is_frame(p: Path) -> bool:
+    return bool(FRAME_FILE.fullmatch(p.name)) and p.is_file()
+
+
 def _frame_files(folder: Path) -> list[Path]:
-    return [p for p in folder.iterdir() if FRAME_FILE.fullmatch(p.name) and p.is_file()]
+    return [p for p in folder.iterdir() if _is_frame(p)]
 
 
 def frames_folder_problem(path: str | os.PathLike[str]) -> str | None:
@@ -683,8 +687,8 @@ def frames_folder_problem(path: str | os.PathLike[str]) -> str | None:
     if not folder.is_dir():
         return None
     others = sorted(p.name for p in folder.iterdir()
-                    if not (FRAME_FILE.fullmatch(p.name) and p.is_file())
-                    and p.name not in DESKTOP_FILES and not p.name.startswith(PART_PREFIX))
+                    if not _is_frame(p) and p.name not in DESKTOP_FILES
+                    and not p.name.startswith(PART_PREFIX))
     if not others:
         return None
     listed = ", ".join(others[:3]) + (", ..." if len(others) > 3 else "")

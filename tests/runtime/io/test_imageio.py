@@ -714,3 +714,35 @@ def test_atomic_output_never_replaces_a_device(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="not a regular file"):
         write_image(link, np.zeros((2, 2, 3), np.float32), force=True)
     assert link.is_symlink() and Path("/dev/null").is_char_device()
+
+
+def test_read_metadata_reads_exif_without_the_pixels(tmp_path: Path) -> None:
+    """GPS, time and heading from a JPEG, and from a PNG's eXIf chunk (Pillow's own reader
+    decodes the whole PNG to find it); a file that is no image is an ImageReadError."""
+    from outcast_core.runtime.io.imageio import ImageReadError, read_metadata
+
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_003_th_pool.jpg"
+    meta = read_metadata(sample)
+    assert meta.latitude is not None and meta.capture_time is not None
+    assert meta.heading_deg is not None
+    loaded = read_image(sample, max_pixels=64 * 48)
+    png = tmp_path / "with_exif.png"
+    write_image(png, loaded.image_srgb, exif=loaded.exif_bytes)
+    again = read_metadata(png)
+    assert (again.latitude, again.capture_time) == (meta.latitude, meta.capture_time)
+    text = tmp_path / "notes.jpg"
+    text.write_text("not an image")
+    with pytest.raises(ImageReadError):
+        read_metadata(text)
+
+
+def test_same_file_sees_through_other_names(tmp_path: Path) -> None:
+    from outcast_core.runtime.io.imageio import same_file
+
+    a, b = tmp_path / "a.jpg", tmp_path / "b.jpg"
+    a.write_bytes(b"x")
+    b.write_bytes(b"x")
+    link = tmp_path / "link.jpg"
+    os.link(a, link)
+    assert same_file(a, link) and same_file(a, tmp_path / "." / "a.jpg")
+    assert not same_file(a, b) and not same_file(a, None) and not same_file(a, tmp_path / "no")
