@@ -160,7 +160,6 @@ class TimelapseDialog(QDialog):
         g.addWidget(self.easing_combo, 3, 1, 1, 2)
         g.addWidget(QLabel("Go"), 4, 0)
         g.addWidget(self.way_combo, 4, 1, 1, 2)
-        g.setRowStretch(5, 1)  # the rows stay together when the day's page is taller
 
         sun = QWidget(self)
         self.date_edit = QDateEdit(self)
@@ -212,7 +211,9 @@ class TimelapseDialog(QDialog):
         f.addRow(self.place_hint)
         self.pages.addWidget(sweep)
         self.pages.addWidget(sun)
+        self.pages.currentChanged.connect(self._fit_pages)
         self.kind_combo.currentIndexChanged.connect(self.pages.setCurrentIndex)
+        self._fit_pages(self.pages.currentIndex())
 
         # ---- output
         self.frames_box = QSpinBox(self)
@@ -308,6 +309,17 @@ class TimelapseDialog(QDialog):
         self.start_edit.timeChanged.connect(self._settings_changed)
         self.end_edit.timeChanged.connect(self._settings_changed)
         self._on_daylight_toggled(True)
+
+    def _fit_pages(self, index: int) -> None:
+        """Size the path's pages to the one shown (a stack is as tall as its tallest page).
+
+        Without this the short sweep page sat above a gap as tall as the day's page.
+        """
+        for i in range(self.pages.count()):
+            page = self.pages.widget(i)
+            policy = QSizePolicy.Policy.Preferred if i == index else QSizePolicy.Policy.Ignored
+            page.setSizePolicy(policy, policy)
+        self.pages.updateGeometry()
 
     # ------------------------------------------------------------------ settings <-> widgets
     def load_settings(self, s: TimelapseSettings) -> None:

@@ -369,6 +369,12 @@ def test_exif_sun_and_timelapse_prefill(window, settle):
     dialog.load_settings(s)
     times = [x.time.hour for x in dialog.samples()]
     assert times[0] in (5, 6) and times[-1] in (18, 19)  # sunrise to sunset, local time
+    # The path's pages take the height of the one shown: no gap under the short sweep page.
+    day_height = dialog.pages.sizeHint().height()
+    dialog.kind_combo.setCurrentIndex(0)
+    assert dialog.pages.sizeHint().height() < 0.7 * day_height
+    dialog.kind_combo.setCurrentIndex(1)
+    assert dialog.pages.sizeHint().height() == day_height
     assert dialog.start_edit.time().hour() in (5, 6)
     assert window.camera_tilt[2] == "level (no ground plane)"  # this photo at its working size
     # A camera pitched down: the aligned sun is in its frame, the heading in the horizon's, and

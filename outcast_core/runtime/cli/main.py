@@ -577,8 +577,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         output = getattr(args, "output", None)
         _check_output(args)  # before the work: extension, existing file, folder, input
         if isinstance(output, str) and output:
-            # Users name an output folder that may not exist yet (out/relit.jpg): make it.
-            Path(output).expanduser().parent.mkdir(parents=True, exist_ok=True)
+            # Users name an output folder that may not exist yet (out/relit.jpg): make it, and
+            # say so, so that a typo in a folder name does not go unseen.
+            folder = Path(output).expanduser().parent
+            if not folder.is_dir():
+                folder.mkdir(parents=True, exist_ok=True)
+                if not getattr(args, "quiet", False):
+                    print(f"outcast {args.command}: created the folder '{folder}'",
+                          file=sys.stderr)
         return int(args.func(args) or 0)
     except (ValueError, ModelError, FileExistsError, FileNotFoundError, CliError) as exc:
         print(f"outcast {args.command}: error: {exc}", file=sys.stderr)
