@@ -9,6 +9,7 @@ Errors exit with status 2 and one readable line on stderr, never a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import math
 import re
@@ -573,19 +574,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         argv = ["eval-real", *argv[2:]]
     args = parser.parse_args(join_negative_values(argv))
     previous_sigterm = _catch_sigterm()
+    made: list[Path] = []  # output folders this run created, outermost first
+    done = False
     try:
-        output = getattr(args, "output", None)
         _check_output(args)  # before the work: extension, existing file, folder, input
-        if isinstance(output, str) and output:
-            # Users name an output folder that may not exist yet (out/relit.jpg): make it, and
-            # say so, so that a typo in a folder name does not go unseen.
-            folder = Path(output).expanduser().parent
-            if not folder.is_dir():
-                folder.mkdir(parents=True, exist_ok=True)
-                if not getattr(args, "quiet", False):
-                    print(f"outcast {args.command}: created the folder '{folder}'",
-                          file=sys.stderr)
-        return int(args.func(args) or 0)
+        made = _make_output_folder(args)
+        rc = int(args.func(args) or 0)
+        done = rc == 0
+        if made and done and not getattr(args, "quiet", False):
+            # Said, so that a typo in a folder name does not go unseen.
+            print(f"outcast {args.command}: created the folder '{made[-1]}'", file=sys.stderr)
+        return rc
     except (ValueError, ModelError, FileExistsError, FileNotFoundError, CliError) as exc:
         print(f"outcast {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -605,8 +604,29 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"outcast {args.command}: interrupted", file=sys.stderr)
         return 130
     finally:
+        if not done:  # a failed run leaves no empty folders behind
+            for folder in reversed(made):
+                with contextlib.suppress(OSError):
+                    folder.rmdir()  # only if empty
         if previous_sigterm is not None:
             signal.signal(signal.SIGTERM, previous_sigterm)
+
+
+def _make_output_folder(args: argparse.Namespace) -> list[Path]:
+    """Create the missing folders of ``-o OUT`` (users name one that may not exist yet:
+    out/relit.jpg); returns those created, outermost first."""
+    output = getattr(args, "output", None)
+    if not isinstance(output, str) or not output:
+        return []
+    folder = Path(output).expanduser().parent
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    missing.reverse()
+    for m in missing:
+        m.mkdir()
+    return missing
 
 
 if __name__ == "__main__":

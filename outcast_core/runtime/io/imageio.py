@@ -173,15 +173,21 @@ def read_image(
     _check_input_file(path)
     try:
         with _open_pil(path) as im:
-            fmt, (stored_w, stored_h), exif, exif_bytes = _checked_header(im, path)
+            fmt, _, exif, exif_bytes = _checked_header(im, path)
             meta = metadata_from_exif(exif)
+            stored_w, stored_h = _stored_size(im, meta.orientation)
             target = _fit_size(stored_w, stored_h, max_pixels)
             bits = _bits_per_sample(im, path)
             alpha = _has_transparency(im)
+            # Some decoders turn a TIFF upright themselves: then it is decoded at the upright
+            # target size and not turned again.
+            turned = None if target is None else _upright_size(target, meta.orientation)
             if bits > 8 and im.mode not in ("I;16", "I;16B", "I;16L", "I;16N", "I", "F"):
-                image = _decode_cv2(path, target)
+                upright = _turns_upright("opencv", fmt, meta.orientation)
+                image = _decode_cv2(path, turned if upright else target)
             else:
-                image = _decode_pil(im, target, keep_uint8=keep_uint8)
+                upright = _turns_upright("pillow", fmt, meta.orientation)
+                image = _decode_pil(im, turned if upright else target, keep_uint8=keep_uint8)
     except ImageReadError:
         raise
     except UnidentifiedImageError as exc:
@@ -197,8 +203,9 @@ def read_image(
         raise ImageReadError(
             f"cannot read image '{path}': the file is truncated or corrupt ({_one_line(exc)})"
         ) from exc
-    image = _apply_orientation(image, meta.orientation)
-    original = (stored_h, stored_w) if meta.orientation >= 5 else (stored_w, stored_h)
+    if not upright:
+        image = _apply_orientation(image, meta.orientation)
+    original = _upright_size((stored_w, stored_h), meta.orientation)
     return LoadedImage(
         image_srgb=image,
         path=path,
@@ -244,15 +251,55 @@ def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
     _check_input_file(path)
     try:
         with _open_pil(path) as im:
-            _, (w, h), exif, _ = _checked_header(im, path)
+            _, _, exif, _ = _checked_header(im, path)
             orientation = metadata_from_exif(exif).orientation
+            stored = _stored_size(im, orientation)
     except ImageReadError:
         raise
     except UnidentifiedImageError as exc:
         raise ImageReadError(f"cannot read image '{path}': not an image file") from exc
     except Exception as exc:
         raise ImageReadError(f"cannot read image '{path}': {_one_line(exc)}") from exc
-    return (h, w) if orientation >= 5 else (w, h)
+    return _upright_size(stored, orientation)
+
+
+def _upright_size(size: tuple[int, int], orientation: int) -> tuple[int, int]:
+    """``(width, height)`` of a stored image once EXIF ``orientation`` has turned it upright."""
+    return (size[1], size[0]) if orientation >= 5 else (size[0], size[1])
+
+
+@functools.lru_cache(maxsize=2)
+def _decoder_turns_tiff_upright(decoder: str) -> bool:
+    """Whether ``decoder`` ("pillow" or "opencv") turns a TIFF upright by its EXIF orientation
+    as it decodes it.
+
+    Pillow 13 does (and reports the upright size before loading), earlier Pillows do not;
+    OpenCV's TIFF reader does. Turning such a TIFF again put it on its side (found by a user
+    trial). Probed once per decoder on a 2 x 1 TIFF made in memory.
+    """
+    exif = Image.Exif()
+    exif[TAG_ORIENTATION] = 6
+    buf = io.BytesIO()
+    Image.new("RGB", (2, 1)).save(buf, "TIFF", exif=exif)
+    if decoder == "opencv":
+        array = cv2.imdecode(np.frombuffer(buf.getvalue(), np.uint8), cv2.IMREAD_UNCHANGED)
+        return array is not None and array.shape[:2] == (2, 1)
+    buf.seek(0)
+    with Image.open(buf) as im:
+        return im.size == (1, 2)
+
+
+def _turns_upright(decoder: str, fmt: str, orientation: int) -> bool:
+    """Whether ``decoder`` applies EXIF ``orientation`` itself to an image of format ``fmt``."""
+    return fmt == "TIFF" and orientation >= 2 and _decoder_turns_tiff_upright(decoder)
+
+
+def _stored_size(im: Image.Image, orientation: int) -> tuple[int, int]:
+    """The ``(width, height)`` the pixels are stored at (Pillow reports a TIFF it turns
+    upright at its upright size)."""
+    if _turns_upright("pillow", im.format or "", orientation):
+        return _upright_size(im.size, orientation)  # the same swap undoes itself
+    return im.size
 
 
 def _checked_header(

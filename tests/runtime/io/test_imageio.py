@@ -163,17 +163,56 @@ def test_jpeg_orientation_6_is_rotated_clockwise(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("orientation", range(1, 9))
-def test_all_orientations_match_pillow(tmp_path: Path, orientation: int) -> None:
+@pytest.mark.parametrize("kind", ["png", "tiff", "tiff16"])
+def test_all_orientations_match_pillow(tmp_path: Path, orientation: int, kind: str) -> None:
+    """Turned upright once, whatever the format and the decoder (Pillow 13 turns TIFFs upright
+    as it loads them; a second turn put them on their side)."""
     stored = (_noise_image(9, 14, seed=orientation) * 255).astype(np.uint8)
     exif = Image.Exif()
     exif[0x0112] = orientation
-    path = tmp_path / "o.png"
-    Image.fromarray(stored).save(path, exif=exif.tobytes())
-    with Image.open(path) as im:
+    ref = tmp_path / "o.png"
+    Image.fromarray(stored).save(ref, exif=exif.tobytes())
+    with Image.open(ref) as im:  # PNGs are never turned on load: the reference
         expected = np.asarray(ImageOps.exif_transpose(im)).astype(np.float32) / 255
+    path = ref
+    if kind == "tiff":
+        path = tmp_path / "o.tif"
+        Image.fromarray(stored).save(path, exif=exif)
+    elif kind == "tiff16":  # OpenCV decodes it (16-bit colour)
+        path = tmp_path / "o16.tif"
+        ok, data = cv2.imencode(".tif", (stored[:, :, ::-1].astype(np.uint16) * 257))
+        assert ok
+        path.write_bytes(data.tobytes())
+        with Image.open(path) as im:  # add the orientation to the 16-bit file's tags
+            assert im.size == (stored.shape[1], stored.shape[0])
+        _tiff_with_orientation(path, orientation)
     loaded = read_image(path)
-    assert np.array_equal(loaded.image_srgb, expected)
+    assert np.allclose(loaded.image_srgb, expected, atol=1e-6), kind
+    assert loaded.exif.orientation == orientation
+    assert loaded.original_size == (expected.shape[1], expected.shape[0])
     assert read_image_size(path) == (expected.shape[1], expected.shape[0])
+    small = read_image(path, max_pixels=40)  # decoded smaller: still upright
+    assert (small.image_srgb.shape[0] > small.image_srgb.shape[1]) == (
+        expected.shape[0] > expected.shape[1])
+
+
+def _tiff_with_orientation(path: Path, orientation: int) -> None:
+    """Set the Orientation tag (274) of a little-endian baseline TIFF's first IFD in place."""
+    data = bytearray(path.read_bytes())
+    assert data[:4] == b"II*\x00"
+    ifd = struct.unpack_from("<I", data, 4)[0]
+    n = struct.unpack_from("<H", data, ifd)[0]
+    entries = [struct.unpack_from("<HHII", data, ifd + 2 + 12 * i) for i in range(n)]
+    tags = [e[0] for e in entries]
+    assert 0x0112 not in tags
+    entries.append((0x0112, 3, 1, orientation))  # SHORT, count 1, value in place
+    entries.sort()
+    block = struct.pack("<H", n + 1) + b"".join(struct.pack("<HHII", *e) for e in entries)
+    block += struct.pack("<I", 0)  # no next IFD
+    new_ifd = len(data) + (len(data) % 2)
+    data += b"\x00" * (new_ifd - len(data)) + block
+    struct.pack_into("<I", data, 4, new_ifd)
+    path.write_bytes(bytes(data))
 
 
 def test_grey_8_and_16_bit_inputs(tmp_path: Path) -> None:
