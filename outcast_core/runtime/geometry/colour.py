@@ -39,6 +39,42 @@ def luminance(radiance_lin: np.ndarray) -> np.ndarray:
     return x @ LUMA_709
 
 
+#: :func:`is_greyscale`: the largest channel spread (sRGB) of a grey pixel (JPEG's chroma
+#: noise), and the share of pixels that must be grey.
+GREY_SPREAD = 3.0 / 255.0
+GREY_SHARE = 0.99
+
+
+def is_greyscale(image_srgb: np.ndarray) -> bool:
+    """Whether an ``H x W x 3`` image is a black-and-white photo stored as RGB (its channels
+    equal within :data:`GREY_SPREAD` on :data:`GREY_SHARE` of the pixels; a uint8 image is
+    read as ``0..255``).
+
+    Example:
+        >>> grey = np.repeat(np.linspace(0, 1, 12, dtype=np.float32).reshape(3, 4, 1), 3, 2)
+        >>> is_greyscale(grey), is_greyscale(grey * np.float32([1.0, 0.9, 0.8]))
+        (True, False)
+    """
+    x = np.asarray(image_srgb)
+    if x.ndim != 3 or x.shape[2] != 3:
+        raise ValueError(f"expected an H x W x 3 image, got shape {x.shape}")
+    if x.size == 0:
+        return False
+    step = max(1, int(np.sqrt(x.shape[0] * x.shape[1] / 250_000)))  # about 250k pixels
+    x = x[::step, ::step].astype(np.float32)
+    if np.asarray(image_srgb).dtype == np.uint8:
+        x = x / np.float32(255.0)
+    spread = x.max(axis=2) - x.min(axis=2)
+    return bool(np.mean(spread <= GREY_SPREAD) >= GREY_SHARE)
+
+
+def grey_like(image_srgb: np.ndarray) -> np.ndarray:
+    """An sRGB image made black-and-white: its luminance (linear, Rec. 709) in all three
+    channels, so a relit black-and-white photo stays one (``H x W x 3`` float32)."""
+    y = luminance(srgb_to_linear(image_srgb))
+    return np.repeat(linear_to_srgb(y)[..., None], 3, axis=-1)
+
+
 def tonemap_aces(radiance_lin: np.ndarray, exposure: float = 1.0) -> np.ndarray:
     """Filmic tone map (Narkowicz's ACES fit) of linear HDR radiance to sRGB-encoded [0, 1]."""
     x = np.maximum(np.asarray(radiance_lin, dtype=np.float32) * exposure, 0.0)

@@ -59,8 +59,11 @@ import cv2
 import numpy as np
 
 from outcast_core.runtime.geometry.camera import Camera, backproject, fill_invalid
-from outcast_core.runtime.geometry.colour import LUMA_709
+from outcast_core.runtime.geometry.colour import LUMA_709, is_greyscale
 
+#: :func:`sky_colour` in a black-and-white photo: the least sRGB luma of a sky (a blue sky
+#: turns a mid grey; the field-path sample's in black and white: 5th percentile 0.41).
+GREY_SKY_LUMA = 0.3
 #: Longer side (pixels) the prior works at; the mask is resized back (nearest) to the input.
 WORK_SIDE = 256
 #: Largest mean gradient magnitude (largest colour channel, per pixel, [0, 1] units) that counts
@@ -107,10 +110,19 @@ def _clear_blue(image_srgb: np.ndarray, lum: np.ndarray | None = None) -> np.nda
 
 def sky_colour(image_srgb: np.ndarray) -> np.ndarray:
     """Where a pixel has a sky's colour: bluish (clear sky), or bright and unsaturated (cloud,
-    haze, overcast). ``H x W x 3`` sRGB -> ``H x W`` bool."""
+    haze, overcast). ``H x W x 3`` sRGB -> ``H x W`` bool.
+
+    In a black-and-white photo (:func:`~outcast_core.runtime.geometry.colour.is_greyscale`) a
+    blue sky is a mid grey: there, any pixel of luma above :data:`GREY_SKY_LUMA` has a sky's
+    colour (the prior's smoothness and top-edge tests still apply). Found by a user trial: the
+    field-path sample in black and white had a sky prior of 4 % of the frame (54 % in colour),
+    and dark shadows were cast across its sky.
+    """
     img = np.asarray(image_srgb, dtype=np.float32)  # NaN compares False: never sky-coloured
     r, g, b = cv2.split(img)
     lum = cv2.transform(img, LUMA_709[None])
+    if is_greyscale(np.nan_to_num(img)):
+        return lum > GREY_SKY_LUMA
     lo, hi = np.minimum(np.minimum(r, g), b), np.maximum(np.maximum(r, g), b)
     bluish = _clear_blue(img, lum)
     cloudish = (lum > 0.5) & (hi - lo < 0.25 * hi)  # saturation < 0.25

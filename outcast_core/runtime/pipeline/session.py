@@ -37,7 +37,7 @@ from outcast_core.runtime.geometry.camera import (
     sun_in_frame,
     view_directions,
 )
-from outcast_core.runtime.geometry.colour import srgb_to_linear
+from outcast_core.runtime.geometry.colour import grey_like, is_greyscale, srgb_to_linear
 from outcast_core.runtime.geometry.fullres import resize_to_working
 from outcast_core.runtime.geometry.raymarch import RaySampler
 from outcast_core.runtime.geometry.shadows import DirectStats, direct_shadow
@@ -282,6 +282,7 @@ class RelightSession:
         self._lock = threading.RLock()
         self.timings: dict[str, float] = {}
         self.full_image_srgb: np.ndarray | None = None
+        self.greyscale = False
         self._given_depth: np.ndarray | None = None
         self._focal_full: float | None = None
         self.depth_source = "none"
@@ -390,6 +391,9 @@ class RelightSession:
                 )
         with self._lock:
             self.full_image_srgb = img
+            # A black-and-white photo: every image made from it stays black and white (``L``
+            # and the guards tint it a little otherwise).
+            self.greyscale = is_greyscale(img)
             self._focal_full = focal
             self._given_depth = depth
             self.original_sun = None
@@ -605,7 +609,8 @@ class RelightSession:
                 raise RuntimeError("set_original_sun() must be called before deshadow()")
             if self._deshadowed is None:
                 t0 = time.perf_counter()
-                self._deshadowed = deshadow(self.image_srgb, self.shadow_probability, self.sky)
+                self._deshadowed = self._in_photo_colours(
+                    deshadow(self.image_srgb, self.shadow_probability, self.sky))
                 self._time("deshadow", t0)
             return self._deshadowed
 
@@ -668,7 +673,7 @@ class RelightSession:
             if d["image"] is self.image_srgb:  # found at the working size: lifted there already
                 out = self.deshadow()
             else:
-                out = deshadow(d["image"], d["probability"], d["sky"])
+                out = self._in_photo_colours(deshadow(d["image"], d["probability"], d["sky"]))
             full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out)
         self._time("deshadow_full", t0)
         return full
@@ -797,6 +802,7 @@ class RelightSession:
         relit = toward_photo(image, relit, share)
         relit = self._without_old_sun(relit, st["sky"], self.sun_seen, st["camera"], wv,
                                       st["camera"].width / self.camera.width)
+        relit = self._in_photo_colours(relit)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
                                           threads=1)
         self._time("relight_preview", t1)
@@ -856,7 +862,11 @@ class RelightSession:
         img = toward_photo(image, img, share)
         # Last, on the blend too: near the original sun the photo's own sun must not stay.
         img = self._without_old_sun(img, inp["sky"], inp["sun_seen"], inp["camera"], wv, 1.0)
-        return img.astype(np.float32)
+        return self._in_photo_colours(img).astype(np.float32)
+
+    def _in_photo_colours(self, img: np.ndarray) -> np.ndarray:
+        """``img`` made black and white when the photo is (:attr:`greyscale`)."""
+        return grey_like(img) if self.greyscale else img
 
     @staticmethod
     def _without_old_sun(img: np.ndarray, sky: np.ndarray, seen: SunInPhoto | None,
