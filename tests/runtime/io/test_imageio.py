@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 import struct
 import subprocess
@@ -747,6 +748,61 @@ def test_non_srgb_icc_profile_is_converted(tmp_path: Path) -> None:
     assert read_image(tmp_path / "plain.png").image_srgb[..., 0].mean() == pytest.approx(200 / 255)
 
 
+def _png16_with_profile(path: Path, pixels16: np.ndarray, icc: bytes) -> None:
+    """A 16-bit RGB PNG (OpenCV) with an iCCP chunk (Pillow cannot write 16-bit colour)."""
+    ok, data = cv2.imencode(".png", np.ascontiguousarray(pixels16[:, :, ::-1]))
+    assert ok
+    png = data.tobytes()
+    body = b"iCCP" + b"test\0\0" + zlib.compress(icc)
+    chunk = struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body))
+    path.write_bytes(png[:33] + chunk + png[33:])  # right after IHDR
+
+
+def test_16_bit_colour_file_with_a_profile_is_converted_like_an_8_bit_one(tmp_path: Path) -> None:
+    """16-bit colour files are decoded by OpenCV, which ignores profiles: an Adobe RGB 16-bit
+    export was read as sRGB (16 % duller, found by a user trial). Now its conversion matches
+    LittleCMS's on the 8-bit file within 2/255, and keeps the 16-bit steps."""
+    adobe = _matrix_profile([(0.6097, 0.3111, 0.0195), (0.2052, 0.6257, 0.0609),
+                             (0.1492, 0.0632, 0.7448)], "Adobe-like test")
+    rng = np.random.default_rng(4)
+    pixels = rng.integers(0, 256, (16, 24, 3)).astype(np.uint8)
+    Image.fromarray(pixels).save(tmp_path / "a8.png", icc_profile=adobe)
+    _png16_with_profile(tmp_path / "a16.png", pixels.astype(np.uint16) * 257, adobe)
+    eight, sixteen = read_image(tmp_path / "a8.png"), read_image(tmp_path / "a16.png")
+    assert sixteen.bit_depth == 16
+    diff = np.abs(eight.image_srgb - sixteen.image_srgb) * 255
+    assert diff.max() <= 1.0  # a matrix/TRC profile is converted exactly (8-bit rounding)
+    assert np.abs(sixteen.image_srgb - pixels / np.float32(255)).mean() * 255 > 3  # converted
+    ramp = np.repeat(np.arange(0, 65536, 64, dtype=np.uint16)[None, :, None], 3, 2)  # 1024 steps
+    _png16_with_profile(tmp_path / "ramp.png", np.repeat(ramp, 2, 0), adobe)
+    grey = read_image(tmp_path / "ramp.png").image_srgb[0, :, 1]
+    assert np.all(np.diff(grey) >= 0) and np.unique(grey).size > 900  # smooth, not 8-bit steps
+
+
+def test_16_bit_conversion_through_littlecms_samples_for_other_profiles(monkeypatch) -> None:
+    """A profile without matrix/TRC tags (LUT-based) is converted through samples of
+    LittleCMS's conversion: within 2/255 of it away from sRGB's gamut edge."""
+    import outcast_core.runtime.io.imageio as imageio_mod
+
+    adobe = _matrix_profile([(0.6097, 0.3111, 0.0195), (0.2052, 0.6257, 0.0609),
+                             (0.1492, 0.0632, 0.7448)], "Adobe-like test")
+    monkeypatch.setattr(imageio_mod, "_matrix_shaper", lambda icc: None)  # as a LUT profile
+    pixels = np.random.default_rng(5).integers(0, 256, (16, 24, 3)).astype(np.uint8)
+    with Image.open(io.BytesIO(_png_bytes(pixels, adobe))) as im:
+        lcms = np.asarray(imageio_mod._convert_icc_to_srgb(im), np.float32) / 255
+    ours = imageio_mod._convert_icc_float(pixels.astype(np.float32) / 255, adobe)
+    diff = np.abs(ours - lcms) * 255
+    inside = ((lcms > 16 / 255) & (lcms < 239 / 255)).all(axis=2)  # clips bend it at the edge
+    assert inside.mean() > 0.3 and diff[inside].max() <= 2.5 and diff.mean() < 1.0
+    assert np.abs(ours - pixels / 255).mean() * 255 > 3  # it did convert
+
+
+def _png_bytes(pixels: np.ndarray, icc: bytes) -> bytes:
+    buf = io.BytesIO()
+    Image.fromarray(pixels).save(buf, "PNG", icc_profile=icc)
+    return buf.getvalue()
+
+
 def test_atomic_output_never_replaces_a_device(tmp_path: Path) -> None:
     link = tmp_path / "null.png"
     link.symlink_to("/dev/null")
@@ -785,3 +841,17 @@ def test_same_file_sees_through_other_names(tmp_path: Path) -> None:
     os.link(a, link)
     assert same_file(a, link) and same_file(a, tmp_path / "." / "a.jpg")
     assert not same_file(a, b) and not same_file(a, None) and not same_file(a, tmp_path / "no")
+
+
+def test_parametric_tone_curve_of_a_v4_profile() -> None:
+    """ICC ``para`` type 3 with sRGB's parameters is sRGB's curve (v4 profiles use it)."""
+    from outcast_core.runtime.geometry.colour import srgb_to_linear
+    from outcast_core.runtime.io.imageio import _icc_curve
+
+    params = [2.4, 1 / 1.055, 0.055 / 1.055, 1 / 12.92, 0.04045]
+    data = b"para\0\0\0\0" + struct.pack(">HH", 3, 0) + b"".join(
+        struct.pack(">i", round(v * 65536)) for v in params)
+    curve = _icc_curve(data, 0)
+    x = np.linspace(0.0, 1.0, curve.size, dtype=np.float32)
+    assert np.abs(curve - srgb_to_linear(x)).max() < 1e-4
+    assert _icc_curve(b"mAB " + b"\0" * 12, 0) is None  # other types: not a tone curve
