@@ -1406,10 +1406,9 @@ class MainWindow(QMainWindow):
     ) -> int | None:
         """Render one full-resolution image in the worker and write it atomically.
 
-        PNG and JPEG keep the photo's EXIF; ``.tif``, and a PNG of a 16-bit photo, are 16-bit
-        (without EXIF: :func:`~outcast_core.runtime.io.imageio.output_bit_depth`). Without
-        ``force`` an existing
-        file is refused (here at once, and again by the writer).
+        Every format keeps the photo's EXIF; ``.tif``, and a PNG of a 16-bit photo, are 16-bit
+        (:func:`~outcast_core.runtime.io.imageio.output_bit_depth`). Without ``force`` an
+        existing file is refused (here at once, and again by the writer).
 
         Args:
             channel: one of :data:`IMAGE_EXPORT_CHANNELS`.
@@ -1438,8 +1437,8 @@ class MainWindow(QMainWindow):
             img = render()
             ctx.progress("writing", 0.8)
             bits = output_bit_depth(path, getattr(loaded, "bit_depth", 8))
-            exif = None if bits == 16 else getattr(loaded, "exif_bytes", None)
-            write_image(path, img, bit_depth=bits, force=force, quality=95, exif=exif)
+            write_image(path, img, bit_depth=bits, force=force, quality=95,
+                        exif=getattr(loaded, "exif_bytes", None))
             return {"path": path, "timings": _timings(session)}
 
         return self.runner.submit(channel, job, f"Exporting {os.path.basename(path)}")

@@ -203,8 +203,8 @@ def cmd_relight(args: argparse.Namespace) -> int:
     _set_image(session, loaded, args)
     session.set_original_sun(w_from)
     out = session.relight_full(w_to, dtype=np.uint8 if bit_depth == 8 else np.float32)
-    exif = loaded.exif_bytes if bit_depth == 8 else None  # GPS and time, as the app's export
-    write_image(args.output, out, bit_depth=bit_depth, force=args.force, exif=exif)
+    # GPS and time, as the app's export.
+    write_image(args.output, out, bit_depth=bit_depth, force=args.force, exif=loaded.exif_bytes)
     t = session.timings
     _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows: "
                f"{session.shadow_mode}, refinement: {session.refinement}, "
@@ -231,7 +231,7 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     out = session.deshadow_full()
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     write_image(args.output, out, bit_depth=bit_depth, force=args.force,
-                exif=loaded.exif_bytes if bit_depth == 8 else None)  # 16 bits carry none
+                exif=loaded.exif_bytes)
     if args.mask:  # where the shadows were found, at the photo's size
         prob = session.found_shadows_detail()["probability"]
         full_hw = session.full_image_srgb.shape[:2]

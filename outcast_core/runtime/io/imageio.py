@@ -46,8 +46,10 @@ import contextlib
 import functools
 import io
 import os
+import struct
 import tempfile
 import threading
+import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -842,7 +844,6 @@ def _umask() -> int:
 def output_bit_depth(path: str | os.PathLike[str], source_bits: int = 8) -> int:
     """Bits per sample to write an image made from a photo of ``source_bits``: 16 for TIFF,
     and for a PNG made from a 16-bit photo (8 bits would throw away its precision); else 8.
-    16-bit files carry no EXIF (:func:`write_image`).
 
     Example:
         >>> output_bit_depth("a.tif"), output_bit_depth("a.png", 16), output_bit_depth("a.png")
@@ -871,8 +872,8 @@ def write_image(
         bit_depth: 8, or 16 for PNG and TIFF.
         force: replace an existing file.
         quality: JPEG/WebP quality, 1..100 (WebP 100 is lossless).
-        exif: raw EXIF bytes to embed (e.g. ``LoadedImage.exif_bytes``); JPEG, WebP and 8-bit
-            PNG/TIFF only (16-bit files are written by OpenCV without metadata).
+        exif: raw EXIF bytes to embed (e.g. ``LoadedImage.exif_bytes``), in every format
+            (16-bit files: an ``eXIf`` chunk, or the TIFF's EXIF and GPS directories).
         make_parents: create missing parent folders.
 
     Returns:
@@ -894,13 +895,11 @@ def write_image(
         raise ValueError(f"expected bit_depth 8 for {fmt} (16 bits: use .png or .tif)")
     if not 1 <= int(quality) <= 100:
         raise ValueError(f"expected quality in 1..100, got {quality}")
-    if exif is not None and bit_depth == 16:
-        raise ValueError("expected exif=None for 16-bit output (EXIF is written for 8 bits only)")
     array = _quantise(image_srgb, bit_depth)
     with atomic_output(path, force, make_parents=make_parents) as tmp:
         if bit_depth == 16:
             bgr = array[:, :, ::-1] if array.ndim == 3 else array
-            _write_cv2(tmp, bgr, path.suffix.lower())
+            _write_cv2(tmp, bgr, path.suffix.lower(), exif)
         else:
             im = Image.fromarray(array)
             kwargs: dict[str, object] = {}
@@ -942,14 +941,82 @@ def _quantise(image: np.ndarray, bit_depth: int) -> np.ndarray:
     return np.ascontiguousarray(np.rint(np.clip(image, 0.0, 1.0) * top).astype(dtype))
 
 
-def _write_cv2(path: Path, array: np.ndarray, ext: str) -> None:
+def _write_cv2(path: Path, array: np.ndarray, ext: str, exif: bytes | None = None) -> None:
+    """Encode a 16-bit image with OpenCV (Pillow cannot write 16-bit colour), with ``exif``
+    put into the file (:func:`_png_with_exif`, :func:`_tiff_with_exif`)."""
     params: list[int] = []
     if ext == ".png":
         params = [cv2.IMWRITE_PNG_COMPRESSION, 6]
     ok, encoded = cv2.imencode(".tif" if ext == ".tiff" else ext, array, params)
     if not ok:
         raise OSError(f"OpenCV could not encode '{path}'")
-    encoded.tofile(path)
+    data = encoded.tobytes()
+    if exif:
+        data = _png_with_exif(data, exif) if ext == ".png" else _tiff_with_exif(data, exif)
+    path.write_bytes(data)
+
+
+def _png_with_exif(png: bytes, exif: bytes) -> bytes:
+    """A PNG with an ``eXIf`` chunk (the EXIF's TIFF structure) right after its header."""
+    body = exif[6:] if exif.startswith(b"Exif\0\0") else exif
+    chunk = b"eXIf" + body
+    if png[12:16] != b"IHDR":
+        raise OSError("OpenCV wrote a PNG without its header first")
+    return (png[:33] + struct.pack(">I", len(body)) + chunk
+            + struct.pack(">I", zlib.crc32(chunk) & 0xFFFFFFFF) + png[33:])
+
+
+#: The photo's first-directory tags :func:`_tiff_with_exif` keeps: description, camera make
+#: and model, software, date and time, artist, copyright (the rest describes its pixels).
+_TIFF_IFD0_METADATA = (270, 271, 272, 305, 306, 315, 33432)
+
+
+def _tiff_with_exif(tiff: bytes, exif: bytes) -> bytes:
+    """A little-endian TIFF (as OpenCV writes it) with a photo's EXIF: its camera tags, and
+    its EXIF and GPS directories appended, in a new first directory that also holds every
+    entry of the old one (their values stay where they are)."""
+    from PIL.TiffImagePlugin import ImageFileDirectory_v2
+
+    data = bytearray(tiff)
+    if data[:4] != b"II*\x00":
+        raise OSError("OpenCV wrote a TIFF that is not little-endian")
+    source = Image.Exif()
+    source.load(exif)
+
+    def aligned() -> int:
+        if len(data) % 2:
+            data.extend(b"\0")
+        return len(data)
+
+    new = ImageFileDirectory_v2(prefix=b"II")
+    for tag in _TIFF_IFD0_METADATA:
+        if tag in source:
+            new[tag] = source[tag]
+    for pointer in (0x8769, 0x8825):  # the EXIF and GPS directories
+        tags = source.get_ifd(pointer)
+        if tags:
+            sub = ImageFileDirectory_v2(prefix=b"II")
+            for k, v in tags.items():
+                sub[k] = v
+            at = aligned()
+            data.extend(sub.tobytes(at))
+            new[pointer] = at
+            new.tagtype[pointer] = 4  # LONG
+    old = struct.unpack_from("<I", data, 4)[0]
+    n_old = struct.unpack_from("<H", data, old)[0]
+    entries = [bytes(data[old + 2 + 12 * i:old + 14 + 12 * i]) for i in range(n_old)]
+    for tag in {struct.unpack_from("<H", e)[0] for e in entries} & set(new.keys()):
+        del new[tag]
+    at = aligned()
+    # Laid out as if the old entries came first, so its value offsets are right once merged.
+    blob = new.tobytes(at + 12 * n_old)
+    n_new = struct.unpack_from("<H", blob)[0]
+    entries += [blob[2 + 12 * i:14 + 12 * i] for i in range(n_new)]
+    entries.sort(key=lambda e: struct.unpack_from("<H", e)[0])
+    data.extend(struct.pack("<H", len(entries)) + b"".join(entries) + struct.pack("<I", 0)
+                + blob[2 + 12 * n_new + 4:])
+    struct.pack_into("<I", data, 4, at)
+    return bytes(data)
 
 
 def write_shadow_png(

@@ -621,7 +621,7 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
         out = session.relight_full(sun_vector(*to_sun)) if to_sun else session.deshadow_full()
         bits = output_bit_depth(job.output, loaded.bit_depth)
         write_image(job.output, out, bit_depth=bits, force=options.force,
-                    exif=None if bits == 16 else loaded.exif_bytes)
+                    exif=loaded.exif_bytes)
     result.details.update(shadows=session.shadow_mode, relighting=session.relight_mode,
                           depth=session.depth_source,
                           camera={"pitch": round(tilt[0], 2), "roll": round(tilt[1], 2),

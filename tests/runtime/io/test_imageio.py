@@ -137,8 +137,24 @@ def test_exif_bytes_are_copied_upright(tmp_path: Path) -> None:
     assert copied.latitude == source.exif.latitude
     assert copied.capture_time == source.exif.capture_time
     assert copied.orientation == 1
-    with pytest.raises(ValueError, match="exif"):
-        write_image(tmp_path / "x.png", source.image_srgb, bit_depth=16, exif=source.exif_bytes)
+
+
+@pytest.mark.parametrize("name", ["x.png", "x.tif", "x.tiff"])
+def test_16_bit_files_keep_the_exif(tmp_path: Path, name: str) -> None:
+    """GPS, time, heading and camera survive a 16-bit export (they were dropped: OpenCV writes
+    16-bit files without metadata; found by a user trial), and the pixels stay exact."""
+    source = read_image(REPO / "samples" / "exif_003_th_pool.jpg", max_pixels=80 * 60)
+    out = write_image(tmp_path / name, source.image_srgb, bit_depth=16, exif=source.exif_bytes)
+    back = read_image(out)
+    assert back.bit_depth == 16
+    assert np.abs(back.image_srgb - source.image_srgb).max() < 1e-4
+    meta = back.exif
+    for field in ("latitude", "longitude", "capture_time", "heading_deg", "make", "model",
+                  "focal_35mm"):
+        assert getattr(meta, field) == getattr(source.exif, field), field
+    assert meta.orientation == 1
+    with Image.open(out) as im:  # a valid file for other readers too
+        assert im.size == (source.image_srgb.shape[1], source.image_srgb.shape[0])
 
 
 # ------------------------------------------------------------------------------------------
@@ -536,7 +552,7 @@ def test_no_overwrite_without_force(tmp_path: Path) -> None:
 
 
 def test_failed_write_leaves_nothing_and_keeps_old_file(tmp_path: Path, monkeypatch) -> None:
-    def broken(path: Path, array: np.ndarray, ext: str) -> None:
+    def broken(path: Path, array: np.ndarray, ext: str, exif: bytes | None = None) -> None:
         path.write_bytes(b"half a file")
         raise OSError("disk full")
 
