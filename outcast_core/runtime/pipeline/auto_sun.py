@@ -169,6 +169,12 @@ MAX_SHADE = 0.85
 MEASURES = ("mask", "shading", "mask+shading")
 MEASURE = "mask"
 SHADING_WEIGHT = 0.5
+#: Shorter side (pixels of the working image, where shadows are read) below which / from which
+#: the confidence is scaled down to 0 / kept whole (:func:`legibility`): a thumbnail or a
+#: narrow strip has too few pixels of shadow to tell a sun by (a user trial: a 16 x 16 image
+#: and a 600 x 4000 strip were "found" with confidence 1.0).
+LEGIBLE_LOW = 24
+LEGIBLE_HIGH = 64
 #: Camera tilts (degrees) from the fitted ground plane beyond which it is not trusted.
 MAX_PLANE_TILT = 25.0
 
@@ -439,6 +445,26 @@ def shade_clarity(image_srgb: np.ndarray, sky: np.ndarray, found: np.ndarray) ->
     a, b = log_y[shade], log_y[lit]
     sep = float(b.mean() - a.mean())
     return float(np.clip((sep - SEPARATION_LOW) / (SEPARATION_HIGH - SEPARATION_LOW), 0.0, 1.0))
+
+
+def legibility(shape: tuple[int, int]) -> float:
+    """How well shadows can be read at a working image of ``shape`` (0-1): its shorter side
+    mapped from :data:`LEGIBLE_LOW` (0) to :data:`LEGIBLE_HIGH` (1), times its elongation
+    mapped from the session's ``MAX_ASPECT`` (1, where the app starts to warn) to twice that
+    (0: the depth network then sees a strip a handful of pixels across).
+
+    Example:
+        >>> legibility((192, 256)), legibility((16, 16)), legibility((44, 60))
+        (1.0, 0.0, 0.5)
+        >>> round(legibility((600, 4000)), 2)  # 6.7:1
+        0.33
+    """
+    from outcast_core.runtime.pipeline.session import MAX_ASPECT
+
+    short, long = sorted(shape[:2])
+    size = np.clip((short - LEGIBLE_LOW) / (LEGIBLE_HIGH - LEGIBLE_LOW), 0.0, 1.0)
+    shape_ok = np.clip((2.0 * MAX_ASPECT - long / max(short, 1)) / MAX_ASPECT, 0.0, 1.0)
+    return float(size * shape_ok)
 
 
 # ---------------------------------------------------------------------------------- levels
@@ -954,7 +980,8 @@ def find_sun(
     peak = float(np.clip(contrast / PEAK_CONTRAST, 0.0, 1.0))
     strength = float(np.clip((best_score - WEAK_AGREEMENT)
                              / (STRONG_AGREEMENT - WEAK_AGREEMENT), 0.0, 1.0))
-    confidence = float(clarity * peak * strength)
+    legible = legibility(session.image_srgb.shape[:2])
+    confidence = float(clarity * peak * strength * legible)
     found = confidence >= CONFIDENT
     source = "shadows"
     if prior is not None:
@@ -975,7 +1002,11 @@ def find_sun(
                 note += (f"; the shadows put the sun {off:.0f}° away from the EXIF compass "
                          "heading's")
     else:
-        if clarity < CONFIDENT:
+        if legible < 1.0 and (legible < 0.5 or clarity * peak * strength >= CONFIDENT):
+            h, w = session.image_srgb.shape[:2]
+            why = (f"the photo is too small or too narrow for its shadows to tell the sun "
+                   f"({w} x {h} pixels where they are read)")
+        elif clarity < CONFIDENT:
             why = "no clear shadows in the photo"
         else:
             why = ("no sun makes the predicted shadows fit the photo's (the depth may be too "
@@ -1036,5 +1067,6 @@ __all__ = [
     "ground_plane_tilt",
     "is_tilted",
     "photo_camera_tilt",
+    "legibility",
     "shade_clarity",
 ]

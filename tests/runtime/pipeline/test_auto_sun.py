@@ -399,3 +399,18 @@ def test_the_pool_samples_right_compass_holds_against_a_slight_shadow_preference
         return abs((fit.azimuth - prior.azimuth + 180.0) % 360.0 - 180.0)
 
     assert off(prior.azimuth_weight) < 10.0
+
+
+@pytest.mark.parametrize("shape", [(20, 31), (16, 16), (12, 96)])
+def test_a_thumbnail_or_a_strip_tells_no_sun(shape: tuple[int, int]) -> None:
+    """Too few pixels of shadow, or a strip the depth network sees a few pixels across: no
+    confident sun, and the note says why (a user trial's 16 x 16 thumbnail and 600 x 4000 strip
+    were "found" with confidence 1.0)."""
+    h, w = shape
+    photo = _photo_lit_by(sun_vector(150.0, 40.0))
+    small = np.ascontiguousarray(photo[::max(1, H // h), ::max(1, W // w)][:h, :w])
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(small, fov_deg=60.0)
+    fit = find_sun(s)
+    assert not fit.found and fit.confidence < 0.3
+    assert "too small or too narrow" in fit.note
