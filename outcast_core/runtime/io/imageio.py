@@ -180,6 +180,7 @@ def read_image(
             fmt, _, exif, exif_bytes = _checked_header(im, path)
             meta = metadata_from_exif(exif)
             stored_w, stored_h = _stored_size(im, meta.orientation)
+            _check_jpeg_size(path, fmt, stored_w, stored_h)
             target = _fit_size(stored_w, stored_h, max_pixels)
             bits = _bits_per_sample(im, path)
             alpha = _has_transparency(im)
@@ -266,6 +267,25 @@ def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
     except Exception as exc:
         raise ImageReadError(f"cannot read image '{path}': {_one_line(exc)}") from exc
     return _upright_size(stored, orientation)
+
+
+#: The fewest bytes per pixel a complete JPEG can have: a flat frame at any quality still
+#: spends a few bits per 8 x 8 block (Pillow: 0.012 bytes per pixel grey, 0.016 colour); far
+#: fewer means the file was cut short, and libjpeg would fill the rest with grey without an
+#: error.
+MIN_JPEG_BYTES_PER_PIXEL = 0.001
+
+
+def _check_jpeg_size(path: Path, fmt: str, width: int, height: int) -> None:
+    """Refuse a JPEG whose data are far too short for its declared size (a user trial: a
+    693-byte file whose header says 9000 x 9000 was read as a flat grey photo)."""
+    if fmt not in ("JPEG", "MPO"):
+        return
+    size = path.stat().st_size
+    if size < MIN_JPEG_BYTES_PER_PIXEL * width * height:
+        raise ImageReadError(
+            f"cannot read image '{path}': the file is truncated or corrupt ({size} bytes "
+            f"cannot hold the {width} x {height} JPEG its header declares)")
 
 
 def _upright_size(size: tuple[int, int], orientation: int) -> tuple[int, int]:

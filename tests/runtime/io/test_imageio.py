@@ -871,3 +871,19 @@ def test_parametric_tone_curve_of_a_v4_profile() -> None:
     x = np.linspace(0.0, 1.0, curve.size, dtype=np.float32)
     assert np.abs(curve - srgb_to_linear(x)).max() < 1e-4
     assert _icc_curve(b"mAB " + b"\0" * 12, 0) is None  # other types: not a tone curve
+
+
+def test_jpeg_whose_header_declares_far_more_than_its_data_is_refused(tmp_path: Path) -> None:
+    """A 64 x 64 JPEG whose frame header says 9000 x 9000 decoded as a flat grey photo (libjpeg
+    fills missing data without an error; found by a user trial)."""
+    buf = io.BytesIO()
+    Image.fromarray((_noise_image(64, 64, seed=2) * 255).astype(np.uint8)).save(buf, "JPEG")
+    data = bytearray(buf.getvalue())
+    sof = data.index(b"\xff\xc0")
+    struct.pack_into(">HH", data, sof + 5, 9000, 9000)  # height, width
+    (tmp_path / "big.jpg").write_bytes(bytes(data))
+    with pytest.raises(ImageReadError, match="cannot hold the 9000 x 9000 JPEG"):
+        read_image(tmp_path / "big.jpg")
+    flat = tmp_path / "flat.jpg"  # a real flat frame compresses far less than that
+    Image.new("L", (2000, 1500), 0).save(flat, "JPEG", quality=1, optimize=True)
+    assert read_image(flat, max_pixels=300 * 200).original_size == (2000, 1500)
