@@ -80,11 +80,12 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
             "Choose the Fast quality preset or a smaller photo, then try again.",
         )
     if action == "open":
-        return UserMessage(
-            "Could not open the photo",
-            detail,
-            "Choose a JPEG, PNG, TIFF, WebP or HEIC photo. Your current work is unchanged.",
-        )
+        if "truncated or corrupt" in detail:  # a photo file, damaged
+            todo = ("The file looks damaged or cut short (an interrupted copy or download?): "
+                    "open another copy of it. Your current work is unchanged.")
+        else:
+            todo = "Choose a JPEG, PNG, TIFF, WebP or HEIC photo. Your current work is unchanged."
+        return UserMessage("Could not open the photo", detail, todo)
     if action == "depth":
         return UserMessage(
             "Could not load the depth map",
@@ -100,6 +101,8 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
             todo = "Nothing was overwritten. Choose another name, or confirm replacing the file."
         elif isinstance(exc, PermissionError):
             todo = "Nothing was written. Choose a folder you can write to."
+        elif isinstance(exc, ValueError) and "output extension" in detail:
+            todo = "Nothing was written. Choose a name with one of the extensions above."
         else:
             todo = (
                 "Nothing was written. Check that the folder exists, that you can write to it and "

@@ -27,3 +27,28 @@ def test_a_frames_folder_with_other_files_never_offers_to_replace() -> None:
     assert "new or empty folder" in folder.todo and "confirm" not in folder.todo
     exists = message_for(FileExistsError("'/p/a.mp4' already exists"), "export")
     assert "confirm replacing" in exists.todo
+
+
+def test_a_damaged_photo_and_a_wrong_export_name_get_advice_that_fits(tmp_path) -> None:
+    """A truncated JPEG was told to "choose a JPEG, PNG ..."; an export named .xyz got a Python
+    list and advice about free disk space (found by a user trial)."""
+    import numpy as np
+    from PIL import Image
+
+    from outcast_core.runtime.io.imageio import read_image, write_image
+
+    cut = tmp_path / "cut.jpg"
+    Image.new("RGB", (64, 48), (90, 120, 30)).save(cut, "JPEG")
+    cut.write_bytes(cut.read_bytes()[:300])
+    try:
+        read_image(cut)
+    except ValueError as exc:
+        damaged = message_for(exc, "open")
+    assert "damaged or cut short" in damaged.todo and "Choose a JPEG" not in damaged.todo
+    assert "Choose a JPEG" in message_for(ValueError("not an image file"), "open").todo
+    try:
+        write_image(tmp_path / "out.xyz", np.zeros((4, 4, 3), np.float32))
+    except ValueError as exc:
+        wrong = message_for(exc, "export")
+    assert "[" not in wrong.what and ".jpg, .png, .tif, .tiff or .webp" in wrong.what
+    assert "extensions above" in wrong.todo and "disk" not in wrong.todo

@@ -907,7 +907,10 @@ def write_image(
     fmt = WRITE_EXTENSIONS.get(path.suffix.lower())
     if fmt is None:
         raise ValueError(
-            f"expected an output extension in {sorted(WRITE_EXTENSIONS)}, got '{path.suffix}'"
+            f"expected an output extension {_or_list(sorted(WRITE_EXTENSIONS))}, got "
+            f"'{path.suffix}'" if path.suffix else
+            f"expected an output extension {_or_list(sorted(WRITE_EXTENSIONS))}, got a name "
+            f"without one ('{path.name}')"
         )
     if bit_depth not in (8, 16):
         raise ValueError(f"expected bit_depth 8 or 16, got {bit_depth}")
@@ -935,6 +938,11 @@ def write_image(
                 kwargs.update(compression="tiff_deflate")
             im.save(tmp, format=fmt, **kwargs)
     return path
+
+
+def _or_list(items: list[str]) -> str:
+    """``['.a', '.b', '.c']`` -> ``".a, .b or .c"`` (for messages)."""
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " or " + items[-1]
 
 
 def _quantise(image: np.ndarray, bit_depth: int) -> np.ndarray:
