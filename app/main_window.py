@@ -208,7 +208,9 @@ class MainWindow(QMainWindow):
         self.camera_tilt: tuple[float, float, str] = LEVEL_TILT
         #: The last automatic sun (``auto_sun.SunFit``) of this photo, or None.
         self.sun_fit: Any = None
-        self._find_message = ""  # shown once the found sun's overlay is drawn
+        # Shown instead of "Ready · ..." once the pending overlay is drawn (a found sun's, or
+        # the photo just opened: what was found in it must not flash by).
+        self._held_message = ""
         self._load_notice = ""  # the warning above the dial after loading (depth source)
         self.timings = StageTimings()
         self.recent = RecentFiles([str(p) for p in (self.settings.value("recent", []) or [])])
@@ -820,6 +822,7 @@ class MainWindow(QMainWindow):
                 f"{f' for a {tilt}' if tilt else ''} (check it against the shadows)"
             )
         self.stage_label.setText(opened)
+        self._held_message = opened if self.runner.busy() else ""
         if restore is not None:  # the same photo again: keep the history
             self._edit_state = record_from
             self._record(restore)
@@ -1009,12 +1012,16 @@ class MainWindow(QMainWindow):
             elif result.get("prior") is not None:
                 text += f" · {result['prior'].description}"
         else:
-            why = ("No clear shadows in this photo" if "no clear shadows" in fit.note
-                   else "No sun makes the predicted shadows fit the photo's (rough depth?)")
+            if "too small or too narrow" in fit.note:
+                why = "This photo is too small or too narrow for its shadows to tell the sun"
+            elif "no clear shadows" in fit.note:
+                why = "No clear shadows in this photo"
+            else:
+                why = "No sun makes the predicted shadows fit the photo's (rough depth?)"
             text = (f"{why}: its sun cannot be told from them (confidence "
                     f"{fit.confidence:.2f}). Set it by eye; the dial shows where suns fit best.")
         self.stage_label.setText(text)
-        self._find_message = text if self.runner.busy() else ""
+        self._held_message = text if self.runner.busy() else ""
         notice = text if not (fit.found or fit.source == "EXIF") else ""
         prior = result.get("prior")
         if not notice and prior is not None and prior.azimuth is not None:
@@ -1659,8 +1666,8 @@ class MainWindow(QMainWindow):
                 if isinstance(result, dict) and result.get("view") in DESHADOW_VIEWS:
                     words = "Removing shadows"
                 text = f"Ready · {words.lower()} took {seconds:.2f} s"
-                if channel == "shadow" and self._find_message:
-                    text, self._find_message = self._find_message, ""
+                if channel == "shadow" and self._held_message:
+                    text, self._held_message = self._held_message, ""
             self.stage_label.setText(text)
 
     @Slot(int, str, object)

@@ -377,6 +377,8 @@ def test_opening_another_photo_starts_fresh_with_its_exif_sun(window, photo, set
     assert exif is not None
     assert window.align_panel.sun_panel.sun() == pytest.approx(exif, abs=0.05)
     assert "sun from its EXIF: azimuth" in labels[0]
+    # It stays once the overlay is drawn (it flashed by, replaced by "Ready · ...").
+    assert "sun from its EXIF: azimuth" in window.stage_label.text()
     assert "stale stage" not in window.timings.seconds
     assert "stale" not in window.timings_label.text()
     assert window.relight_panel.sun_panel.sun() != pytest.approx((300.0, 20.0))
