@@ -29,6 +29,7 @@ import math
 import os
 import signal
 import time
+from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field, replace
@@ -235,7 +236,9 @@ def plan_batch(
 ) -> tuple[list[BatchJob], list[JobResult]]:
     """The jobs of a batch, and the photos that need none (finished, or impossible to plan).
 
-    Output ``OUT_DIR/NAME.FMT`` for each photo ``NAME.*`` (a CSV ``output`` name instead). An
+    Output ``OUT_DIR/NAME.FMT`` for each photo ``NAME.*`` (a CSV ``output`` name instead;
+    photos of a folder whose names differ only by their extension, ``IMG_1.jpg`` and
+    ``IMG_1.png``, get ``IMG_1_jpg.FMT`` and ``IMG_1_png.FMT``, so none is left out). An
     existing output is ``skipped`` when the folder's record (:data:`RECORD_NAME`) says it was
     made with these settings, else ``stale`` (kept); ``options.force`` redoes both. Running a
     batch again resumes it.
@@ -259,7 +262,10 @@ def plan_batch(
     if out_dir.exists() and os.path.samefile(in_dir, out_dir):
         raise ValueError(f"expected an output folder other than the input folder '{in_dir}'")
     if targets is None:
-        rows = [{"image": p.name, "to_sun": None, "from_sun": None, "output": ""}
+        stems = Counter(p.stem for p in photos)
+        rows = [{"image": p.name, "to_sun": None, "from_sun": None,
+                 "output": "" if stems[p.stem] == 1
+                 else f"{p.stem}_{p.suffix.lstrip('.')}.{options.fmt}"}
                 for p in photos]
     else:
         rows = list(targets)

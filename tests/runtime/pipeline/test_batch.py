@@ -275,6 +275,20 @@ def test_targets_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
                                                "'to_az']")
 
 
+def test_photos_named_alike_all_get_an_output(tmp_path: Path) -> None:
+    """IMG_1.jpg, IMG_1.png and IMG_1.JPEG in one folder: each gets its own output (one was
+    relit and the others failed, found by a user trial); a lone name keeps its plain output."""
+    d = tmp_path / "in"
+    d.mkdir()
+    for i, name in enumerate(["IMG_1.jpg", "IMG_1.png", "IMG_1.JPEG", "IMG_2.jpg"]):
+        _photo(d / name, i)
+    options = BatchOptions(kind="relight", to_sun=(90.0, 30.0), fmt="jpg")
+    jobs, results = plan_batch(d, tmp_path / "out", options)
+    assert results == []
+    assert sorted(Path(j.output).name for j in jobs) == [
+        "IMG_1_JPEG.jpg", "IMG_1_jpg.jpg", "IMG_1_png.jpg", "IMG_2.jpg"]
+
+
 def test_deshadow_and_timelapse(tmp_path: Path) -> None:
     d = tmp_path / "in"
     d.mkdir()
