@@ -10,7 +10,7 @@ sun (both tone-mapped with the view's exposure), and how much the relit photo br
 surface that the new sun newly lights and darkens the surface it newly shadows (mean sRGB there
 over the input's), next to the truth's own factors. Run::
 
-    python3 scripts/eval_session_synthetic.py ~/.cache/outcast/data/test --max-views 20
+    python3 scripts/eval_session_synthetic.py ~/.cache/outcast/data/test --max-views 20 [--only 0,2]
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ CONFIGS: list[tuple[str, dict]] = [
     ("learned L, S_o from the photo, photo's detail, colour guard, shade floor and guarded lift "
      "(app default)", {}),
     ("the default without the photo's detail", {"keep_detail": False}),
+    ("the default without the exposure anchor", {"exposure_anchor": False}),
     ("learned L, S_o from the photo, colour guard, shade floor, no lift",
      {"lift_new_light": False}),
     ("learned L, S_o from the photo, colour guard, no floor", {"contrast_floor": False}),
@@ -58,9 +59,10 @@ def _session(kwargs: dict) -> RelightSession:
     floor = kwargs.pop("contrast_floor", True)
     lift = kwargs.pop("lift_new_light", True)
     detail = kwargs.pop("keep_detail", True)
+    anchor = kwargs.pop("exposure_anchor", True)
     s = RelightSession(preset="fast", shadow_mode="learned", **kwargs)
     s.colour_guard, s.contrast_floor, s.lift_new_light = guard, floor, lift
-    s.keep_detail = detail
+    s.keep_detail, s.exposure_anchor = detail, anchor
     return s
 
 
@@ -68,15 +70,20 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("data", help="held-out data folder (outcast data make)")
     p.add_argument("--max-views", type=int, default=20)
+    p.add_argument("--only", default="", help="configurations to run, by number in CONFIGS "
+                   "(0: the app's default), separated by commas; default all")
     args = p.parse_args(argv)
+    configs = CONFIGS
+    if args.only:
+        configs = [CONFIGS[int(i)] for i in args.only.split(",")]
     views = list_views(Path(args.data).expanduser())[: args.max_views]
     if not views:
         raise SystemExit(f"no views in {args.data}")
-    rows = {label: {"mse": [], "dssim": [], "lit": [], "shd": []} for label, _ in CONFIGS}
+    rows = {label: {"mse": [], "dssim": [], "lit": [], "shd": []} for label, _ in configs}
     truth_lit: list[float] = []
     truth_shd: list[float] = []
     t0 = time.perf_counter()
-    sessions = [(label, _session(dict(kw))) for label, kw in CONFIGS]
+    sessions = [(label, _session(dict(kw))) for label, kw in configs]
     for vpath in views:
         v = load_view(vpath)
         e = v["exposure"] if v["exposure"] > 0 else auto_exposure(v["rgb"][0])
@@ -108,13 +115,13 @@ def main(argv: list[str] | None = None) -> int:
                         r["lit"].append(factor(out, base, newly_lit))
                     if newly_shd.sum() >= 20:
                         r["shd"].append(factor(out, base, newly_shd))
-    n_pairs = len(rows[CONFIGS[0][0]]["mse"])
+    n_pairs = len(rows[configs[0][0]]["mse"])
     print(f"{len(views)} views, {n_pairs} pairs, {time.perf_counter() - t0:.0f} s; truth: newly "
           f"lit x{np.mean(truth_lit):.2f}, newly shadowed x{np.mean(truth_shd):.2f}\n")
     print(f"| Pipeline | MSE | DSSIM | Newly lit (truth x{np.mean(truth_lit):.2f}) | "
           f"Newly shadowed (truth x{np.mean(truth_shd):.2f}) |")
     print("|---|---|---|---|---|")
-    for label, _ in CONFIGS:
+    for label, _ in configs:
         r = rows[label]
         print(f"| {label} | {np.mean(r['mse']):.4f} | {np.mean(r['dssim']):.4f} | "
               f"x{np.mean(r['lit']):.3f} | x{np.mean(r['shd']):.3f} |")
