@@ -80,7 +80,10 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
             "Choose the Fast quality preset or a smaller photo, then try again.",
         )
     if action == "open":
-        if "truncated or corrupt" in detail:  # a photo file, damaged
+        if "laid out in a way" in detail:  # a 16-bit file OpenCV cannot decode
+            todo = ("If the file opens elsewhere, export it again as a 16-bit PNG or TIFF, or "
+                    "open another copy of it. Your current work is unchanged.")
+        elif "truncated or corrupt" in detail:  # a photo file, damaged
             todo = ("The file looks damaged or cut short (an interrupted copy or download?): "
                     "open another copy of it. Your current work is unchanged.")
         else:

@@ -578,7 +578,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     done = False
     try:
         _check_output(args)  # before the work: extension, existing file, folder, input
-        made = _make_output_folder(args)
+        _make_output_folder(args, made)
         rc = int(args.func(args) or 0)
         done = rc == 0
         if made and done and not getattr(args, "quiet", False):
@@ -612,21 +612,22 @@ def main(argv: Sequence[str] | None = None) -> int:
             signal.signal(signal.SIGTERM, previous_sigterm)
 
 
-def _make_output_folder(args: argparse.Namespace) -> list[Path]:
+def _make_output_folder(args: argparse.Namespace, made: list[Path]) -> None:
     """Create the missing folders of ``-o OUT`` (users name one that may not exist yet:
-    out/relit.jpg); returns those created, outermost first."""
+    out/relit.jpg), appending each to ``made`` as it is made (outermost first), so a failure
+    half-way still leaves the list of what to remove. ``outcast batch -o OUT_DIR`` makes its
+    own folder."""
     output = getattr(args, "output", None)
-    if not isinstance(output, str) or not output:
-        return []
+    if not isinstance(output, str) or not output or args.command == "batch":
+        return
     folder = Path(output).expanduser().parent
     missing = []
     while not folder.exists() and folder != folder.parent:
         missing.append(folder)
         folder = folder.parent
-    missing.reverse()
-    for m in missing:
+    for m in reversed(missing):
         m.mkdir()
-    return missing
+        made.append(m)
 
 
 if __name__ == "__main__":

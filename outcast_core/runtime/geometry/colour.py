@@ -40,15 +40,20 @@ def luminance(radiance_lin: np.ndarray) -> np.ndarray:
 
 
 #: :func:`is_greyscale`: the largest channel spread (sRGB) of a grey pixel (JPEG's chroma
-#: noise), and the share of pixels that must be grey.
+#: noise) and the share of pixels that must be grey; and the spread of a coloured pixel, of
+#: which a black-and-white photo has at most :data:`COLOUR_SHARE` (a red coat in a misty photo
+#: is colour, and must not be turned grey).
 GREY_SPREAD = 3.0 / 255.0
 GREY_SHARE = 0.99
+COLOUR_SPREAD = 12.0 / 255.0
+COLOUR_SHARE = 0.001
 
 
 def is_greyscale(image_srgb: np.ndarray) -> bool:
-    """Whether an ``H x W x 3`` image is a black-and-white photo stored as RGB (its channels
-    equal within :data:`GREY_SPREAD` on :data:`GREY_SHARE` of the pixels; a uint8 image is
-    read as ``0..255``).
+    """Whether an ``H x W x 3`` image is a black-and-white photo stored as RGB: its channels
+    equal within :data:`GREY_SPREAD` on :data:`GREY_SHARE` of the pixels, and no more than
+    :data:`COLOUR_SHARE` of them coloured (:data:`COLOUR_SPREAD`). A uint8 image is read as
+    ``0..255``.
 
     Example:
         >>> grey = np.repeat(np.linspace(0, 1, 12, dtype=np.float32).reshape(3, 4, 1), 3, 2)
@@ -65,7 +70,8 @@ def is_greyscale(image_srgb: np.ndarray) -> bool:
     if np.asarray(image_srgb).dtype == np.uint8:
         x = x / np.float32(255.0)
     spread = x.max(axis=2) - x.min(axis=2)
-    return bool(np.mean(spread <= GREY_SPREAD) >= GREY_SHARE)
+    return bool(np.mean(spread <= GREY_SPREAD) >= GREY_SHARE
+                and np.mean(spread > COLOUR_SPREAD) <= COLOUR_SHARE)
 
 
 def grey_like(image_srgb: np.ndarray) -> np.ndarray:

@@ -49,6 +49,7 @@ import os
 import struct
 import tempfile
 import threading
+import warnings
 import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -177,7 +178,7 @@ def read_image(
     _check_input_file(path)
     try:
         with _open_pil(path) as im:
-            fmt, _, exif, exif_bytes = _checked_header(im, path)
+            fmt, exif, exif_bytes = _checked_header(im, path)
             meta = metadata_from_exif(exif)
             stored_w, stored_h = _stored_size(im, meta.orientation)
             _check_jpeg_size(path, fmt, stored_w, stored_h)
@@ -257,7 +258,7 @@ def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
     _check_input_file(path)
     try:
         with _open_pil(path) as im:
-            _, _, exif, _ = _checked_header(im, path)
+            _, exif, _ = _checked_header(im, path)
             orientation = metadata_from_exif(exif).orientation
             stored = _stored_size(im, orientation)
     except ImageReadError:
@@ -329,9 +330,9 @@ def _stored_size(im: Image.Image, orientation: int) -> tuple[int, int]:
 
 def _checked_header(
     im: Image.Image, path: Path
-) -> tuple[str, tuple[int, int], Image.Exif | None, bytes | None]:
-    """An opened image's format, stored ``(width, height)``, Exif and raw Exif bytes, with the
-    format and the pixel count checked (:class:`ImageReadError` otherwise)."""
+) -> tuple[str, Image.Exif | None, bytes | None]:
+    """An opened image's format, Exif and raw Exif bytes, with the format and the pixel count
+    checked (:class:`ImageReadError` otherwise; :func:`_stored_size` gives its size)."""
     fmt = im.format or "unknown"
     if fmt not in READ_FORMATS:
         raise ImageReadError(
@@ -339,7 +340,7 @@ def _checked_header(
         )
     _check_pixel_count(path, *im.size)
     exif, exif_bytes = _exif_of(im, path)
-    return fmt, im.size, exif, exif_bytes
+    return fmt, exif, exif_bytes
 
 
 def _check_input_file(path: Path) -> None:
@@ -370,18 +371,28 @@ def _check_input_file(path: Path) -> None:
 
 @contextlib.contextmanager
 def _open_pil(path: Path) -> Iterator[Image.Image]:
-    """``Image.open`` with Pillow's bomb guard replaced by :data:`MAX_DECODE_PIXELS`."""
-    with _PIL_LIMIT_LOCK:
-        previous = Image.MAX_IMAGE_PIXELS
-        Image.MAX_IMAGE_PIXELS = None  # our own limit is checked by the callers
-        try:
-            im = Image.open(path)
-        finally:
-            Image.MAX_IMAGE_PIXELS = previous
+    """``Image.open`` with Pillow's bomb guard replaced by :data:`MAX_DECODE_PIXELS`.
+
+    The file is opened as a file object, never by name: by name, Pillow 13 maps an
+    uncompressed grey, 16-bit, RGBA or CMYK TIFF into memory and then reports the upright size
+    of an oriented one without turning its pixels (found by a code review), while through a
+    file object it decodes and turns it as it does every other TIFF.
+    """
+    f = open(path, "rb")  # noqa: SIM115 -- closed below, after the image
     try:
-        yield im
+        with _PIL_LIMIT_LOCK:
+            previous = Image.MAX_IMAGE_PIXELS
+            Image.MAX_IMAGE_PIXELS = None  # our own limit is checked by the callers
+            try:
+                im = Image.open(f)
+            finally:
+                Image.MAX_IMAGE_PIXELS = previous
+        try:
+            yield im
+        finally:
+            im.close()
     finally:
-        im.close()
+        f.close()
 
 
 def _check_pixel_count(path: Path, width: int, height: int) -> None:
@@ -606,6 +617,8 @@ def _icc_curve(data: bytes, off: int) -> np.ndarray | None:
         g, a, b, c, d, e, f = list(p) + [0.0] * (7 - count)
         if ftype == 0:
             return x ** g
+        if a <= 0.0:  # a curve that never rises: not a tone curve
+            return None
         if ftype == 1:  # (a x + b)^g above -b/a, else 0
             return np.where(x >= -b / a, np.maximum(a * x + b, 0.0) ** g, 0.0)
         if ftype == 2:
@@ -619,9 +632,11 @@ def _icc_curve(data: bytes, off: int) -> np.ndarray | None:
 @functools.lru_cache(maxsize=4)
 def _matrix_shaper(icc: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     """A matrix/TRC RGB profile (Adobe RGB, ProPhoto, Display P3, most camera and editor
-    exports) read from its tags: its three tone curves (``3 x`` :data:`_CURVE_SAMPLES`) and
-    the matrix from its linear RGB to linear sRGB (its D50 colorants, Bradford-adapted to
-    D65). None when the profile has no such tags (LUT-based profiles) or they do not parse."""
+    exports) read from its tags: its three tone curves as tables over the 65536 16-bit codes
+    (``65536 x 3``) and the matrix from its linear RGB to linear sRGB (its D50 colorants,
+    Bradford-adapted to D65). None when the profile has no such tags, or also has an ``A2B0``
+    table (LittleCMS converts 8-bit pixels through that table: the 16-bit path must agree), or
+    they do not parse."""
     try:
         if len(icc) < 132 or icc[16:20] != b"RGB ":  # data colour space
             return None
@@ -631,7 +646,7 @@ def _matrix_shaper(icc: bytes) -> tuple[np.ndarray, np.ndarray] | None:
             entry = icc[132 + 12 * i:144 + 12 * i]
             tags[entry[:4]] = int.from_bytes(entry[4:8], "big")
         need = (b"rXYZ", b"gXYZ", b"bXYZ", b"rTRC", b"gTRC", b"bTRC")
-        if not all(t in tags for t in need):
+        if not all(t in tags for t in need) or b"A2B0" in tags:
             return None
         cols = [np.frombuffer(icc, ">i4", 3, tags[t] + 8) / 65536.0 for t in need[:3]]
         curves = [_icc_curve(icc, tags[t]) for t in need[3:]]
@@ -642,12 +657,23 @@ def _matrix_shaper(icc: bytes) -> tuple[np.ndarray, np.ndarray] | None:
     to_srgb = _XYZ_TO_SRGB @ _D50_TO_D65 @ np.stack(cols, axis=1)  # src linear -> sRGB linear
     if not np.all(np.isfinite(to_srgb)):
         return None
-    return np.stack(curves).astype(np.float32), to_srgb.astype(np.float32)
+    codes = np.linspace(0.0, 1.0, 65536)
+    x = np.linspace(0.0, 1.0, _CURVE_SAMPLES)
+    tables = np.stack([np.interp(codes, x, c) for c in curves], 1).astype(np.float32)
+    return tables, to_srgb.astype(np.float32)
+
+
+@functools.cache
+def _srgb_encode_table() -> np.ndarray:
+    """sRGB's curve over 65536 linear steps (its output moves by at most 0.05/255 between
+    them)."""
+    return linear_to_srgb(np.linspace(0.0, 1.0, 65536, dtype=np.float32))
 
 
 def _convert_icc_float(image: np.ndarray, icc: bytes | None) -> np.ndarray:
     """Convert a float ``H x W x 3`` image (in [0, 1], RGB) from its embedded profile to sRGB,
-    keeping its precision (16-bit files; LittleCMS converts 8-bit pixels only through Pillow).
+    in place, keeping its precision (16-bit files; LittleCMS converts 8-bit pixels only
+    through Pillow).
 
     A matrix/TRC profile (:func:`_matrix_shaper`) is converted exactly: its tone curves, its
     matrix to linear sRGB, then sRGB's curve (colours outside sRGB clipped, as LittleCMS
@@ -659,35 +685,27 @@ def _convert_icc_float(image: np.ndarray, icc: bytes | None) -> np.ndarray:
     """
     if not icc or _non_srgb_profile(bytes(icc)) is None:
         return image
+    flat = image.reshape(-1, 3)  # converted in place, in bands: no second full-size copy
     shaper = _matrix_shaper(bytes(icc))
-    if shaper is not None:
-        curves, to_srgb = shaper
-        # Both curves as 16-bit tables (the files are 16-bit; sRGB's curve over linear steps of
-        # 1/65535 moves its output by at most 0.05/255): 12 MP in about a second.
-        codes = np.linspace(0.0, 1.0, 65536, dtype=np.float32)
-        x = np.linspace(0.0, 1.0, curves.shape[1], dtype=np.float32)
-        tables = np.stack([np.interp(codes, x, c) for c in curves], 1).astype(np.float32)
-        encode = linear_to_srgb(codes)
-        out = np.empty_like(image)
-        src, dst = image.reshape(-1, 3), out.reshape(-1, 3)
-        for start in range(0, src.shape[0], 1 << 20):  # bounded memory for large photos
-            q = np.rint(np.clip(src[start:start + (1 << 20)], 0.0, 1.0) * 65535.0)
-            q = q.astype(np.int32)
+    if shaper is not None:  # both curves as 16-bit tables: 12 MP in under a second
+        tables, to_srgb = shaper
+        encode = _srgb_encode_table()
+        for start in range(0, flat.shape[0], 1 << 20):
+            band = flat[start:start + (1 << 20)]
+            q = np.rint(np.clip(band, 0.0, 1.0) * 65535.0).astype(np.int32)
             lin = np.stack([tables[q[:, c], c] for c in range(3)], 1)  # N x 3 linear
             lin = cv2.transform(lin[:, None, :], to_srgb)[:, 0, :]
-            dst[start:start + q.shape[0]] = encode[
-                np.rint(np.clip(lin, 0.0, 1.0) * 65535.0).astype(np.int32)]
-        return out
+            band[:] = encode[np.rint(np.clip(lin, 0.0, 1.0) * 65535.0).astype(np.int32)]
+        return image
     lut = _icc_grid(bytes(icc))
     if lut is None:
         return image
     n = lut.shape[0]
     flat_lut = lut.reshape(-1, 3)
     offsets = [((c >> 2) & 1) * n * n + ((c >> 1) & 1) * n + (c & 1) for c in range(8)]
-    out = np.empty_like(image)
-    src, dst = image.reshape(-1, 3), out.reshape(-1, 3)
-    for start in range(0, src.shape[0], 1 << 19):  # bounded memory for large photos
-        x = np.clip(src[start:start + (1 << 19)], 0.0, 1.0) * np.float32(n - 1)  # N x 3
+    for start in range(0, flat.shape[0], 1 << 19):
+        band = flat[start:start + (1 << 19)]
+        x = np.clip(band, 0.0, 1.0) * np.float32(n - 1)  # N x 3
         i0 = np.minimum(x.astype(np.int32), n - 2)
         t = x - i0  # N x 3 in [0, 1]
         base = (i0[:, 0] * n + i0[:, 1]) * n + i0[:, 2]
@@ -696,8 +714,8 @@ def _convert_icc_float(image: np.ndarray, icc: bytes | None) -> np.ndarray:
         v = [flat_lut[base + o] for o in offsets]
         v = [a + (b - a) * tb for a, b in zip(v[0::2], v[1::2], strict=True)]
         v = [a + (b - a) * tg for a, b in zip(v[0::2], v[1::2], strict=True)]
-        dst[start:start + x.shape[0]] = v[0] + (v[1] - v[0]) * tr
-    return np.clip(out, 0.0, 1.0)
+        band[:] = v[0] + (v[1] - v[0]) * tr  # between samples in [0, 1]: in [0, 1]
+    return image
 
 
 @functools.cache
@@ -726,7 +744,8 @@ def _decode_cv2(path: Path, target: tuple[int, int] | None) -> np.ndarray:
     data = np.fromfile(path, dtype=np.uint8)
     array = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if array is None:
-        raise ImageReadError(f"cannot read image '{path}': the file is truncated or corrupt")
+        raise ImageReadError(f"cannot read image '{path}': the 16-bit file is truncated or "
+                             "corrupt, or laid out in a way OpenCV cannot decode")
     if target is not None:
         array = cv2.resize(array, target, interpolation=cv2.INTER_AREA)
     if array.dtype == np.uint16:
@@ -980,7 +999,12 @@ def _write_cv2(path: Path, array: np.ndarray, ext: str, exif: bytes | None = Non
         raise OSError(f"OpenCV could not encode '{path}'")
     data = encoded.tobytes()
     if exif:
-        data = _png_with_exif(data, exif) if ext == ".png" else _tiff_with_exif(data, exif)
+        try:
+            data = _png_with_exif(data, exif) if ext == ".png" else _tiff_with_exif(data, exif)
+        except Exception as exc:  # Pillow's EXIF reader and IFD writer raise many types
+            warnings.warn(f"'{path.name}': the photo's EXIF could not be written into the "
+                          f"16-bit file, which is written without it ({_one_line(exc)})",
+                          RuntimeWarning, stacklevel=3)
     path.write_bytes(data)
 
 
@@ -997,6 +1021,14 @@ def _png_with_exif(png: bytes, exif: bytes) -> bytes:
 #: The photo's first-directory tags :func:`_tiff_with_exif` keeps: description, camera make
 #: and model, software, date and time, artist, copyright (the rest describes its pixels).
 _TIFF_IFD0_METADATA = (270, 271, 272, 305, 306, 315, 33432)
+#: EXIF-directory tags it leaves out: the interoperability pointer (an offset into the source
+#: file) and the maker note (a camera's private block whose offsets point into the source).
+_TIFF_EXIF_DROPPED = (0xA005, 0x927C)
+#: Tags written as UNDEFINED (type 7), as EXIF defines them (Pillow writes bytes as BYTE):
+#: ExifVersion, ComponentsConfiguration, UserComment, FlashpixVersion, FileSource, SceneType,
+#: CFAPattern, and GPS's ProcessingMethod and AreaInformation.
+_TIFF_UNDEFINED = {0x8769: (0x9000, 0x9101, 0x9286, 0xA000, 0xA300, 0xA301, 0xA302),
+                   0x8825: (0x001B, 0x001C)}
 
 
 def _tiff_with_exif(tiff: bytes, exif: bytes) -> bytes:
@@ -1021,11 +1053,13 @@ def _tiff_with_exif(tiff: bytes, exif: bytes) -> bytes:
         if tag in source:
             new[tag] = source[tag]
     for pointer in (0x8769, 0x8825):  # the EXIF and GPS directories
-        tags = source.get_ifd(pointer)
+        tags = {k: v for k, v in source.get_ifd(pointer).items() if k not in _TIFF_EXIF_DROPPED}
         if tags:
             sub = ImageFileDirectory_v2(prefix=b"II")
             for k, v in tags.items():
                 sub[k] = v
+                if k in _TIFF_UNDEFINED[pointer] and isinstance(v, bytes):
+                    sub.tagtype[k] = 7
             at = aligned()
             data.extend(sub.tobytes(at))
             new[pointer] = at

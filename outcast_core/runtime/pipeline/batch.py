@@ -262,9 +262,10 @@ def plan_batch(
     if out_dir.exists() and os.path.samefile(in_dir, out_dir):
         raise ValueError(f"expected an output folder other than the input folder '{in_dir}'")
     if targets is None:
-        stems = Counter(p.stem for p in photos)
+        # Case folded: img_1.jpg and IMG_1.png are one name on exFAT, NTFS and macOS disks.
+        stems = Counter(p.stem.casefold() for p in photos)
         rows = [{"image": p.name, "to_sun": None, "from_sun": None,
-                 "output": "" if stems[p.stem] == 1
+                 "output": "" if stems[p.stem.casefold()] == 1
                  else f"{p.stem}_{p.suffix.lstrip('.')}.{options.fmt}"}
                 for p in photos]
     else:
@@ -286,13 +287,13 @@ def plan_batch(
             results.append(JobResult(str(image), str(output), "failed",
                                      f"expected an output file name, got {name!r}"))
             continue
-        if name in claimed:
+        if name.casefold() in claimed:  # one file on a case-insensitive disk
             results.append(JobResult(
                 str(image), str(output), "failed",
-                f"'{name}' is also the output of '{claimed[name]}'; name the outputs in the "
-                "targets CSV's 'output' column"))
+                f"'{name}' is also the output of '{claimed[name.casefold()]}'; name the "
+                "outputs in the targets CSV's 'output' column"))
             continue
-        claimed[name] = row["image"]
+        claimed[name.casefold()] = row["image"]
         job = BatchJob(str(image), str(output), row["to_sun"], row["from_sun"])
         job = replace(job, settings=job_settings(job, options))
         if output.exists() and not options.force:

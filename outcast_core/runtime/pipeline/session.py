@@ -827,7 +827,7 @@ class RelightSession:
             "sampler": self._sampler, "original_sun": self.original_sun,
             "original_shadow": self.original_shadow, "light": self._light,
             "original_geometry": self._original_geometry, "preset": self.preset,
-            "sun_seen": self.sun_seen,
+            "sun_seen": self.sun_seen, "greyscale": self.greyscale,
         }
 
     def _relight_from(
@@ -862,11 +862,13 @@ class RelightSession:
         img = toward_photo(image, img, share)
         # Last, on the blend too: near the original sun the photo's own sun must not stay.
         img = self._without_old_sun(img, inp["sky"], inp["sun_seen"], inp["camera"], wv, 1.0)
-        return self._in_photo_colours(img).astype(np.float32)
+        return self._in_photo_colours(img, inp["greyscale"]).astype(np.float32)
 
-    def _in_photo_colours(self, img: np.ndarray) -> np.ndarray:
-        """``img`` made black and white when the photo is (:attr:`greyscale`)."""
-        return grey_like(img) if self.greyscale else img
+    def _in_photo_colours(self, img: np.ndarray, greyscale: bool | None = None) -> np.ndarray:
+        """``img`` made black and white when the photo is (:attr:`greyscale`, or the
+        snapshot's ``greyscale``: a time-lapse's photo, whatever was set since)."""
+        grey = self.greyscale if greyscale is None else greyscale
+        return grey_like(img) if grey else img
 
     @staticmethod
     def _without_old_sun(img: np.ndarray, sky: np.ndarray, seen: SunInPhoto | None,

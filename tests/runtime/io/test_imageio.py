@@ -140,10 +140,14 @@ def test_exif_bytes_are_copied_upright(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("name", ["x.png", "x.tif", "x.tiff"])
-def test_16_bit_files_keep_the_exif(tmp_path: Path, name: str) -> None:
+@pytest.mark.parametrize("sample", ["exif_003_th_pool.jpg", "exif_001_cz_fieldpath.jpg"])
+def test_16_bit_files_keep_the_exif(tmp_path: Path, name: str, sample: str) -> None:
     """GPS, time, heading and camera survive a 16-bit export (they were dropped: OpenCV writes
-    16-bit files without metadata; found by a user trial), and the pixels stay exact."""
-    source = read_image(REPO / "samples" / "exif_003_th_pool.jpg", max_pixels=80 * 60)
+    16-bit files without metadata; found by a user trial), and the pixels stay exact. The
+    field path's EXIF has an interoperability pointer and a maker note, whose offsets would
+    point nowhere in the new file: left out, so reading it back warns of nothing (warnings are
+    errors here)."""
+    source = read_image(REPO / "samples" / sample, max_pixels=80 * 60)
     out = write_image(tmp_path / name, source.image_srgb, bit_depth=16, exif=source.exif_bytes)
     back = read_image(out)
     assert back.bit_depth == 16
@@ -155,6 +159,15 @@ def test_16_bit_files_keep_the_exif(tmp_path: Path, name: str) -> None:
     assert meta.orientation == 1
     with Image.open(out) as im:  # a valid file for other readers too
         assert im.size == (source.image_srgb.shape[1], source.image_srgb.shape[0])
+        exif_ifd = im.getexif().get_ifd(0x8769)
+        assert exif_ifd.get(0x9000) == source_exif_version(sample)
+        if name != "x.png":  # a PNG keeps the whole EXIF block, whose offsets are its own
+            assert 0xA005 not in exif_ifd and 0x927C not in exif_ifd
+
+
+def source_exif_version(sample: str) -> bytes | None:
+    with Image.open(REPO / "samples" / sample) as im:
+        return im.getexif().get_ifd(0x8769).get(0x9000)
 
 
 # ------------------------------------------------------------------------------------------
@@ -180,11 +193,15 @@ def test_jpeg_orientation_6_is_rotated_clockwise(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("orientation", range(1, 9))
-@pytest.mark.parametrize("kind", ["png", "tiff", "tiff16"])
+@pytest.mark.parametrize("kind", ["png", "tiff", "tiff-L", "tiff-I;16", "tiff-RGBA",
+                                  "tiff-CMYK", "tiff16"])
 def test_all_orientations_match_pillow(tmp_path: Path, orientation: int, kind: str) -> None:
-    """Turned upright once, whatever the format and the decoder (Pillow 13 turns TIFFs upright
-    as it loads them; a second turn put them on their side)."""
+    """Turned upright once, whatever the format, mode and decoder (Pillow 13 turns TIFFs
+    upright as it loads them; a second turn put them on their side. By name it maps an
+    uncompressed grey, 16-bit, RGBA or CMYK TIFF into memory and does not turn it)."""
     stored = (_noise_image(9, 14, seed=orientation) * 255).astype(np.uint8)
+    if kind in ("tiff-L", "tiff-I;16"):
+        stored = np.repeat(stored[:, :, :1], 3, axis=2)  # grey: the same in every channel
     exif = Image.Exif()
     exif[0x0112] = orientation
     ref = tmp_path / "o.png"
@@ -195,6 +212,22 @@ def test_all_orientations_match_pillow(tmp_path: Path, orientation: int, kind: s
     if kind == "tiff":
         path = tmp_path / "o.tif"
         Image.fromarray(stored).save(path, exif=exif)
+    elif kind.startswith("tiff-"):
+        mode = kind[5:]
+        path = tmp_path / "o.tif"
+        if mode == "L":
+            im = Image.fromarray(stored[:, :, 0])
+        elif mode == "I;16":
+            im = Image.fromarray(stored[:, :, 0].astype(np.uint16) * 257)
+        elif mode == "RGBA":
+            im = Image.fromarray(np.dstack([stored, np.full(stored.shape[:2], 255, np.uint8)]))
+        else:  # CMYK: converted back to RGB by Pillow; compare with its own conversion
+            im = Image.fromarray(stored).convert("CMYK")
+            expected_im = Image.fromarray(
+                np.asarray(im.convert("RGB"))).transpose(_TRANSPOSE[orientation]) \
+                if orientation > 1 else im.convert("RGB")
+            expected = np.asarray(expected_im).astype(np.float32) / 255
+        im.save(path, exif=exif)  # uncompressed: Pillow would map it into memory by name
     elif kind == "tiff16":  # OpenCV decodes it (16-bit colour)
         path = tmp_path / "o16.tif"
         ok, data = cv2.imencode(".tif", (stored[:, :, ::-1].astype(np.uint16) * 257))
@@ -211,6 +244,13 @@ def test_all_orientations_match_pillow(tmp_path: Path, orientation: int, kind: s
     small = read_image(path, max_pixels=40)  # decoded smaller: still upright
     assert (small.image_srgb.shape[0] > small.image_srgb.shape[1]) == (
         expected.shape[0] > expected.shape[1])
+
+
+#: EXIF orientation -> the transpose that makes it upright (as ``ImageOps.exif_transpose``).
+_TRANSPOSE = {2: Image.Transpose.FLIP_LEFT_RIGHT, 3: Image.Transpose.ROTATE_180,
+              4: Image.Transpose.FLIP_TOP_BOTTOM, 5: Image.Transpose.TRANSPOSE,
+              6: Image.Transpose.ROTATE_270, 7: Image.Transpose.TRANSVERSE,
+              8: Image.Transpose.ROTATE_90}
 
 
 def _tiff_with_orientation(path: Path, orientation: int) -> None:

@@ -280,13 +280,14 @@ def test_photos_named_alike_all_get_an_output(tmp_path: Path) -> None:
     relit and the others failed, found by a user trial); a lone name keeps its plain output."""
     d = tmp_path / "in"
     d.mkdir()
-    for i, name in enumerate(["IMG_1.jpg", "IMG_1.png", "IMG_1.JPEG", "IMG_2.jpg"]):
+    for i, name in enumerate(["IMG_1.jpg", "IMG_1.png", "IMG_1.JPEG", "IMG_2.jpg", "img_2.png"]):
         _photo(d / name, i)
     options = BatchOptions(kind="relight", to_sun=(90.0, 30.0), fmt="jpg")
     jobs, results = plan_batch(d, tmp_path / "out", options)
     assert results == []
+    # IMG_2 and img_2 are one name on a case-insensitive disk (exFAT, NTFS, macOS).
     assert sorted(Path(j.output).name for j in jobs) == [
-        "IMG_1_JPEG.jpg", "IMG_1_jpg.jpg", "IMG_1_png.jpg", "IMG_2.jpg"]
+        "IMG_1_JPEG.jpg", "IMG_1_jpg.jpg", "IMG_1_png.jpg", "IMG_2_jpg.jpg", "img_2_png.jpg"]
 
 
 def test_deshadow_and_timelapse(tmp_path: Path) -> None:

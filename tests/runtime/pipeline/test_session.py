@@ -135,3 +135,12 @@ def test_a_black_and_white_photo_stays_black_and_white(mode: str) -> None:
     colour = image * np.float32([1.0, 0.9, 0.7])
     s.set_image(colour)
     assert not s.greyscale
+    s.set_image(np.rint(image * 255).astype(np.uint8))  # an 8-bit photo, as read: grey too
+    assert s.greyscale
+    coat = image.copy()  # a red coat in a misty, nearly grey photo (0.8 % of it): colour
+    coat[20:25, 30:35] = (0.8, 0.1, 0.1)
+    s.set_image(coat)
+    assert not s.greyscale
+    s.set_original_sun((0.5, -0.7, 0.5))
+    out = s.relight((-0.6, -0.5, 0.6))
+    assert out[22, 32, 0] > out[22, 32, 1] + 0.2  # the coat stays red
