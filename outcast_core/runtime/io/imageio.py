@@ -742,6 +742,11 @@ def _composite_on_white(im: Image.Image) -> Image.Image:
 def _decode_cv2(path: Path, target: tuple[int, int] | None) -> np.ndarray:
     """Decode a 16-bit colour PNG/TIFF with OpenCV, keeping the precision."""
     data = np.fromfile(path, dtype=np.uint8)
+    if data[:8].tobytes() == b"\x89PNG\r\n\x1a\n" and b"IEND" not in data[-4096:].tobytes() \
+            and b"IEND" not in data.tobytes():  # (bytes may follow the IEND chunk)
+        # Cut short: said here, before libpng prints its own error line on stderr.
+        raise ImageReadError(f"cannot read image '{path}': the file is truncated or corrupt "
+                             "(the PNG ends before its IEND chunk)")
     array = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if array is None:
         raise ImageReadError(f"cannot read image '{path}': the 16-bit file is truncated or "

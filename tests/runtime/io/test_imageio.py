@@ -927,3 +927,18 @@ def test_jpeg_whose_header_declares_far_more_than_its_data_is_refused(tmp_path: 
     flat = tmp_path / "flat.jpg"  # a real flat frame compresses far less than that
     Image.new("L", (2000, 1500), 0).save(flat, "JPEG", quality=1, optimize=True)
     assert read_image(flat, max_pixels=300 * 200).original_size == (2000, 1500)
+
+
+def test_a_cut_short_16_bit_png_is_refused_without_libpng_noise(tmp_path: Path,
+                                                                 capfd: pytest.CaptureFixture
+                                                                 ) -> None:
+    """OpenCV's libpng printed its own error line on stderr before OutCast's message (found by
+    a user trial); bytes after the IEND chunk are still fine."""
+    ok, data = cv2.imencode(".png", (_noise_image(40, 50, seed=3) * 65535).astype(np.uint16))
+    assert ok
+    whole = data.tobytes()
+    (tmp_path / "cut.png").write_bytes(whole[: len(whole) // 2])
+    _check_error(tmp_path / "cut.png", "ends before its IEND chunk")
+    assert "libpng" not in capfd.readouterr().err
+    (tmp_path / "tail.png").write_bytes(whole + b"\0" * 5000)
+    assert read_image(tmp_path / "tail.png").bit_depth == 16
