@@ -255,6 +255,8 @@ class TimelapseDialog(QDialog):
         self.scrubber.setRange(0, 47)
         self.scrubber.valueChanged.connect(self._on_scrub)
         self.caption = QLabel("", self)
+        self.caption.setWordWrap(True)  # a long caption (a sun below the horizon) must not
+        self.caption.setMinimumWidth(1)  # widen the dialog when the day's page is shown
         self.preview.setToolTip("A quick preview at a small size; the export is drawn at the "
                                 "size chosen under Output")
         self._preview_pixmap: QPixmap | None = None
