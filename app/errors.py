@@ -106,6 +106,9 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
             todo = "Nothing was written. Choose a folder you can write to."
         elif isinstance(exc, ValueError) and "output extension" in detail:
             todo = "Nothing was written. Choose a name with one of the extensions above."
+        elif isinstance(exc, ValueError) and "choose another name" in detail:
+            todo = ("Nothing was written: an export never replaces the photo, its depth map or "
+                    "its project.")
         else:
             todo = (
                 "Nothing was written. Check that the folder exists, that you can write to it and "

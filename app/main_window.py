@@ -728,6 +728,12 @@ class MainWindow(QMainWindow):
         self.image_path = os.path.abspath(result["path"])
         if old_path != self.image_path and project is None:
             self.timelapse_settings = TimelapseSettings()
+        if (old_path != self.image_path or project is not None) and (
+                self._timelapse_dialog is not None):
+            # Its place, day, heading and size were the last photo's (a user trial changed
+            # them and saved them into the new photo's settings): it is opened again for this
+            # one once its sun is confirmed.
+            self._timelapse_dialog.hide()
         if project is None:  # a project opened from the menu is already the recent entry
             self.recent.add(self.image_path)
             self._save_recent()
@@ -1046,10 +1052,10 @@ class MainWindow(QMainWindow):
             getattr(self.loaded, "exif", None), "heading_ref", None) == "M"  # the EXIF's
         note = "; the heading is magnetic, so allow for the local declination" if magnetic else ""
         tilt = self.tilt_note()
-        self.stage_label.setText(
-            f"Sun from EXIF: azimuth {sun[0]:.1f}°, elevation {sun[1]:.1f}°"
-            f"{f' for a {tilt}' if tilt else ''} (check it against the shadows{note})"
-        )
+        text = (f"Sun from EXIF: azimuth {sun[0]:.1f}°, elevation {sun[1]:.1f}°"
+                f"{f' for a {tilt}' if tilt else ''} (check it against the shadows{note})")
+        self.stage_label.setText(text)
+        self._held_message = text if self.runner.busy() else ""  # past the overlay's "Ready"
 
     def _apply_project(self, project: ProjectState) -> None:
         self.preset = project.preset  # the session was created with it

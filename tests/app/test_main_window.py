@@ -355,6 +355,8 @@ def test_exif_sun_and_timelapse_prefill(window, settle):
     assert window.align_panel.exif_button.isEnabled()
     window.align_panel.exif_button.click()
     settle()
+    # Said, and still said once the overlay is drawn (it flashed by before).
+    assert window.stage_label.text().startswith("Sun from EXIF: azimuth")
     az, el = window.align_panel.sun_panel.sun()
     # samples/README.md: sun azimuth 76.6 (true), elevation 66.6, camera heading 163.7 (true).
     assert (az - (76.6 - 163.7)) % 360.0 == pytest.approx(0.0, abs=1.0)
@@ -387,6 +389,16 @@ def test_exif_sun_and_timelapse_prefill(window, settle):
     assert dialog.solve_heading() == pytest.approx(163.7, abs=0.2)
     assert "camera pitched 20.0° down (ground plane)" in dialog.status.text()
     assert {x.tilt for x in dialog.samples()} == {(-20.0, 0.0)}
+    # Another photo: the dialog (the pool's place, day and heading) closes; opened again for
+    # the new photo, it holds that photo's settings (a user trial saved the old ones into it).
+    dialog.show()
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    window.open_path(os.path.join(root, "samples", "exif_001_cz_fieldpath.jpg"))
+    settle()
+    assert not dialog.isVisible()
+    _confirm(window, settle)
+    again = window.open_timelapse()
+    assert again.settings().latitude == pytest.approx(50.30, abs=0.05)  # the field path's
 
 
 def test_missing_recent_file_is_dropped(window, photo, settle, errors, tmp_path):
