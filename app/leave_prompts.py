@@ -114,20 +114,38 @@ def leave_questions(
     return questions
 
 
-def replace_project_question(project_name: str, saved: str) -> Question:
+def replace_project_question(project_name: str, saved: str,
+                             other_photo: str | None = None) -> Question:
     """Asked before saving over a project file this window neither opened nor saved (the
     photo was opened on its own while a project of it exists): saving would replace the
-    suns kept there, which ``outcast batch`` reads too.
+    suns kept there, which ``outcast batch`` reads too. With ``other_photo``, the file is the
+    project of another photo, whose work saving would replace (asked even after the file
+    dialog's own question, which does not say so; found by a user trial).
 
     Args:
         project_name: the project file's name.
         saved: when it was last saved, in words.
+        other_photo: the name of the photo the file is the project of, when not this one.
 
     Example:
         >>> q = replace_project_question("a.outcast.json", "2026-12-01 08:00")
         >>> [c.key for c in q.choices], q.default
         (['replace', 'cancel'], 'cancel')
     """
+    if other_photo:
+        return Question(
+            title="Replace another photo's project?",
+            text=f"{project_name} is the project of another photo, {other_photo} (saved "
+                 f"{saved}).",
+            detail=(f"Saving here replaces the suns and settings kept for {other_photo} with "
+                    "this photo's. Choose another name to keep both."),
+            choices=(
+                Choice(REPLACE, "Replace it", "destructive"),
+                Choice(CANCEL, "Cancel", "reject"),
+            ),
+            default=CANCEL,
+            escape=CANCEL,
+        )
     return Question(
         title="Replace the saved project?",
         text=f"{project_name} already holds a project of this photo (saved {saved}).",

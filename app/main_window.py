@@ -1576,7 +1576,7 @@ class MainWindow(QMainWindow):
         if not self.image_path:
             return None
         target = path or str(project_path_for(self.image_path))
-        if path is None and not self._may_replace_project(target):
+        if not self._may_replace_project(target, dialog_asked=path is not None):
             return None
         try:
             save_project(self.project_state(), target)
@@ -1590,16 +1590,32 @@ class MainWindow(QMainWindow):
         self.stage_label.setText(f"Saved project {os.path.basename(target)}")
         return target
 
-    def _may_replace_project(self, target: str) -> bool:
+    def _may_replace_project(self, target: str, dialog_asked: bool = False) -> bool:
         """Whether saving may write ``target``: it does not exist, or this window opened or
-        saved it, or the user says to replace it (the photo was opened on its own while a
-        project of it exists; the file dialog asks by itself)."""
+        saved it, or the user says to replace it: a project of this photo that was opened on
+        its own (unless the file dialog asked already), or another photo's project (always:
+        the file dialog's question does not say whose it is)."""
         if not os.path.exists(target):
             return True
-        if any(same_file(target, own) for own in self._project_files):
+        other = self._project_photo_if_other(target)
+        if other is None and (dialog_asked
+                              or any(same_file(target, own) for own in self._project_files)):
             return True
         saved = time.strftime("%Y-%m-%d %H:%M", time.localtime(os.path.getmtime(target)))
-        return self.ask(replace_project_question(os.path.basename(target), saved)) == REPLACE
+        return self.ask(replace_project_question(os.path.basename(target), saved,
+                                                 other)) == REPLACE
+
+    def _project_photo_if_other(self, target: str) -> str | None:
+        """The name of the photo ``target`` is the project of, when it is not the open
+        photo; None for this photo's project or a file that is not a readable project."""
+        try:
+            photo = load_project(target).image_path
+        except (OSError, ValueError):
+            return None
+        if not photo or same_file(photo, self.image_path) or (
+                os.path.abspath(photo) == os.path.abspath(self.image_path)):
+            return None
+        return os.path.basename(photo)
 
     def save_project_dialog(self) -> None:
         if not self.image_path:

@@ -553,3 +553,35 @@ def test_saving_over_a_project_the_window_did_not_open_asks(qtbot, window, photo
     other = str(Path(saved).with_name("copy.outcast.json"))  # "Save as", then Save
     assert window.save_project(other) == other
     assert window.save_project() == saved and not leave_answers.asked
+
+
+def test_save_as_over_another_photos_project_names_that_photo(qtbot, window, photo, settle,
+                                                              tmp_path, leave_answers):
+    """"Save project as" over another photo's project took it over after the file dialog's
+    plain "Replace?" (a user trial lost the pool's work that way): now it says whose project
+    it is, and Cancel keeps it. Over this photo's own project the file dialog's question is
+    enough."""
+    import shutil
+
+    from app.leave_prompts import CANCEL, REPLACE
+
+    other = str(tmp_path / "other.jpg")
+    shutil.copy(photo, other)
+    _load(window, other, settle)
+    _confirm(window, settle)
+    theirs = window.save_project()
+    kept = Path(theirs).read_text()
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    leave_answers.asked.clear()
+    leave_answers.script[:] = [CANCEL]
+    assert window.save_project(theirs) is None
+    question = leave_answers.asked[-1]
+    assert question.title == "Replace another photo's project?" and "other.jpg" in question.text
+    assert Path(theirs).read_text() == kept
+    leave_answers.script[:] = [REPLACE]
+    assert window.save_project(theirs) == theirs and Path(theirs).read_text() != kept
+    mine = str(tmp_path / "mine.outcast.json")
+    assert window.save_project(mine) == mine
+    leave_answers.asked.clear()
+    assert window.save_project(mine) == mine and not leave_answers.asked  # its own: no question
