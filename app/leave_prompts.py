@@ -133,24 +133,19 @@ def replace_project_question(project_name: str, saved: str,
         (['replace', 'cancel'], 'cancel')
     """
     if other_photo:
-        return Question(
-            title="Replace another photo's project?",
-            text=f"{project_name} is the project of another photo, {other_photo} (saved "
-                 f"{saved}).",
-            detail=(f"Saving here replaces the suns and settings kept for {other_photo} with "
-                    "this photo's. Choose another name to keep both."),
-            choices=(
-                Choice(REPLACE, "Replace it", "destructive"),
-                Choice(CANCEL, "Cancel", "reject"),
-            ),
-            default=CANCEL,
-            escape=CANCEL,
-        )
+        title = "Replace another photo's project?"
+        text = f"{project_name} is the project of another photo, {other_photo} (saved {saved})."
+        detail = (f"Saving here replaces the suns and settings kept for {other_photo} with this "
+                  "photo's. Choose another name to keep both.")
+    else:
+        title = "Replace the saved project?"
+        text = f"{project_name} already holds a project of this photo (saved {saved})."
+        detail = ("You opened the photo on its own, so saving replaces the suns and settings "
+                  "kept there. Open the project file instead to continue that work.")
     return Question(
-        title="Replace the saved project?",
-        text=f"{project_name} already holds a project of this photo (saved {saved}).",
-        detail=("You opened the photo on its own, so saving replaces the suns and settings kept "
-                "there. Open the project file instead to continue that work."),
+        title=title,
+        text=text,
+        detail=detail,
         choices=(
             Choice(REPLACE, "Replace it", "destructive"),
             Choice(CANCEL, "Cancel", "reject"),
