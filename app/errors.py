@@ -12,6 +12,11 @@ from outcast_core.runtime.io.models import ModelError
 DEPTH_KINDS = "a .npy array (float32, H × W), a 16-bit grayscale PNG or an OpenEXR (.exr) file"
 
 
+class OwnFileError(ValueError):
+    """An export named the open photo, its depth map or a project file of it, which an export
+    never replaces (:meth:`~app.main_window.MainWindow.refuse_own_file`)."""
+
+
 @dataclass(frozen=True)
 class UserMessage:
     """A dialog's content."""
@@ -106,7 +111,7 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
             todo = "Nothing was written. Choose a folder you can write to."
         elif isinstance(exc, ValueError) and "output extension" in detail:
             todo = "Nothing was written. Choose a name with one of the extensions above."
-        elif isinstance(exc, ValueError) and "choose another name" in detail:
+        elif isinstance(exc, OwnFileError):
             todo = ("Nothing was written: an export never replaces the photo, its depth map or "
                     "its project.")
         else:

@@ -60,7 +60,7 @@ from PySide6.QtWidgets import (
 from app import display
 from app import sun_dial_math as dm
 from app.canvas import ImageCanvas, qimage_from_array
-from app.errors import depth_file_problem, message_for
+from app.errors import OwnFileError, depth_file_problem, message_for
 from app.history import EditCommand, EditState
 from app.leave_prompts import (
     REPLACE,
@@ -1434,10 +1434,7 @@ class MainWindow(QMainWindow):
             The job's id, or ``None`` when the file exists and ``force`` is off.
         """
         session, loaded = self.session, self.loaded
-        own = self.own_file(path)
-        if own:  # never, even confirmed in the file dialog (as the command line)
-            self.show_error(ValueError(f"'{os.path.basename(path)}' is {own}; choose another "
-                                       "name"), "export")
+        if self.refuse_own_file(path):  # never, even confirmed in the file dialog
             return None
         if not force and os.path.exists(path):
             self.show_error(FileExistsError(f"'{path}' already exists"), "export")
@@ -1455,6 +1452,15 @@ class MainWindow(QMainWindow):
             return {"path": path, "timings": _timings(session)}
 
         return self.runner.submit(channel, job, f"Exporting {os.path.basename(path)}")
+
+    def refuse_own_file(self, path: str) -> bool:
+        """Whether ``path`` is one of :meth:`own_file`'s files, said in an error dialog: an
+        export may never replace it (as on the command line)."""
+        own = self.own_file(path)
+        if own:
+            self.show_error(OwnFileError(f"'{os.path.basename(path)}' is {own}; choose another "
+                                         "name"), "export")
+        return bool(own)
 
     def own_file(self, path: str) -> str:
         """What ``path`` is to the open work ("the photo you opened", its depth map, a project

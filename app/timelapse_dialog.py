@@ -597,10 +597,7 @@ class TimelapseDialog(QDialog):
         fmt = str(self.format_combo.currentData())
         fps = self.fps_box.value()
         size = self.size()
-        own = self.main.own_file(path)
-        if own:  # never, even confirmed in the file dialog (a WebP photo, say)
-            self.main.show_error(ValueError(f"'{os.path.basename(path)}' is {own}; choose "
-                                            "another name"), "export")
+        if self.main.refuse_own_file(path):  # never, even confirmed (a WebP photo, say)
             return None
         if not force and os.path.exists(path):
             self.main.show_error(FileExistsError(f"'{path}' already exists"), "export")

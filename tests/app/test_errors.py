@@ -55,6 +55,8 @@ def test_a_damaged_photo_and_a_wrong_export_name_get_advice_that_fits(tmp_path) 
 
 
 def test_an_export_over_the_open_photo_is_not_a_disk_problem() -> None:
-    msg = message_for(ValueError("'pool.jpg' is the photo you opened; choose another name"),
+    from app.errors import OwnFileError
+
+    msg = message_for(OwnFileError("'pool.jpg' is the photo you opened; choose another name"),
                       "export")
     assert "never replaces the photo" in msg.todo and "disk" not in msg.todo

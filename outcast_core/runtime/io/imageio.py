@@ -930,12 +930,9 @@ def write_image(
     path = Path(path)
     fmt = WRITE_EXTENSIONS.get(path.suffix.lower())
     if fmt is None:
+        got = f"'{path.suffix}'" if path.suffix else f"a name without one ('{path.name}')"
         raise ValueError(
-            f"expected an output extension {_or_list(sorted(WRITE_EXTENSIONS))}, got "
-            f"'{path.suffix}'" if path.suffix else
-            f"expected an output extension {_or_list(sorted(WRITE_EXTENSIONS))}, got a name "
-            f"without one ('{path.name}')"
-        )
+            f"expected an output extension {_or_list(sorted(WRITE_EXTENSIONS))}, got {got}")
     if bit_depth not in (8, 16):
         raise ValueError(f"expected bit_depth 8 or 16, got {bit_depth}")
     if bit_depth == 16 and fmt not in ("PNG", "TIFF"):
