@@ -2,7 +2,9 @@
 
 What is undoable: moving either sun (a drag counts once, on release; a key nudge or a typed value
 once each), confirming the original sun and going back to re-align it (the step), the quality
-preset, and the depth map. View settings (overlay opacity, split, buffer view, zoom) are not.
+preset, the depth map, and the camera heading typed in step 1. View settings (overlay opacity,
+split, buffer view, zoom) are not; the time-lapse dialog's settings are not either, but they count
+as unsaved work (``MainWindow.has_unsaved_changes``).
 
 Each user action records ``EditState`` before and after; undo applies "before", redo "after".
 The window applies a state through one narrow method, :meth:`EditTarget.apply_edit_state`, so
@@ -31,6 +33,8 @@ class EditState:
         target_sun: where the new-sun dial stands.
         preset: quality preset name.
         depth_path: a depth map from elsewhere, or ``""`` for the app's own depth.
+        heading: the camera's compass heading typed in step 1 (degrees from true north), or
+            ``None`` (unknown, or the one the photo's EXIF records).
     """
 
     step: str
@@ -39,6 +43,7 @@ class EditState:
     target_sun: SunPair
     preset: str
     depth_path: str = ""
+    heading: float | None = None
 
     def __post_init__(self) -> None:
         if self.step not in ("align", "relight"):
@@ -63,6 +68,8 @@ def describe_change(before: EditState, after: EditState) -> str:
         return f"Quality: {after.preset.capitalize()}"
     if before.align_sun != after.align_sun or before.original_sun != after.original_sun:
         return "Move original sun"
+    if before.heading != after.heading:
+        return "Camera heading"
     if before.target_sun != after.target_sun:
         return "Move new sun"
     return "Change"

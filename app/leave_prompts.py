@@ -7,6 +7,7 @@ lists the questions in the order to ask them; the window shows each one and acts
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 #: Answers that go ahead (the export is stopped / the project saved / the edits dropped).
@@ -15,6 +16,8 @@ STOP, SAVE, DISCARD = "stop", "save", "discard"
 KEEP, CANCEL = "keep", "cancel"
 #: The answer that replaces a project file this window did not open or save.
 REPLACE = "replace"
+#: The one answer to a notice.
+OK = "ok"
 
 
 @dataclass(frozen=True)
@@ -100,7 +103,8 @@ def leave_questions(
         questions.append(
             Question(
                 title="Save the changes to this photo?",
-                text="The suns, quality and depth map you chose are not saved.",
+                text=("The suns, quality, depth map, camera heading and time-lapse settings "
+                      "you chose are not saved."),
                 detail=f"Save them in {project_name} to continue later, or drop them.",
                 choices=(
                     Choice(SAVE, "Save project", "accept"),
@@ -112,6 +116,26 @@ def leave_questions(
             )
         )
     return questions
+
+
+def finished_before_stop_notice(paths: list[str]) -> Question:
+    """Told when the user chose to stop an export that finished while the question was open:
+    the file exists, although the question said stopping writes nothing (a user trial).
+
+    Example:
+        >>> finished_before_stop_notice(["/tmp/clip.mp4"]).text
+        'clip.mp4 finished before it could be stopped, and was saved.'
+    """
+    names = ", ".join(os.path.basename(p) for p in paths)
+    were = "were" if len(paths) > 1 else "was"
+    return Question(
+        title="The export had finished",
+        text=f"{names} finished before it could be stopped, and {were} saved.",
+        detail="\n".join(paths),
+        choices=(Choice(OK, "OK", "accept"),),
+        default=OK,
+        escape=OK,
+    )
 
 
 def replace_project_question(project_name: str, saved: str,

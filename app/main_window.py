@@ -68,6 +68,7 @@ from app.leave_prompts import (
     STOP,
     Question,
     RunningExport,
+    finished_before_stop_notice,
     leave_questions,
     replace_project_question,
 )
@@ -194,6 +195,9 @@ class MainWindow(QMainWindow):
         self.step = Step.EMPTY
         self.original_sun: Sun | None = None
         self.timelapse_settings = TimelapseSettings()
+        #: The time-lapse settings as the dialog first showed them since the photo was opened
+        #: or the project saved (None: not shown since); changes from them are unsaved work.
+        self._timelapse_baseline: TimelapseSettings | None = None
         #: A compass heading typed in step 1 (None: unknown, or the EXIF's when it records one,
         #: which a typed heading replaces).
         self.user_heading: float | None = None
@@ -234,6 +238,7 @@ class MainWindow(QMainWindow):
         self._pending_restore: EditState | None = None
         self._pending_record_from: EditState | None = None
         self._job_fraction: dict[int, float] = {}  # last progress of each running job
+        self._saved_exports: dict[int, str] = {}  # the file each finished export job wrote
         self._close_without_asking = False
 
         self.runner = TaskRunner(self)
@@ -445,7 +450,7 @@ class MainWindow(QMainWindow):
         ap.confirm_clicked.connect(self.confirm_original_sun)
         ap.exif_clicked.connect(self.use_exif_sun)
         ap.find_sun_clicked.connect(self.toggle_find_sun)
-        ap.heading_changed.connect(self.set_user_heading)
+        ap.heading_changed.connect(self._on_heading_typed)
         rp.sun_panel.sun_changed.connect(self._on_target_sun_changed)
         rp.sun_panel.sun_committed.connect(self._on_target_sun_committed)
         rp.split_slider.valueChanged.connect(self._on_split_changed)
@@ -524,8 +529,20 @@ class MainWindow(QMainWindow):
         self._update_title()
 
     def has_unsaved_changes(self) -> bool:
-        """Whether undoable edits were made since the photo was opened or the project saved."""
-        return not self.undo_stack.isClean()
+        """Whether undoable edits, or changes to the time-lapse settings, were made since the
+        photo was opened or the project saved."""
+        return not self.undo_stack.isClean() or (
+            self._timelapse_baseline is not None
+            and self.timelapse_settings != self._timelapse_baseline)
+
+    def set_timelapse_settings(self, settings: TimelapseSettings, shown: bool = False) -> None:
+        """The time-lapse dialog's settings, as they change; ``shown``: as it first shows them
+        (with the place, date and heading filled from the photo), the baseline of unsaved work
+        until the next save or photo."""
+        if shown and self._timelapse_baseline is None:
+            self._timelapse_baseline = settings
+        self.timelapse_settings = settings
+        self._update_title()
 
     # ================================================================== undo / redo
     def edit_state(self) -> EditState | None:
@@ -539,6 +556,7 @@ class MainWindow(QMainWindow):
             target_sun=self.relight_panel.sun_panel.sun(),
             preset=self.preset,
             depth_path=self.depth_path,
+            heading=self.user_heading,
         )
 
     def _record(self, after: EditState | None = None, text: str = "") -> None:
@@ -552,6 +570,7 @@ class MainWindow(QMainWindow):
         self.undo_stack.push(EditCommand(self, before, after, text))
 
     def _reset_history(self, state: EditState | None) -> None:
+        self._timelapse_baseline = None
         self.undo_stack.clear()
         self._edit_state = state
         self.undo_stack.setClean()
@@ -567,6 +586,8 @@ class MainWindow(QMainWindow):
             return
         self._applying_edit = True
         try:
+            if state.heading != self.user_heading:
+                self.set_user_heading(state.heading)
             if state.preset != self.preset:
                 self.set_preset(state.preset)
             self.relight_panel.sun_panel.set_sun(*state.target_sun)
@@ -592,6 +613,7 @@ class MainWindow(QMainWindow):
         project = self.project_state()
         project.preset = state.preset
         project.depth_path = state.depth_path
+        project.heading = state.heading
         relight = state.step == "relight" and state.original_sun is not None
         project.original_sun = Sun(*state.original_sun) if relight else None
         project.target_sun = Sun(*state.target_sun)
@@ -948,6 +970,12 @@ class MainWindow(QMainWindow):
         heading = getattr(getattr(self.loaded, "exif", None), "heading_deg", None)
         return None if heading is None else float(heading) % 360.0
 
+    @Slot(object)
+    def _on_heading_typed(self, heading: float | None) -> None:
+        """A heading typed (or cleared) in step 1: applied, and undoable."""
+        self.set_user_heading(heading)
+        self._record(text="Camera heading")
+
     def set_user_heading(self, heading: float | None) -> None:
         """The camera heading typed in step 1 (degrees from true north; None: unknown, or the
         EXIF's when it records one). A typed heading replaces the EXIF's."""
@@ -1017,6 +1045,11 @@ class MainWindow(QMainWindow):
                 text = f"Sun from EXIF: {fit.note}"
             elif result.get("prior") is not None:
                 text += f" · {result['prior'].description}"
+            if fit.compass_decided:  # found in a cold cell of the dial: say why, and the warm
+                map_az, map_el = m.best()
+                text += (f" · the compass heading chose it among suns the shadows fit alike; "
+                         f"they alone fit best near {map_az:.0f}°, {map_el:.0f}° (the warm "
+                         "area of the dial)")
         else:
             if "too small or too narrow" in fit.note:
                 why = "This photo is too small or too narrow for its shadows to tell the sun"
@@ -1026,6 +1059,18 @@ class MainWindow(QMainWindow):
                 why = "No sun makes the predicted shadows fit the photo's (rough depth?)"
             text = (f"{why}: its sun cannot be told from them (confidence "
                     f"{fit.confidence:.2f}). Set it by eye; the dial shows where suns fit best.")
+            prior = result.get("prior")
+            if prior is not None:  # the EXIF's time and place still give the elevation
+                from outcast_core.runtime.pipeline.auto_sun import at_true_elevation
+
+                az, el = at_true_elevation(*self.align_panel.sun_panel.sun(), prior.elevation,
+                                           self.camera_tilt[:2])
+                el = dm.clamp_elevation(el)
+                self.align_panel.sun_panel.set_sun(az, el)
+                self.request_shadow(az, el, preview=False)
+                self._record(text="Sun elevation from EXIF")
+                text += (f" Its elevation is set to {el:.1f}°, from the photo's time and "
+                         "place; turn the sun around the ring until the shadows fit.")
         self.stage_label.setText(text)
         self._held_message = text if self.runner.busy() else ""
         notice = text if not (fit.found or fit.source == "EXIF") else ""
@@ -1592,6 +1637,8 @@ class MainWindow(QMainWindow):
         self._project_files.add(os.path.abspath(target))
         self.recent.add(target)
         self._save_recent()
+        if self._timelapse_baseline is not None:  # project_state() took the dialog's
+            self._timelapse_baseline = self.timelapse_settings
         self.undo_stack.setClean()
         self.stage_label.setText(f"Saved project {os.path.basename(target)}")
         return target
@@ -1656,6 +1703,8 @@ class MainWindow(QMainWindow):
 
     @Slot(int, str, object, float)
     def _on_job_finished(self, job_id: int, channel: str, result: Any, seconds: float) -> None:
+        if channel in EXPORT_CHANNELS:
+            self._saved_exports[job_id] = str(result["path"])
         if isinstance(result, dict) and "timings" in result:
             self.timings.update(result["timings"])
             self.timings_label.setText(self.timings.summary(limit=4))
@@ -1795,6 +1844,7 @@ class MainWindow(QMainWindow):
         questions = leave_questions(
             action, self.running_exports(), self.has_unsaved_changes(), name
         )
+        asked = {i for i, ch, _ in self.runner.active() if ch in EXPORT_CHANNELS}
         for question in questions:
             answer = self.ask(question)
             if not question.goes_ahead(answer):
@@ -1802,6 +1852,10 @@ class MainWindow(QMainWindow):
             if answer == STOP:
                 for channel in EXPORT_CHANNELS:
                     self.runner.cancel(channel)
+                # An export may have finished while the question was open: say it was saved.
+                done = [self._saved_exports[i] for i in sorted(asked) if i in self._saved_exports]
+                if done:
+                    self.ask(finished_before_stop_notice(done))
             elif answer == SAVE and self.save_project() is None:
                 return False
         return True

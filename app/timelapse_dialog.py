@@ -386,6 +386,7 @@ class TimelapseDialog(QDialog):
             "The photo has no GPS position: enter the place."
         )  # fmt: skip
         self.solve_button.setEnabled(self._solved_heading() is not None)
+        self.main.set_timelapse_settings(self.settings(), shown=True)
         self._settings_changed()
 
     def settings(self) -> TimelapseSettings:
@@ -463,7 +464,7 @@ class TimelapseDialog(QDialog):
             f"{tl.describe_seconds(seconds)} to export"
         )
         if self._ready:
-            self.main.timelapse_settings = self.settings()
+            self.main.set_timelapse_settings(self.settings())
 
     def samples(self) -> list[tl.SunSample]:
         """The current sun path (ValueError when the settings are incomplete)."""
@@ -481,6 +482,7 @@ class TimelapseDialog(QDialog):
     def _settings_changed(self, *_args: Any) -> None:
         if not self._ready:
             return
+        self.main.set_timelapse_settings(self.settings())
         try:
             self._samples = self.samples()
         except ValueError as exc:
@@ -500,7 +502,6 @@ class TimelapseDialog(QDialog):
         self.scrubber.blockSignals(True)
         self.scrubber.setRange(0, len(self._samples) - 1)
         self.scrubber.blockSignals(False)
-        self.main.timelapse_settings = self.settings()
         self._update_estimate()
         self._on_scrub(self.scrubber.value())
 
@@ -660,5 +661,5 @@ class TimelapseDialog(QDialog):
             self.status.setText(f"Export failed: {exc}")
 
     def closeEvent(self, event: QCloseEvent) -> None:
-        self.main.timelapse_settings = self.settings()
+        self.main.set_timelapse_settings(self.settings())
         super().closeEvent(event)

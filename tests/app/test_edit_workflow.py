@@ -173,6 +173,51 @@ def test_save_marks_the_project_clean(window, photo, settle):
     assert not window.has_unsaved_changes() and not window.isWindowModified()
 
 
+def test_a_typed_heading_is_undoable_and_unsaved_work(window, photo, settle):
+    """A heading typed in step 1 changes the EXIF sun: closing without saving must ask, and
+    Edit > Undo takes it back (a user trial lost one silently)."""
+    _load(window, photo, settle)
+    assert not window.has_unsaved_changes()
+    window.align_panel.heading_box.setValue(200.0)
+    assert window.user_heading == pytest.approx(200.0)
+    assert window.has_unsaved_changes() and window.isWindowModified()
+    assert _undo_texts(window) == ["Camera heading"]
+    window.act_undo.trigger()
+    settle()
+    assert window.user_heading is None and window.align_panel.heading() is None
+    assert not window.has_unsaved_changes()
+    window.act_redo.trigger()
+    settle()
+    assert window.user_heading == pytest.approx(200.0)
+    assert window.align_panel.heading() == pytest.approx(200.0)
+    window.save_project()
+    assert not window.has_unsaved_changes()
+
+
+def test_timelapse_settings_count_as_unsaved_work(window, photo, settle):
+    """Opening the time-lapse dialog changes nothing; editing its settings does, until the
+    project is saved; editing them back is clean again."""
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    window.save_project()
+    dialog = window.open_timelapse()
+    assert not window.has_unsaved_changes()  # the place and date it fills in are not edits
+    frames = dialog.frames_box.value()
+    dialog.frames_box.setValue(frames + 5)
+    assert window.has_unsaved_changes() and window.isWindowModified()
+    dialog.close()
+    again = window.open_timelapse()
+    assert again.frames_box.value() == frames + 5 and window.has_unsaved_changes()
+    again.frames_box.setValue(frames)
+    assert not window.has_unsaved_changes()
+    again.frames_box.setValue(frames + 7)
+    path = window.save_project()
+    assert not window.has_unsaved_changes()
+    from app.state import load_project
+
+    assert load_project(path).timelapse.frames == frames + 7
+
+
 # ---------------------------------------------------------------- defect 7: shortcuts in fields
 def test_window_shortcuts_work_while_a_number_field_has_focus(qtbot, window, photo, settle,
                                                               monkeypatch):  # fmt: skip
@@ -254,8 +299,8 @@ def test_quit_during_an_export_can_stop_it(qtbot, window, photo, settle, tmp_pat
 
     _load(window, photo, settle)
     _confirm(window, settle)
-    window.save_project()
     dialog = _slow_timelapse(window, settle, monkeypatch)
+    window.save_project()  # with the time-lapse settings: nothing unsaved
     before = set(tmp_path.iterdir())
     out = tmp_path / "clip.mp4"
     dialog.export(str(out))
@@ -264,6 +309,37 @@ def test_quit_during_an_export_can_stop_it(qtbot, window, photo, settle, tmp_pat
     assert window.close()
     assert [q.title for q in leave_answers.asked] == ["An export is still running"]
     assert not out.exists() and set(tmp_path.iterdir()) == before  # no temp file either
+
+
+def test_an_export_that_finishes_while_asked_is_said_to_be_saved(qtbot, window, photo, settle,
+                                                                  tmp_path, monkeypatch):
+    """"Stop export and quit" chosen after the export finished (the question was open): the
+    file exists, so the user is told it was saved instead of believing it was not written."""
+    from app.leave_prompts import OK, STOP
+    from app.main_window import MainWindow
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    dialog = _slow_timelapse(window, settle, monkeypatch, frames=6)
+    window.save_project()
+    out = tmp_path / "clip.mp4"
+    dialog.export(str(out))
+    _wait_for_progress(qtbot, window)
+    asked = []
+
+    def ask(self, question):
+        asked.append(question)
+        if question.title == "An export is still running":
+            settle()  # the export finishes while the box is open
+            assert out.exists()
+            return STOP
+        return OK
+
+    monkeypatch.setattr(MainWindow, "ask", ask)
+    assert window.close()
+    assert [q.title for q in asked] == ["An export is still running", "The export had finished"]
+    assert asked[1].text == "clip.mp4 finished before it could be stopped, and was saved."
+    assert out.exists()
 
 
 def test_unsaved_changes_are_asked_about_on_quit(window, photo, settle, leave_answers):

@@ -53,6 +53,21 @@ def test_find_sun_moves_the_sun_undoably_and_shows_the_heat_map(
     assert panel.sun() == pytest.approx((200.0, 30.0))
 
 
+def test_a_sun_the_compass_chose_says_where_the_shadows_alone_point(window, photo, settle,
+                                                                    monkeypatch):
+    from dataclasses import replace
+
+    _load(window, photo, settle)
+    fit = replace(_fit(0.0, 8.0), compass_decided=True)  # the map's cold corner
+    assert fit.map.at(0.0, 8.0) == 0.0 and fit.map.best() == (200.0, 36.0)
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)
+    window.find_sun()
+    settle()
+    text = window.stage_label.text()
+    assert text.startswith("Sun found") and "the compass heading chose it" in text
+    assert "near 200°, 36° (the warm area of the dial)" in text
+
+
 def test_no_clear_shadows_is_said_and_the_sun_stays(window, photo, settle, monkeypatch):
     _load(window, photo, settle)
     panel = window.align_panel.sun_panel
@@ -67,6 +82,55 @@ def test_no_clear_shadows_is_said_and_the_sun_stays(window, photo, settle, monke
     assert "No clear shadows" in window.stage_label.text()
     assert window.align_panel.notice.isVisibleTo(window)
     assert panel.dial.has_heat_map()
+
+
+def test_no_clear_shadows_with_gps_and_time_still_sets_the_elevation(
+    window, settle, monkeypatch, tmp_path
+):
+    """The field path records GPS and time but no heading: when its shadows do not tell the
+    sun, the elevation its time and place give is still set (undoably) and said."""
+    import shutil
+
+    from outcast_core.runtime.pipeline.timelapse import true_sun_position
+
+    photo = tmp_path / "fieldpath.jpg"
+    shutil.copyfile(os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg"), photo)
+    _load(window, str(photo), settle)
+    panel = window.align_panel.sun_panel
+    panel.azimuth_box.setValue(150.0)  # typed, as a user would
+    panel.elevation_box.setValue(20.0)
+    settle()
+    prior = window.exif_prior()
+    assert prior is not None and prior.azimuth is None
+    exif = window.loaded.exif
+    assert prior.elevation == pytest.approx(
+        true_sun_position(exif.capture_time, exif.latitude, exif.longitude)[1])
+    monkeypatch.setattr(auto_sun, "find_sun",
+                        lambda session, **kw: _fit(10.0, 60.0, found=False))
+    window.find_sun()
+    settle()
+    az, el = window.align_panel.sun_panel.sun()
+    # Round the true horizon the sun keeps its azimuth and takes the true elevation.
+    expected = auto_sun.at_true_elevation(150.0, 20.0, prior.elevation, window.camera_tilt[:2])
+    assert (az, el) == pytest.approx(expected, abs=0.05)
+    text = window.stage_label.text()
+    assert "No clear shadows" in text and f"set to {el:.1f}°" in text
+    assert window.undo_stack.undoText() == "Sun elevation from EXIF"
+    window.undo_stack.undo()
+    settle()
+    assert window.align_panel.sun_panel.sun() == pytest.approx((150.0, 20.0))
+
+
+def test_at_true_elevation_keeps_the_horizon_azimuth():
+    from outcast_core.runtime.geometry.camera import sun_angles
+
+    tilt = (-20.0, 5.0)  # looking down, rolled
+    az, el = auto_sun.at_true_elevation(60.0, 10.0, 40.0, tilt)
+    h_before = sun_angles(sun_vector(60.0, 10.0), *tilt)
+    h_after = sun_angles(sun_vector(az, el), *tilt)
+    assert h_after[1] == pytest.approx(40.0, abs=1e-6)
+    assert h_after[0] == pytest.approx(h_before[0], abs=1e-6)
+    assert auto_sun.at_true_elevation(370.0, 10.0, 40.0) == (10.0, 40.0)
 
 
 def test_find_sun_can_be_cancelled_and_never_blocks(qtbot, window, photo, settle, monkeypatch):

@@ -281,6 +281,18 @@ class AgreementMap:
         out = np.clip((s - lo) / max(hi - lo, 1e-6), 0.0, 1.0)
         return np.nan_to_num(out, nan=0.0).astype(np.float32)
 
+    def at(self, azimuth: float, elevation: float) -> float:
+        """:meth:`normalised` at the cell nearest to a sun (how warm the dial draws it)."""
+        i = int(np.argmin(np.abs(self.elevations - elevation)))
+        j = int(np.argmin(np.abs((self.azimuths - azimuth + 180.0) % 360.0 - 180.0)))
+        return float(self.normalised()[i, j])
+
+    def best(self) -> tuple[float, float]:
+        """``(azimuth, elevation)`` of the warmest cell."""
+        s = np.nan_to_num(self.scores, nan=-np.inf)
+        i, j = np.unravel_index(int(np.argmax(s)), s.shape)
+        return float(self.azimuths[j]), float(self.elevations[i])
+
 
 @dataclass
 class SunFit:
@@ -312,6 +324,9 @@ class SunFit:
             metadata's (e.g. ``"XMP GPano"``, see :mod:`~outcast_core.runtime.io.camera_pose`),
             ``"given"``, ``"ground plane"`` or ``"level (no ground plane)"``.
         evaluations: shadow images computed.
+        compass_decided: found where a compass heading put it, among suns the shadows fit
+            about alike: the map (coarser, without the prior) is cold there
+            (:data:`COLD_ON_MAP`), and its warm area is what the shadows alone say.
         seconds: wall time.
         stage_seconds: wall time per stage (``photo shadows``, ``dome``, ``ring``, ``refine``,
             ``finals``).
@@ -336,6 +351,7 @@ class SunFit:
     evaluations: int = 0
     seconds: float = 0.0
     stage_seconds: dict[str, float] = field(default_factory=dict)
+    compass_decided: bool = False
 
     def as_dict(self) -> dict[str, Any]:
         """Plain values for JSON (the map is left out)."""
@@ -648,6 +664,10 @@ def sun_frame_pitch(session: Any, path: str | os.PathLike[str]) -> float | None:
     return round(0.5 * (lo + hi), 2)
 
 
+#: A found sun whose cell of the agreement map is below this (0: the dome's median, 1: its best)
+#: is said to be the compass heading's choice, with the map's own best (see :func:`find_sun`).
+COLD_ON_MAP = 0.5
+
 #: Below this (degrees of pitch and of roll) a camera counts as level wherever a tilt is shown
 #: or drawn (the dial's horizon, the app's and the CLI's words).
 LEVEL_TOLERANCE = 0.5
@@ -669,6 +689,23 @@ def describe_tilt(pitch: float, roll: float, source: str) -> str:
     if abs(roll) >= LEVEL_TOLERANCE:
         words.append(f"rolled {abs(roll):.1f}° {'clockwise' if roll > 0 else 'anticlockwise'}")
     return f"camera {' and '.join(words)} ({source})"
+
+
+def at_true_elevation(azimuth: float, elevation: float, true_elevation: float,
+                      tilt: tuple[float, float] = (0.0, 0.0)) -> tuple[float, float]:
+    """A camera-frame sun moved onto the sun's true elevation (GPS and time), keeping its
+    azimuth about the true horizon: where the app puts the sun when its photo's shadows do not
+    tell it but its EXIF gives the elevation. ``tilt`` is the camera's ``(pitch, roll)``.
+
+    Example:
+        >>> at_true_elevation(120.0, 30.0, 52.0)
+        (120.0, 52.0)
+    """
+    pitch, roll = tilt
+    if not pitch and not roll:
+        return azimuth % 360.0, float(true_elevation)
+    horizon_az, _ = sun_angles(sun_vector(azimuth, elevation), pitch, roll)
+    return sun_angles(sun_vector(horizon_az, true_elevation, pitch, roll))
 
 
 def _angle_between(a: np.ndarray, b: np.ndarray) -> float:
@@ -992,6 +1029,7 @@ def find_sun(
         source = "EXIF"
     cam_az, cam_el = sun_angles(w_best)
     cam_el = min(90.0, max(0.0, cam_el))
+    compass_decided = False
     if found:
         note = f"sun found from the photo's shadows (confidence {confidence:.2f})"
         if prior is not None:
@@ -1001,6 +1039,15 @@ def find_sun(
             if off > 45.0:
                 note += (f"; the shadows put the sun {off:.0f}° away from the EXIF compass "
                          "heading's")
+            elif amap.at(cam_az, cam_el) < COLD_ON_MAP:
+                compass_decided = True
+                # The compass chose it among suns its shadows fit; the map, at a coarser size
+                # and without the prior, is cold there (the pool sample: found 1 deg from its
+                # listed sun, in the map's coldest cell).
+                map_az, map_el = amap.best()
+                note += (f"; the compass heading decided between suns the shadows fit alike (the "
+                         f"shadows alone fit best near azimuth {map_az:.0f}°, elevation "
+                         f"{map_el:.0f}°: the warm area of the map)")
     else:
         if legible < 1.0 and (legible < 0.5 or clarity * peak * strength >= CONFIDENT):
             h, w = session.image_srgb.shape[:2]
@@ -1027,6 +1074,7 @@ def find_sun(
         best_score, best_shading = float(ag[0]), float(sh[0])
         evaluations += 1
         found, confidence, source = True, 1.0, "sun in the frame"
+        compass_decided = False
         true_el = float(prior.elevation) if prior is not None else float(cam_el)
         note = (f"the sun is in the frame (at pixel {seen.u:.0f}, {seen.v:.0f} of the working "
                 "image): its direction is taken from there")
@@ -1047,6 +1095,7 @@ def find_sun(
         shading=best_shading, measure=measure, true_elevation=true_el,
         pitch=frame.pitch, roll=frame.roll, pose_source=pose_source, evaluations=evaluations,
         stage_seconds={k: round(v, 4) for k, v in stages.items()},
+        compass_decided=compass_decided,
         seconds=time.perf_counter() - t0,
     )
 
@@ -1058,6 +1107,7 @@ __all__ = [
     "SunInPhoto",
     "SunPrior",
     "agreement",
+    "at_true_elevation",
     "camera_tilt",
     "describe_tilt",
     "exif_sun_prior",

@@ -15,6 +15,7 @@ from outcast_core.runtime.cli.main import main
 from outcast_core.runtime.geometry.camera import Camera, sun_vector
 from outcast_core.runtime.io.exif import PhotoMetadata
 from outcast_core.runtime.io.imageio import write_depth, write_image
+from outcast_core.runtime.pipeline import auto_sun
 from outcast_core.runtime.pipeline.auto_sun import (
     FindSunCancelledError,
     SunPrior,
@@ -221,8 +222,6 @@ def test_fine_dark_texture_is_not_taken_for_shadows(monkeypatch: pytest.MonkeyPa
     """Thin dark furrows on the lit ground are texture no sun casts: the found shadows the
     search matches leave them out (``photo_shadows.without_texture``), so the true sun keeps
     its agreement (0.91 here); matched with them it agrees at 0.66."""
-    from outcast_core.runtime.pipeline import auto_sun
-
     w = sun_vector(150.0, 40.0)
     photo = _photo_lit_by(w)
     furrows = np.zeros((H, W), bool)
@@ -395,11 +394,18 @@ def test_the_pool_samples_right_compass_holds_against_a_slight_shadow_preference
     s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
     prior, tilt = exif_sun_prior(loaded.exif), photo_camera_tilt(s, sample)
 
-    def off(weight: float) -> float:  # (0.05, the earlier pull, put it 61° away)
-        fit = find_sun(s, prior=replace(prior, azimuth_weight=weight), pitch_roll=tilt)
-        return abs((fit.azimuth - prior.azimuth + 180.0) % 360.0 - 180.0)
+    def fit_with(weight: float):  # (0.05, the earlier pull, put it 61° away)
+        return find_sun(s, prior=replace(prior, azimuth_weight=weight), pitch_roll=tilt)
 
-    assert off(prior.azimuth_weight) < 10.0
+    fit = fit_with(prior.azimuth_weight)
+    assert abs((fit.azimuth - prior.azimuth + 180.0) % 360.0 - 180.0) < 10.0
+    # The map (coarse, without the prior) is cold there: the note says that the compass chose
+    # and where the shadows alone point (a user trial read "found" against a cold dial).
+    assert fit.found and fit.compass_decided
+    assert fit.map.at(fit.azimuth, fit.elevation) < auto_sun.COLD_ON_MAP
+    map_az, map_el = fit.map.best()
+    assert fit.map.at(map_az, map_el) == 1.0
+    assert f"alone fit best near azimuth {map_az:.0f}°" in fit.note
 
 
 @pytest.mark.parametrize("shape", [(20, 31), (16, 16), (12, 96), (70, 560)])
