@@ -194,7 +194,15 @@ def read_image(
                 image = _convert_icc_float(image, im.info.get("icc_profile"))
             else:
                 upright = _turns_upright("pillow", fmt, meta.orientation)
-                image = _decode_pil(im, turned if upright else target, keep_uint8=keep_uint8)
+                size = turned if upright else target
+                try:
+                    image = _decode_pil(im, size, keep_uint8=keep_uint8)
+                except OSError:
+                    whole = _jpeg_lacking_only_its_end(path, fmt)
+                    if whole is None:
+                        raise
+                    with _open_pil(path, whole) as im_whole:
+                        image = _decode_pil(im_whole, size, keep_uint8=keep_uint8)
     except ImageReadError:
         raise
     except UnidentifiedImageError as exc:
@@ -289,6 +297,32 @@ def _check_jpeg_size(path: Path, fmt: str, width: int, height: int) -> None:
             f"cannot hold the {width} x {height} JPEG its header declares)")
 
 
+def _jpeg_lacking_only_its_end(path: Path, fmt: str) -> bytes | None:
+    """A JPEG's bytes with the end-of-image marker it lacks, when that is all it lacks; else
+    None (not a JPEG, the marker is there, or its data stop before the last block).
+
+    Some writers leave the marker off; every block of the image is there, and viewers show
+    it, but Pillow calls such a file truncated (a user trial's file was refused). Cut short,
+    a JPEG decodes with its missing blocks flat mid-grey (libjpeg zeroes their
+    coefficients), so the last block, decoded at 1/8 size (one pixel per 8 x 8 block, its
+    mean), tells: exactly (128, 128, 128) there is taken as cut short.
+    """
+    if fmt not in ("JPEG", "MPO"):
+        return None
+    data = path.read_bytes()
+    if data.rstrip(b"\x00").endswith(b"\xff\xd9"):
+        return None
+    data += b"\xff\xd9"
+    try:
+        with _open_pil(path, data) as im:
+            im.draft("RGB", (max(1, im.width // 8), max(1, im.height // 8)))
+            im.load()
+            last = np.asarray(im.convert("RGB"))[-1, -1]
+    except Exception:  # noqa: BLE001 - still unreadable: the caller's error stands
+        return None
+    return None if bool((last == 128).all()) else data
+
+
 def _upright_size(size: tuple[int, int], orientation: int) -> tuple[int, int]:
     """``(width, height)`` of a stored image once EXIF ``orientation`` has turned it upright."""
     return (size[1], size[0]) if orientation >= 5 else (size[0], size[1])
@@ -370,15 +404,16 @@ def _check_input_file(path: Path) -> None:
 
 
 @contextlib.contextmanager
-def _open_pil(path: Path) -> Iterator[Image.Image]:
+def _open_pil(path: Path, data: bytes | None = None) -> Iterator[Image.Image]:
     """``Image.open`` with Pillow's bomb guard replaced by :data:`MAX_DECODE_PIXELS`.
 
     The file is opened as a file object, never by name: by name, Pillow 13 maps an
     uncompressed grey, 16-bit, RGBA or CMYK TIFF into memory and then reports the upright size
     of an oriented one without turning its pixels (found by a code review), while through a
-    file object it decodes and turns it as it does every other TIFF.
+    file object it decodes and turns it as it does every other TIFF. ``data``: the file's
+    bytes, amended (read instead of ``path``).
     """
-    f = open(path, "rb")  # noqa: SIM115 -- closed below, after the image
+    f = open(path, "rb") if data is None else io.BytesIO(data)  # noqa: SIM115 -- closed below
     try:
         with _PIL_LIMIT_LOCK:
             previous = Image.MAX_IMAGE_PIXELS

@@ -373,6 +373,28 @@ def test_truncated_files(tmp_path: Path, name: str, bit_depth: int) -> None:
     _check_error(path, "truncated or corrupt")
 
 
+@pytest.mark.parametrize("subsampling", [0, 2])  # 4:4:4 (8 x 8 blocks), 4:2:0 (16 x 16)
+def test_a_jpeg_lacking_only_its_end_marker_is_read(tmp_path: Path, subsampling: int) -> None:
+    """Every block is there, only the end-of-image marker is missing (some writers leave it
+    off; viewers show such files): read as the whole file is. Cut short by a few hundred
+    bytes, it is still refused (its last blocks are missing)."""
+    image = _noise_image(61, 83)  # sizes that end in partial blocks
+    whole = tmp_path / "whole.jpg"
+    Image.fromarray((image * 255).round().astype(np.uint8)).save(
+        whole, quality=90, subsampling=subsampling)
+    data = whole.read_bytes()
+    assert data.endswith(b"\xff\xd9")
+    no_end = tmp_path / "no_end.jpg"
+    no_end.write_bytes(data[:-2])
+    ref = read_image(whole).image_srgb
+    assert np.array_equal(read_image(no_end).image_srgb, ref)
+    small = read_image(whole, max_pixels=30 * 20).image_srgb
+    assert np.array_equal(read_image(no_end, max_pixels=30 * 20).image_srgb, small)
+    cut = tmp_path / "cut.jpg"
+    cut.write_bytes(data[:-400])
+    _check_error(cut, "truncated or corrupt")
+
+
 def test_read_image_size_errors(tmp_path: Path) -> None:
     with pytest.raises(ImageReadError, match="not found"):
         read_image_size(tmp_path / "nope.png")
