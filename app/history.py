@@ -2,9 +2,9 @@
 
 What is undoable: moving either sun (a drag counts once, on release; a key nudge or a typed value
 once each), confirming the original sun and going back to re-align it (the step), the quality
-preset, the depth map, and the camera heading typed in step 1. View settings (overlay opacity,
-split, buffer view, zoom) are not; the time-lapse dialog's settings are not either, but they count
-as unsaved work (``MainWindow.has_unsaved_changes``).
+preset, the depth map, the camera heading typed in step 1 and step 2's exposure. View settings
+(overlay opacity, split, buffer view, zoom) are not; the time-lapse dialog's settings are not
+either, but they count as unsaved work (``MainWindow.has_unsaved_changes``).
 
 Each user action records ``EditState`` before and after; undo applies "before", redo "after".
 The window applies a state through one narrow method, :meth:`EditTarget.apply_edit_state`, so
@@ -35,6 +35,7 @@ class EditState:
         depth_path: a depth map from elsewhere, or ``""`` for the app's own depth.
         heading: the camera's compass heading typed in step 1 (degrees from true north), or
             ``None`` (unknown, or the one the photo's EXIF records).
+        exposure: ``"photo"`` (the photo's exposure kept) or ``"metered"`` (step 2).
     """
 
     step: str
@@ -44,6 +45,7 @@ class EditState:
     preset: str
     depth_path: str = ""
     heading: float | None = None
+    exposure: str = "photo"
 
     def __post_init__(self) -> None:
         if self.step not in ("align", "relight"):
@@ -70,6 +72,8 @@ def describe_change(before: EditState, after: EditState) -> str:
         return "Move original sun"
     if before.heading != after.heading:
         return "Camera heading"
+    if before.exposure != after.exposure:
+        return "Meter the new light" if after.exposure == "metered" else "Keep the photo's exposure"
     if before.target_sun != after.target_sun:
         return "Move new sun"
     return "Change"

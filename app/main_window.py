@@ -454,6 +454,7 @@ class MainWindow(QMainWindow):
         rp.sun_panel.sun_changed.connect(self._on_target_sun_changed)
         rp.sun_panel.sun_committed.connect(self._on_target_sun_committed)
         rp.split_slider.valueChanged.connect(self._on_split_changed)
+        rp.exposure_changed.connect(self._on_exposure_changed)
         self.canvas.split_dragged.connect(lambda f: rp.split_slider.setValue(round(f * 100)))
         rp.view_combo.currentIndexChanged.connect(self._on_view_changed)
         rp.export_still_clicked.connect(self.export_still_dialog)
@@ -557,6 +558,7 @@ class MainWindow(QMainWindow):
             preset=self.preset,
             depth_path=self.depth_path,
             heading=self.user_heading,
+            exposure=self.relight_panel.exposure(),
         )
 
     def _record(self, after: EditState | None = None, text: str = "") -> None:
@@ -588,6 +590,8 @@ class MainWindow(QMainWindow):
         try:
             if state.heading != self.user_heading:
                 self.set_user_heading(state.heading)
+            if state.exposure != self.relight_panel.exposure():
+                self.set_exposure(state.exposure)
             if state.preset != self.preset:
                 self.set_preset(state.preset)
             self.relight_panel.sun_panel.set_sun(*state.target_sun)
@@ -614,6 +618,7 @@ class MainWindow(QMainWindow):
         project.preset = state.preset
         project.depth_path = state.depth_path
         project.heading = state.heading
+        project.exposure = state.exposure
         relight = state.step == "relight" and state.original_sun is not None
         project.original_sun = Sun(*state.original_sun) if relight else None
         project.target_sun = Sun(*state.target_sun)
@@ -744,6 +749,7 @@ class MainWindow(QMainWindow):
         record_from, self._pending_record_from = self._pending_record_from, None
         old_path = self.image_path
         self.session = result["session"]
+        self.session.exposure = self.relight_panel.exposure()  # a project's: _apply_project
         self.loaded = result["loaded"]
         self._set_camera_tilt(result.get("tilt", LEVEL_TILT))
         self.depth_path = result.get("depth_path", "")
@@ -970,6 +976,22 @@ class MainWindow(QMainWindow):
         heading = getattr(getattr(self.loaded, "exif", None), "heading_deg", None)
         return None if heading is None else float(heading) % 360.0
 
+    @Slot(str)
+    def _on_exposure_changed(self, mode: str) -> None:
+        """Step 2's "Meter the new light" ticked or cleared: applied, and undoable."""
+        self.set_exposure(mode)
+        self._record()
+
+    def set_exposure(self, mode: str) -> None:
+        """How relit photos are exposed (``"photo"`` or ``"metered"``): the checkbox, the
+        session (relit images are cached per exposure, so no lock is waited for) and the view."""
+        if self.relight_panel.exposure() != mode:
+            self.relight_panel.set_exposure(mode)
+        if self.session is not None:
+            self.session.exposure = mode
+        if self.step is Step.RELIGHT:
+            self.request_relight(preview=False)
+
     @Slot(object)
     def _on_heading_typed(self, heading: float | None) -> None:
         """A heading typed (or cleared) in step 1: applied, and undoable."""
@@ -1112,6 +1134,8 @@ class MainWindow(QMainWindow):
         self.relight_panel.split_slider.setValue(round(project.split * 100))
         self.relight_panel.set_view(project.buffer_view)
         self.set_user_heading(project.heading)
+        self.relight_panel.set_exposure(project.exposure)
+        self.session.exposure = project.exposure
         if project.original_sun is not None:
             self.align_panel.sun_panel.set_sun(*project.original_sun.as_tuple())
         if project.target_sun is not None:
@@ -1621,6 +1645,7 @@ class MainWindow(QMainWindow):
             buffer_view=self.relight_panel.view(),
             timelapse=self.timelapse_settings,
             heading=self.user_heading,
+            exposure=self.relight_panel.exposure(),
         )
 
     def save_project(self, path: str | None = None) -> str | None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (
+    QCheckBox,
     QComboBox,
     QDoubleSpinBox,
     QFormLayout,
@@ -185,6 +186,7 @@ class RelightPanel(QWidget):
     export_still_clicked = Signal()
     timelapse_clicked = Signal()
     realign_clicked = Signal()
+    exposure_changed = Signal(str)  # "photo" or "metered"
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -203,6 +205,14 @@ class RelightPanel(QWidget):
         )
         self.split_slider = _percent_slider(50, self)
         self.split_slider.setToolTip("Before/after split: left of the line is the original photo")
+        self.meter_check = QCheckBox("Meter the new light", self)
+        self.meter_check.setToolTip(
+            "Expose the relit photo again, as a camera would at the new hour (one gain for the "
+            "whole frame). Off: the photo's exposure is kept, so a scene the new sun puts in "
+            "shade comes out dark."
+        )
+        self.meter_check.toggled.connect(
+            lambda on: self.exposure_changed.emit("metered" if on else "photo"))
         self.export_button = QPushButton("Export still…", self)
         self.export_button.setToolTip("Save the relit photo at full resolution (Ctrl+E)")
         self.timelapse_button = QPushButton("Time-lapse…", self)
@@ -215,6 +225,7 @@ class RelightPanel(QWidget):
         form = QFormLayout()
         form.addRow("View", self.view_combo)
         form.addRow("Before | after", self.split_slider)
+        form.addRow("Exposure", self.meter_check)
         buttons = QHBoxLayout()
         buttons.addWidget(self.export_button)
         buttons.addWidget(self.timelapse_button)
@@ -231,6 +242,16 @@ class RelightPanel(QWidget):
 
     def view(self) -> str:
         return str(self.view_combo.currentData())
+
+    def exposure(self) -> str:
+        """``"metered"`` when the new light is metered again, else ``"photo"``."""
+        return "metered" if self.meter_check.isChecked() else "photo"
+
+    def set_exposure(self, mode: str) -> None:
+        """Show ``mode`` without emitting :attr:`exposure_changed`."""
+        self.meter_check.blockSignals(True)
+        self.meter_check.setChecked(mode == "metered")
+        self.meter_check.blockSignals(False)
 
     def set_view(self, key: str) -> None:
         idx = self.view_combo.findData(key)

@@ -35,6 +35,9 @@ EASING_NAMES = ("linear", "ease-in-out", "ease-in", "ease-out")
 #: Frame sizes of :data:`outcast_core.runtime.pipeline.timelapse.FRAME_SIZES` (a test keeps them
 #: equal).
 FRAME_SIZE_NAMES = ("working", "720p", "1080p", "4k", "full")
+#: Exposure modes of :data:`outcast_core.runtime.pipeline.relight.EXPOSURES` (a test keeps them
+#: equal).
+EXPOSURE_NAMES = ("photo", "metered")
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".heic", ".heif", ".webp", ".bmp")
 
 
@@ -175,6 +178,8 @@ class ProjectState:
     #: The camera's compass heading typed in step 1 (degrees from true north); it replaces the
     #: one the photo's EXIF records, if any. None when not typed.
     heading: float | None = None
+    #: How relit photos are exposed (:data:`EXPOSURE_NAMES`: the photo's, or metered again).
+    exposure: str = "photo"
 
     @property
     def step(self) -> Step:
@@ -203,6 +208,7 @@ class ProjectState:
             "buffer_view": self.buffer_view,
             "timelapse": self.timelapse.to_dict(),
             "heading": self.heading,
+            "exposure": self.exposure,
         }
 
     @classmethod
@@ -222,6 +228,9 @@ class ProjectState:
         preset = d.get("preset", "balanced")
         if not isinstance(preset, str) or preset not in PRESET_NAMES:
             raise ValueError(f"preset: expected one of {PRESET_NAMES}, got {preset!r}")
+        exposure = d.get("exposure", "photo")
+        if not isinstance(exposure, str) or exposure not in EXPOSURE_NAMES:
+            raise ValueError(f"exposure: expected one of {EXPOSURE_NAMES}, got {exposure!r}")
         view = d.get("buffer_view", "output")
         if not isinstance(view, str) or view not in BUFFER_VIEWS:
             raise ValueError(f"buffer_view: expected one of {BUFFER_VIEWS}, got {view!r}")
@@ -237,6 +246,7 @@ class ProjectState:
             buffer_view=view,
             timelapse=TimelapseSettings.from_dict(d.get("timelapse", {})),
             heading=_heading(d.get("heading")),
+            exposure=exposure,
         )
 
 

@@ -199,13 +199,13 @@ def _drag_times(img: np.ndarray, preset: str, n: int) -> tuple[float, float, flo
     def before(w):  # the preview as it was: S at the preview size, L at the working size
         s.shadow = lambda w2, preview=False: real_shadow(w2, preview=True)
         try:
-            return s._compute_relight(w, False)
+            return s._compute_relight(w, False, s.exposure)
         finally:
             del s.shadow
 
     t1 = timed(lambda w: s._compute_shadow(w, True), suns(0.3))
     tb = timed(before, suns(0.6))
-    tn = timed(lambda w: s._compute_relight(w, True), suns(0.9))
+    tn = timed(lambda w: s._compute_relight(w, True, s.exposure), suns(0.9))
     return t1, tb, tn
 
 

@@ -194,6 +194,35 @@ def test_a_typed_heading_is_undoable_and_unsaved_work(window, photo, settle):
     assert not window.has_unsaved_changes()
 
 
+def test_metering_the_new_light_is_undoable_and_saved(qtbot, window, photo, settle, settings):
+    from app.main_window import MainWindow
+    from app.state import load_project
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    window.save_project()
+    assert window.session.exposure == "photo" and not window.has_unsaved_changes()
+    window.relight_panel.meter_check.setChecked(True)
+    settle()
+    assert window.session.exposure == "metered"
+    assert _undo_texts(window)[-1] == "Meter the new light" and window.has_unsaved_changes()
+    window.act_undo.trigger()
+    settle()
+    assert window.session.exposure == "photo" and not window.relight_panel.meter_check.isChecked()
+    window.act_redo.trigger()
+    settle()
+    assert window.session.exposure == "metered" and window.relight_panel.meter_check.isChecked()
+    path = window.save_project()
+    assert load_project(path).exposure == "metered"
+    other = MainWindow(settings=settings, preset="fast")
+    qtbot.addWidget(other)
+    other.open_path(path)
+    qtbot.waitUntil(lambda: other.step is Step.RELIGHT and not other.runner.busy(),
+                    timeout=30000)
+    assert other.session.exposure == "metered" and other.relight_panel.meter_check.isChecked()
+    assert not other.has_unsaved_changes()
+
+
 def test_timelapse_settings_count_as_unsaved_work(window, photo, settle):
     """Opening the time-lapse dialog changes nothing; editing its settings does, until the
     project is saved; editing them back is clean again."""

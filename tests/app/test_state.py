@@ -212,3 +212,16 @@ def test_easing_names_match_the_runtime():
     from outcast_core.runtime.pipeline.timelapse import EASINGS
 
     assert EASING_NAMES == EASINGS
+
+
+def test_exposure_names_match_the_runtime_and_bad_ones_do_not_load(tmp_path):
+    from app.state import EXPOSURE_NAMES, ProjectState
+    from outcast_core.runtime.pipeline.relight import EXPOSURES
+
+    assert EXPOSURE_NAMES == EXPOSURES
+    d = ProjectState(image_path="a.jpg", exposure="metered").to_dict()
+    assert ProjectState.from_dict(d).exposure == "metered"
+    del d["exposure"]  # a project saved before the setting: the photo's exposure
+    assert ProjectState.from_dict(d).exposure == "photo"
+    with pytest.raises(ValueError, match="exposure"):
+        ProjectState.from_dict({**d, "exposure": "auto"})

@@ -18,7 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from outcast_core.runtime.cli.main import int_in, names_in
+from outcast_core.runtime.cli.main import add_exposure_option, int_in, names_in
 from outcast_core.runtime.cli.timelapse_cli import (
     SWEEP_HELP,
     fps_value,
@@ -95,6 +95,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    help=f"time-lapse frames per second, {MIN_FPS:g}..{MAX_FPS:g} (default 12)")
     p.add_argument("--size", choices=FRAME_SIZES, default="1080p",
                    help="time-lapse frame size (default 1080p)")
+    add_exposure_option(p)
     p.add_argument("--preset", choices=["fast", "balanced", "accurate"], default="balanced",
                    help="speed/accuracy preset")
     p.add_argument("--mode", choices=["auto", "learned", "classic"], default="auto",
@@ -124,7 +125,8 @@ def _options(args: argparse.Namespace) -> BatchOptions:
         kind=kind, sources=args.sources, from_sun=args.from_sun, to_sun=args.to_sun,
         fmt=args.fmt, preset=args.preset, mode=args.mode, depth_model=args.depth_model,
         use_phone_depth=not args.no_phone_depth, sweep=args.sweep, day=args.day,
-        frames=args.frames, easing=args.easing, fps=args.fps, size=args.size, force=args.force)
+        frames=args.frames, easing=args.easing, fps=args.fps, size=args.size,
+        exposure=args.exposure, force=args.force)
 
 
 def check_batch_output(args: argparse.Namespace) -> None:

@@ -114,10 +114,19 @@ def _make_session(args: argparse.Namespace, *, shadow_mode: str, relight_mode: s
     from outcast_core.runtime.pipeline.session import RelightSession
 
     thickness = getattr(args, "thickness", math.inf)
-    return RelightSession(
+    session = RelightSession(
         preset=args.preset, shadow_mode=shadow_mode, relight_mode=relight_mode,
         thickness=thickness, refine=getattr(args, "refine", "photo"),
     )
+    session.exposure = getattr(args, "exposure", "photo")
+    return session
+
+
+def add_exposure_option(p: argparse.ArgumentParser) -> None:
+    """``--exposure``: the relit photo keeps the photo's exposure, or is metered again."""
+    p.add_argument("--exposure", choices=["photo", "metered"], default="photo",
+                   help="keep the photo's exposure (default: a scene the new sun puts in shade "
+                        "comes out dark), or meter the new light again as a camera would")
 
 
 def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:
@@ -336,6 +345,7 @@ def build_parser(
     p.add_argument("--shadows", choices=["auto", "direct", "learned"], default="auto",
                    help="shadow method (default: learned when installed, else Direct)")
     p.add_argument("--thickness", default=math.inf, type=_thickness, help=argparse.SUPPRESS)
+    add_exposure_option(p)
     _add_common(p)
     p.set_defaults(func=cmd_relight)
 

@@ -40,6 +40,9 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    help="relighting method for the relighting checks (default: the app's)")
     p.add_argument("--refine", choices=["photo", "learned"], default="photo",
                    help="how the photo's own shadows are found (default: the app's)")
+    p.add_argument("--exposure", choices=["photo", "metered"], default="photo",
+                   help="the relit photos' exposure for the relighting checks (default: the "
+                        "app's, the photo's own)")
     p.add_argument("--depth-model", default="",
                    help="an ONNX monocular depth model to use instead of the shipped Z "
                    "(README: depth from other estimators)")
@@ -64,6 +67,7 @@ def _session(args: argparse.Namespace, preset: str) -> Any:
     session = RelightSession(
         preset=preset, mode=args.mode, refine=args.refine,
         relight_mode=None if args.relight == "auto" else args.relight)
+    session.exposure = args.exposure
     if args.depth_model:
         from outcast_core.runtime.io.depth_models import ModelDepthSource, load_depth_model
 
@@ -130,6 +134,7 @@ def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
 
     argv = ["outcast", "eval", "real", args.folder, "--preset", ",".join(reports),
             "--mode", args.mode, "--relight", args.relight, "--refine", args.refine]
+    argv += ["--exposure", args.exposure] if args.exposure != "photo" else []
     argv += ["--depth-model", args.depth_model] if args.depth_model else []
     argv += ["--limit", str(args.limit)] if args.limit else []
     first = next(iter(reports.values()))

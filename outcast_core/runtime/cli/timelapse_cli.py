@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from outcast_core.runtime.cli.main import add_input_options, int_in
+from outcast_core.runtime.cli.main import add_exposure_option, add_input_options, int_in
 from outcast_core.runtime.geometry.camera import sun_vector
 from outcast_core.runtime.pipeline.timelapse import (
     DEFAULT_FPS,
@@ -195,6 +195,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     # Depth from a file, a model or the photo itself, the field of view and the preset, as
     # the other commands take them (a time-lapse's frames match a relit still).
     add_input_options(p)
+    add_exposure_option(p)
     p.set_defaults(func=run_timelapse_command, check_output=check_timelapse_output)
     return p
 
@@ -279,6 +280,7 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     exif = getattr(loaded, "exif", None)
     _check_sample_args(args, exif)  # before the slow part
     session = RelightSession(preset=args.preset)
+    session.exposure = args.exposure
     quiet = getattr(args, "quiet", False)
 
     def report(stage: str, fraction: float) -> None:

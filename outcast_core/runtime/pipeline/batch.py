@@ -80,6 +80,8 @@ class BatchOptions:
         easing: sweep easing (:data:`~outcast_core.runtime.pipeline.timelapse.EASINGS`).
         fps: time-lapse frames per second.
         size: time-lapse frame size (:data:`~outcast_core.runtime.pipeline.timelapse.FRAME_SIZES`).
+        exposure: ``photo`` (the photo's exposure kept) or ``metered`` (relit photos and
+            time-lapse frames metered again; ``RelightSession.exposure``).
         force: overwrite existing outputs (else finished photos are skipped).
         threads: onnxruntime threads per worker (None: onnxruntime's default).
     """
@@ -98,6 +100,7 @@ class BatchOptions:
     frames: int = 48
     easing: str = "ease-in-out"
     fps: float = 12.0
+    exposure: str = "photo"
     size: str = "1080p"
     force: bool = False
     threads: int | None = None
@@ -605,6 +608,7 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
         result.to_sun = to_sun
     session = RelightSession(registry=_registry(options.threads), preset=options.preset,
                              mode=options.mode)
+    session.exposure = options.exposure
     depth = read_depth(depth_path) if depth_path else None
     if depth is None:
         width, height = loaded.original_size

@@ -55,6 +55,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     photo_shadow_probability,
 )
 from outcast_core.runtime.pipeline.relight import (
+    EXPOSURES,
     LIFT_COLOUR_SIGMA,
     LIFT_PRIOR_RADIUS,
     LIFT_SHADE_SHIFT,
@@ -62,6 +63,7 @@ from outcast_core.runtime.pipeline.relight import (
     estimate_light,
     glare_gone_full,
     guard_learned_relight,
+    meter_exposure,
     original_share,
     physics_relight,
     remove_sun_glare,
@@ -260,6 +262,7 @@ class RelightSession:
         #: puts a shadow (:meth:`_lift_guard`), and no brighter than the de-shadowed photo
         #: relit by physics (:meth:`_lift_inputs`; measured in that docstring).
         self.lift_new_light = True
+        self._exposure = "photo"
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
         shadow_mode = shadow_mode or {"classic": "direct"}.get(mode, mode)
@@ -293,6 +296,22 @@ class RelightSession:
         self.original_sun: np.ndarray | None = None
         self.original_shadow: np.ndarray | None = None
         self._reset_working()
+
+    @property
+    def exposure(self) -> str:
+        """How relit photos are exposed: ``"photo"``, the photo's exposure kept (the light
+        changes, the camera does not: a scene put in shade comes out dark), or ``"metered"``,
+        exposed again as a camera meters the new light
+        (:func:`~outcast_core.runtime.pipeline.relight.meter_exposure`). Relit images are
+        cached per exposure; setting it takes no lock (the app sets it while a relighting
+        runs), and a relighting already started keeps the exposure it started with."""
+        return self._exposure
+
+    @exposure.setter
+    def exposure(self, mode: str) -> None:
+        if mode not in EXPOSURES:
+            raise ValueError(f"expected exposure {' or '.join(EXPOSURES)}, got {mode!r}")
+        self._exposure = mode
 
     # ------------------------------------------------------------------ set-up
     def _resolve(self, requested: str, model: str, classic: str) -> str:
@@ -691,12 +710,14 @@ class RelightSession:
         and the result is moved onto the working-size photo (sharp, but its shading coarser;
         quantised to 8 bits, as it is for the screen).
         """
-        key = (_key(w_new), preview, self.preset.name)
+        exposure = self._exposure
+        key = (_key(w_new), preview, self.preset.name, exposure)
         with self._lock:
             self._require_image()
             if self.original_sun is None or self.original_shadow is None:
                 raise RuntimeError("set_original_sun() must be called before relight()")
-            return self._relight_cache.get_or(key, lambda: self._compute_relight(w_new, preview))
+            return self._relight_cache.get_or(
+                key, lambda: self._compute_relight(w_new, preview, exposure))
 
     def _relight_preview_state(self) -> dict[str, Any]:
         """Everything the step-2 drag preview needs that the new sun does not change, at the
@@ -763,7 +784,7 @@ class RelightSession:
             if self.relight_mode == "learned":
                 self.registry.load("relight", threads=PREVIEW_THREADS)
 
-    def _compute_relight_preview(self, wv: np.ndarray) -> np.ndarray:
+    def _compute_relight_preview(self, wv: np.ndarray, exposure: str) -> np.ndarray:
         """The step-2 drag preview: only what the new sun changes (its shadow, the relighting
         network) runs, at ``relight_preview_size``; the gain it makes is moved onto the
         working-size photo (:func:`~outcast_core.runtime.geometry.fullres.apply_gain`)."""
@@ -802,19 +823,21 @@ class RelightSession:
         relit = toward_photo(image, relit, share)
         relit = self._without_old_sun(relit, st["sky"], self.sun_seen, st["camera"], wv,
                                       st["camera"].width / self.camera.width)
+        if exposure == "metered":
+            relit = meter_exposure(image, relit)
         relit = self._in_photo_colours(relit)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
                                           threads=1)
         self._time("relight_preview", t1)
         return out.astype(np.float32) * np.float32(1.0 / 255.0)  # 8 bits: it is for the screen
 
-    def _compute_relight(self, w_new: Any, preview: bool) -> np.ndarray:
+    def _compute_relight(self, w_new: Any, preview: bool, exposure: str) -> np.ndarray:
         wv = normalize_sun(w_new)
         if preview:
-            return self._compute_relight_preview(wv)
+            return self._compute_relight_preview(wv, exposure)
         s_new = self.shadow(wv)
         t0 = time.perf_counter()
-        img = self._relight_from(self._working_inputs(), wv, s_new)
+        img = self._relight_from({**self._working_inputs(), "exposure": exposure}, wv, s_new)
         self._time("relight", t0)
         return img
 
@@ -827,7 +850,7 @@ class RelightSession:
             "sampler": self._sampler, "original_sun": self.original_sun,
             "original_shadow": self.original_shadow, "light": self._light,
             "original_geometry": self._original_geometry, "preset": self.preset,
-            "sun_seen": self.sun_seen, "greyscale": self.greyscale,
+            "sun_seen": self.sun_seen, "greyscale": self.greyscale, "exposure": self._exposure,
         }
 
     def _relight_from(
@@ -862,6 +885,8 @@ class RelightSession:
         img = toward_photo(image, img, share)
         # Last, on the blend too: near the original sun the photo's own sun must not stay.
         img = self._without_old_sun(img, inp["sky"], inp["sun_seen"], inp["camera"], wv, 1.0)
+        if inp["exposure"] == "metered":
+            img = meter_exposure(image, img)
         return self._in_photo_colours(img, inp["greyscale"]).astype(np.float32)
 
     def _in_photo_colours(self, img: np.ndarray, greyscale: bool | None = None) -> np.ndarray:
@@ -1005,7 +1030,7 @@ class RelightSession:
 
         def cached(wv: np.ndarray) -> np.ndarray | None:
             with self._lock:
-                return self._relight_cache.get((_key(wv), False, preset))
+                return self._relight_cache.get((_key(wv), False, preset, inp["exposure"]))
 
         def shadow_of(wv: np.ndarray) -> np.ndarray | None:
             if cached(wv) is not None:

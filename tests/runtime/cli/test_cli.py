@@ -65,6 +65,28 @@ def test_relight_full_resolution_and_no_overwrite(photo: Path, tmp_path: Path, c
     assert main(args + ["--force"]) == 0
 
 
+def test_relight_metered_exposure(photo: Path, depth_file: Path, tmp_path: Path,
+                                  monkeypatch) -> None:
+    """``--exposure metered`` sets the session's exposure (and nothing else changes)."""
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    seen = []
+    real = RelightSession.relight_full
+
+    def spy(self, w, **kw):
+        seen.append(self.exposure)
+        return real(self, w, **kw)
+
+    monkeypatch.setattr(RelightSession, "relight_full", spy)
+    common = ["relight", str(photo), "--from", "120,40", "--to", "250,30", "--depth",
+              str(depth_file), "--fov", "30", "-q"]
+    assert main([*common, "-o", str(tmp_path / "a.png")]) == 0
+    assert main([*common, "--exposure", "metered", "-o", str(tmp_path / "b.png")]) == 0
+    assert seen == ["photo", "metered"]
+    with pytest.raises(SystemExit):
+        main([*common, "--exposure", "auto", "-o", str(tmp_path / "c.png")])
+
+
 @pytest.mark.parametrize(
     ("argv", "message"),
     [

@@ -518,3 +518,26 @@ def test_restore_detail_makes_the_photos_bands_once_per_cache() -> None:
     assert made[1] is first  # made once, for the first sun
     restore_detail(photo, photo, s_o, s_o, sky, None, cache=cache)
     assert cache["bands"] is not first and cache["bands"][2] is None
+
+
+def test_meter_exposure_brings_the_frame_to_the_photos_level_and_keeps_the_pattern() -> None:
+    """A scene the new sun leaves in shade is metered up as a camera would: one gain for the
+    whole frame, so the light's pattern (a new shadow against lit ground, the sky) is kept."""
+    from outcast_core.runtime.geometry.colour import linear_to_srgb, luminance, srgb_to_linear
+    from outcast_core.runtime.pipeline.relight import METER_RANGE, meter_exposure
+
+    rng = np.random.default_rng(3)
+    lin = (0.2 + 0.1 * rng.random((40, 60, 3))).astype(np.float32)
+    lin[:8] = 0.5  # a sky
+    photo = linear_to_srgb(lin)
+    relit_lin = lin * 0.2  # the whole frame put in shade ...
+    relit_lin[20:, 30:] *= 0.5  # ... with a new shadow in it
+    out = srgb_to_linear(meter_exposure(photo, linear_to_srgb(relit_lin)))
+    assert np.mean(luminance(out)) == pytest.approx(np.mean(luminance(lin)), rel=1e-3)
+    ratio = luminance(out) / luminance(relit_lin)
+    assert np.ptp(ratio) < 1e-3 * ratio.mean()  # one gain: the pattern is kept
+    # The gain is bounded: a black relighting is not blown up into noise.
+    dark = srgb_to_linear(meter_exposure(photo, linear_to_srgb(lin * 1e-4)))
+    assert np.mean(luminance(dark)) == pytest.approx(
+        np.mean(luminance(lin)) * 1e-4 * METER_RANGE[1], rel=0.05)
+    assert np.allclose(meter_exposure(photo, photo), photo, atol=1e-5)

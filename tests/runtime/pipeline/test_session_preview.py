@@ -208,3 +208,34 @@ def test_the_original_share_fades_out_at_the_fade_angle() -> None:
 
     assert original_share(np.array(W_O), _turned(W_O, ORIGINAL_FADE_DEG + 1.0)) == 0.0
     assert 0.0 < original_share(np.array(W_O), _turned(W_O, ORIGINAL_FADE_DEG / 2)) < 1.0
+
+
+@pytest.mark.parametrize("mode", ["classic", "learned"])
+def test_metered_exposure_in_every_relighting_cached_per_exposure(scene, mode) -> None:
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+
+    image, depth = scene
+    s = RelightSession(preset="fast", mode=mode)
+    s.set_image(image, depth=depth)
+    s.set_original_sun(W_O)
+    w = SUNS[2]
+    fixed = s.relight(w)
+    assert s.exposure == "photo"
+    with pytest.raises(ValueError, match="exposure"):
+        s.exposure = "auto"
+    s.exposure = "metered"
+    metered = s.relight(w)
+    assert metered is not fixed  # the cached fixed-exposure image is not returned
+
+    def level(img: np.ndarray) -> float:
+        return float(np.mean(np.minimum(luminance(srgb_to_linear(img)), 1.0)))
+
+    assert level(metered) == pytest.approx(level(s.image_srgb), rel=0.02)
+    stream = list(s.relight_stream([w]))[0]
+    assert np.allclose(stream, metered, atol=2e-3)
+    preview = s.relight(w, preview=True)
+    assert level(preview) == pytest.approx(level(s.image_srgb), rel=0.05)
+    full = s.relight_full(w)
+    assert full.shape == metered.shape and np.allclose(full, metered, atol=2e-3)
+    s.exposure = "photo"
+    assert np.allclose(s.relight(w), fixed)
