@@ -239,6 +239,7 @@ class MainWindow(QMainWindow):
         self._pending_record_from: EditState | None = None
         self._job_fraction: dict[int, float] = {}  # last progress of each running job
         self._saved_exports: dict[int, str] = {}  # the file each finished export job wrote
+        self._exposure_hint = ""  # said after "Ready" when the new light changes the level a lot
         self._close_without_asking = False
 
         self.runner = TaskRunner(self)
@@ -1313,7 +1314,12 @@ class MainWindow(QMainWindow):
                 relit = (session.relight(w, preview=True) if preview
                          else session.relight_full(w, dtype=np.uint8))
                 img = display.to_uint8_rgb(relit)
-                return {"view": view, "image": img, "preview": preview,
+                level = None  # how much the new light changes the level at the photo's exposure
+                if not preview and session.exposure == "photo":
+                    from outcast_core.runtime.pipeline.relight import exposure_level
+
+                    level = exposure_level(session.image_srgb, session.relight(w))  # cached
+                return {"view": view, "image": img, "preview": preview, "level": level,
                         "timings": _timings(session)}  # fmt: skip
             bufs = session.buffers(w)
             tiles = {k: display.buffer_to_rgb(k, v, session.sky) for k, v in bufs.items()}
@@ -1394,6 +1400,7 @@ class MainWindow(QMainWindow):
             self._show_deshadow(view)
             return
         if view == "output":
+            self._exposure_hint = exposure_hint(result.get("level"))
             if self.canvas.before() is not self._photo_qimage and self._photo_qimage is not None:
                 self.canvas.set_image(self._photo_qimage, fit=False)
             self.canvas.set_overlay(None)
@@ -1770,6 +1777,8 @@ class MainWindow(QMainWindow):
                 text = f"Ready · {words.lower()} took {seconds:.2f} s"
                 if channel == "shadow" and self._held_message:
                     text, self._held_message = self._held_message, ""
+                if channel == "relight" and self._exposure_hint:
+                    text += f" · {self._exposure_hint}"
             self.stage_label.setText(text)
 
     @Slot(int, str, object)
@@ -1901,6 +1910,29 @@ class MainWindow(QMainWindow):
 
 
 __all__ = ["MainWindow", "VIEW_CHOICES"]
+
+
+#: :func:`exposure_hint`: a relit photo this many times darker or brighter than the photo (at
+#: the photo's exposure) gets the hint to meter the new light.
+EXPOSURE_HINT_FACTOR = 2.0
+
+
+def exposure_hint(level: float | None) -> str:
+    """What the status line says when, at the photo's exposure, the new light makes the scene
+    much darker or brighter (``level``: :func:`~outcast_core.runtime.pipeline.relight.
+    exposure_level`); "" otherwise.
+
+    Example:
+        >>> exposure_hint(0.2).split(":")[0]
+        "at the photo's exposure the new light makes the scene 5.0× darker"
+        >>> exposure_hint(1.3)
+        ''
+    """
+    if level is None or 1.0 / EXPOSURE_HINT_FACTOR < level < EXPOSURE_HINT_FACTOR:
+        return ""
+    factor, way = (1.0 / max(level, 1e-6), "darker") if level < 1.0 else (level, "brighter")
+    return (f"at the photo's exposure the new light makes the scene {factor:.1f}× {way}: "
+            "\"Meter the new light\" exposes it as a camera would")
 
 
 def process_until_idle(window: MainWindow, timeout: float = 120.0, poll: float = 0.002) -> None:

@@ -223,6 +223,22 @@ def test_metering_the_new_light_is_undoable_and_saved(qtbot, window, photo, sett
     assert not other.has_unsaved_changes()
 
 
+def test_a_much_darker_relit_scene_points_to_metering(window, photo, settle, monkeypatch):
+    from outcast_core.runtime.pipeline import relight
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    monkeypatch.setattr(relight, "exposure_level", lambda image, relit: 0.2)
+    window.relight_panel.sun_panel.set_sun(200.0, 15.0)
+    window.request_relight(preview=False)
+    settle()
+    text = window.stage_label.text()
+    assert text.startswith("Ready") and "5.0× darker" in text and "Meter the new light" in text
+    window.relight_panel.meter_check.setChecked(True)  # metered: nothing to point to
+    settle()
+    assert "darker" not in window.stage_label.text()
+
+
 def test_timelapse_settings_count_as_unsaved_work(window, photo, settle):
     """Opening the time-lapse dialog changes nothing; editing its settings does, until the
     project is saved; editing them back is clean again."""

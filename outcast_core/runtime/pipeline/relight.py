@@ -662,11 +662,18 @@ def meter_exposure(image_srgb: np.ndarray, relit_srgb: np.ndarray) -> np.ndarray
         ``H x W x 3`` sRGB float32.
     """
     lin_r = srgb_to_linear(np.asarray(relit_srgb, np.float32))
-    y_photo = np.minimum(luminance(srgb_to_linear(np.asarray(image_srgb, np.float32))), 1.0)
-    y_relit = np.minimum(luminance(lin_r), 1.0)
-    gain = float(np.mean(y_photo)) / max(float(np.mean(y_relit)), 1e-4)
+    gain = 1.0 / max(exposure_level(image_srgb, relit_srgb), 1e-6)
     gain = float(np.clip(gain, *METER_RANGE))
     return linear_to_srgb(np.minimum(lin_r * np.float32(gain), 1.0))
+
+
+def exposure_level(image_srgb: np.ndarray, relit_srgb: np.ndarray) -> float:
+    """The relit photo's overall level over the photo's, as a camera's meter reads them: the
+    mean linear luminance of each (clipped at 1) over the whole frame (1: as bright; 0.2: a
+    scene put in shade at the photo's exposure)."""
+    y_photo = np.minimum(luminance(srgb_to_linear(np.asarray(image_srgb, np.float32))), 1.0)
+    y_relit = np.minimum(luminance(srgb_to_linear(np.asarray(relit_srgb, np.float32))), 1.0)
+    return float(np.mean(y_relit)) / max(float(np.mean(y_photo)), 1e-4)
 
 
 #: :func:`restore_detail`: Gaussian sigma (fraction of the longer side) of the finest scale a
