@@ -592,7 +592,7 @@ class MainWindow(QMainWindow):
             if state.heading != self.user_heading:
                 self.set_user_heading(state.heading)
             if state.exposure != self.relight_panel.exposure():
-                self.set_exposure(state.exposure)
+                self.set_exposure(state.exposure, refresh=False)  # relit below, once
             if state.preset != self.preset:
                 self.set_preset(state.preset)
             self.relight_panel.sun_panel.set_sun(*state.target_sun)
@@ -750,7 +750,9 @@ class MainWindow(QMainWindow):
         record_from, self._pending_record_from = self._pending_record_from, None
         old_path = self.image_path
         self.session = result["session"]
-        self.session.exposure = self.relight_panel.exposure()  # a project's: _apply_project
+        if restore is None:  # another photo: the photo's own exposure (a project's: below)
+            self.relight_panel.set_exposure("photo")
+        self.session.exposure = self.relight_panel.exposure()
         self.loaded = result["loaded"]
         self._set_camera_tilt(result.get("tilt", LEVEL_TILT))
         self.depth_path = result.get("depth_path", "")
@@ -762,12 +764,13 @@ class MainWindow(QMainWindow):
             # Its place, day, heading and size were the last photo's (a user trial changed
             # them and saved them into the new photo's settings): it is opened again for this
             # one once its sun is confirmed.
-            self._timelapse_dialog.hide()
+            self._timelapse_dialog.set_stale()
         if project is None:  # a project opened from the menu is already the recent entry
             self.recent.add(self.image_path)
             self._save_recent()
         self._photo_qimage = qimage_from_array(result["photo"])
         self._deshadow_key = self._deshadow_images = None
+        self._exposure_hint = ""
         self._loads += 1
         self.canvas.set_image(self._photo_qimage)
         self.original_sun = None
@@ -822,15 +825,24 @@ class MainWindow(QMainWindow):
             self.timings_label.setText("")
             self.timings_label.setToolTip("How long each stage took, last run")
             self.relight_panel.sun_panel.dial.set_reference(None)
-            if project is None:
-                seen = getattr(self.session, "sun_seen", None)  # the sun the photo shows
-                if seen is not None:  # exact, whatever the compass says
-                    az, el = sun_angles(seen.w)
-                    seen_sun = (az, dm.clamp_elevation(el))
-                    seen_heading = self._heading_from_seen_sun(az, el)
-                else:
+            seen = getattr(self.session, "sun_seen", None)  # the sun the photo shows
+            if seen is not None:  # exact, whatever the compass says
+                az, el = sun_angles(seen.w)
+                seen_sun = (az, dm.clamp_elevation(el))
+                # (a project's heading replaces it below; the note under the EXIF button
+                # still says where it came from when they agree)
+                seen_heading = self._heading_from_seen_sun(az, el)
+            # A project keeps its own sun: the confirmed one, or the step-1 dial's (saved
+            # before confirming); older projects without the latter start as a photo does.
+            fresh = project is None or (project.original_sun is None
+                                        and project.align_sun is None)
+            if fresh:
+                if seen_sun is None:
                     exif_sun = self.exif_sun()
                 self.align_panel.sun_panel.set_sun(*(seen_sun or exif_sun or DEFAULT_SUN))
+            else:
+                seen_sun = None  # not where the dial starts: not said
+            if project is None:
                 self.relight_panel.sun_panel.set_sun(*DEFAULT_SUN)
         self._applying_edit = True
         try:
@@ -983,15 +995,21 @@ class MainWindow(QMainWindow):
         self.set_exposure(mode)
         self._record()
 
-    def set_exposure(self, mode: str) -> None:
-        """How relit photos are exposed (``"photo"`` or ``"metered"``): the checkbox, the
-        session (relit images are cached per exposure, so no lock is waited for) and the view."""
+    def set_exposure(self, mode: str, refresh: bool = True) -> None:
+        """How relit photos are exposed (``"photo"`` or ``"metered"``): the checkbox and the
+        session (relit images are cached per exposure, so no lock is waited for); with
+        ``refresh``, the relit view and an open time-lapse preview are drawn again. Jobs take
+        the exposure shown when they are asked for, not when they run."""
         if self.relight_panel.exposure() != mode:
             self.relight_panel.set_exposure(mode)
         if self.session is not None:
             self.session.exposure = mode
-        if self.step is Step.RELIGHT:
-            self.request_relight(preview=False)
+        if not refresh or self.step is not Step.RELIGHT:
+            return
+        self.request_relight(preview=False)
+        dialog = self._timelapse_dialog
+        if dialog is not None and dialog.isVisible():
+            dialog.refresh_preview()
 
     @Slot(object)
     def _on_heading_typed(self, heading: float | None) -> None:
@@ -1139,6 +1157,8 @@ class MainWindow(QMainWindow):
         self.session.exposure = project.exposure
         if project.original_sun is not None:
             self.align_panel.sun_panel.set_sun(*project.original_sun.as_tuple())
+        elif project.align_sun is not None:  # saved in step 1, before confirming
+            self.align_panel.sun_panel.set_sun(*project.align_sun.as_tuple())
         if project.target_sun is not None:
             self.relight_panel.sun_panel.set_sun(*project.target_sun.as_tuple())
         if project.original_sun is not None:
@@ -1305,20 +1325,22 @@ class MainWindow(QMainWindow):
             return self.request_deshadow()
         if az is None or el is None:
             az, el = self.relight_panel.sun_panel.sun()
+        exposure = self.relight_panel.exposure()
 
         def job(ctx: JobContext) -> dict[str, Any]:
             w = sun_vector(az, el)
             if view == "output":
                 # While dragging: the working-size preview. On release: full resolution, so the
                 # relit side of the split is as sharp as the photo.
-                relit = (session.relight(w, preview=True) if preview
-                         else session.relight_full(w, dtype=np.uint8))
+                relit = (session.relight(w, preview=True, exposure=exposure) if preview
+                         else session.relight_full(w, dtype=np.uint8, exposure=exposure))
                 img = display.to_uint8_rgb(relit)
                 level = None  # how much the new light changes the level at the photo's exposure
-                if not preview and session.exposure == "photo":
+                if not preview and exposure == "photo":
                     from outcast_core.runtime.pipeline.relight import exposure_level
 
-                    level = exposure_level(session.image_srgb, session.relight(w))  # cached
+                    level = exposure_level(session.image_srgb,
+                                           session.relight(w, exposure=exposure))  # cached
                 return {"view": view, "image": img, "preview": preview, "level": level,
                         "timings": _timings(session)}  # fmt: skip
             bufs = session.buffers(w)
@@ -1389,6 +1411,7 @@ class MainWindow(QMainWindow):
         view = result["view"]
         if view != self.relight_panel.view():
             return  # the user chose another view since; its own request is on the way
+        self._exposure_hint = ""  # said only after the relit photo it is about
         if view in DESHADOW_VIEWS:
             if result["key"] != self._deshadow_key_now():
                 return  # for a photo, sun or preset that has changed since
@@ -1400,7 +1423,8 @@ class MainWindow(QMainWindow):
             self._show_deshadow(view)
             return
         if view == "output":
-            self._exposure_hint = exposure_hint(result.get("level"))
+            self._exposure_hint = "" if result.get("preview") else exposure_hint(
+                result.get("level"))
             if self.canvas.before() is not self._photo_qimage and self._photo_qimage is not None:
                 self.canvas.set_image(self._photo_qimage, fit=False)
             self.canvas.set_overlay(None)
@@ -1460,10 +1484,12 @@ class MainWindow(QMainWindow):
         if session is None or self.step is not Step.RELIGHT:
             return None
         w = sun_vector(*self.relight_panel.sun_panel.sun())
+        exposure = self.relight_panel.exposure()  # as asked, whatever is ticked later
         bits = output_bit_depth(path, getattr(self.loaded, "bit_depth", 8))
         dtype = np.float32 if bits == 16 else np.uint8
         return self._export_image(
-            "export_still", path, force, lambda: session.relight_full(w, dtype=dtype),
+            "export_still", path, force,
+            lambda: session.relight_full(w, dtype=dtype, exposure=exposure),
             "relighting at full resolution",
         )  # fmt: skip
 
@@ -1638,7 +1664,8 @@ class MainWindow(QMainWindow):
 
     # ================================================================== projects
     def project_state(self) -> ProjectState:
-        if self._timelapse_dialog is not None:
+        self._commit_typed_fields()
+        if self._timelapse_dialog is not None and self._timelapse_dialog.is_current():
             self.timelapse_settings = self._timelapse_dialog.settings()
         return ProjectState(
             image_path=self.image_path,
@@ -1646,6 +1673,7 @@ class MainWindow(QMainWindow):
             depth_source=str(getattr(self.session, "depth_source", "")),
             depth_path=self.depth_path,
             original_sun=self.original_sun,
+            align_sun=Sun(*self.align_panel.sun_panel.sun()),
             target_sun=Sun(*self.relight_panel.sun_panel.sun()) if self.original_sun else None,
             overlay_opacity=self.align_panel.opacity_slider.value() / 100.0,
             split=self.relight_panel.split_slider.value() / 100.0,
@@ -1654,6 +1682,16 @@ class MainWindow(QMainWindow):
             heading=self.user_heading,
             exposure=self.relight_panel.exposure(),
         )
+
+    def _commit_typed_fields(self) -> None:
+        """Take in a number still being typed (a spin box commits on Enter or when it loses the
+        focus; a toolbar button takes no focus): the camera heading and both suns' fields.
+        Without it "Save project" from the toolbar saved the heading box's old value, and
+        quitting asked nothing (a user trial)."""
+        panels = (self.align_panel.sun_panel, self.relight_panel.sun_panel)
+        for box in (self.align_panel.heading_box,
+                    *(b for p in panels for b in (p.azimuth_box, p.elevation_box))):
+            box.interpretText()
 
     def save_project(self, path: str | None = None) -> str | None:
         if not self.image_path:
@@ -1875,6 +1913,7 @@ class MainWindow(QMainWindow):
             user chose); False to stay.
         """
         name = project_path_for(self.image_path).name if self.image_path else ""
+        self._commit_typed_fields()
         questions = leave_questions(
             action, self.running_exports(), self.has_unsaved_changes(), name
         )
@@ -1886,8 +1925,15 @@ class MainWindow(QMainWindow):
             if answer == STOP:
                 for channel in EXPORT_CHANNELS:
                     self.runner.cancel(channel)
-                # An export may have finished while the question was open: say it was saved.
-                done = [self._saved_exports[i] for i in sorted(asked) if i in self._saved_exports]
+                # An export may have finished while the question was open, or finish now
+                # (past its last cancellation point, it writes): wait for each one's outcome,
+                # and say which were saved.
+                end = time.monotonic() + STOP_WAIT_S
+                while time.monotonic() < end and asked & {i for i, _, _ in self.runner.active()}:
+                    QApplication.processEvents()
+                    time.sleep(0.01)
+                done = [self._saved_exports.pop(i) for i in sorted(asked)
+                        if i in self._saved_exports]
                 if done:
                     self.ask(finished_before_stop_notice(done))
             elif answer == SAVE and self.save_project() is None:
@@ -1911,6 +1957,10 @@ class MainWindow(QMainWindow):
 
 __all__ = ["MainWindow", "VIEW_CHOICES"]
 
+
+#: :meth:`MainWindow.confirm_leave`: how long "Stop export" waits for the stopped exports'
+#: outcomes (one past its last cancellation point still writes its file) before going on.
+STOP_WAIT_S = 10.0
 
 #: :func:`exposure_hint`: a relit photo this many times darker or brighter than the photo (at
 #: the photo's exposure) gets the hint to meter the new light.

@@ -170,6 +170,8 @@ class ProjectState:
     depth_source: str = ""  # e.g. "model:depth v1" or "direct"; informative
     depth_path: str = ""  # a depth map from elsewhere (phone, another estimator), if loaded
     original_sun: Sun | None = None
+    #: Where step 1's dial stands (what a project saved before "Confirm sun" reopens with).
+    align_sun: Sun | None = None
     target_sun: Sun | None = None
     overlay_opacity: float = 0.6
     split: float = 0.5
@@ -202,6 +204,7 @@ class ProjectState:
             "depth_source": self.depth_source,
             "depth_path": _relative(self.depth_path, relative_to),
             "original_sun": asdict(self.original_sun) if self.original_sun else None,
+            "align_sun": asdict(self.align_sun) if self.align_sun else None,
             "target_sun": asdict(self.target_sun) if self.target_sun else None,
             "overlay_opacity": self.overlay_opacity,
             "split": self.split,
@@ -240,6 +243,7 @@ class ProjectState:
             depth_source=_text(d, "depth_source"),
             depth_path=_absolute(_text(d, "depth_path"), base),
             original_sun=_named(Sun.from_any, d.get("original_sun"), "original_sun"),
+            align_sun=_named(Sun.from_any, d.get("align_sun"), "align_sun"),
             target_sun=_named(Sun.from_any, d.get("target_sun"), "target_sun"),
             overlay_opacity=_fraction(d.get("overlay_opacity", 0.6), "overlay_opacity"),
             split=_fraction(d.get("split", 0.5), "split"),

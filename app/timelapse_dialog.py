@@ -470,9 +470,25 @@ class TimelapseDialog(QDialog):
         """The current sun path (ValueError when the settings are incomplete)."""
         return samples_for(self.settings(), self.main.camera_tilt[:2])
 
+    def is_current(self) -> bool:
+        """Whether the widgets hold the open photo's settings (not before :meth:`load_settings`,
+        nor once :meth:`set_stale` said another photo was opened)."""
+        return self._ready
+
+    def set_stale(self) -> None:
+        """Another photo was opened: hidden, and its widgets (the last photo's place, day,
+        heading) no longer read or written back until :meth:`load_settings` (a review found a
+        hidden dialog writing one photo's settings into the next photo's project)."""
+        self.hide()
+        self._ready = False
+
     def refresh_path(self) -> None:
         """Recompute the sun path (the photo's camera tilt has changed)."""
         self._settings_changed()
+
+    def refresh_preview(self) -> None:
+        """Draw the shown frame again (the exposure has changed)."""
+        self._on_scrub(self.scrubber.value())
 
     def _on_daylight_toggled(self, checked: bool) -> None:
         self.start_edit.setEnabled(not checked)
@@ -550,8 +566,11 @@ class TimelapseDialog(QDialog):
             return
         w = tl.sun_vectors([s])[0]
 
+        exposure = self.main.relight_panel.exposure()  # as the user sees it now
+
         def job(ctx: JobContext) -> dict[str, Any]:
-            return {"index": index, "image": display.to_uint8_rgb(session.relight(w, preview=True))}
+            return {"index": index, "image": display.to_uint8_rgb(
+                session.relight(w, preview=True, exposure=exposure))}
 
         self.main.runner.submit("tl_preview", job, "Rendering time-lapse frame")
 
@@ -608,10 +627,12 @@ class TimelapseDialog(QDialog):
             self.main.show_error(IsADirectoryError(problem), "export")
             return None
 
+        exposure = self.main.relight_panel.exposure()  # as asked, whatever is ticked later
+
         def job(ctx: JobContext) -> dict[str, Any]:
             out = tl.render_timelapse(
                 session, samples, path, fps=fps, size=size, fmt=fmt, force=force,
-                progress=ctx.progress, cancel=ctx.cancel_event,
+                progress=ctx.progress, cancel=ctx.cancel_event, exposure=exposure,
             )  # fmt: skip
             return {"path": str(out), "frames": len(samples), "timings": dict(session.timings)}
 
@@ -661,5 +682,6 @@ class TimelapseDialog(QDialog):
             self.status.setText(f"Export failed: {exc}")
 
     def closeEvent(self, event: QCloseEvent) -> None:
-        self.main.set_timelapse_settings(self.settings())
+        if self._ready:
+            self.main.set_timelapse_settings(self.settings())
         super().closeEvent(event)

@@ -223,6 +223,34 @@ def test_metering_the_new_light_is_undoable_and_saved(qtbot, window, photo, sett
     assert not other.has_unsaved_changes()
 
 
+def test_jobs_take_the_exposure_shown_when_asked_and_a_new_photo_starts_unmetered(
+        window, photo, settle, tmp_path, monkeypatch):
+    """An export asked for unmetered stays unmetered when the box is ticked before it runs
+    (a user trial's file came out metered); another photo opens at its own exposure."""
+    from tests.app.conftest import make_photo
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    session = window.session
+    asked = []
+    real = session.relight_full
+
+    def spy(w, **kw):
+        asked.append(kw.get("exposure"))
+        return real(w, **kw)
+
+    monkeypatch.setattr(session, "relight_full", spy)
+    window.export_still(str(tmp_path / "still.png"))
+    window.relight_panel.meter_check.setChecked(True)  # before the export has run
+    settle()
+    assert asked[0] == "photo" and "metered" in asked[1:]  # the export, then the view
+    other = make_photo(tmp_path / "other.jpg")
+    window.open_path(str(other))
+    settle()
+    assert not window.relight_panel.meter_check.isChecked()
+    assert window.session.exposure == "photo"
+
+
 def test_a_much_darker_relit_scene_points_to_metering(window, photo, settle, monkeypatch):
     from outcast_core.runtime.pipeline import relight
 

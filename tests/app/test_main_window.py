@@ -18,7 +18,7 @@ from PySide6.QtCore import QMimeData, QPoint, QPointF, Qt, QUrl
 from PySide6.QtGui import QDropEvent, QImage
 
 from app import sun_dial_math as dm
-from app.state import Step, Sun, project_path_for
+from app.state import Step, Sun, load_project, project_path_for
 from outcast_core.runtime.pipeline.session import ground_plane_depth as _plain_ground
 
 
@@ -306,6 +306,78 @@ def test_project_save_and_reopen(qtbot, window, photo, settle, settings):
         assert (tls.kind, tls.frames, tls.format) == ("sweep", 7, "webp")
     finally:
         other.runner.shutdown()
+
+
+def test_a_project_saved_in_step_one_reopens_with_its_sun(qtbot, window, photo, settle,
+                                                           settings, tmp_path):
+    """Saved before "Confirm sun", a project keeps where the dial stands; reopened after
+    another photo, the dial shows it, not the other photo's sun (a user trial)."""
+    from app.main_window import MainWindow
+    from tests.app.conftest import make_photo
+
+    _load(window, photo, settle)
+    panel = window.align_panel.sun_panel
+    panel.azimuth_box.setValue(40.1)
+    panel.elevation_box.setValue(36.8)
+    saved = window.save_project()
+    assert load_project(saved).align_sun.as_tuple() == pytest.approx((40.1, 36.8))
+    other = make_photo(tmp_path / "other.jpg")
+    window.open_path(str(other))
+    settle()
+    panel.azimuth_box.setValue(273.5)
+    window.open_path(saved)
+    settle()
+    assert window.step is Step.ALIGN and panel.sun() == pytest.approx((40.1, 36.8))
+    fresh = MainWindow(settings=settings, preset="fast")
+    qtbot.addWidget(fresh)
+    try:
+        fresh.open_path(saved)
+        qtbot.waitUntil(lambda: fresh.step is Step.ALIGN and not fresh.runner.busy(),
+                        timeout=30000)
+        assert fresh.align_panel.sun_panel.sun() == pytest.approx((40.1, 36.8))
+        assert not fresh.has_unsaved_changes()
+    finally:
+        fresh.runner.shutdown()
+
+
+def test_a_hidden_timelapse_dialog_keeps_its_photos_settings_to_itself(window, photo, settle,
+                                                                       tmp_path,
+                                                                       leave_answers):
+    """Another photo opened while the dialog held the last photo's settings: they are neither
+    saved into the new photo's project nor written back (a review and a user trial)."""
+    from tests.app.conftest import make_photo
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    dialog = window.open_timelapse()
+    dialog.frames_box.setValue(77)
+    other = make_photo(tmp_path / "other.jpg")
+    window.open_path(str(other))
+    settle()
+    assert not dialog.isVisible() and not dialog.is_current()
+    assert window.project_state().timelapse.frames != 77
+    window.set_preset("balanced")  # refreshes the (hidden) dialog's path: nothing written back
+    settle()
+    assert window.timelapse_settings.frames != 77
+    _confirm(window, settle)
+    again = window.open_timelapse()
+    assert again.is_current() and again.frames_box.value() != 77
+
+
+def test_a_heading_being_typed_is_saved_and_asked_about(window, photo, settle,
+                                                        leave_answers):
+    """Typed but not committed (no Enter, no Tab) when Save is clicked on the toolbar: saved;
+    when quitting: asked about (a user trial lost it silently)."""
+    _load(window, photo, settle)
+    box = window.align_panel.heading_box
+    box.lineEdit().setText("250")  # as keys would, without committing
+    assert window.user_heading is None
+    saved = window.save_project()
+    assert load_project(saved).heading == pytest.approx(250.0)
+    box.lineEdit().setText("120")
+    leave_answers.script.append("cancel")
+    assert window.close() is False
+    assert leave_answers.asked[-1].title == "Save the changes to this photo?"
 
 
 def test_drop_opens_photo(window, photo, settle):

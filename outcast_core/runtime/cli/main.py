@@ -122,11 +122,16 @@ def _make_session(args: argparse.Namespace, *, shadow_mode: str, relight_mode: s
     return session
 
 
-def add_exposure_option(p: argparse.ArgumentParser) -> None:
+#: ``--exposure``'s choices: :data:`outcast_core.runtime.pipeline.relight.EXPOSURES` (a test
+#: keeps them equal; that module is not imported for ``--help``).
+EXPOSURE_CHOICES = ("photo", "metered")
+
+
+def add_exposure_option(p: argparse.ArgumentParser, help_text: str = "") -> None:
     """``--exposure``: the relit photo keeps the photo's exposure, or is metered again."""
-    p.add_argument("--exposure", choices=["photo", "metered"], default="photo",
-                   help="keep the photo's exposure (default: a scene the new sun puts in shade "
-                        "comes out dark), or meter the new light again as a camera would")
+    p.add_argument("--exposure", choices=EXPOSURE_CHOICES, default="photo",
+                   help=help_text or "keep the photo's exposure (default: a scene the new sun "
+                   "puts in shade comes out dark), or meter the new light again as a camera would")
 
 
 def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:

@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from outcast_core.runtime.cli.main import names_in
+from outcast_core.runtime.cli.main import add_exposure_option, names_in
 from outcast_core.runtime.pipeline.session import PRESETS
 
 
@@ -40,9 +40,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    help="relighting method for the relighting checks (default: the app's)")
     p.add_argument("--refine", choices=["photo", "learned"], default="photo",
                    help="how the photo's own shadows are found (default: the app's)")
-    p.add_argument("--exposure", choices=["photo", "metered"], default="photo",
-                   help="the relit photos' exposure for the relighting checks (default: the "
-                        "app's, the photo's own)")
+    add_exposure_option(p, "the relit photos' exposure for the relighting checks (default: "
+                           "the app's, the photo's own)")
     p.add_argument("--depth-model", default="",
                    help="an ONNX monocular depth model to use instead of the shipped Z "
                    "(README: depth from other estimators)")

@@ -303,9 +303,11 @@ def _jpeg_lacking_only_its_end(path: Path, fmt: str) -> bytes | None:
 
     Some writers leave the marker off; every block of the image is there, and viewers show
     it, but Pillow calls such a file truncated (a user trial's file was refused). Cut short,
-    a JPEG decodes with its missing blocks flat mid-grey (libjpeg zeroes their
+    a baseline JPEG decodes with its missing blocks flat mid-grey (libjpeg zeroes their
     coefficients), so the last block, decoded at 1/8 size (one pixel per 8 x 8 block, its
-    mean), tells: exactly (128, 128, 128) there is taken as cut short.
+    mean), tells: exactly (128, 128, 128) there is taken as cut short. A progressive JPEG
+    (its first scan holds every block's mean) or a CMYK one (zero is not mid-grey there)
+    cannot be told so: those stay refused (found by a review).
     """
     if fmt not in ("JPEG", "MPO"):
         return None
@@ -315,6 +317,9 @@ def _jpeg_lacking_only_its_end(path: Path, fmt: str) -> bytes | None:
     data += b"\xff\xd9"
     try:
         with _open_pil(path, data) as im:
+            if im.info.get("progressive") or im.info.get("progression") or (
+                    im.mode not in ("L", "RGB")):
+                return None
             im.draft("RGB", (max(1, im.width // 8), max(1, im.height // 8)))
             im.load()
             last = np.asarray(im.convert("RGB"))[-1, -1]

@@ -362,6 +362,7 @@ class SunFit:
             "measure": self.measure, "source": self.source, "note": self.note,
             "true_elevation": round(self.true_elevation, 2), "pitch": round(self.pitch, 2),
             "roll": round(self.roll, 2), "pose_source": self.pose_source,
+            "compass_decided": self.compass_decided,
             "evaluations": self.evaluations,
             "seconds": round(self.seconds, 3), "stage_seconds": self.stage_seconds,
             "candidates": [[round(a, 2), round(e, 2), round(s, 4)] for a, e, s in self.candidates],

@@ -358,6 +358,8 @@ def job_settings(job: BatchJob, options: BatchOptions) -> str:
         elif name == "sweep" and value is not None:
             value = [_sun_key(v) for v in value]
         keys[name] = value
+    if options.kind != "deshadow" and options.exposure != "photo":
+        keys["exposure"] = options.exposure  # (absent at the default: records made before it)
     image = Path(job.image)
     keys.update(photo=_file_key(image),
                 project=_file_key(image.with_name(image.stem + PROJECT_SUFFIX)),

@@ -637,6 +637,10 @@ def anchor_exposure(
 #: :func:`meter_exposure`'s gain is kept within these (a scene relit into full shade, about
 #: 1 / (1 + r) of its light, is metered up about 5x; beyond 8x noise and JPEG blocks show).
 METER_RANGE = (0.125, 8.0)
+#: :func:`meter_exposure`: where its highlight shoulder starts (linear): metered up, brighter
+#: values roll off toward white instead of clipping (the pool sample's sky metered x1.6 clipped
+#: on 10-12 % of the frame; a user trial).
+METER_KNEE = 0.6
 #: The exposure modes of a relighting (``RelightSession.exposure``, ``--exposure``): the photo's
 #: own, kept (what a camera set to manual would record; the default) or metered again.
 EXPOSURES = ("photo", "metered")
@@ -656,24 +660,34 @@ def meter_exposure(image_srgb: np.ndarray, relit_srgb: np.ndarray) -> np.ndarray
     grass and the fire engine in full shade read as shade photos at a normal exposure instead
     of nearly black; a median of log luminance instead of the mean over-exposed the fire
     engine's concrete; a gain on the surface alone (the sky kept) printed the sky mask's gaps
-    as dark blotches round the ski slope's chairlift.
+    as dark blotches round the ski slope's chairlift. Metered up, highlights roll off above
+    :data:`METER_KNEE` instead of clipping.
 
     Returns:
         ``H x W x 3`` sRGB float32.
     """
     lin_r = srgb_to_linear(np.asarray(relit_srgb, np.float32))
-    gain = 1.0 / max(exposure_level(image_srgb, relit_srgb), 1e-6)
+    gain = 1.0 / max(_metered(lin_r) / _metered(srgb_to_linear(image_srgb)), 1e-6)
     gain = float(np.clip(gain, *METER_RANGE))
-    return linear_to_srgb(np.minimum(lin_r * np.float32(gain), 1.0))
+    y = lin_r * np.float32(gain)
+    if gain > 1.0:  # a shoulder instead of clipping, faded in from gain 1 to 2 (continuous)
+        t = np.float32(min(gain - 1.0, 1.0))
+        k = np.float32(METER_KNEE)
+        soft = np.where(y > k, k + (1.0 - k) * (1.0 - np.exp(-(y - k) / (1.0 - k))), y)
+        y = (1.0 - t) * np.minimum(y, 1.0) + t * soft
+    return linear_to_srgb(np.minimum(y, 1.0))
+
+
+def _metered(lin: np.ndarray) -> float:
+    """What a camera's meter reads: the mean linear luminance, clipped at 1 (floor 1e-4)."""
+    return max(float(np.mean(np.minimum(luminance(lin), 1.0))), 1e-4)
 
 
 def exposure_level(image_srgb: np.ndarray, relit_srgb: np.ndarray) -> float:
-    """The relit photo's overall level over the photo's, as a camera's meter reads them: the
-    mean linear luminance of each (clipped at 1) over the whole frame (1: as bright; 0.2: a
-    scene put in shade at the photo's exposure)."""
-    y_photo = np.minimum(luminance(srgb_to_linear(np.asarray(image_srgb, np.float32))), 1.0)
-    y_relit = np.minimum(luminance(srgb_to_linear(np.asarray(relit_srgb, np.float32))), 1.0)
-    return float(np.mean(y_relit)) / max(float(np.mean(y_photo)), 1e-4)
+    """The relit photo's overall level over the photo's, as a camera's meter reads them over
+    the whole frame (1: as bright; 0.2: a scene put in shade at the photo's exposure)."""
+    return (_metered(srgb_to_linear(np.asarray(relit_srgb, np.float32)))
+            / _metered(srgb_to_linear(np.asarray(image_srgb, np.float32))))
 
 
 #: :func:`restore_detail`: Gaussian sigma (fraction of the longer side) of the finest scale a

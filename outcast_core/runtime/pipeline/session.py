@@ -309,9 +309,15 @@ class RelightSession:
 
     @exposure.setter
     def exposure(self, mode: str) -> None:
+        self._exposure = self._checked_exposure(mode)
+
+    def _checked_exposure(self, mode: str | None) -> str:
+        """``mode``, checked; :attr:`exposure` for None."""
+        if mode is None:
+            return self._exposure
         if mode not in EXPOSURES:
             raise ValueError(f"expected exposure {' or '.join(EXPOSURES)}, got {mode!r}")
-        self._exposure = mode
+        return mode
 
     # ------------------------------------------------------------------ set-up
     def _resolve(self, requested: str, model: str, classic: str) -> str:
@@ -702,15 +708,17 @@ class RelightSession:
         return self._light
 
     # ------------------------------------------------------------------ relighting
-    def relight(self, w_new: Any, *, preview: bool = False) -> np.ndarray:
+    def relight(self, w_new: Any, *, preview: bool = False,
+                exposure: str | None = None) -> np.ndarray:
         """The photo relit under ``w_new`` at working resolution (``H x W x 3`` sRGB).
 
         ``preview=True`` is for dragging the new sun: the new shadow and the relighting run at
         the preset's ``relight_preview_size`` on inputs prepared once per photo and original sun,
         and the result is moved onto the working-size photo (sharp, but its shading coarser;
-        quantised to 8 bits, as it is for the screen).
+        quantised to 8 bits, as it is for the screen). ``exposure``: this call's (default
+        :attr:`exposure`; the app passes the one the user saw when asking).
         """
-        exposure = self._exposure
+        exposure = self._checked_exposure(exposure)
         key = (_key(w_new), preview, self.preset.name, exposure)
         with self._lock:
             self._require_image()
@@ -1006,7 +1014,7 @@ class RelightSession:
             )
         return out.astype(np.float32)
 
-    def relight_stream(self, suns: Any) -> Iterator[np.ndarray]:
+    def relight_stream(self, suns: Any, exposure: str | None = None) -> Iterator[np.ndarray]:
         """:meth:`relight` for many suns in order (a time-lapse), two stages at once.
 
         The next sun's shadow is computed in a second thread while this sun's relighting
@@ -1016,6 +1024,7 @@ class RelightSession:
 
         Args:
             suns: ``N x 3`` sun directions (or a sequence of them).
+            exposure: as :meth:`relight`'s (taken when the stream starts).
 
         Yields:
             ``H x W x 3`` float32 sRGB at working resolution, one per sun.
@@ -1024,7 +1033,7 @@ class RelightSession:
             self._require_image()
             if self.original_sun is None or self.original_shadow is None:
                 raise RuntimeError("set_original_sun() must be called before relight_stream()")
-            inp = self._working_inputs()
+            inp = {**self._working_inputs(), "exposure": self._checked_exposure(exposure)}
             preset = self.preset.name
         suns = [normalize_sun(w) for w in suns]
 
@@ -1053,15 +1062,17 @@ class RelightSession:
                     continue
                 yield self._relight_from(inp, wv, s_new, PREVIEW_THREADS)
 
-    def relight_full(self, w_new: Any, *, dtype: type | np.dtype = np.float32) -> np.ndarray:
+    def relight_full(self, w_new: Any, *, dtype: type | np.dtype = np.float32,
+                     exposure: str | None = None) -> np.ndarray:
         """The photo relit under ``w_new`` at its full input resolution (detail transfer).
 
         Args:
             w_new: the new sun.
             dtype: ``np.float32`` (sRGB in [0, 1]) or ``np.uint8`` (for writing 8-bit files:
                 with an 8-bit photo no full-size float buffer is made at all).
+            exposure: as :meth:`relight`'s.
         """
-        relit = self.relight(w_new)  # (not under the lock: the drag preview goes on)
+        relit = self.relight(w_new, exposure=exposure)  # (not under the lock: the drag preview)
         t0 = time.perf_counter()
         with self._lock:
             out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit,

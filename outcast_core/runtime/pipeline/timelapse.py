@@ -1002,6 +1002,7 @@ def render_timelapse(
     force: bool = False,
     progress: ProgressFn | None = None,
     cancel: CancelCheck | None = None,
+    exposure: str | None = None,
 ) -> Path:
     """Relight ``session``'s photo along a sun path and write the frames.
 
@@ -1018,6 +1019,7 @@ def render_timelapse(
         force: overwrite an existing output.
         progress: ``(stage, fraction)`` callback.
         cancel: cancel check.
+        exposure: the frames' exposure (``RelightSession.relight``'s; default the session's).
 
     Returns:
         The written path.
@@ -1032,7 +1034,7 @@ def render_timelapse(
     # Two stages at once (the next sun's shadow while this one is relit), and each frame made
     # at its own size from the working-size result (never via full resolution).
     to_frame = _frame_maker(session, size)
-    stream = session.relight_stream(suns)
+    stream = session.relight_stream(suns, exposure=exposure)
 
     def render_frame(i: int) -> np.ndarray:
         return to_frame(next(stream), suns[i])

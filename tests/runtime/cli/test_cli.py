@@ -67,7 +67,7 @@ def test_relight_full_resolution_and_no_overwrite(photo: Path, tmp_path: Path, c
 
 def test_relight_metered_exposure(photo: Path, depth_file: Path, tmp_path: Path,
                                   monkeypatch) -> None:
-    """``--exposure metered`` sets the session's exposure (and nothing else changes)."""
+    """``--exposure metered`` reaches the session; other values are refused."""
     from outcast_core.runtime.pipeline.session import RelightSession
 
     seen = []
@@ -85,6 +85,10 @@ def test_relight_metered_exposure(photo: Path, depth_file: Path, tmp_path: Path,
     assert seen == ["photo", "metered"]
     with pytest.raises(SystemExit):
         main([*common, "--exposure", "auto", "-o", str(tmp_path / "c.png")])
+    from outcast_core.runtime.cli.main import EXPOSURE_CHOICES
+    from outcast_core.runtime.pipeline.relight import EXPOSURES
+
+    assert EXPOSURE_CHOICES == EXPOSURES
 
 
 @pytest.mark.parametrize(

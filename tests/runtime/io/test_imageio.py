@@ -395,6 +395,25 @@ def test_a_jpeg_lacking_only_its_end_marker_is_read(tmp_path: Path, subsampling:
     _check_error(cut, "truncated or corrupt")
 
 
+@pytest.mark.parametrize("kind", ["progressive", "cmyk"])
+def test_a_cut_progressive_or_cmyk_jpeg_stays_refused(tmp_path: Path, kind: str) -> None:
+    """Their last block does not turn mid-grey when cut short (a progressive JPEG's first
+    scan holds every block's mean): the end-marker test cannot tell them, so they are refused
+    as before, whole or cut (found by a review: a progressive file cut at half was read)."""
+    im = Image.fromarray((_noise_image(64, 96) * 255).round().astype(np.uint8))
+    whole = tmp_path / "whole.jpg"
+    if kind == "progressive":
+        im.save(whole, quality=90, progressive=True)
+    else:
+        im.convert("CMYK").save(whole, quality=90)
+    data = whole.read_bytes()
+    read_image(whole)  # the whole file reads
+    for keep in (len(data) // 2, len(data) - 2):
+        cut = tmp_path / f"cut{keep}.jpg"
+        cut.write_bytes(data[:keep])
+        _check_error(cut, "truncated or corrupt")
+
+
 def test_read_image_size_errors(tmp_path: Path) -> None:
     with pytest.raises(ImageReadError, match="not found"):
         read_image_size(tmp_path / "nope.png")

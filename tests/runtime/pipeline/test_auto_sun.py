@@ -406,6 +406,7 @@ def test_the_pool_samples_right_compass_holds_against_a_slight_shadow_preference
     map_az, map_el = fit.map.best()
     assert fit.map.at(map_az, map_el) == 1.0
     assert f"alone fit best near azimuth {map_az:.0f}°" in fit.note
+    assert fit.as_dict()["compass_decided"] is True  # `outcast sun --json` says it too
 
 
 @pytest.mark.parametrize("shape", [(20, 31), (16, 16), (12, 96), (70, 560)])

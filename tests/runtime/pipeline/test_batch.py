@@ -345,6 +345,14 @@ def test_job_settings_name_what_decides_an_output(tmp_path: Path) -> None:
     assert key != job_settings(job, relight)
     deshadow = BatchOptions(kind="deshadow", from_sun=(200.0, 40.0))
     assert job_settings(job, deshadow) == job_settings(job, replace(deshadow, to_sun=(1.0, 2.0)))
+    # A metered relighting or time-lapse is another output; a de-shadowed photo is not.
+    key = job_settings(job, relight)
+    assert key != job_settings(job, replace(relight, exposure="metered"))
+    assert "exposure" not in key  # records of the default made before the option still match
+    timelapse = BatchOptions(kind="timelapse", sweep=((0.0, 30.0), (90.0, 30.0)))
+    assert job_settings(job, timelapse) != job_settings(job, replace(timelapse,
+                                                                     exposure="metered"))
+    assert job_settings(job, deshadow) == job_settings(job, replace(deshadow, exposure="metered"))
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")

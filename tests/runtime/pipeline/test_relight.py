@@ -541,3 +541,20 @@ def test_meter_exposure_brings_the_frame_to_the_photos_level_and_keeps_the_patte
     assert np.mean(luminance(dark)) == pytest.approx(
         np.mean(luminance(lin)) * 1e-4 * METER_RANGE[1], rel=0.05)
     assert np.allclose(meter_exposure(photo, photo), photo, atol=1e-5)
+
+
+def test_metered_up_highlights_roll_off_instead_of_clipping() -> None:
+    from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
+    from outcast_core.runtime.pipeline.relight import METER_KNEE, meter_exposure
+
+    lin = np.full((20, 30, 3), 0.1, np.float32)
+    lin[:5] = np.linspace(0.5, 0.9, 30, dtype=np.float32)[None, :, None]  # a bright sky
+    photo = linear_to_srgb(lin)
+    relit = lin.copy()
+    relit[5:] *= 0.2  # the ground put in shade: metered up about 2.5x
+    out = srgb_to_linear(meter_exposure(photo, linear_to_srgb(relit)))
+    sky = out[:5, :, 0]
+    assert sky.max() < 0.999 and np.all(np.diff(sky[0]) > 0)  # kept apart, not clipped
+    assert np.all(out[5:] < METER_KNEE)  # below the knee: the plain gain
+    # At a gain of 1 nothing changes (the shoulder fades in with the gain).
+    assert np.allclose(meter_exposure(photo, photo), photo, atol=1e-5)

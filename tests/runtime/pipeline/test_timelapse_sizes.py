@@ -83,7 +83,7 @@ class _FakeSession:
         self.calls.glare += 1
         return out
 
-    def relight_stream(self, suns):
+    def relight_stream(self, suns, exposure=None):
         if self.original_sun is None:
             raise RuntimeError("set_original_sun() must be called before relight_stream()")
         self.calls.stream += 1
