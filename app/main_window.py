@@ -198,6 +198,10 @@ class MainWindow(QMainWindow):
         #: The time-lapse settings as the dialog first showed them since the photo was opened
         #: or the project saved (None: not shown since); changes from them are unsaved work.
         self._timelapse_baseline: TimelapseSettings | None = None
+        #: The camera heading the time-lapse dialog filled in (solved from the aligned sun, or
+        #: the EXIF's), not typed: solved again when the dialog reopens, so a re-aligned sun or
+        #: a new step-1 heading reaches the real sun path (a user trial).
+        self.timelapse_auto_heading: float | None = None
         #: A compass heading typed in step 1 (None: unknown, or the EXIF's when it records one,
         #: which a typed heading replaces).
         self.user_heading: float | None = None
@@ -574,6 +578,7 @@ class MainWindow(QMainWindow):
 
     def _reset_history(self, state: EditState | None) -> None:
         self._timelapse_baseline = None
+        self.timelapse_auto_heading = None
         self.undo_stack.clear()
         self._edit_state = state
         self.undo_stack.setClean()
@@ -945,9 +950,10 @@ class MainWindow(QMainWindow):
             return ("The sun was below the horizon at the photo's time and place (check the "
                     "camera's clock): set the sun by eye or find it.")
         if getattr(exif, "heading_deg", None) is None and self.user_heading is None:
+            above = " above the true horizon" if self.tilt_note() else ""
             return (f"No compass heading in the photo's EXIF: Find sun uses the elevation "
-                    f"{el:.0f}° from the photo's time and place. Type the camera heading below "
-                    "for the full sun.")
+                    f"{el:.0f}°{above} from the photo's time and place. Type the camera heading "
+                    "below for the full sun.")
         seen, typed = self.seen_heading, self.user_heading
         if seen is not None and typed is not None and abs(seen - typed) < 0.05:
             recorded = self._exif_heading()
@@ -1080,12 +1086,16 @@ class MainWindow(QMainWindow):
             self.align_panel.sun_panel.set_sun(fit.azimuth, fit.elevation)
             self.request_shadow(fit.azimuth, fit.elevation, preview=False)
             self._record(text="Find sun")
+            # The dial's angles (the camera's frame) only: the EXIF's own are the horizon's.
             text = (f"Sun found: azimuth {fit.azimuth:.1f}°, elevation {fit.elevation:.1f}°, "
                     f"confidence {fit.confidence:.2f}")
+            tilt = self.tilt_note()
             if fit.source == "EXIF":
-                text = f"Sun from EXIF: {fit.note}"
+                text = (f"Sun from EXIF: azimuth {fit.azimuth:.1f}°, elevation "
+                        f"{fit.elevation:.1f}°{f' for a {tilt}' if tilt else ''} (the photo's "
+                        "shadows do not tell it; check it against them)")
             elif result.get("prior") is not None:
-                text += f" · {result['prior'].description}"
+                text += f" · using {self._prior_words(result['prior'])}"
             if fit.compass_decided:  # found in a cold cell of the dial: say why, and the warm
                 map_az, map_el = m.best()
                 text += (f" · the compass heading chose it among suns the shadows fit alike; "
@@ -1110,11 +1120,14 @@ class MainWindow(QMainWindow):
                 self.align_panel.sun_panel.set_sun(az, el)
                 self.request_shadow(az, el, preview=False)
                 self._record(text="Sun elevation from EXIF")
-                text += (f" Its elevation is set to {el:.1f}°, from the photo's time and "
-                         "place; turn the sun around the ring until the shadows fit.")
+                tilt = self.tilt_note()
+                where = (f"{el:.1f}° on the dial ({prior.elevation:.1f}° above the true horizon "
+                         f"for a {tilt})" if tilt else f"{el:.1f}°")
+                text += (f" Its elevation is set to {where}, from the photo's time and place; "
+                         "turn the sun around the ring until the shadows fit.")
         self.stage_label.setText(text)
         self._held_message = text if self.runner.busy() else ""
-        notice = text if not (fit.found or fit.source == "EXIF") else ""
+        notice = text if not (fit.found or fit.source == "EXIF") or fit.compass_decided else ""
         prior = result.get("prior")
         if not notice and prior is not None and prior.azimuth is not None:
             off = abs((fit.azimuth - prior.azimuth + 180.0) % 360.0 - 180.0)
@@ -1126,6 +1139,14 @@ class MainWindow(QMainWindow):
                           "the sun there; correct the camera heading below).")
         # The load's warning (the depth source) stays under what the search says.
         self.align_panel.show_notice("\n\n".join(t for t in (notice, self._load_notice) if t))
+
+    def _prior_words(self, prior: Any) -> str:
+        """Where an EXIF prior comes from, in words without its angles (those are the
+        horizon's; the dial shows the camera's)."""
+        if prior.azimuth is None:
+            return "the elevation from the photo's time and place"
+        whose = "the heading you typed" if self.user_heading is not None else "compass heading"
+        return f"the photo's time, place and {whose}"
 
     def use_exif_sun(self) -> None:
         sun = self.exif_sun()
@@ -1587,7 +1608,11 @@ class MainWindow(QMainWindow):
 
         if self._timelapse_dialog is None:
             self._timelapse_dialog = TimelapseDialog(self)
-        self._timelapse_dialog.load_settings(self.timelapse_settings)
+        settings, auto = self.timelapse_settings, self.timelapse_auto_heading
+        if (settings.heading is not None and auto is not None
+                and abs(settings.heading - auto) < 0.05):
+            settings = replace(settings, heading=None)  # filled in before: fill it in again
+        self._timelapse_dialog.load_settings(settings)
         self._timelapse_dialog.show()
         self._timelapse_dialog.raise_()
         return self._timelapse_dialog

@@ -375,6 +375,8 @@ class TimelapseDialog(QDialog):
             if heading is None and getattr(exif, "heading_deg", None) is not None:
                 heading = exif.heading_deg
             self.heading_box.setValue(heading if heading is not None else 180.0)
+            if s.heading is None:  # filled in, not typed: filled in again next time
+                self.main.timelapse_auto_heading = self.heading_box.value()
         finally:
             for w in widgets:
                 w.blockSignals(False)

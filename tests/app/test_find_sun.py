@@ -193,8 +193,9 @@ def test_exif_without_heading_explains_the_grey_button_and_takes_a_heading(
     settle()
     prior = captured["prior"]
     assert prior is not None and prior.azimuth is None
-    assert f"elevation {prior.elevation:.0f}° from the photo's time and place" in \
-        window.stage_label.text()
+    # The dial's angles only; the prior named without its (the horizon's) angles.
+    assert window.stage_label.text().endswith(
+        "· using the elevation from the photo's time and place")
     # A typed heading makes the EXIF sun a full guess.
     ap.heading_box.setValue(200.0)
     assert window.user_heading == pytest.approx(200.0)
@@ -359,3 +360,62 @@ def test_the_camera_tilt_follows_the_photo_and_the_preset(window, settle):
     settle()
     assert window.camera_tilt[:2] == (0.0, 0.0) and window.tilt_note() == ""
     assert window.relight_panel.sun_panel.dial.tilt() == (0.0, 0.0)
+
+
+def test_the_timelapse_heading_follows_a_realigned_sun_unless_typed(window, settle, tmp_path):
+    """The real sun path's heading, filled in from the aligned sun, is solved again when the
+    sun is re-aligned; one typed in the dialog stays (a user trial's time-lapse kept an old
+    heading)."""
+    import shutil
+
+    photo = tmp_path / "fieldpath.jpg"
+    shutil.copyfile(os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg"), photo)
+    _load(window, str(photo), settle)
+    panel = window.align_panel.sun_panel
+    panel.azimuth_box.setValue(40.0)
+    window.confirm_original_sun()
+    settle()
+    dialog = window.open_timelapse()
+    first = dialog.heading_box.value()
+    assert first == pytest.approx(dialog._solved_heading(), abs=0.05)
+    dialog.close()
+    window.back_to_align()
+    settle()
+    panel.azimuth_box.setValue(100.0)  # the sun 60 deg further right: the heading 60 less
+    window.confirm_original_sun()
+    settle()
+    again = window.open_timelapse()
+    assert again.heading_box.value() == pytest.approx(again._solved_heading(), abs=0.05)
+    assert abs((again.heading_box.value() - first + 180.0) % 360.0 - 180.0) > 30.0
+    again.heading_box.setValue(123.0)  # typed: kept from now on
+    again.close()
+    window.back_to_align()
+    settle()
+    panel.azimuth_box.setValue(160.0)
+    window.confirm_original_sun()
+    settle()
+    assert window.open_timelapse().heading_box.value() == pytest.approx(123.0)
+
+
+def test_a_reopened_project_still_says_its_heading_came_from_the_sun_in_the_frame(
+        qtbot, window, settle, settings, tmp_path):
+    import shutil
+
+    from app.main_window import MainWindow
+
+    photo = tmp_path / "ski.jpg"
+    shutil.copyfile(os.path.join(ROOT, "samples", "exif_005_es_skislope.jpg"), photo)
+    _load(window, str(photo), settle)
+    note = window.align_panel.exif_note.text()
+    assert "from the sun in the frame" in note
+    saved = window.save_project()
+    other = MainWindow(settings=settings, preset="fast")
+    qtbot.addWidget(other)
+    try:
+        other.open_path(saved)
+        qtbot.waitUntil(lambda: other.step is Step.ALIGN and not other.runner.busy(),
+                        timeout=30000)
+        assert other.align_panel.exif_note.text() == note
+        assert other.user_heading == pytest.approx(window.user_heading)
+    finally:
+        other.runner.shutdown()

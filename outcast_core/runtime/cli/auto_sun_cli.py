@@ -32,7 +32,7 @@ def cmd_sun(args: argparse.Namespace) -> int:
     )
     from outcast_core.runtime.pipeline.timelapse import exif_heading_from_sun
 
-    loaded = _load(args.image)
+    loaded = _load(args.image, keep_uint8=True)  # as the app reads it: the same sun
     session = _make_session(args, shadow_mode=args.mode)
     _set_image(session, loaded, args)
     heading = None if args.heading is None else args.heading % 360.0

@@ -238,7 +238,7 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     if args.mask:  # the main output is checked before the work by _check_output
         check_output_path(args.mask, extensions=(".png",), force=args.force,
                           inputs=[args.image, args.depth], outputs=[args.output])
-    loaded = _load(args.image)
+    loaded = _load(args.image, keep_uint8=True)  # as the app reads it
     session = _make_session(args, shadow_mode="auto")
     _set_image(session, loaded, args)
     session.set_original_sun(w_from)

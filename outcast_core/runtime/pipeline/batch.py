@@ -603,7 +603,7 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
     from outcast_core.runtime.pipeline.session import RelightSession
 
     project_sun, project_target, depth_path = project_suns(job.image)
-    loaded = read_image(job.image)
+    loaded = read_image(job.image, keep_uint8=True)  # as the app reads it
     to_sun = None
     if options.kind == "relight":  # before the slow part
         to_sun = target_sun_for(job, options, project_target)
