@@ -91,6 +91,10 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
         elif "truncated or corrupt" in detail:  # a photo file, damaged
             todo = ("The file looks damaged or cut short (an interrupted copy or download?): "
                     "open another copy of it. Your current work is unchanged.")
+            # The decoder's own words after it ("(OSError: image file is truncated (35 bytes
+            # not processed))") say nothing more to a photographer (a user trial).
+            end = detail.find(" (", detail.find("truncated or corrupt"))
+            detail = detail if end < 0 else detail[:end]
         else:
             todo = "Choose a JPEG, PNG, TIFF, WebP or HEIC photo. Your current work is unchanged."
         return UserMessage("Could not open the photo", detail, todo)

@@ -45,6 +45,8 @@ def test_a_damaged_photo_and_a_wrong_export_name_get_advice_that_fits(tmp_path) 
     except ValueError as exc:
         damaged = message_for(exc, "open")
     assert "damaged or cut short" in damaged.todo and "Choose a JPEG" not in damaged.todo
+    assert damaged.what.endswith("the file is truncated or corrupt")  # not the decoder's words
+    assert "OSError" not in damaged.what and "cut.jpg" in damaged.what
     assert "Choose a JPEG" in message_for(ValueError("not an image file"), "open").todo
     try:
         write_image(tmp_path / "out.xyz", np.zeros((4, 4, 3), np.float32))
