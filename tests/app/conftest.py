@@ -31,6 +31,30 @@ def photo(tmp_path):
 
 
 @pytest.fixture
+def reopen(qtbot, settings):
+    """``with reopen(path) as other:`` a project opened in a second window (as after a
+    restart), once it reached ``step`` (default step 1) and its worker is idle."""
+    from contextlib import contextmanager
+
+    from app.main_window import MainWindow
+    from app.state import Step
+
+    @contextmanager
+    def opened(path, step=Step.ALIGN):
+        other = MainWindow(settings=settings, preset="fast")
+        qtbot.addWidget(other)
+        try:
+            other.open_path(path)
+            qtbot.waitUntil(lambda: other.step is step and not other.runner.busy(),
+                            timeout=30000)
+            yield other
+        finally:
+            other.runner.shutdown()
+
+    return opened
+
+
+@pytest.fixture
 def settings(tmp_path):
     from PySide6.QtCore import QSettings
 

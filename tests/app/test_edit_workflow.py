@@ -194,8 +194,7 @@ def test_a_typed_heading_is_undoable_and_unsaved_work(window, photo, settle):
     assert not window.has_unsaved_changes()
 
 
-def test_metering_the_new_light_is_undoable_and_saved(qtbot, window, photo, settle, settings):
-    from app.main_window import MainWindow
+def test_metering_the_new_light_is_undoable_and_saved(window, photo, settle, reopen):
     from app.state import load_project
 
     _load(window, photo, settle)
@@ -214,13 +213,9 @@ def test_metering_the_new_light_is_undoable_and_saved(qtbot, window, photo, sett
     assert window.session.exposure == "metered" and window.relight_panel.meter_check.isChecked()
     path = window.save_project()
     assert load_project(path).exposure == "metered"
-    other = MainWindow(settings=settings, preset="fast")
-    qtbot.addWidget(other)
-    other.open_path(path)
-    qtbot.waitUntil(lambda: other.step is Step.RELIGHT and not other.runner.busy(),
-                    timeout=30000)
-    assert other.session.exposure == "metered" and other.relight_panel.meter_check.isChecked()
-    assert not other.has_unsaved_changes()
+    with reopen(path, Step.RELIGHT) as other:
+        assert other.session.exposure == "metered"
+        assert other.relight_panel.meter_check.isChecked() and not other.has_unsaved_changes()
 
 
 def test_jobs_take_the_exposure_shown_when_asked_and_a_new_photo_starts_unmetered(

@@ -237,11 +237,10 @@ def test_a_recorded_heading_is_shown_and_can_be_corrected(window, settle):
 
 
 def test_typed_heading_is_saved_in_the_project_and_restored(
-    qtbot, window, settle, settings, tmp_path
+    qtbot, window, settle, reopen, tmp_path
 ):
     import shutil
 
-    from app.main_window import MainWindow
     from app.state import load_project, project_path_for
 
     photo = tmp_path / "fieldpath.jpg"  # GPS and time, no compass heading
@@ -253,12 +252,7 @@ def test_typed_heading_is_saved_in_the_project_and_restored(
     saved = window.save_project()
     assert saved == str(project_path_for(photo))
     assert load_project(saved).heading == pytest.approx(200.0)
-    other = MainWindow(settings=settings, preset="fast")
-    qtbot.addWidget(other)
-    try:
-        other.open_path(saved)
-        qtbot.waitUntil(lambda: other.step is Step.ALIGN and not other.runner.busy(),
-                        timeout=30000)
+    with reopen(saved) as other:
         assert other.user_heading == pytest.approx(200.0)
         assert other.align_panel.heading() == pytest.approx(200.0)
         assert other.align_panel.exif_button.isEnabled()  # the typed heading completes the sun
@@ -268,8 +262,6 @@ def test_typed_heading_is_saved_in_the_project_and_restored(
         qtbot.waitUntil(lambda: other.step is Step.ALIGN and not other.runner.busy(),
                         timeout=30000)
         assert other.user_heading is None and other.align_panel.heading() is None
-    finally:
-        other.runner.shutdown()
 
 
 def test_project_heading_is_checked():
@@ -398,10 +390,9 @@ def test_the_timelapse_heading_follows_a_realigned_sun_unless_typed(window, sett
 
 
 def test_a_reopened_project_still_says_its_heading_came_from_the_sun_in_the_frame(
-        qtbot, window, settle, settings, tmp_path):
+        window, settle, reopen, tmp_path):
     import shutil
 
-    from app.main_window import MainWindow
 
     photo = tmp_path / "ski.jpg"
     shutil.copyfile(os.path.join(ROOT, "samples", "exif_005_es_skislope.jpg"), photo)
@@ -409,13 +400,6 @@ def test_a_reopened_project_still_says_its_heading_came_from_the_sun_in_the_fram
     note = window.align_panel.exif_note.text()
     assert "from the sun in the frame" in note
     saved = window.save_project()
-    other = MainWindow(settings=settings, preset="fast")
-    qtbot.addWidget(other)
-    try:
-        other.open_path(saved)
-        qtbot.waitUntil(lambda: other.step is Step.ALIGN and not other.runner.busy(),
-                        timeout=30000)
+    with reopen(saved) as other:
         assert other.align_panel.exif_note.text() == note
         assert other.user_heading == pytest.approx(window.user_heading)
-    finally:
-        other.runner.shutdown()

@@ -277,9 +277,7 @@ def test_broken_model_shows_error_and_falls_back(window, photo, settle, errors, 
     assert window.step is Step.ALIGN and window.canvas.overlay() is not None
 
 
-def test_project_save_and_reopen(qtbot, window, photo, settle, settings):
-    from app.main_window import MainWindow
-
+def test_project_save_and_reopen(window, photo, settle, reopen):
     _load(window, photo, settle)
     window.align_panel.sun_panel.set_sun(100.0, 35.0)
     _confirm(window, settle)
@@ -291,28 +289,19 @@ def test_project_save_and_reopen(qtbot, window, photo, settle, settings):
     assert window.session.preset.name == "balanced"
     saved = window.save_project()
     assert saved == str(project_path_for(photo))
-    other = MainWindow(settings=settings, preset="fast")
-    qtbot.addWidget(other)
-    try:
-        other.open_path(saved)
-        qtbot.waitUntil(
-            lambda: other.step is Step.RELIGHT and not other.runner.busy(), timeout=30000
-        )
+    with reopen(saved, Step.RELIGHT) as other:
         assert other.original_sun.as_tuple() == pytest.approx((100.0, 35.0))
         assert other.relight_panel.sun_panel.sun() == pytest.approx((220.0, 25.0))
         assert other.preset == "balanced" and other.session.preset.name == "balanced"
         assert other.recent.paths()[0] == saved
         tls = other.timelapse_settings
         assert (tls.kind, tls.frames, tls.format) == ("sweep", 7, "webp")
-    finally:
-        other.runner.shutdown()
 
 
-def test_a_project_saved_in_step_one_reopens_with_its_sun(qtbot, window, photo, settle,
-                                                           settings, tmp_path):
+def test_a_project_saved_in_step_one_reopens_with_its_sun(window, photo, settle, reopen,
+                                                           tmp_path):
     """Saved before "Confirm sun", a project keeps where the dial stands; reopened after
     another photo, the dial shows it, not the other photo's sun (a user trial)."""
-    from app.main_window import MainWindow
     from tests.app.conftest import make_photo
 
     _load(window, photo, settle)
@@ -328,16 +317,9 @@ def test_a_project_saved_in_step_one_reopens_with_its_sun(qtbot, window, photo, 
     window.open_path(saved)
     settle()
     assert window.step is Step.ALIGN and panel.sun() == pytest.approx((40.1, 36.8))
-    fresh = MainWindow(settings=settings, preset="fast")
-    qtbot.addWidget(fresh)
-    try:
-        fresh.open_path(saved)
-        qtbot.waitUntil(lambda: fresh.step is Step.ALIGN and not fresh.runner.busy(),
-                        timeout=30000)
+    with reopen(saved) as fresh:
         assert fresh.align_panel.sun_panel.sun() == pytest.approx((40.1, 36.8))
         assert not fresh.has_unsaved_changes()
-    finally:
-        fresh.runner.shutdown()
 
 
 def test_a_hidden_timelapse_dialog_keeps_its_photos_settings_to_itself(window, photo, settle,
@@ -521,9 +503,8 @@ def test_drag_split_line_on_canvas(qtbot, window, photo, settle):
     assert c.image_rect() == rect  # the drag moved the split, not the image
 
 
-def test_depth_map_from_elsewhere_is_used_and_saved(qtbot, window, photo, settle, settings,
+def test_depth_map_from_elsewhere_is_used_and_saved(qtbot, window, photo, settle, reopen,
                                                      tmp_path):
-    from app.main_window import MainWindow
     from outcast_core.runtime.geometry.camera import Camera
     from outcast_core.runtime.io.imageio import write_depth
 
@@ -541,16 +522,9 @@ def test_depth_map_from_elsewhere_is_used_and_saved(qtbot, window, photo, settle
     assert window.align_panel.sun_panel.sun() == pytest.approx((100.0, 35.0))  # sun kept
     assert np.isclose(window.session.depth[~window.session.sky].min(), depth[~sky].min())
     saved = window.save_project()
-    other = MainWindow(settings=settings, preset="fast")
-    qtbot.addWidget(other)
-    try:
-        other.open_path(saved)
-        qtbot.waitUntil(lambda: other.step is Step.ALIGN and not other.runner.busy(),
-                        timeout=30000)
+    with reopen(saved) as other:
         assert other.session.depth_source == "given"
         assert other.depth_path == str(depth_file)
-    finally:
-        other.runner.shutdown()
 
 
 def test_bad_depth_map_shows_an_error_and_keeps_the_photo(window, photo, settle, errors,
