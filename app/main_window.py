@@ -1094,6 +1094,9 @@ class MainWindow(QMainWindow):
                 text = (f"Sun from EXIF: azimuth {fit.azimuth:.1f}°, elevation "
                         f"{fit.elevation:.1f}°{f' for a {tilt}' if tilt else ''} (the photo's "
                         "shadows do not tell it; check it against them)")
+            elif fit.source == "sun in the frame":  # exact: no prior had a say
+                text = (f"Sun found in the frame: azimuth {fit.azimuth:.1f}°, elevation "
+                        f"{fit.elevation:.1f}°")
             elif result.get("prior") is not None:
                 text += f" · using {self._prior_words(result['prior'])}"
             if fit.compass_decided:  # found in a cold cell of the dial: say why, and the warm
@@ -1121,10 +1124,11 @@ class MainWindow(QMainWindow):
                 self.request_shadow(az, el, preview=False)
                 self._record(text="Sun elevation from EXIF")
                 tilt = self.tilt_note()
-                where = (f"{el:.1f}° on the dial ({prior.elevation:.1f}° above the true horizon "
-                         f"for a {tilt})" if tilt else f"{el:.1f}°")
-                text += (f" Its elevation is set to {where}, from the photo's time and place; "
-                         "turn the sun around the ring until the shadows fit.")
+                where = (f"{el:.1f}° on the dial: {prior.elevation:.1f}° above the true "
+                         f"horizon, from the photo's time and place, for a {tilt};" if tilt
+                         else f"{el:.1f}°, from the photo's time and place;")
+                text += (f" Its elevation is set to {where} turn the sun around the ring until "
+                         "the shadows fit.")
         self.stage_label.setText(text)
         self._held_message = text if self.runner.busy() else ""
         notice = text if not (fit.found or fit.source == "EXIF") or fit.compass_decided else ""
@@ -1145,7 +1149,12 @@ class MainWindow(QMainWindow):
         horizon's; the dial shows the camera's)."""
         if prior.azimuth is None:
             return "the elevation from the photo's time and place"
-        whose = "the heading you typed" if self.user_heading is not None else "compass heading"
+        if self.user_heading is None:
+            whose = "compass heading"
+        elif self.seen_heading is not None and abs(self.user_heading - self.seen_heading) < 0.05:
+            whose = "the heading from the sun in the frame"
+        else:
+            whose = "the heading you typed"
         return f"the photo's time, place and {whose}"
 
     def use_exif_sun(self) -> None:
