@@ -520,8 +520,7 @@ class MainWindow(QMainWindow):
             self.canvas.set_overlay(None)
             self._on_split_changed(self.relight_panel.split_slider.value())
         else:
-            if self._photo_qimage is not None and self.canvas.before() is not self._photo_qimage:
-                self.canvas.set_image(self._photo_qimage, fit=False)
+            self._photo_as_base()
             self.canvas.set_after(None)
             self.canvas.set_split(None)
 
@@ -627,6 +626,9 @@ class MainWindow(QMainWindow):
         project.exposure = state.exposure
         relight = state.step == "relight" and state.original_sun is not None
         project.original_sun = Sun(*state.original_sun) if relight else None
+        project.align_sun = Sun(*state.align_sun)
+        project.realigning = False  # the restored state says it (_on_loaded)
+        project.timelapse = self.timelapse_settings  # as shown (a filled-in heading too)
         project.target_sun = Sun(*state.target_sun)
         self.open_image(self.image_path, project=project, restore=state, record_from=record_from)
 
@@ -753,7 +755,6 @@ class MainWindow(QMainWindow):
         project, self._pending_project = self._pending_project, None
         restore, self._pending_restore = self._pending_restore, None
         record_from, self._pending_record_from = self._pending_record_from, None
-        old_path = self.image_path
         self.session = result["session"]
         if restore is None:  # another photo: the photo's own exposure (a project's: below)
             self.relight_panel.set_exposure("photo")
@@ -762,10 +763,9 @@ class MainWindow(QMainWindow):
         self._set_camera_tilt(result.get("tilt", LEVEL_TILT))
         self.depth_path = result.get("depth_path", "")
         self.image_path = os.path.abspath(result["path"])
-        if old_path != self.image_path and project is None:
-            self.timelapse_settings = TimelapseSettings()
-        if (old_path != self.image_path or project is not None) and (
-                self._timelapse_dialog is not None):
+        if restore is None and project is None:  # (the same photo opened again too: its
+            self.timelapse_settings = TimelapseSettings()  # edits were dropped by the user)
+        if restore is None and self._timelapse_dialog is not None:
             # Its place, day, heading and size were the last photo's (a user trial changed
             # them and saved them into the new photo's settings): it is opened again for this
             # one once its sun is confirmed.
@@ -866,7 +866,8 @@ class MainWindow(QMainWindow):
             opened += (f" · the sun is in the frame: azimuth {seen_sun[0]:.1f}°, elevation "
                        f"{seen_sun[1]:.1f}°")
         if seen_heading is not None:
-            opened += f" · camera heading {seen_heading:.1f}° from it"
+            source = "it" if seen_sun is not None else "the sun in the frame"
+            opened += f" · camera heading {seen_heading:.1f}° from {source}"
         if exif_sun is not None:
             tilt = self.tilt_note()
             opened += (
@@ -880,7 +881,8 @@ class MainWindow(QMainWindow):
             self._record(restore)
             return
         baseline = self.edit_state()
-        if baseline is not None and project is not None and project.original_sun is not None:
+        if (baseline is not None and project is not None and project.original_sun is not None
+                and not project.realigning):
             baseline = replace(
                 baseline, step="relight", original_sun=project.original_sun.as_tuple()
             )
@@ -1042,6 +1044,7 @@ class MainWindow(QMainWindow):
     # ---- automatic sun
     def toggle_find_sun(self) -> None:
         """Start finding the sun, or cancel the search that runs."""
+        self._commit_typed_fields()  # a number being typed, as Enter would
         if self.finding_sun():
             self.runner.cancel("find_sun")
             return
@@ -1158,6 +1161,7 @@ class MainWindow(QMainWindow):
         return f"the photo's time, place and {whose}"
 
     def use_exif_sun(self) -> None:
+        self._commit_typed_fields()  # a number being typed, as Enter would
         sun = self.exif_sun()
         if sun is None or self.step is not Step.ALIGN:
             return
@@ -1185,15 +1189,20 @@ class MainWindow(QMainWindow):
         self.set_user_heading(project.heading)
         self.relight_panel.set_exposure(project.exposure)
         self.session.exposure = project.exposure
-        if project.original_sun is not None:
+        confirmed = project.original_sun is not None and not project.realigning
+        if confirmed:
             self.align_panel.sun_panel.set_sun(*project.original_sun.as_tuple())
-        elif project.align_sun is not None:  # saved in step 1, before confirming
+        elif project.align_sun is not None:  # saved in step 1, before (re-)confirming
             self.align_panel.sun_panel.set_sun(*project.align_sun.as_tuple())
         if project.target_sun is not None:
             self.relight_panel.sun_panel.set_sun(*project.target_sun.as_tuple())
-        if project.original_sun is not None:
+        if confirmed:
             self.confirm_original_sun(keep_target=project.target_sun is not None)
         else:
+            if project.realigning and project.original_sun is not None:
+                # as "Re-align original sun" left it: the new sun is kept
+                self.original_sun = project.original_sun
+                self.relight_panel.sun_panel.dial.set_reference(project.original_sun.as_tuple())
             self.request_shadow(preview=False)
 
     def _save_recent(self) -> None:
@@ -1288,6 +1297,7 @@ class MainWindow(QMainWindow):
 
     def confirm_original_sun(self, keep_target: bool = False) -> None:
         """Fix the original sun and compute its refined shadow (step 1 -> step 2)."""
+        self._commit_typed_fields()  # a number being typed, as Enter would
         session = self.session
         if session is None:
             return
@@ -1320,9 +1330,14 @@ class MainWindow(QMainWindow):
         self.request_relight(preview=False)
 
     def back_to_align(self) -> None:
-        """Step 2 -> step 1: align the original sun again (the new sun is kept)."""
+        """Step 2 -> step 1: align the original sun again (the new sun is kept). The
+        time-lapse dialog closes: its path and heading come from the confirmed sun, so it opens
+        again (Ctrl+T) once the sun is confirmed (a user trial exported from it while
+        re-aligning, with the old sun)."""
         if self.step is not Step.RELIGHT:
             return
+        if self._timelapse_dialog is not None and self._timelapse_dialog.isVisible():
+            self._timelapse_dialog.close()
         self._set_step(Step.ALIGN)
         self.request_shadow(preview=False)
         self._record()
@@ -1424,8 +1439,7 @@ class MainWindow(QMainWindow):
         if self._deshadow_images is None:
             return
         image, overlay = self._deshadow_images
-        if self.canvas.before() is not self._photo_qimage and self._photo_qimage is not None:
-            self.canvas.set_image(self._photo_qimage, fit=False)
+        self._photo_as_base()
         if view == "shadows_removed":
             self.canvas.set_overlay(None)
             self.canvas.set_after(image)
@@ -1434,6 +1448,15 @@ class MainWindow(QMainWindow):
             self.canvas.set_after(None)
             self.canvas.set_split(None)
             self.canvas.set_overlay(overlay)
+
+    def _photo_as_base(self) -> None:
+        """The photo back as the canvas's image (after a buffer view), keeping the zoom when
+        the shown image had the photo's size, fitting it when not (a user trial came back
+        from the 256-px depth view at 414 %, the photo's top-left corner filling the view)."""
+        photo, shown = self._photo_qimage, self.canvas.before()
+        if photo is None or shown is photo:
+            return
+        self.canvas.set_image(photo, fit=shown is None or shown.size() != photo.size())
 
     def _on_relit(self, result: dict[str, Any]) -> None:
         if self.step is not Step.RELIGHT:
@@ -1455,8 +1478,7 @@ class MainWindow(QMainWindow):
         if view == "output":
             self._exposure_hint = "" if result.get("preview") else exposure_hint(
                 result.get("level"))
-            if self.canvas.before() is not self._photo_qimage and self._photo_qimage is not None:
-                self.canvas.set_image(self._photo_qimage, fit=False)
+            self._photo_as_base()
             self.canvas.set_overlay(None)
             self.canvas.set_after(qimage_from_array(result["image"]))
             self._after_label = "Relit · preview" if result.get("preview") else "Relit"
@@ -1494,6 +1516,7 @@ class MainWindow(QMainWindow):
 
     # ================================================================== export still
     def export_still_dialog(self) -> None:
+        self._commit_typed_fields()  # a number being typed, as Enter would
         if self.step is not Step.RELIGHT:
             return
         stem = Path(self.image_path).stem
@@ -1525,6 +1548,7 @@ class MainWindow(QMainWindow):
 
     def export_shadows_removed_dialog(self) -> None:
         """Ask where to write the photo with its own shadows removed, then export it."""
+        self._commit_typed_fields()  # a number being typed, as Enter would
         if self.step is not Step.RELIGHT:
             return
         stem = Path(self.image_path).stem
@@ -1611,17 +1635,14 @@ class MainWindow(QMainWindow):
 
     # ================================================================== time-lapse
     def open_timelapse(self) -> Any:
+        self._commit_typed_fields()  # a number being typed, as Enter would
         if self.step is not Step.RELIGHT:
             return None
         from app.timelapse_dialog import TimelapseDialog
 
         if self._timelapse_dialog is None:
             self._timelapse_dialog = TimelapseDialog(self)
-        settings, auto = self.timelapse_settings, self.timelapse_auto_heading
-        if (settings.heading is not None and auto is not None
-                and abs(settings.heading - auto) < 0.05):
-            settings = replace(settings, heading=None)  # filled in before: fill it in again
-        self._timelapse_dialog.load_settings(settings)
+        self._timelapse_dialog.load_settings(self._timelapse_to_save())  # (filled in again)
         self._timelapse_dialog.show()
         self._timelapse_dialog.raise_()
         return self._timelapse_dialog
@@ -1708,14 +1729,25 @@ class MainWindow(QMainWindow):
             depth_path=self.depth_path,
             original_sun=self.original_sun,
             align_sun=Sun(*self.align_panel.sun_panel.sun()),
+            realigning=self.step is Step.ALIGN and self.original_sun is not None,
             target_sun=Sun(*self.relight_panel.sun_panel.sun()) if self.original_sun else None,
             overlay_opacity=self.align_panel.opacity_slider.value() / 100.0,
             split=self.relight_panel.split_slider.value() / 100.0,
             buffer_view=self.relight_panel.view(),
-            timelapse=self.timelapse_settings,
+            timelapse=self._timelapse_to_save(),
             heading=self.user_heading,
             exposure=self.relight_panel.exposure(),
         )
+
+    def _timelapse_to_save(self) -> TimelapseSettings:
+        """The time-lapse settings as a project keeps them: a heading the dialog filled in
+        (:attr:`timelapse_auto_heading`) is not kept, so it is solved again from the confirmed
+        sun when the project reopens (a user trial's reopened project kept an old heading)."""
+        settings, auto = self.timelapse_settings, self.timelapse_auto_heading
+        if (settings.heading is not None and auto is not None
+                and abs(settings.heading - auto) < 0.05):
+            return replace(settings, heading=None)
+        return settings
 
     def _commit_typed_fields(self) -> None:
         """Take in a number still being typed (a spin box commits on Enter or when it loses the
@@ -1731,7 +1763,12 @@ class MainWindow(QMainWindow):
         if not self.image_path:
             return None
         target = path or str(project_path_for(self.image_path))
-        if not self._may_replace_project(target, dialog_asked=path is not None):
+        asked = path is not None
+        if not is_project_file(target):  # "pool.jpg" or "mypool" typed in the save dialog
+            # Never the photo itself (a user trial's "Save project as" replaced the JPEG with
+            # the project's text), nor a name the app would not open as a project.
+            target, asked = str(project_path_for(target)), False
+        if not self._may_replace_project(target, dialog_asked=asked):
             return None
         try:
             save_project(self.project_state(), target)
@@ -1952,26 +1989,29 @@ class MainWindow(QMainWindow):
             action, self.running_exports(), self.has_unsaved_changes(), name
         )
         asked = {i for i, ch, _ in self.runner.active() if ch in EXPORT_CHANNELS}
+        # Every question first, then what the answers say: "Stop export" followed by Cancel
+        # on the next question must leave the export running (a user trial).
+        answers = []
         for question in questions:
             answer = self.ask(question)
             if not question.goes_ahead(answer):
                 return False
-            if answer == STOP:
-                for channel in EXPORT_CHANNELS:
-                    self.runner.cancel(channel)
-                # An export may have finished while the question was open, or finish now
-                # (past its last cancellation point, it writes): wait for each one's outcome,
-                # and say which were saved.
-                end = time.monotonic() + STOP_WAIT_S
-                while time.monotonic() < end and asked & {i for i, _, _ in self.runner.active()}:
-                    QApplication.processEvents()
-                    time.sleep(0.01)
-                done = [self._saved_exports.pop(i) for i in sorted(asked)
-                        if i in self._saved_exports]
-                if done:
-                    self.ask(finished_before_stop_notice(done))
-            elif answer == SAVE and self.save_project() is None:
-                return False
+            answers.append(answer)
+        if SAVE in answers and self.save_project() is None:
+            return False
+        if STOP in answers:
+            for channel in EXPORT_CHANNELS:
+                self.runner.cancel(channel)
+            # An export may have finished while a question was open, or finish now (past its
+            # last cancellation point, it writes): wait for each one's outcome, and say which
+            # were saved.
+            end = time.monotonic() + STOP_WAIT_S
+            while time.monotonic() < end and asked & {i for i, _, _ in self.runner.active()}:
+                QApplication.processEvents()
+                time.sleep(0.01)
+            done = [self._saved_exports.pop(i) for i in sorted(asked) if i in self._saved_exports]
+            if done:
+                self.ask(finished_before_stop_notice(done))
         return True
 
     def close_without_asking(self) -> bool:

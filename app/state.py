@@ -172,6 +172,9 @@ class ProjectState:
     original_sun: Sun | None = None
     #: Where step 1's dial stands (what a project saved before "Confirm sun" reopens with).
     align_sun: Sun | None = None
+    #: Saved in step 1 while re-aligning a confirmed sun: ``original_sun`` is the one confirmed
+    #: before (the new sun is kept when the sun is confirmed again), the dial at ``align_sun``.
+    realigning: bool = False
     target_sun: Sun | None = None
     overlay_opacity: float = 0.6
     split: float = 0.5
@@ -187,7 +190,8 @@ class ProjectState:
     def step(self) -> Step:
         if not self.image_path:
             return Step.EMPTY
-        return Step.RELIGHT if self.original_sun is not None else Step.ALIGN
+        return (Step.RELIGHT if self.original_sun is not None and not self.realigning
+                else Step.ALIGN)
 
     def to_dict(self, relative_to: Path | None = None) -> dict[str, Any]:
         image = self.image_path
@@ -205,6 +209,7 @@ class ProjectState:
             "depth_path": _relative(self.depth_path, relative_to),
             "original_sun": asdict(self.original_sun) if self.original_sun else None,
             "align_sun": asdict(self.align_sun) if self.align_sun else None,
+            "realigning": self.realigning,
             "target_sun": asdict(self.target_sun) if self.target_sun else None,
             "overlay_opacity": self.overlay_opacity,
             "split": self.split,
@@ -244,6 +249,7 @@ class ProjectState:
             depth_path=_absolute(_text(d, "depth_path"), base),
             original_sun=_named(Sun.from_any, d.get("original_sun"), "original_sun"),
             align_sun=_named(Sun.from_any, d.get("align_sun"), "align_sun"),
+            realigning=_flag(d.get("realigning", False), "realigning"),
             target_sun=_named(Sun.from_any, d.get("target_sun"), "target_sun"),
             overlay_opacity=_fraction(d.get("overlay_opacity", 0.6), "overlay_opacity"),
             split=_fraction(d.get("split", 0.5), "split"),
@@ -252,6 +258,12 @@ class ProjectState:
             heading=_heading(d.get("heading")),
             exposure=exposure,
         )
+
+
+def _flag(v: Any, name: str) -> bool:
+    if not isinstance(v, bool):
+        raise ValueError(f"{name}: expected true or false, got {v!r}")
+    return v
 
 
 def _heading(v: Any) -> float | None:

@@ -262,6 +262,70 @@ def test_a_much_darker_relit_scene_points_to_metering(window, photo, settle, mon
     assert "darker" not in window.stage_label.text()
 
 
+def test_typed_numbers_reach_toolbar_actions(window, photo, settle, tmp_path, monkeypatch):
+    """A number typed (no Enter) before a toolbar button: the export uses it, as Ctrl+E
+    does (a user trial's export used the old sun)."""
+    from PySide6.QtWidgets import QFileDialog
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    panel = window.relight_panel.sun_panel
+    panel.azimuth_box.lineEdit().setText("30")  # typing, not committed
+    asked = []
+    monkeypatch.setattr(QFileDialog, "getSaveFileName",
+                        lambda *a, **k: (asked.append(a[2]) or str(tmp_path / "x.png"), ""))
+    window.act_export.trigger()
+    settle()
+    assert panel.sun()[0] == pytest.approx(30.0) and "az30_" in asked[0]
+
+
+def test_the_same_photo_opened_again_starts_afresh(window, photo, settle, leave_answers):
+    """Opened again with "Don't save": its time-lapse edits go with the rest (a user trial
+    found them saved later)."""
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    dialog = window.open_timelapse()
+    dialog.frames_box.setValue(6)
+    window.open_path(photo)  # "Don't save" (the fixture's default answer)
+    settle()
+    assert not dialog.isVisible() and window.timelapse_settings.frames != 6
+    assert not window.has_unsaved_changes()
+
+
+def test_realigning_closes_the_timelapse_dialog_and_a_filled_heading_is_not_saved(
+        window, photo, settle, tmp_path):
+    import shutil
+
+    from app.state import load_project
+    from tests.app.test_find_sun import ROOT
+
+    pool = tmp_path / "pool.jpg"
+    shutil.copyfile(f"{ROOT}/samples/exif_003_th_pool.jpg", pool)
+    _load(window, str(pool), settle)
+    _confirm(window, settle)
+    dialog = window.open_timelapse()
+    dialog.kind_combo.setCurrentIndex(1)  # the real sun path: its heading filled in
+    assert window.timelapse_auto_heading is not None
+    window.back_to_align()
+    settle()
+    assert not dialog.isVisible()  # its path came from the sun being re-aligned
+    assert load_project(window.save_project()).timelapse.heading is None  # solved again
+
+
+def test_back_from_a_small_buffer_view_the_photo_is_fitted(window, photo, settle, tmp_path):
+    from tests.app.conftest import make_photo
+
+    big = make_photo(tmp_path / "big.jpg", 1600, 1200)
+    _load(window, big, settle)
+    _confirm(window, settle)
+    fitted = window.canvas.zoom()
+    window.relight_panel.set_view("depth")
+    settle()
+    window.relight_panel.set_view("output")
+    settle()
+    assert window.canvas.zoom() == pytest.approx(fitted)
+
+
 def test_timelapse_settings_count_as_unsaved_work(window, photo, settle):
     """Opening the time-lapse dialog changes nothing; editing its settings does, until the
     project is saved; editing them back is clean again."""
@@ -408,6 +472,27 @@ def test_an_export_that_finishes_while_asked_is_said_to_be_saved(qtbot, window, 
     assert [q.title for q in asked] == ["An export is still running", "The export had finished"]
     assert asked[1].text == "clip.mp4 finished before it could be stopped, and was saved."
     assert out.exists()
+
+
+def test_stop_export_then_cancel_leaves_the_export_running(qtbot, window, photo, settle,
+                                                          tmp_path, monkeypatch, leave_answers):
+    """"Stop export and quit", then Cancel on the save question: nothing happens at all (a
+    user trial's export was already stopped)."""
+    from app.leave_prompts import CANCEL, STOP
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    dialog = _slow_timelapse(window, settle, monkeypatch)
+    _type_sun(window.relight_panel.sun_panel, 200.0, 25.0)  # unsaved
+    out = tmp_path / "clip.mp4"
+    dialog.export(str(out))
+    _wait_for_progress(qtbot, window)
+    leave_answers.script += [STOP, CANCEL]
+    assert window.close() is False
+    assert [q.title for q in leave_answers.asked] == ["An export is still running",
+                                                      "Save the changes to this photo?"]
+    settle()
+    assert dialog.last_result == "finished" and out.exists()
 
 
 def test_unsaved_changes_are_asked_about_on_quit(window, photo, settle, leave_answers):

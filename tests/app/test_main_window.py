@@ -322,6 +322,44 @@ def test_a_project_saved_in_step_one_reopens_with_its_sun(window, photo, settle,
         assert not fresh.has_unsaved_changes()
 
 
+def test_save_project_as_never_replaces_the_photo_and_names_a_project(window, photo, settle):
+    """A user trial saved the project "as" the photo's own name: the JPEG became JSON."""
+    import os
+    from pathlib import Path
+
+    _load(window, photo, settle)
+    before = Path(photo).read_bytes()
+    saved = window.save_project(photo)  # the save dialog's answer: the photo's own name
+    assert saved == str(project_path_for(photo)) and Path(photo).read_bytes() == before
+    plain = os.path.join(os.path.dirname(photo), "mypool")
+    assert window.save_project(plain) == plain + ".outcast.json"
+    assert not os.path.exists(plain)
+
+
+def test_a_project_saved_while_realigning_reopens_realigning(qtbot, window, photo, settle,
+                                                              reopen):
+    """Saved in step 1 after "Re-align original sun": reopened in step 1 at the dial's sun,
+    the new sun kept for the next confirm (a user trial reopened it in step 2, re-alignment
+    lost)."""
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    window.relight_panel.sun_panel.azimuth_box.setValue(90.0)
+    window.back_to_align()
+    settle()
+    window.align_panel.sun_panel.azimuth_box.setValue(250.0)
+    saved = window.save_project()
+    state = load_project(saved)
+    assert state.realigning and state.step is Step.ALIGN
+    with reopen(saved) as other:
+        assert other.align_panel.sun_panel.sun()[0] == pytest.approx(250.0)
+        assert other.original_sun is not None and not other.has_unsaved_changes()
+        other.confirm_original_sun()
+        qtbot.waitUntil(lambda: other.step is Step.RELIGHT and not other.runner.busy(),
+                        timeout=30000)
+        assert other.original_sun.azimuth == pytest.approx(250.0)
+        assert other.relight_panel.sun_panel.sun()[0] == pytest.approx(90.0)  # kept
+
+
 def test_a_hidden_timelapse_dialog_keeps_its_photos_settings_to_itself(window, photo, settle,
                                                                        tmp_path,
                                                                        leave_answers):
