@@ -125,6 +125,101 @@ class GainUpsampler:
         return out
 
 
+#: :class:`SkyGuide`: the log floor of the colours it compares (linear).
+_LOG_FLOOR = 1e-3
+
+
+class SkyGuide:
+    """Keeps the sky's gain on the sky and the surface's on the surface at full resolution.
+
+    Bilinear upsampling gives a full-resolution pixel next to the skyline a mix of its working
+    neighbours' gains; where the relighting darkens a roof or a treetop and keeps the sky (the
+    learned relighting keeps the photo's sky when no sun is in the frame), the sky along the
+    edge took part of the darkening: dark smudges along the pool sample's roof and tree line
+    (a user trial). So within :data:`SKYLINE_REACH` working pixels of the skyline (the working
+    mask is coarse: a working pixel called surface may hold sky), each side's gain and log
+    colour are spread across the skyline (the mean over that side's pixels in the reach), and
+    a full-resolution pixel there takes the sky's or the surface's gain, mixed by how close its
+    own colour is to each side's (``alpha = d_surface / (d_sky + d_surface)``, ``d`` the
+    fourth power of the distance in log colour: the sides' means hold the skyline's mixed
+    pixels, and a softer choice left a twentieth of the other side's gain). Every other pixel
+    keeps the plain bilinear gain.
+
+    Args:
+        sky: ``h x w`` bool, the working-size sky mask.
+        photo_srgb: ``h x w x 3`` the working-size photo (sRGB).
+    """
+
+    def __init__(self, sky: np.ndarray, photo_srgb: np.ndarray) -> None:
+        self.sky = np.asarray(sky, bool)
+        if self.sky.shape != np.asarray(photo_srgb).shape[:2]:
+            raise ValueError(f"expected a sky mask of the photo's size {photo_srgb.shape[:2]}, "
+                             f"got {self.sky.shape}")
+        self.log_photo = np.log(srgb_to_linear(np.asarray(photo_srgb, np.float32))
+                                + np.float32(_LOG_FLOOR)).astype(np.float32)
+
+    def useful(self) -> bool:
+        """Whether there is a skyline to guard (some sky and some surface)."""
+        return bool(self.sky.any() and not self.sky.all())
+
+    def sides(self, gain: np.ndarray) -> dict[str, np.ndarray]:
+        """Per side (``k`` sky, ``s`` surface), at working size: the side's presence within
+        the reach (``w``, 0-1), its mean gain (``g``) and log colour (``c``) there; and
+        ``band``, 1 where both sides are within reach."""
+        size = 2 * SKYLINE_REACH + 1
+        out: dict[str, np.ndarray] = {}
+        for key, mask in (("k", self.sky), ("s", ~self.sky)):
+            m = mask.astype(np.float32)
+            w = cv2.blur(m, (size, size), borderType=cv2.BORDER_REPLICATE)
+            safe = np.maximum(w, 1e-6)[..., None]
+            out["w" + key] = w
+            out["g" + key] = cv2.blur(gain * m[..., None], (size, size),
+                                      borderType=cv2.BORDER_REPLICATE) / safe
+            out["c" + key] = cv2.blur(self.log_photo * m[..., None], (size, size),
+                                      borderType=cv2.BORDER_REPLICATE) / safe
+        out["band"] = ((out["wk"] > 0) & (out["ws"] > 0)).astype(np.float32)
+        return out
+
+
+#: :class:`SkyGuide`: how far (working pixels) each side's gain and colour reach across the
+#: skyline.
+SKYLINE_REACH = 1
+
+
+def _guard_skyline(g: np.ndarray, lin: np.ndarray, near: np.ndarray, r0: int,
+                   sides: dict[str, np.ndarray], ycoef: tuple[np.ndarray, np.ndarray],
+                   xcoef: tuple[np.ndarray, np.ndarray]) -> None:
+    """:class:`SkyGuide`'s gain, in place, on the band's pixels near the skyline (``near``
+    > 0: the upsampled ``band`` of :meth:`SkyGuide.sides`). ``lin`` is the band's linear
+    photo plus :data:`GAIN_EPS`; ``r0`` the band's first row."""
+    ys, xs = np.nonzero(near > 1e-6)
+    if ys.size == 0:
+        return
+    h, w = sides["band"].shape
+    y0, fy = ycoef[0][ys + r0], ycoef[1][ys + r0]
+    x0, fx = xcoef[0][xs], xcoef[1][xs]
+    y1, x1 = np.minimum(y0 + 1, h - 1), np.minimum(x0 + 1, w - 1)
+    corners = ((y0, x0, (1 - fy) * (1 - fx)), (y0, x1, (1 - fy) * fx),
+               (y1, x0, fy * (1 - fx)), (y1, x1, fy * fx))
+    side: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for key in ("k", "s"):  # each side's gain and colour, bilinear over where it reaches
+        wsum = np.zeros(ys.size, np.float32)
+        gsum = np.zeros((ys.size, 3), np.float32)
+        csum = np.zeros((ys.size, 3), np.float32)
+        for yi, xi, wt in corners:
+            wv = (wt * (sides["w" + key][yi, xi] > 0)).astype(np.float32)
+            wsum += wv
+            gsum += wv[:, None] * sides["g" + key][yi, xi]
+            csum += wv[:, None] * sides["c" + key][yi, xi]
+        wsum = np.maximum(wsum, 1e-6)[:, None]
+        side[key] = (gsum / wsum, csum / wsum)
+    lf = np.log(np.maximum(lin[ys, xs] - GAIN_EPS, 0.0) + _LOG_FLOOR)
+    d_k = ((lf - side["k"][1]) ** 2).sum(axis=1) ** 2  # squared again: a sharper choice
+    d_s = ((lf - side["s"][1]) ** 2).sum(axis=1) ** 2  # (the sides' means mix edge colours)
+    alpha = (d_s / np.maximum(d_s + d_k, 1e-24))[:, None]
+    g[ys, xs] = alpha * side["k"][0] + (1.0 - alpha) * side["s"][0]
+
+
 def _bands(height: int, width: int, band_rows: int | None) -> list[tuple[int, int]]:
     rows = band_rows if band_rows is not None else max(8, BAND_PIXELS // max(1, width))
     rows = max(1, int(rows))
@@ -139,10 +234,12 @@ def apply_gain(
     band_rows: int | None = None,
     threads: int | None = None,
     out: np.ndarray | None = None,
+    sky: SkyGuide | None = None,
 ) -> np.ndarray:
     """Multiply an upsampled working-size gain into a full-resolution photo, band by band.
 
-    ``C_out = (C_photo + e) * gain - e`` in linear light (``e`` = :data:`GAIN_EPS`).
+    ``C_out = (C_photo + e) * gain - e`` in linear light (``e`` = :data:`GAIN_EPS`); with
+    ``sky``, pixels along the skyline take the sky's or the surface's gain (:class:`SkyGuide`).
 
     Args:
         photo_srgb: ``H x W x 3`` sRGB, uint8 or float in [0, 1].
@@ -152,6 +249,7 @@ def apply_gain(
         band_rows: rows per band (default: about :data:`BAND_PIXELS` pixels per band).
         threads: worker threads (default :func:`default_threads`).
         out: an ``H x W x 3`` array of ``out_dtype`` to write into (e.g. a memory map).
+        sky: the working-size sky and photo (:class:`SkyGuide`), or None.
 
     Returns:
         ``H x W x 3`` sRGB of ``out_dtype``.
@@ -175,6 +273,15 @@ def apply_gain(
         raise ValueError(f"expected out of shape {want} and dtype {np.dtype(out_dtype)}, "
                          f"got {out.shape} {out.dtype}")
     up = GainUpsampler(gain, (height, width))
+    guard = sky is not None and sky.useful()
+    if guard:
+        if sky.sky.shape != gain.shape[:2]:
+            raise ValueError(f"expected a sky guide of the gain's size {gain.shape[:2]}, got "
+                             f"{sky.sky.shape}")
+        sides = sky.sides(gain)
+        band_up = GainUpsampler(sides["band"], (height, width))
+        ycoef = _vertical_coefficients(height, gain.shape[0])
+        xcoef = _vertical_coefficients(width, gain.shape[1])  # the same formula across
 
     def band(r: tuple[int, int]) -> None:
         r0, r1 = r
@@ -185,6 +292,8 @@ def apply_gain(
             lin = srgb_to_linear(src)
             lin += GAIN_EPS
         g = up.rows(r0, r1)
+        if guard:
+            _guard_skyline(g, lin, band_up.rows(r0, r1)[..., 0], r0, sides, ycoef, xcoef)
         cv2.multiply(lin, g, dst=lin)
         if out_u8:
             # (lin - e) * 65535, rounded and saturated to uint16 by OpenCV, then the table.
@@ -224,6 +333,7 @@ __all__ = [
     "ENCODE_U8",
     "GAIN_EPS",
     "GainUpsampler",
+    "SkyGuide",
     "apply_gain",
     "default_threads",
     "gain_map",

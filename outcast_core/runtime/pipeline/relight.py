@@ -180,6 +180,7 @@ def transfer_to_full_resolution(
     band_rows: int | None = None,
     out_dtype: type | np.dtype = np.float32,
     threads: int | None = None,
+    sky: np.ndarray | None = None,
 ) -> np.ndarray:
     """Apply a working-resolution relighting to the full-resolution photo.
 
@@ -198,14 +199,18 @@ def transfer_to_full_resolution(
         out_dtype: ``np.float32`` (default) or ``np.uint8`` (rounded, written through a table:
             no full-size float buffer at all for an 8-bit photo).
         threads: worker threads (default: the machine's cores, at most 4).
+        sky: the working-size sky mask: along the skyline the sky keeps the sky's gain and
+            the surface the surface's (:class:`~outcast_core.runtime.geometry.fullres.SkyGuide`).
 
     Returns:
         ``H x W x 3`` sRGB of ``out_dtype``.
     """
-    from outcast_core.runtime.geometry.fullres import apply_gain, gain_map
+    from outcast_core.runtime.geometry.fullres import SkyGuide, apply_gain, gain_map
 
     gain = gain_map(np.asarray(work_before_srgb), np.asarray(work_after_srgb))  # h x w x 3
-    return apply_gain(full_srgb, gain, out_dtype=out_dtype, band_rows=band_rows, threads=threads)
+    guide = None if sky is None else SkyGuide(sky, np.asarray(work_before_srgb))
+    return apply_gain(full_srgb, gain, out_dtype=out_dtype, band_rows=band_rows, threads=threads,
+                      sky=guide)
 
 
 #: :func:`keep_photo_colour`: shadow level above which a pixel counts as lit (soft over

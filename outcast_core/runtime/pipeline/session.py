@@ -1076,7 +1076,7 @@ class RelightSession:
         t0 = time.perf_counter()
         with self._lock:
             out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit,
-                                              out_dtype=dtype)
+                                              out_dtype=dtype, sky=self.sky)
             out = self.without_old_sun_full(out, relit, w_new)
         self._time("full_resolution", t0)
         return out

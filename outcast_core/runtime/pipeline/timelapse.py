@@ -982,9 +982,10 @@ def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray, np.ndarray], 
     if shape[0] * shape[1] <= work.shape[0] * work.shape[1]:
         return lambda relit, _sun: resize(relit, shape)
     photo = full if shape == full.shape[:2] else resize(full, shape)  # once, uint8 if 8-bit
+    sky = session.sky
 
     def make(relit: np.ndarray, sun: np.ndarray) -> np.ndarray:
-        out = transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8)
+        out = transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8, sky=sky)
         return session.without_old_sun_full(out, relit, sun)
 
     return make

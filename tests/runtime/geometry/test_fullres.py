@@ -113,3 +113,39 @@ def test_read_keep_uint8_and_write_uint8(tmp_path: Path) -> None:
     np.testing.assert_allclose(as_float, photo / 255.0, atol=1e-6)
     back16 = read_image(write_image(tmp_path / "b.png", photo, bit_depth=16)).image_srgb
     np.testing.assert_allclose(back16, photo / 255.0, atol=1e-6)
+
+
+def test_the_skyline_keeps_each_sides_gain_at_full_resolution() -> None:
+    """A blue sky kept as it is (gain 1) above a green ridge darkened to half, at 8x: the
+    plain bilinear transfer darkens the sky along the ridge (the pool sample's smudges); with
+    the sky guide the sky pixels keep gain 1 and the ridge's keep 0.5, off the skyline the
+    result is the plain one, and bands do not matter."""
+    from outcast_core.runtime.geometry.fullres import SkyGuide
+
+    big_h, big_w, k = 160, 200, 8
+    yy, xx = np.mgrid[0:big_h, 0:big_w]
+    ridge = 70 + 12 * np.sin(xx / 17.0)  # a skyline that does not follow the working grid
+    sky_full = yy < ridge
+    lin = np.where(sky_full[..., None], [0.25, 0.45, 0.9], [0.08, 0.2, 0.05]).astype(np.float32)
+    photo = linear_to_srgb(lin)
+    work = cv2.resize(photo, (big_w // k, big_h // k), interpolation=cv2.INTER_AREA)
+    sky_work = cv2.resize(sky_full.astype(np.float32), (big_w // k, big_h // k),
+                          interpolation=cv2.INTER_AREA) > 0.5
+    relit = np.where(sky_work[..., None], work, linear_to_srgb(srgb_to_linear(work) * 0.5))
+    plain = srgb_to_linear(transfer_to_full_resolution(photo, work, relit))
+    guided = srgb_to_linear(transfer_to_full_resolution(photo, work, relit, sky=sky_work))
+    ratio_plain, ratio = plain / lin, guided / lin
+    near = np.abs(yy - ridge) < 3 * k  # the skyline's band (the guide reaches 2.5 px)
+    assert ratio_plain[sky_full & near].min() < 0.8  # the smudge the guide removes
+    np.testing.assert_allclose(ratio[sky_full & near], 1.0, atol=0.02)
+    np.testing.assert_allclose(ratio[~sky_full & near], 0.5, atol=0.02)
+    np.testing.assert_allclose(guided[~near], plain[~near], atol=1e-5)
+    gain = gain_map(work, relit)
+    guide = SkyGuide(sky_work, work)
+    whole = apply_gain(photo, gain, band_rows=big_h, threads=1, sky=guide)
+    for rows, threads in ((1, 1), (13, 3)):
+        np.testing.assert_allclose(apply_gain(photo, gain, band_rows=rows, threads=threads,
+                                              sky=guide), whole, atol=1e-6)
+    all_sky = np.ones_like(sky_work)  # nothing to guard: the plain transfer
+    np.testing.assert_allclose(transfer_to_full_resolution(photo, work, relit, sky=all_sky),
+                               transfer_to_full_resolution(photo, work, relit), atol=1e-6)

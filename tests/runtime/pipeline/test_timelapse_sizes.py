@@ -68,6 +68,7 @@ class _FakeSession:
         rng = np.random.default_rng(0)
         self.full_image_srgb = rng.random((600, 800, 3), dtype=np.float32)
         self.image_srgb = self.full_image_srgb[::4, ::4].copy()
+        self.sky = np.zeros(self.image_srgb.shape[:2], bool)  # (no skyline to guard)
         self.original_sun = np.array([0.0, -1.0, 0.0])
         self.calls = SimpleNamespace(relight=0, full=0, stream=0, glare=0)
 
