@@ -699,7 +699,8 @@ class RelightSession:
                 out = self.deshadow()
             else:
                 out = self._in_photo_colours(deshadow(d["image"], d["probability"], d["sky"]))
-            full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out)
+            full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out,
+                                               sky=d["sky"])
         self._time("deshadow_full", t0)
         return full
 
