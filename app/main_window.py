@@ -15,6 +15,7 @@ latest view choice wins) and kept, so dragging the new sun there costs nothing.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import time
@@ -24,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from PySide6.QtCore import QEvent, QObject, QSettings, Qt, Slot
+from PySide6.QtCore import QEvent, QEventLoop, QObject, QSettings, Qt, Slot
 from PySide6.QtGui import (
     QAction,
     QCloseEvent,
@@ -162,6 +163,19 @@ class StatusText(QLabel):
     def setText(self, text: str) -> None:  # noqa: N802 (Qt's name)
         super().setText(text)
         self.setToolTip(text)
+
+
+def _typed_numbers_first(method: Callable[..., Any]) -> Callable[..., Any]:
+    """A user action that first takes in a number still being typed in a spin box (no Enter
+    yet; a toolbar button takes no focus, so the box has not committed it): as Enter would
+    (:meth:`MainWindow._commit_typed_fields`; user trials exported and saved old values)."""
+
+    @functools.wraps(method)
+    def wrapper(self: MainWindow, *args: Any, **kwargs: Any) -> Any:
+        self._commit_typed_fields()
+        return method(self, *args, **kwargs)
+
+    return wrapper
 
 
 class MainWindow(QMainWindow):
@@ -352,7 +366,7 @@ class MainWindow(QMainWindow):
         self.act_confirm = QAction(
             "&Confirm original sun", self, shortcut=QKeySequence("Ctrl+Return")
         )
-        self.act_confirm.triggered.connect(self.confirm_original_sun)
+        self.act_confirm.triggered.connect(self._confirm_clicked)
         self.act_find_sun = QAction("&Find sun from shadows", self, shortcut=QKeySequence("Ctrl+F"))
         self.act_find_sun.setToolTip(
             "Search the sky for the sun whose shadows match the photo's (Ctrl+F; again to cancel)"
@@ -452,7 +466,7 @@ class MainWindow(QMainWindow):
         ap.sun_panel.sun_changed.connect(self._on_original_sun_changed)
         ap.sun_panel.sun_committed.connect(self._on_original_sun_committed)
         ap.opacity_slider.valueChanged.connect(lambda v: self.canvas.set_overlay_opacity(v / 100.0))
-        ap.confirm_clicked.connect(self.confirm_original_sun)
+        ap.confirm_clicked.connect(self._confirm_clicked)
         ap.exif_clicked.connect(self.use_exif_sun)
         ap.find_sun_clicked.connect(self.toggle_find_sun)
         ap.heading_changed.connect(self._on_heading_typed)
@@ -494,6 +508,14 @@ class MainWindow(QMainWindow):
     def _set_step(self, step: Step) -> None:
         if step is not self.step:  # a new step's panel starts at its top
             self.side_scroll.verticalScrollBar().setValue(0)
+        dialog = self._timelapse_dialog
+        if (step is not Step.RELIGHT and dialog is not None and dialog.isVisible()
+                and not dialog.exporting()):
+            # Its path and heading come from the confirmed sun: it opens again (Ctrl+T) once
+            # the sun is confirmed (a user trial exported from it while re-aligning, with the
+            # old sun; a review, after undoing the confirm). An export running from it keeps
+            # it open, for its progress and Cancel (and it refuses another until then).
+            dialog.close()
         self.step = step
         has_photo = step is not Step.EMPTY
         self.steps.setCurrentWidget(
@@ -1042,9 +1064,9 @@ class MainWindow(QMainWindow):
         self._update_exif_controls()
 
     # ---- automatic sun
+    @_typed_numbers_first
     def toggle_find_sun(self) -> None:
         """Start finding the sun, or cancel the search that runs."""
-        self._commit_typed_fields()  # a number being typed, as Enter would
         if self.finding_sun():
             self.runner.cancel("find_sun")
             return
@@ -1160,8 +1182,8 @@ class MainWindow(QMainWindow):
             whose = "the heading you typed"
         return f"the photo's time, place and {whose}"
 
+    @_typed_numbers_first
     def use_exif_sun(self) -> None:
-        self._commit_typed_fields()  # a number being typed, as Enter would
         sun = self.exif_sun()
         if sun is None or self.step is not Step.ALIGN:
             return
@@ -1194,6 +1216,8 @@ class MainWindow(QMainWindow):
             self.align_panel.sun_panel.set_sun(*project.original_sun.as_tuple())
         elif project.align_sun is not None:  # saved in step 1, before (re-)confirming
             self.align_panel.sun_panel.set_sun(*project.align_sun.as_tuple())
+        elif project.original_sun is not None:  # re-aligning, the dial's sun not kept
+            self.align_panel.sun_panel.set_sun(*project.original_sun.as_tuple())
         if project.target_sun is not None:
             self.relight_panel.sun_panel.set_sun(*project.target_sun.as_tuple())
         if confirmed:
@@ -1295,9 +1319,12 @@ class MainWindow(QMainWindow):
         if self.step is Step.ALIGN:
             self.canvas.set_overlay(qimage_from_array(result["overlay"]))
 
+    @_typed_numbers_first
+    def _confirm_clicked(self) -> None:
+        self.confirm_original_sun()
+
     def confirm_original_sun(self, keep_target: bool = False) -> None:
         """Fix the original sun and compute its refined shadow (step 1 -> step 2)."""
-        self._commit_typed_fields()  # a number being typed, as Enter would
         session = self.session
         if session is None:
             return
@@ -1330,14 +1357,9 @@ class MainWindow(QMainWindow):
         self.request_relight(preview=False)
 
     def back_to_align(self) -> None:
-        """Step 2 -> step 1: align the original sun again (the new sun is kept). The
-        time-lapse dialog closes: its path and heading come from the confirmed sun, so it opens
-        again (Ctrl+T) once the sun is confirmed (a user trial exported from it while
-        re-aligning, with the old sun)."""
+        """Step 2 -> step 1: align the original sun again (the new sun is kept)."""
         if self.step is not Step.RELIGHT:
             return
-        if self._timelapse_dialog is not None and self._timelapse_dialog.isVisible():
-            self._timelapse_dialog.close()
         self._set_step(Step.ALIGN)
         self.request_shadow(preview=False)
         self._record()
@@ -1515,8 +1537,8 @@ class MainWindow(QMainWindow):
         return out
 
     # ================================================================== export still
+    @_typed_numbers_first
     def export_still_dialog(self) -> None:
-        self._commit_typed_fields()  # a number being typed, as Enter would
         if self.step is not Step.RELIGHT:
             return
         stem = Path(self.image_path).stem
@@ -1546,9 +1568,9 @@ class MainWindow(QMainWindow):
             "relighting at full resolution",
         )  # fmt: skip
 
+    @_typed_numbers_first
     def export_shadows_removed_dialog(self) -> None:
         """Ask where to write the photo with its own shadows removed, then export it."""
-        self._commit_typed_fields()  # a number being typed, as Enter would
         if self.step is not Step.RELIGHT:
             return
         stem = Path(self.image_path).stem
@@ -1634,8 +1656,8 @@ class MainWindow(QMainWindow):
         return ""
 
     # ================================================================== time-lapse
+    @_typed_numbers_first
     def open_timelapse(self) -> Any:
-        self._commit_typed_fields()  # a number being typed, as Enter would
         if self.step is not Step.RELIGHT:
             return None
         from app.timelapse_dialog import TimelapseDialog
@@ -1719,7 +1741,6 @@ class MainWindow(QMainWindow):
 
     # ================================================================== projects
     def project_state(self) -> ProjectState:
-        self._commit_typed_fields()
         if self._timelapse_dialog is not None and self._timelapse_dialog.is_current():
             self.timelapse_settings = self._timelapse_dialog.settings()
         return ProjectState(
@@ -1754,11 +1775,14 @@ class MainWindow(QMainWindow):
         focus; a toolbar button takes no focus): the camera heading and both suns' fields.
         Without it "Save project" from the toolbar saved the heading box's old value, and
         quitting asked nothing (a user trial)."""
+        if self._applying_edit:  # an undo, a redo or a load: not the user's typing
+            return
         panels = (self.align_panel.sun_panel, self.relight_panel.sun_panel)
         for box in (self.align_panel.heading_box,
                     *(b for p in panels for b in (p.azimuth_box, p.elevation_box))):
             box.interpretText()
 
+    @_typed_numbers_first
     def save_project(self, path: str | None = None) -> str | None:
         if not self.image_path:
             return None
@@ -2007,7 +2031,8 @@ class MainWindow(QMainWindow):
             # were saved.
             end = time.monotonic() + STOP_WAIT_S
             while time.monotonic() < end and asked & {i for i, _, _ in self.runner.active()}:
-                QApplication.processEvents()
+                # (no user input meanwhile: a second close or open would nest in this one)
+                QApplication.processEvents(QEventLoop.ProcessEventsFlag.ExcludeUserInputEvents)
                 time.sleep(0.01)
             done = [self._saved_exports.pop(i) for i in sorted(asked) if i in self._saved_exports]
             if done:

@@ -39,7 +39,7 @@ from PySide6.QtWidgets import (
 
 from app import display
 from app.canvas import qimage_from_array
-from app.state import Sun, TimelapseSettings
+from app.state import Step, Sun, TimelapseSettings
 from app.workers import JobContext
 from outcast_core.runtime.pipeline import timelapse as tl
 
@@ -472,6 +472,10 @@ class TimelapseDialog(QDialog):
         """The current sun path (ValueError when the settings are incomplete)."""
         return samples_for(self.settings(), self.main.camera_tilt[:2])
 
+    def exporting(self) -> bool:
+        """Whether an export from this dialog runs (its progress and Cancel are here)."""
+        return self._exporting
+
     def is_current(self) -> bool:
         """Whether the widgets hold the open photo's settings (not before :meth:`load_settings`,
         nor once :meth:`set_stale` said another photo was opened)."""
@@ -609,7 +613,8 @@ class TimelapseDialog(QDialog):
     def export(self, path: str, force: bool = False) -> int | None:
         """Render the path's frames and write them; progress and cancel in this dialog."""
         session = self.main.session
-        if session is None or session.original_sun is None or self._exporting:
+        if (session is None or session.original_sun is None or self._exporting
+                or self.main.step is not Step.RELIGHT):  # (re-aligning: no confirmed sun)
             return None
         try:
             samples = self.samples()

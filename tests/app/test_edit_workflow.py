@@ -279,6 +279,25 @@ def test_typed_numbers_reach_toolbar_actions(window, photo, settle, tmp_path, mo
     assert panel.sun()[0] == pytest.approx(30.0) and "az30_" in asked[0]
 
 
+def test_undo_does_not_take_in_a_number_being_typed(window, photo, settle):
+    """Typed (no Enter) in the heading box, then Undo of "Re-align": the undo itself takes
+    nothing in (a review found the heading applied unrecorded on the way). Qt commits the
+    text when the box hides (step 2 shows): then it is an edit of its own, undoable."""
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    window.back_to_align()
+    settle()
+    window.align_panel.heading_box.lineEdit().setText("42")
+    window.act_undo.trigger()
+    settle()
+    assert window.step is Step.RELIGHT and window.user_heading == pytest.approx(42.0)
+    assert _undo_texts(window)[-1] == "Camera heading"
+    assert window.undo_stack.index() == window.undo_stack.count()
+    window.act_undo.trigger()
+    settle()
+    assert window.user_heading is None and window.step is Step.RELIGHT
+
+
 def test_the_same_photo_opened_again_starts_afresh(window, photo, settle, leave_answers):
     """Opened again with "Don't save": its time-lapse edits go with the rest (a user trial
     found them saved later)."""
@@ -303,13 +322,18 @@ def test_realigning_closes_the_timelapse_dialog_and_a_filled_heading_is_not_save
     shutil.copyfile(f"{ROOT}/samples/exif_003_th_pool.jpg", pool)
     _load(window, str(pool), settle)
     _confirm(window, settle)
-    dialog = window.open_timelapse()
-    dialog.kind_combo.setCurrentIndex(1)  # the real sun path: its heading filled in
-    assert window.timelapse_auto_heading is not None
+    dialog = window.open_timelapse()  # the heading box filled in from the confirmed sun
+    assert window.timelapse_auto_heading == pytest.approx(dialog.heading_box.value())
     window.back_to_align()
     settle()
     assert not dialog.isVisible()  # its path came from the sun being re-aligned
     assert load_project(window.save_project()).timelapse.heading is None  # solved again
+    _confirm(window, settle)
+    again = window.open_timelapse()
+    window.act_undo.trigger()  # undo the confirm: back in step 1, the same holds
+    settle()
+    assert window.step is Step.ALIGN and not again.isVisible()
+    assert again.export(str(tmp_path / "x.gif")) is None  # and it exports nothing there
 
 
 def test_back_from_a_small_buffer_view_the_photo_is_fitted(window, photo, settle, tmp_path):

@@ -62,9 +62,9 @@ def gain_map(work_before_srgb: np.ndarray, work_after_srgb: np.ndarray) -> np.nd
     return ((after + GAIN_EPS) / (before + GAIN_EPS)).astype(np.float32)
 
 
-def _vertical_coefficients(out_rows: int, in_rows: int) -> tuple[np.ndarray, np.ndarray]:
-    """Source row ``y0`` and weight ``f`` of row ``y0 + 1`` for each output row, as
-    ``cv2.resize`` with ``INTER_LINEAR`` computes them (pixel centres aligned, clamped)."""
+def _linear_coefficients(out_rows: int, in_rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Source row ``y0`` and weight ``f`` of row ``y0 + 1`` for each output row (or column),
+    as ``cv2.resize`` with ``INTER_LINEAR`` computes them (pixel centres aligned, clamped)."""
     ys = (np.arange(out_rows, dtype=np.float64) + 0.5) * (in_rows / out_rows) - 0.5
     y0 = np.floor(ys)
     f = ys - y0
@@ -106,7 +106,7 @@ class GainUpsampler:
         if gh > 1:
             np.subtract(self._wide[1:], self._wide[:-1], out=diff[:-1])
         self._diff = diff
-        self._y0, self._f = _vertical_coefficients(height, gh)
+        self._y0, self._f = _linear_coefficients(height, gh)
 
     def rows(self, r0: int, r1: int, out: np.ndarray | None = None) -> np.ndarray:
         """Output rows ``r0:r1`` (``(r1 - r0) x W x C`` float32), written into ``out`` if given."""
@@ -127,6 +127,12 @@ class GainUpsampler:
 
 #: :class:`SkyGuide`: the log floor of the colours it compares (linear).
 _LOG_FLOOR = 1e-3
+#: :class:`SkyGuide`: how far (working pixels) each side's colour, and its gain where the other
+#: side's pixels stand, reach across the skyline.
+SKYLINE_REACH = 1
+#: :class:`SkyGuide`: below this squared distance (log colour) between the two sides' colours
+#: the choice by colour fades into the plain bilinear weights (noise would speckle it).
+SKYLINE_SEPARATION = 0.5
 
 
 class SkyGuide:
@@ -136,54 +142,60 @@ class SkyGuide:
     neighbours' gains; where the relighting darkens a roof or a treetop and keeps the sky (the
     learned relighting keeps the photo's sky when no sun is in the frame), the sky along the
     edge took part of the darkening: dark smudges along the pool sample's roof and tree line
-    (a user trial). So within :data:`SKYLINE_REACH` working pixels of the skyline (the working
-    mask is coarse: a working pixel called surface may hold sky), each side's gain and log
-    colour are spread across the skyline (the mean over that side's pixels in the reach), and
-    a full-resolution pixel there takes the sky's or the surface's gain, mixed by how close its
-    own colour is to each side's (``alpha = d_surface / (d_sky + d_surface)``, ``d`` the
-    fourth power of the distance in log colour: the sides' means hold the skyline's mixed
-    pixels, and a softer choice left a twentieth of the other side's gain). Every other pixel
-    keeps the plain bilinear gain.
+    (a user trial). So for a full-resolution pixel whose bilinear neighbours are within
+    :data:`SKYLINE_REACH` working pixels of both sides (the working mask is coarse: a working
+    pixel called surface may hold sky), each side's gain is interpolated over that side's
+    neighbours (its own gain on its own pixels, the mean of the side's pixels within reach on
+    the other side's), and the pixel takes the sky's or the surface's by how close its own
+    colour is to each side's mean colour (``alpha = d_surface / (d_sky + d_surface)``, ``d``
+    the fourth power of the distance in log colour; the sides' means hold the skyline's mixed
+    pixels, and a softer choice left a twentieth of the other side's gain). Where the two
+    sides' colours are close (:data:`SKYLINE_SEPARATION`) the choice fades into the plain
+    bilinear weights, so noise does not speckle a hazy skyline. Every other pixel keeps the
+    plain bilinear gain; at 1:1 nothing changes.
 
     Args:
         sky: ``h x w`` bool, the working-size sky mask.
-        photo_srgb: ``h x w x 3`` the working-size photo (sRGB).
+        photo_srgb: ``h x w x 3`` the working-size photo (sRGB; uint8 0-255 or float 0-1).
     """
 
     def __init__(self, sky: np.ndarray, photo_srgb: np.ndarray) -> None:
         self.sky = np.asarray(sky, bool)
-        if self.sky.shape != np.asarray(photo_srgb).shape[:2]:
-            raise ValueError(f"expected a sky mask of the photo's size {photo_srgb.shape[:2]}, "
+        photo = np.asarray(photo_srgb)
+        if self.sky.shape != photo.shape[:2]:
+            raise ValueError(f"expected a sky mask of the photo's size {photo.shape[:2]}, "
                              f"got {self.sky.shape}")
-        self.log_photo = np.log(srgb_to_linear(np.asarray(photo_srgb, np.float32))
-                                + np.float32(_LOG_FLOOR)).astype(np.float32)
+        photo = (photo.astype(np.float32) / np.float32(255.0) if photo.dtype == np.uint8
+                 else photo.astype(np.float32))
+        self.log_photo = np.log(srgb_to_linear(photo) + np.float32(_LOG_FLOOR)).astype(
+            np.float32)
 
     def useful(self) -> bool:
         """Whether there is a skyline to guard (some sky and some surface)."""
         return bool(self.sky.any() and not self.sky.all())
 
     def sides(self, gain: np.ndarray) -> dict[str, np.ndarray]:
-        """Per side (``k`` sky, ``s`` surface), at working size: the side's presence within
-        the reach (``w``, 0-1), its mean gain (``g``) and log colour (``c``) there; and
-        ``band``, 1 where both sides are within reach."""
-        size = 2 * SKYLINE_REACH + 1
-        out: dict[str, np.ndarray] = {}
-        for key, mask in (("k", self.sky), ("s", ~self.sky)):
+        """At working size: ``packed``, ``h x w x 14`` per pixel the sky side's presence within
+        reach, its gain and its mean log colour there, then the same for the surface (one
+        gather per neighbour at full resolution); ``band``, 1 where both sides are within
+        reach; ``rows``, per working row whether ``band`` has any pixel there."""
+        size = (2 * SKYLINE_REACH + 1,) * 2
+        parts = []
+        for mask in (self.sky, ~self.sky):
             m = mask.astype(np.float32)
-            w = cv2.blur(m, (size, size), borderType=cv2.BORDER_REPLICATE)
+            w = cv2.blur(m, size, borderType=cv2.BORDER_REPLICATE)
             safe = np.maximum(w, 1e-6)[..., None]
-            out["w" + key] = w
-            out["g" + key] = cv2.blur(gain * m[..., None], (size, size),
-                                      borderType=cv2.BORDER_REPLICATE) / safe
-            out["c" + key] = cv2.blur(self.log_photo * m[..., None], (size, size),
-                                      borderType=cv2.BORDER_REPLICATE) / safe
-        out["band"] = ((out["wk"] > 0) & (out["ws"] > 0)).astype(np.float32)
-        return out
-
-
-#: :class:`SkyGuide`: how far (working pixels) each side's gain and colour reach across the
-#: skyline.
-SKYLINE_REACH = 1
+            mean_gain = cv2.blur(gain * m[..., None], size,
+                                 borderType=cv2.BORDER_REPLICATE) / safe
+            colour = cv2.blur(self.log_photo * m[..., None], size,
+                              borderType=cv2.BORDER_REPLICATE) / safe
+            # A pixel of this side keeps its own gain (the strip's edge then meets the plain
+            # transfer, and shadows on a roof stay sharp); the other side's take the mean.
+            side_gain = np.where(mask[..., None], gain, mean_gain)
+            parts += [(w > 0).astype(np.float32)[..., None], side_gain, colour]
+        packed = np.concatenate(parts, axis=-1).astype(np.float32)
+        band = (packed[..., 0] > 0) & (packed[..., 7] > 0)
+        return {"packed": packed, "band": band.astype(np.float32), "rows": band.any(axis=1)}
 
 
 def _guard_skyline(g: np.ndarray, lin: np.ndarray, near: np.ndarray, r0: int,
@@ -195,29 +207,34 @@ def _guard_skyline(g: np.ndarray, lin: np.ndarray, near: np.ndarray, r0: int,
     ys, xs = np.nonzero(near > 1e-6)
     if ys.size == 0:
         return
-    h, w = sides["band"].shape
+    packed = sides["packed"]
+    h, w = packed.shape[:2]
     y0, fy = ycoef[0][ys + r0], ycoef[1][ys + r0]
     x0, fx = xcoef[0][xs], xcoef[1][xs]
     y1, x1 = np.minimum(y0 + 1, h - 1), np.minimum(x0 + 1, w - 1)
-    corners = ((y0, x0, (1 - fy) * (1 - fx)), (y0, x1, (1 - fy) * fx),
-               (y1, x0, fy * (1 - fx)), (y1, x1, fy * fx))
-    side: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for key in ("k", "s"):  # each side's gain and colour, bilinear over where it reaches
-        wsum = np.zeros(ys.size, np.float32)
-        gsum = np.zeros((ys.size, 3), np.float32)
-        csum = np.zeros((ys.size, 3), np.float32)
-        for yi, xi, wt in corners:
-            wv = (wt * (sides["w" + key][yi, xi] > 0)).astype(np.float32)
-            wsum += wv
-            gsum += wv[:, None] * sides["g" + key][yi, xi]
-            csum += wv[:, None] * sides["c" + key][yi, xi]
-        wsum = np.maximum(wsum, 1e-6)[:, None]
-        side[key] = (gsum / wsum, csum / wsum)
+    acc = np.zeros((ys.size, 14), np.float32)  # weight-summed: [wk, gk*3, ck*3, ws, gs, cs]
+    plain_sky = np.zeros(ys.size, np.float32)  # the bilinear sky weight (the fallback)
+    sky = sides["sky"]
+    for yi, xi, wt in ((y0, x0, (1 - fy) * (1 - fx)), (y0, x1, (1 - fy) * fx),
+                       (y1, x0, fy * (1 - fx)), (y1, x1, fy * fx)):
+        p = packed[yi, xi]  # N x 14
+        wk, ws = wt * p[:, 0], wt * p[:, 7]
+        acc[:, 0] += wk
+        acc[:, 1:7] += wk[:, None] * p[:, 1:7]
+        acc[:, 7] += ws
+        acc[:, 8:14] += ws[:, None] * p[:, 8:14]
+        plain_sky += wt * sky[yi, xi]
+    wk = np.maximum(acc[:, 0:1], 1e-6)
+    ws = np.maximum(acc[:, 7:8], 1e-6)
+    g_k, c_k = acc[:, 1:4] / wk, acc[:, 4:7] / wk
+    g_s, c_s = acc[:, 8:11] / ws, acc[:, 11:14] / ws
     lf = np.log(np.maximum(lin[ys, xs] - GAIN_EPS, 0.0) + _LOG_FLOOR)
-    d_k = ((lf - side["k"][1]) ** 2).sum(axis=1) ** 2  # squared again: a sharper choice
-    d_s = ((lf - side["s"][1]) ** 2).sum(axis=1) ** 2  # (the sides' means mix edge colours)
-    alpha = (d_s / np.maximum(d_s + d_k, 1e-24))[:, None]
-    g[ys, xs] = alpha * side["k"][0] + (1.0 - alpha) * side["s"][0]
+    d_k = ((lf - c_k) ** 2).sum(axis=1) ** 2
+    d_s = ((lf - c_s) ** 2).sum(axis=1) ** 2
+    by_colour = d_s / np.maximum(d_s + d_k, 1e-24)
+    trust = np.clip(((c_k - c_s) ** 2).sum(axis=1) / SKYLINE_SEPARATION, 0.0, 1.0)
+    alpha = (trust * by_colour + (1.0 - trust) * plain_sky)[:, None]
+    g[ys, xs] = alpha * g_k + (1.0 - alpha) * g_s
 
 
 def _bands(height: int, width: int, band_rows: int | None) -> list[tuple[int, int]]:
@@ -278,10 +295,10 @@ def apply_gain(
         if sky.sky.shape != gain.shape[:2]:
             raise ValueError(f"expected a sky guide of the gain's size {gain.shape[:2]}, got "
                              f"{sky.sky.shape}")
-        sides = sky.sides(gain)
+        sides = {**sky.sides(gain), "sky": sky.sky.astype(np.float32)}
         band_up = GainUpsampler(sides["band"], (height, width))
-        ycoef = _vertical_coefficients(height, gain.shape[0])
-        xcoef = _vertical_coefficients(width, gain.shape[1])  # the same formula across
+        ycoef = _linear_coefficients(height, gain.shape[0])
+        xcoef = _linear_coefficients(width, gain.shape[1])
 
     def band(r: tuple[int, int]) -> None:
         r0, r1 = r
@@ -293,7 +310,9 @@ def apply_gain(
             lin += GAIN_EPS
         g = up.rows(r0, r1)
         if guard:
-            _guard_skyline(g, lin, band_up.rows(r0, r1)[..., 0], r0, sides, ycoef, xcoef)
+            y_first, y_last = int(ycoef[0][r0]), int(ycoef[0][r1 - 1]) + 1
+            if sides["rows"][y_first:y_last + 1].any():  # (bands far from it: nothing to do)
+                _guard_skyline(g, lin, band_up.rows(r0, r1)[..., 0], r0, sides, ycoef, xcoef)
         cv2.multiply(lin, g, dst=lin)
         if out_u8:
             # (lin - e) * 65535, rounded and saturated to uint16 by OpenCV, then the table.

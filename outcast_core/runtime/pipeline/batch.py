@@ -436,7 +436,9 @@ def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None,
 
     Reads ``NAME.outcast.json`` (the format of :mod:`app.state`) without the app: its
     ``original_sun`` (the sun the user confirmed), ``target_sun`` and ``depth_path`` (a depth
-    map the user loaded, relative to the project file).
+    map the user loaded, relative to the project file). A project saved while re-aligning
+    (``realigning``) still gives the sun confirmed last: the dial's, not yet confirmed, is not
+    the user's answer.
 
     Returns:
         ``(original_sun, target_sun, depth_path)``; ``(None, None, "")`` without a project.

@@ -149,3 +149,43 @@ def test_the_skyline_keeps_each_sides_gain_at_full_resolution() -> None:
     all_sky = np.ones_like(sky_work)  # nothing to guard: the plain transfer
     np.testing.assert_allclose(transfer_to_full_resolution(photo, work, relit, sky=all_sky),
                                transfer_to_full_resolution(photo, work, relit), atol=1e-6)
+
+
+def test_the_skyline_guide_keeps_the_surfaces_own_gain_and_changes_nothing_at_one_to_one(
+) -> None:
+    """A review's cases: a textured gain on the surface (rows alternating) meets the plain
+    transfer without a step at the guided strip's edge; at 1:1 the output is the plain one;
+    a hazy skyline (sides of nearly one colour, noisy) is not speckled with the other side's
+    gain."""
+    from outcast_core.runtime.geometry.fullres import SkyGuide
+
+    rng = np.random.default_rng(5)
+    h, w, k = 20, 24, 6
+    sky = np.zeros((h, w), bool)
+    sky[:8] = True
+    work = np.where(sky[..., None], 0.8, 0.3).astype(np.float32) * np.ones((1, 1, 3), np.float32)
+    gain = np.ones((h, w, 3), np.float32)
+    gain[8:] = np.where((np.arange(8, h) % 2 == 0)[:, None, None], 0.9, 0.3)
+    photo = cv2.resize(work, (w * k, h * k), interpolation=cv2.INTER_NEAREST)
+    guide = SkyGuide(sky, work)
+    plain = apply_gain(photo, gain)
+    guided = apply_gain(photo, gain, sky=guide)
+    rows = guided[:, w * k // 2, 0]  # one column down through the skyline
+    # Below the skyline's reach the guided rows are the plain ones: no step where they meet.
+    far = slice(12 * k, h * k)
+    np.testing.assert_allclose(guided[far], plain[far], atol=1e-6)
+    assert np.all(np.abs(np.diff(rows[9 * k:])) <= np.abs(np.diff(plain[9 * k:, w * k // 2, 0]))
+                  .max() + 1e-6)
+    # 1:1: nothing to upsample, nothing changes.
+    np.testing.assert_allclose(apply_gain(work, gain, sky=guide), apply_gain(work, gain),
+                               atol=1e-6)
+    # A hazy skyline: sky and ridge of nearly one colour, noisy at full resolution.
+    hazy = np.where(sky[..., None], 0.5, 0.47).astype(np.float32) * np.ones((1, 1, 3))
+    big = cv2.resize(hazy, (w * k, h * k), interpolation=cv2.INTER_LINEAR)
+    big = np.clip(big * (1 + 0.05 * rng.standard_normal(big.shape)), 0, 1).astype(np.float32)
+    g2 = np.where(sky[..., None], 1.0, 0.5).astype(np.float32) * np.ones((1, 1, 3), np.float32)
+    out = srgb_to_linear(apply_gain(big, g2, sky=SkyGuide(sky, hazy)))
+    ref = srgb_to_linear(apply_gain(big, g2))
+    err = np.abs(out / np.maximum(srgb_to_linear(big), 1e-4) - ref / np.maximum(
+        srgb_to_linear(big), 1e-4))
+    assert err.max() < 0.1  # near the plain transfer's gains: no pixel flips to the other's
