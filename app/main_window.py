@@ -223,6 +223,10 @@ class MainWindow(QMainWindow):
         #: another one asks first (:meth:`save_project`).
         self._project_files: set[str] = set()
         self._opening_project_file = ""
+        #: The project file Save writes: the one opened or last saved for the photo on screen
+        #: ("" : the photo's own, ``photo.outcast.json``; a user trial's Ctrl+S after opening
+        #: "my project.outcast.json" asked to replace the photo's own instead).
+        self._project_file = ""
         #: The heading the sun in the frame implies (None: no sun in the frame, or no GPS and
         #: time); said under the EXIF button while the heading box holds it.
         self.seen_heading: float | None = None
@@ -840,6 +844,7 @@ class MainWindow(QMainWindow):
             self.user_heading = self.seen_heading = None
             opened = self._opening_project_file if project is not None else ""
             self._project_files = {opened} if opened else set()
+            self._project_file = opened
             self.side_scroll.verticalScrollBar().setValue(0)  # another photo: from the top
             self.align_panel.set_heading(self._exif_heading(), recorded=True)
             self.sun_fit = None
@@ -1786,7 +1791,7 @@ class MainWindow(QMainWindow):
     def save_project(self, path: str | None = None) -> str | None:
         if not self.image_path:
             return None
-        target = path or str(project_path_for(self.image_path))
+        target = path or self._project_file or str(project_path_for(self.image_path))
         asked = path is not None
         if not is_project_file(target):  # "pool.jpg" or "mypool" typed in the save dialog
             # Never the photo itself (a user trial's "Save project as" replaced the JPEG with
@@ -1800,6 +1805,7 @@ class MainWindow(QMainWindow):
             self.show_error(exc, "project")
             return None
         self._project_files.add(os.path.abspath(target))
+        self._project_file = os.path.abspath(target)
         self.recent.add(target)
         self._save_recent()
         if self._timelapse_baseline is not None:  # project_state() took the dialog's
@@ -2007,7 +2013,8 @@ class MainWindow(QMainWindow):
             True to go ahead (exports stopped, the project saved or the edits dropped as the
             user chose); False to stay.
         """
-        name = project_path_for(self.image_path).name if self.image_path else ""
+        name = (os.path.basename(self._project_file) if self._project_file
+                else project_path_for(self.image_path).name if self.image_path else "")
         self._commit_typed_fields()
         questions = leave_questions(
             action, self.running_exports(), self.has_unsaved_changes(), name

@@ -336,6 +336,25 @@ def test_save_project_as_never_replaces_the_photo_and_names_a_project(window, ph
     assert not os.path.exists(plain)
 
 
+def test_save_writes_the_project_that_was_opened(window, photo, settle, leave_answers):
+    """Opened as "my project.outcast.json", Ctrl+S saves there, not over the photo's own
+    project (a user trial was asked to replace that one instead)."""
+    import os
+
+    _load(window, photo, settle)
+    mine = os.path.join(os.path.dirname(photo), "my project.outcast.json")
+    assert window.save_project(mine) == mine
+    window.open_path(mine)
+    settle()
+    window.align_panel.sun_panel.azimuth_box.setValue(123.0)
+    assert window.save_project() == mine and not os.path.exists(project_path_for(photo))
+    assert load_project(mine).align_sun.azimuth == pytest.approx(123.0)
+    leave_answers.script.append("cancel")
+    window.align_panel.sun_panel.azimuth_box.setValue(124.0)
+    assert window.close() is False
+    assert "my project.outcast.json" in leave_answers.asked[-1].detail
+
+
 def test_a_project_saved_while_realigning_reopens_realigning(qtbot, window, photo, settle,
                                                               reopen):
     """Saved in step 1 after "Re-align original sun": reopened in step 1 at the dial's sun,
@@ -634,9 +653,9 @@ def test_saving_over_a_project_the_window_did_not_open_asks(qtbot, window, photo
     settle()
     assert "has a saved project" not in window.align_panel.notice.text()
     assert window.save_project() == saved and not leave_answers.asked
-    other = str(Path(saved).with_name("copy.outcast.json"))  # "Save as", then Save
-    assert window.save_project(other) == other
-    assert window.save_project() == saved and not leave_answers.asked
+    other = str(Path(saved).with_name("copy.outcast.json"))  # "Save as", then Save: the
+    assert window.save_project(other) == other  # window now works in the copy, as editors do
+    assert window.save_project() == other and not leave_answers.asked
 
 
 def test_save_as_over_another_photos_project_names_that_photo(qtbot, window, photo, settle,

@@ -95,7 +95,9 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    help=f"time-lapse frames per second, {MIN_FPS:g}..{MAX_FPS:g} (default 12)")
     p.add_argument("--size", choices=FRAME_SIZES, default="1080p",
                    help="time-lapse frame size (default 1080p)")
-    add_exposure_option(p)
+    add_exposure_option(p, "keep the photo's exposure, or meter the new light again as a "
+                           "camera would (default: what the photo's project says, else the "
+                           "photo's)", default=None)
     p.add_argument("--preset", choices=["fast", "balanced", "accurate"], default="balanced",
                    help="speed/accuracy preset")
     p.add_argument("--mode", choices=["auto", "learned", "classic"], default="auto",

@@ -20,6 +20,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import NoReturn
 
 import numpy as np
 
@@ -127,9 +128,10 @@ def _make_session(args: argparse.Namespace, *, shadow_mode: str, relight_mode: s
 EXPOSURE_CHOICES = ("photo", "metered")
 
 
-def add_exposure_option(p: argparse.ArgumentParser, help_text: str = "") -> None:
+def add_exposure_option(p: argparse.ArgumentParser, help_text: str = "",
+                        default: str | None = "photo") -> None:
     """``--exposure``: the relit photo keeps the photo's exposure, or is metered again."""
-    p.add_argument("--exposure", choices=EXPOSURE_CHOICES, default="photo",
+    p.add_argument("--exposure", choices=EXPOSURE_CHOICES, default=default,
                    help=help_text or "keep the photo's exposure (default: a scene the new sun "
                    "puts in shade comes out dark), or meter the new light again as a camera would")
 
@@ -309,11 +311,20 @@ def _add_common(p: argparse.ArgumentParser, *, depth: bool = True) -> None:
     p.add_argument("-q", "--quiet", action="store_true", help="print nothing on success")
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line, as every other error of ``outcast``
+    (argparse printed its usage block first: 11-14 lines for a mistyped ``--frames``; a user
+    trial). ``--help`` still gives the usage."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser(
     optional: Sequence[tuple[str, str]] = OPTIONAL_COMMANDS,
 ) -> argparse.ArgumentParser:
     """The ``outcast`` argument parser (optional command groups added when importable)."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="outcast", description="Relight outdoor photographs with correct cast shadows."
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")

@@ -244,8 +244,17 @@ def _samples_from_args(
             print(f"camera heading solved from the photo's time and GPS: {heading:.1f} deg",
                   file=sys.stderr)
     frames = 48 if args.frames is None else args.frames
-    return real_sun_path(args.date, lat, lon, heading, frames, args.start, args.end,
-                         args.utc_offset, (pitch, roll))
+    samples = real_sun_path(args.date, lat, lon, heading, frames, args.start, args.end,
+                            args.utc_offset, (pitch, roll))
+    # (a few frames may all sit at sunrise and sunset: the window is probed finely)
+    probe = samples if frames >= 49 else real_sun_path(
+        args.date, lat, lon, heading, 49, args.start, args.end, args.utc_offset, (pitch, roll))
+    if all(s.elevation <= 0.0 for s in probe):  # every frame the same sun on the horizon
+        first, last = samples[0].time, samples[-1].time
+        when = f" from {first:%H:%M} to {last:%H:%M}" if first and last else ""
+        raise ValueError(f"the sun is below the horizon for the whole time-lapse{when} "
+                         f"on {args.date}: choose daytime --start and --end")
+    return samples
 
 
 def check_timelapse_output(args: argparse.Namespace) -> None:

@@ -80,8 +80,9 @@ class BatchOptions:
         easing: sweep easing (:data:`~outcast_core.runtime.pipeline.timelapse.EASINGS`).
         fps: time-lapse frames per second.
         size: time-lapse frame size (:data:`~outcast_core.runtime.pipeline.timelapse.FRAME_SIZES`).
-        exposure: ``photo`` (the photo's exposure kept) or ``metered`` (relit photos and
-            time-lapse frames metered again; ``RelightSession.exposure``).
+        exposure: ``photo`` (the photo's exposure kept), ``metered`` (relit photos and
+            time-lapse frames metered again; ``RelightSession.exposure``), or None: the
+            photo's project's (:func:`project_exposure`), else ``photo``.
         force: overwrite existing outputs (else finished photos are skipped).
         threads: onnxruntime threads per worker (None: onnxruntime's default).
     """
@@ -100,7 +101,7 @@ class BatchOptions:
     frames: int = 48
     easing: str = "ease-in-out"
     fps: float = 12.0
-    exposure: str = "photo"
+    exposure: str | None = None
     size: str = "1080p"
     force: bool = False
     threads: int | None = None
@@ -330,6 +331,22 @@ def _sun_key(sun: Any) -> Any:
     return [round(az % 360.0, 3) + 0.0, round(el, 3) + 0.0]
 
 
+def _project_key(photo: Path) -> Any:
+    """The photo's project as the record compares it: what a batch reads of it (its suns,
+    depth map and exposure), so a project saved again with the same ones (the dial moved in
+    step 1, say) is not other settings (a user trial's was redone); None without one, and
+    the file itself when it cannot be read (the job says why)."""
+    try:
+        original, target, depth = project_suns(photo)
+        exposure = project_exposure(photo)
+    except ValueError:
+        return _file_key(photo.with_name(photo.stem + PROJECT_SUFFIX))
+    if not photo.with_name(photo.stem + PROJECT_SUFFIX).is_file():
+        return None
+    return [_sun_key(original), _sun_key(target), _file_key(Path(depth)) if depth else None,
+            exposure]
+
+
 def _file_key(path: Path | None) -> Any:
     """A file as the record compares it: its absolute path, size and modification time."""
     if path is None or not path.is_file():
@@ -358,11 +375,11 @@ def job_settings(job: BatchJob, options: BatchOptions) -> str:
         elif name == "sweep" and value is not None:
             value = [_sun_key(v) for v in value]
         keys[name] = value
-    if options.kind != "deshadow" and options.exposure != "photo":
-        keys["exposure"] = options.exposure  # (absent at the default: records made before it)
+    if options.kind != "deshadow" and options.exposure not in (None, "photo"):
+        keys["exposure"] = options.exposure  # (absent by default: records made before it; a
+        # project's own setting is in its file's key below)
     image = Path(job.image)
-    keys.update(photo=_file_key(image),
-                project=_file_key(image.with_name(image.stem + PROJECT_SUFFIX)),
+    keys.update(photo=_file_key(image), project=_project_key(image),
                 job_to_sun=_sun_key(job.to_sun), job_from_sun=_sun_key(job.from_sun))
     return json.dumps(keys, sort_keys=True)
 
@@ -431,6 +448,26 @@ def record_done(out_dir: str | os.PathLike[str], jobs: Sequence[BatchJob]) -> No
 
 
 # -------------------------------------------------------------------------------- suns
+def _project_data(photo: Path) -> tuple[Path, dict[str, Any]] | None:
+    """The app's project file next to ``photo`` and its JSON, checked (version, photo); None
+    without one. Raises ``ValueError`` as :func:`project_suns` says."""
+    project = photo.with_name(photo.stem + PROJECT_SUFFIX)
+    if not project.is_file():
+        return None
+    if project.stat().st_size > MAX_PROJECT_BYTES:
+        raise ValueError(f"project '{project.name}' is larger than {MAX_PROJECT_BYTES} bytes")
+    try:
+        data = json.loads(project.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
+        raise ValueError(f"project '{project.name}' is not valid JSON: {exc}") from exc
+    if not isinstance(data, dict) or data.get("outcast_project") != 1:
+        raise ValueError(f"project '{project.name}' is not an OutCast project (version 1)")
+    image = data.get("image") or ""
+    if image and Path(str(image)).name != photo.name:
+        raise ValueError(f"project '{project.name}' is for '{image}', not '{photo.name}'")
+    return project, data
+
+
 def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None, str]:
     """The suns and depth map of the app's project file next to ``photo``, if there is one.
 
@@ -446,21 +483,10 @@ def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None,
     Raises:
         ValueError: the project file is not a valid OutCast project, or is for another photo.
     """
-    photo = Path(photo)
-    project = photo.with_name(photo.stem + PROJECT_SUFFIX)
-    if not project.is_file():
+    found = _project_data(Path(photo))
+    if found is None:
         return None, None, ""
-    if project.stat().st_size > MAX_PROJECT_BYTES:
-        raise ValueError(f"project '{project.name}' is larger than {MAX_PROJECT_BYTES} bytes")
-    try:
-        data = json.loads(project.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise ValueError(f"project '{project.name}' is not valid JSON: {exc}") from exc
-    if not isinstance(data, dict) or data.get("outcast_project") != 1:
-        raise ValueError(f"project '{project.name}' is not an OutCast project (version 1)")
-    image = data.get("image") or ""
-    if image and Path(str(image)).name != photo.name:
-        raise ValueError(f"project '{project.name}' is for '{image}', not '{photo.name}'")
+    project, data = found
 
     def sun(key: str) -> Sun | None:
         value = data.get(key)
@@ -477,6 +503,23 @@ def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None,
     if depth and not os.path.isabs(depth):
         depth = str((project.parent / depth).resolve())
     return sun("original_sun"), sun("target_sun"), str(depth)
+
+
+def project_exposure(photo: str | os.PathLike[str]) -> str | None:
+    """The exposure the app's project next to ``photo`` keeps ("Meter the new light":
+    ``"metered"``, else ``"photo"``), or None without a project (or from before the setting).
+
+    Raises:
+        ValueError: as :func:`project_suns`, or an exposure the app does not know.
+    """
+    found = _project_data(Path(photo))
+    if found is None or "exposure" not in found[1]:
+        return None
+    value = found[1]["exposure"]
+    if value not in ("photo", "metered"):
+        raise ValueError(f"project '{found[0].name}' exposure: expected photo or metered, got "
+                         f"{value!r}")
+    return str(value)
 
 
 def original_sun_for(
@@ -612,7 +655,9 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
         result.to_sun = to_sun
     session = RelightSession(registry=_registry(options.threads), preset=options.preset,
                              mode=options.mode)
-    session.exposure = options.exposure
+    # --exposure, else the project's "Meter the new light" (as its suns are taken), else the
+    # photo's own (a user trial's metered project was batch-relit unmetered)
+    session.exposure = options.exposure or project_exposure(job.image) or "photo"
     depth = read_depth(depth_path) if depth_path else None
     if depth is None:
         width, height = loaded.original_size

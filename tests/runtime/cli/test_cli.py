@@ -65,6 +65,18 @@ def test_relight_full_resolution_and_no_overwrite(photo: Path, tmp_path: Path, c
     assert main(args + ["--force"]) == 0
 
 
+def test_argument_errors_are_one_line(capsys) -> None:
+    """argparse printed its usage block before the error (11-14 lines; a user trial)."""
+    for argv in (["relight", "x.jpg", "--from", "1,2", "--to", "3,4", "--exposure", "bogus",
+                  "-o", "y.jpg"], ["timelapse", "x.jpg", "--from", "1,2", "--frames", "1",
+                                   "-o", "y.gif"], []):
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        assert info.value.code == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "error:" in err and "--help)" in err, err
+
+
 def test_relight_metered_exposure(photo: Path, depth_file: Path, tmp_path: Path,
                                   monkeypatch) -> None:
     """``--exposure metered`` reaches the session; other values are refused."""

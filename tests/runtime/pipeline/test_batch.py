@@ -234,6 +234,38 @@ def test_project_reader_matches_the_app(tmp_path: Path) -> None:
         project_suns(photo)
 
 
+def test_batch_takes_the_projects_exposure_unless_told(tmp_path: Path, monkeypatch) -> None:
+    """A project saved with "Meter the new light" is batch-relit metered, as its suns are
+    taken from it; `--exposure` says otherwise (a user trial's came out unmetered)."""
+    from app import state
+    from outcast_core.runtime.pipeline import batch
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    photo = _photo(tmp_path / "a.png", 0)
+    assert batch.project_exposure(photo) is None
+    state.save_project(state.ProjectState(image_path=str(photo), original_sun=state.Sun(
+        200.0, 40.0), target_sun=state.Sun(90.0, 30.0), exposure="metered"),
+        state.project_path_for(photo))
+    assert batch.project_exposure(photo) == "metered"
+    seen = []
+    real = RelightSession.relight_full
+
+    def spy(self, w, **kw):
+        seen.append(self.exposure)
+        return real(self, w, **kw)
+
+    monkeypatch.setattr(RelightSession, "relight_full", spy)
+    for exposure, name in ((None, "x.png"), ("photo", "y.png")):
+        opts = BatchOptions(kind="relight", preset="fast", exposure=exposure)
+        r = run_job(BatchJob(str(photo), str(tmp_path / "o" / name)), opts)
+        assert r.status == "done", r.message
+    assert seen == ["metered", "photo"]
+    state.project_path_for(photo).write_text(json.dumps(
+        {"outcast_project": 1, "image": "a.png", "exposure": "auto"}))
+    with pytest.raises(ValueError, match="exposure"):
+        batch.project_exposure(photo)
+
+
 def test_targets_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     d = tmp_path / "in"
     d.mkdir()
@@ -353,6 +385,22 @@ def test_job_settings_name_what_decides_an_output(tmp_path: Path) -> None:
     assert job_settings(job, timelapse) != job_settings(job, replace(timelapse,
                                                                      exposure="metered"))
     assert job_settings(job, deshadow) == job_settings(job, replace(deshadow, exposure="metered"))
+    # The project counts by what a batch reads of it: saved again with the same suns (the
+    # step-1 dial moved, say), the same job; another new sun or exposure, another.
+    from app import state
+
+    def save(**kw):
+        state.save_project(state.ProjectState(image_path=str(photo), original_sun=state.Sun(
+            200.0, 40.0), **kw), state.project_path_for(photo))
+
+    save(align_sun=state.Sun(10.0, 10.0))
+    key = job_settings(job, relight)
+    save(align_sun=state.Sun(20.0, 30.0), split=0.3)
+    assert job_settings(job, relight) == key
+    save(target_sun=state.Sun(90.0, 30.0))
+    assert job_settings(job, relight) != key
+    save(exposure="metered")
+    assert job_settings(job, relight) != key
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")

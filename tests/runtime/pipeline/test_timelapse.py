@@ -421,6 +421,18 @@ def test_cli_date_solves_heading_from_exif():
         assert s.azimuth == pytest.approx((s.true_azimuth - 163.7) % 360.0, abs=1e-6)
 
 
+def test_cli_refuses_a_window_with_no_sun():
+    """Every frame below the horizon (a night window): refused, not 48 identical frames at
+    the horizon (a user trial)."""
+    args = _parse(["timelapse", "x.jpg", "--from", "0,30", "--date", "2019-08-21", "--lat",
+                   "7.83", "--lon", "98.3", "--heading", "160", "--utc-offset", "7",
+                   "--start", "20:00", "--end", "22:00", "-o", "o.mp4"])
+    with pytest.raises(ValueError, match="below the horizon for the whole time-lapse from 20:00"):
+        _samples_from_args(args, None)
+    args.start, args.end = dt.time(17, 0), dt.time(20, 0)  # the sun sets in it: fine
+    assert len(_samples_from_args(args, None)) == 48
+
+
 def test_cli_errors():
     with pytest.raises(ValueError, match="exactly one"):
         _samples_from_args(_parse(["timelapse", "x", "--from", "0,30", "-o", "o.mp4"]), None)
