@@ -18,3 +18,20 @@ def photo(tmp_path: Path) -> Path:
     path = tmp_path / "photo.png"
     write_image(path, img)
     return path
+
+
+@pytest.fixture
+def exposures_relit(monkeypatch) -> list[str]:
+    """The exposure of every ``RelightSession.relight_full`` call made in the test, in order
+    (the relighting itself runs as usual)."""
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    seen: list[str] = []
+    real = RelightSession.relight_full
+
+    def spy(self, w, **kw):
+        seen.append(kw.get("exposure") or self.exposure)
+        return real(self, w, **kw)
+
+    monkeypatch.setattr(RelightSession, "relight_full", spy)
+    return seen

@@ -78,18 +78,9 @@ def test_argument_errors_are_one_line(capsys) -> None:
 
 
 def test_relight_metered_exposure(photo: Path, depth_file: Path, tmp_path: Path,
-                                  monkeypatch) -> None:
+                                  exposures_relit) -> None:
     """``--exposure metered`` reaches the session; other values are refused."""
-    from outcast_core.runtime.pipeline.session import RelightSession
-
-    seen = []
-    real = RelightSession.relight_full
-
-    def spy(self, w, **kw):
-        seen.append(self.exposure)
-        return real(self, w, **kw)
-
-    monkeypatch.setattr(RelightSession, "relight_full", spy)
+    seen = exposures_relit
     common = ["relight", str(photo), "--from", "120,40", "--to", "250,30", "--depth",
               str(depth_file), "--fov", "30", "-q"]
     assert main([*common, "-o", str(tmp_path / "a.png")]) == 0

@@ -234,12 +234,12 @@ def test_project_reader_matches_the_app(tmp_path: Path) -> None:
         project_suns(photo)
 
 
-def test_batch_takes_the_projects_exposure_unless_told(tmp_path: Path, monkeypatch) -> None:
+def test_batch_takes_the_projects_exposure_unless_told(tmp_path: Path,
+                                                       exposures_relit) -> None:
     """A project saved with "Meter the new light" is batch-relit metered, as its suns are
     taken from it; `--exposure` says otherwise (a user trial's came out unmetered)."""
     from app import state
     from outcast_core.runtime.pipeline import batch
-    from outcast_core.runtime.pipeline.session import RelightSession
 
     photo = _photo(tmp_path / "a.png", 0)
     assert batch.project_exposure(photo) is None
@@ -247,14 +247,7 @@ def test_batch_takes_the_projects_exposure_unless_told(tmp_path: Path, monkeypat
         200.0, 40.0), target_sun=state.Sun(90.0, 30.0), exposure="metered"),
         state.project_path_for(photo))
     assert batch.project_exposure(photo) == "metered"
-    seen = []
-    real = RelightSession.relight_full
-
-    def spy(self, w, **kw):
-        seen.append(self.exposure)
-        return real(self, w, **kw)
-
-    monkeypatch.setattr(RelightSession, "relight_full", spy)
+    seen = exposures_relit
     for exposure, name in ((None, "x.png"), ("photo", "y.png")):
         opts = BatchOptions(kind="relight", preset="fast", exposure=exposure)
         r = run_job(BatchJob(str(photo), str(tmp_path / "o" / name)), opts)
