@@ -306,7 +306,8 @@ class TimelapseDialog(QDialog):
         self.frames_box.valueChanged.connect(self._settings_changed)
         for c in (self.easing_combo, self.kind_combo, self.way_combo):
             c.currentIndexChanged.connect(self._settings_changed)
-        self.size_combo.currentIndexChanged.connect(self._update_estimate)
+        for c in (self.size_combo, self.format_combo):  # (the estimate; kept as unsaved work)
+            c.currentIndexChanged.connect(self._update_estimate)
         self.date_edit.dateChanged.connect(self._settings_changed)
         self.start_edit.timeChanged.connect(self._settings_changed)
         self.end_edit.timeChanged.connect(self._settings_changed)
@@ -454,7 +455,8 @@ class TimelapseDialog(QDialog):
         if shapes is None or shape is None or not self._samples:
             return None
         timings = dict(getattr(self.main.session, "timings", {}) or {})
-        return tl.estimate_seconds(len(self._samples), shape, shapes[1], timings)
+        return tl.estimate_seconds(len(self._samples), shape, shapes[1], timings,
+                                   str(self.format_combo.currentData()))
 
     def _update_estimate(self, *_args: Any) -> None:
         shape, seconds = self.frame_shape(), self.estimate()

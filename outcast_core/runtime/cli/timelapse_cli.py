@@ -312,7 +312,8 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
         raise ValueError(f"expected either --full-res or --size, got --full-res --size {size}")
     work = session.image_srgb.shape[:2]
     shape = frame_shape(size, session.full_image_srgb.shape[:2], work)
-    guess = estimate_seconds(len(samples), shape, work, dict(session.timings))
+    guess = estimate_seconds(len(samples), shape, work, dict(session.timings),
+                             format_from_path(args.output))
     odd = format_from_path(args.output) == "mp4" and (shape[0] % 2 or shape[1] % 2)
     padded = (f", written as {shape[1] + shape[1] % 2}x{shape[0] + shape[0] % 2} (H.264 needs "
               "even sides: the edge is repeated)" if odd else "")

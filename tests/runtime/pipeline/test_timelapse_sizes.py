@@ -53,6 +53,11 @@ def test_estimate_grows_with_size_and_frames():
     assert small == pytest.approx(120 * (0.65 * 0.15 + 0.03 * 0.288 * 0.384), rel=1e-6)
     assert hd > 1.5 * small
     assert estimate_seconds(240, (1080, 1440), work, t) == pytest.approx(2 * hd)
+    # Encoding by format: a PNG folder and WebP take longer per frame than MP4 and GIF.
+    by_fmt = {f: estimate_seconds(24, (1512, 2016), work, t, f)
+              for f in ("mp4", "gif", "webp", "png")}
+    assert by_fmt["mp4"] == pytest.approx(by_fmt["gif"])
+    assert by_fmt["png"] > by_fmt["webp"] > 1.3 * by_fmt["mp4"]
     assert describe_seconds(42.4) == "about 42 s"
     assert describe_seconds(185) == "about 3 min"
     assert describe_seconds(3900) == "about 1 h 5 min"
