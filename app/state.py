@@ -237,8 +237,7 @@ class ProjectState:
         if not isinstance(preset, str) or preset not in PRESET_NAMES:
             raise ValueError(f"preset: expected one of {PRESET_NAMES}, got {preset!r}")
         exposure = d.get("exposure", "photo")
-        if not isinstance(exposure, str) or exposure not in EXPOSURE_NAMES:
-            raise ValueError(f"exposure: expected one of {EXPOSURE_NAMES}, got {exposure!r}")
+        _choice(exposure, EXPOSURE_NAMES, "exposure")
         view = d.get("buffer_view", "output")
         if not isinstance(view, str) or view not in BUFFER_VIEWS:
             raise ValueError(f"buffer_view: expected one of {BUFFER_VIEWS}, got {view!r}")

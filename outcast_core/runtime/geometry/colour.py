@@ -93,7 +93,9 @@ def tonemap_aces(radiance_lin: np.ndarray, exposure: float = 1.0) -> np.ndarray:
 _RGB_TO_XYZ = np.array([[0.4124564, 0.3575761, 0.1804375],
                         [0.2126729, 0.7151522, 0.0721750],
                         [0.0193339, 0.1191920, 0.9503041]], dtype=np.float32)
-_XYZ_TO_RGB = np.linalg.inv(_RGB_TO_XYZ.astype(np.float64)).astype(np.float32)
+#: CIE XYZ (D65) to linear sRGB, float64 (colour profiles compose it with their own matrices).
+XYZ_TO_SRGB = np.linalg.inv(_RGB_TO_XYZ.astype(np.float64))
+_XYZ_TO_RGB = XYZ_TO_SRGB.astype(np.float32)
 _WHITE_D65 = np.array([0.95047, 1.0, 1.08883], dtype=np.float32)
 _LAB_EPS = (6.0 / 29.0) ** 3
 

@@ -60,7 +60,7 @@ import numpy as np
 import pillow_heif
 from PIL import Image, ImageCms, PngImagePlugin, UnidentifiedImageError
 
-from outcast_core.runtime.geometry.colour import linear_to_srgb
+from outcast_core.runtime.geometry.colour import XYZ_TO_SRGB, linear_to_srgb
 from outcast_core.runtime.io.exif import TAG_ORIENTATION, PhotoMetadata, metadata_from_exif
 
 pillow_heif.register_heif_opener()
@@ -623,14 +623,11 @@ def _icc_grid(icc: bytes) -> np.ndarray | None:
     return np.asarray(out, np.float32).reshape(n, n, n, 3) / np.float32(255.0)
 
 
-#: Bradford adaptation from the ICC connection space's D50 white to sRGB's D65, and CIE XYZ
-#: (D65) to linear sRGB (IEC 61966-2-1).
+#: Bradford adaptation from the ICC connection space's D50 white to sRGB's D65 (then CIE XYZ
+#: to linear sRGB: :data:`~outcast_core.runtime.geometry.colour.XYZ_TO_SRGB`).
 _D50_TO_D65 = np.array([[0.9555766, -0.0230393, 0.0631636],
                         [-0.0282895, 1.0099416, 0.0210077],
                         [0.0122982, -0.0204830, 1.3299098]])
-_XYZ_TO_SRGB = np.array([[3.2404542, -1.5371385, -0.4985314],
-                         [-0.9692660, 1.8760108, 0.0415560],
-                         [0.0556434, -0.2040259, 1.0572252]])
 #: Samples of a tone curve in :func:`_matrix_shaper` (linear interpolation between them).
 _CURVE_SAMPLES = 4096
 
@@ -694,7 +691,7 @@ def _matrix_shaper(icc: bytes) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     if any(c is None or not np.all(np.isfinite(c)) for c in curves):
         return None
-    to_srgb = _XYZ_TO_SRGB @ _D50_TO_D65 @ np.stack(cols, axis=1)  # src linear -> sRGB linear
+    to_srgb = XYZ_TO_SRGB @ _D50_TO_D65 @ np.stack(cols, axis=1)  # src linear -> sRGB linear
     if not np.all(np.isfinite(to_srgb)):
         return None
     codes = np.linspace(0.0, 1.0, 65536)

@@ -331,20 +331,21 @@ def _sun_key(sun: Any) -> Any:
     return [round(az % 360.0, 3) + 0.0, round(el, 3) + 0.0]
 
 
-def _project_key(photo: Path) -> Any:
-    """The photo's project as the record compares it: what a batch reads of it (its suns,
-    depth map and exposure), so a project saved again with the same ones (the dial moved in
-    step 1, say) is not other settings (a user trial's was redone); None without one, and
-    the file itself when it cannot be read (the job says why)."""
-    try:
-        original, target, depth = project_suns(photo)
-        exposure = project_exposure(photo)
-    except ValueError:
-        return _file_key(photo.with_name(photo.stem + PROJECT_SUFFIX))
-    if not photo.with_name(photo.stem + PROJECT_SUFFIX).is_file():
+def exposure_for(options: BatchOptions, read: ProjectSettings | None) -> str:
+    """A job's exposure: ``--exposure``, else its project's "Meter the new light" (as its
+    suns are taken from it), else the photo's own."""
+    return options.exposure or (read.exposure if read is not None else None) or "photo"
+
+
+def _project_key(read: ProjectSettings | None, photo: Path) -> Any:
+    """The photo's project as the record compares it: what a batch reads of it (its suns and
+    depth map; its exposure counts in the job's), so a project saved again with the same
+    ones (the dial moved in step 1, say) is not other settings (a user trial's was redone);
+    None without one."""
+    if read is None:
         return None
-    return [_sun_key(original), _sun_key(target), _file_key(Path(depth)) if depth else None,
-            exposure]
+    return [_sun_key(read.original_sun), _sun_key(read.target_sun),
+            _file_key(Path(read.depth_path)) if read.depth_path else None]
 
 
 def _file_key(path: Path | None) -> Any:
@@ -375,11 +376,16 @@ def job_settings(job: BatchJob, options: BatchOptions) -> str:
         elif name == "sweep" and value is not None:
             value = [_sun_key(v) for v in value]
         keys[name] = value
-    if options.kind != "deshadow" and options.exposure not in (None, "photo"):
-        keys["exposure"] = options.exposure  # (absent by default: records made before it; a
-        # project's own setting is in its file's key below)
     image = Path(job.image)
-    keys.update(photo=_file_key(image), project=_project_key(image),
+    try:
+        read = read_project(image)
+        project: Any = _project_key(read, image)
+    except ValueError:  # the job says why; the file itself stands for it here
+        read, project = None, _file_key(image.with_name(image.stem + PROJECT_SUFFIX))
+    exposure = exposure_for(options, read)
+    if options.kind != "deshadow" and exposure != "photo":
+        keys["exposure"] = exposure  # (absent at the photo's: records made before it match)
+    keys.update(photo=_file_key(image), project=project,
                 job_to_sun=_sun_key(job.to_sun), job_from_sun=_sun_key(job.from_sun))
     return json.dumps(keys, sort_keys=True)
 
@@ -448,6 +454,16 @@ def record_done(out_dir: str | os.PathLike[str], jobs: Sequence[BatchJob]) -> No
 
 
 # -------------------------------------------------------------------------------- suns
+@dataclass(frozen=True)
+class ProjectSettings:
+    """What a batch takes from a photo's project file (:func:`read_project`)."""
+
+    original_sun: Sun | None
+    target_sun: Sun | None
+    depth_path: str
+    exposure: str | None
+
+
 def _project_data(photo: Path) -> tuple[Path, dict[str, Any]] | None:
     """The app's project file next to ``photo`` and its JSON, checked (version, photo); None
     without one. Raises ``ValueError`` as :func:`project_suns` says."""
@@ -468,24 +484,25 @@ def _project_data(photo: Path) -> tuple[Path, dict[str, Any]] | None:
     return project, data
 
 
-def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None, str]:
-    """The suns and depth map of the app's project file next to ``photo``, if there is one.
+def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
+    """What a batch takes from the app's project file next to ``photo`` (read once), or None
+    without one.
 
     Reads ``NAME.outcast.json`` (the format of :mod:`app.state`) without the app: its
-    ``original_sun`` (the sun the user confirmed), ``target_sun`` and ``depth_path`` (a depth
-    map the user loaded, relative to the project file). A project saved while re-aligning
-    (``realigning``) still gives the sun confirmed last: the dial's, not yet confirmed, is not
-    the user's answer.
-
-    Returns:
-        ``(original_sun, target_sun, depth_path)``; ``(None, None, "")`` without a project.
+    ``original_sun`` (the sun the user confirmed last: a project saved while re-aligning
+    still gives that one, the dial's being no answer yet), ``target_sun``, ``depth_path`` (a
+    depth map the user loaded, relative to the project file) and ``exposure`` ("Meter the new
+    light"; None in projects from before it).
 
     Raises:
-        ValueError: the project file is not a valid OutCast project, or is for another photo.
+        ValueError: the project file is not a valid OutCast project, is for another photo, or
+            holds a sun or an exposure the app does not write.
     """
+    from outcast_core.runtime.pipeline.relight import EXPOSURES
+
     found = _project_data(Path(photo))
     if found is None:
-        return None, None, ""
+        return None
     project, data = found
 
     def sun(key: str) -> Sun | None:
@@ -502,24 +519,25 @@ def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None,
     depth = data.get("depth_path") or ""
     if depth and not os.path.isabs(depth):
         depth = str((project.parent / depth).resolve())
-    return sun("original_sun"), sun("target_sun"), str(depth)
+    exposure = data.get("exposure")
+    if exposure is not None and exposure not in EXPOSURES:
+        raise ValueError(f"project '{project.name}' exposure: expected one of {EXPOSURES}, got "
+                         f"{exposure!r}")
+    return ProjectSettings(sun("original_sun"), sun("target_sun"), str(depth), exposure)
+
+
+def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None, str]:
+    """``(original_sun, target_sun, depth_path)`` of :func:`read_project`; ``(None, None, "")``
+    without a project."""
+    read = read_project(photo)
+    return (None, None, "") if read is None else (read.original_sun, read.target_sun,
+                                                  read.depth_path)
 
 
 def project_exposure(photo: str | os.PathLike[str]) -> str | None:
-    """The exposure the app's project next to ``photo`` keeps ("Meter the new light":
-    ``"metered"``, else ``"photo"``), or None without a project (or from before the setting).
-
-    Raises:
-        ValueError: as :func:`project_suns`, or an exposure the app does not know.
-    """
-    found = _project_data(Path(photo))
-    if found is None or "exposure" not in found[1]:
-        return None
-    value = found[1]["exposure"]
-    if value not in ("photo", "metered"):
-        raise ValueError(f"project '{found[0].name}' exposure: expected photo or metered, got "
-                         f"{value!r}")
-    return str(value)
+    """The ``exposure`` of :func:`read_project` (None without a project or the setting)."""
+    read = read_project(photo)
+    return None if read is None else read.exposure
 
 
 def original_sun_for(
@@ -647,7 +665,9 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
     )
     from outcast_core.runtime.pipeline.session import RelightSession
 
-    project_sun, project_target, depth_path = project_suns(job.image)
+    read = read_project(job.image)
+    project_sun, project_target, depth_path = (
+        (None, None, "") if read is None else (read.original_sun, read.target_sun, read.depth_path))
     loaded = read_image(job.image, keep_uint8=True)  # as the app reads it
     to_sun = None
     if options.kind == "relight":  # before the slow part
@@ -655,9 +675,8 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
         result.to_sun = to_sun
     session = RelightSession(registry=_registry(options.threads), preset=options.preset,
                              mode=options.mode)
-    # --exposure, else the project's "Meter the new light" (as its suns are taken), else the
-    # photo's own (a user trial's metered project was batch-relit unmetered)
-    session.exposure = options.exposure or project_exposure(job.image) or "photo"
+    session.exposure = exposure_for(options, read)  # (a user trial's metered project was
+    # batch-relit unmetered)
     depth = read_depth(depth_path) if depth_path else None
     if depth is None:
         width, height = loaded.original_size

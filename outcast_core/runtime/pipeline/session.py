@@ -829,12 +829,8 @@ class RelightSession:
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=self._light, snap=False)
-        relit = toward_photo(image, relit, share)
-        relit = self._without_old_sun(relit, st["sky"], self.sun_seen, st["camera"], wv,
-                                      st["camera"].width / self.camera.width)
-        if exposure == "metered":
-            relit = meter_exposure(image, relit)
-        relit = self._in_photo_colours(relit)
+        relit = self._finish(image, relit, share, st["sky"], self.sun_seen, st["camera"], wv,
+                             st["camera"].width / self.camera.width, exposure, self.greyscale)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
                                           threads=1)
         self._time("relight_preview", t1)
@@ -891,12 +887,21 @@ class RelightSession:
                               w_o, wv, keep_old=share)
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
-        img = toward_photo(image, img, share)
-        # Last, on the blend too: near the original sun the photo's own sun must not stay.
-        img = self._without_old_sun(img, inp["sky"], inp["sun_seen"], inp["camera"], wv, 1.0)
-        if inp["exposure"] == "metered":
-            img = meter_exposure(image, img)
-        return self._in_photo_colours(img, inp["greyscale"]).astype(np.float32)
+        img = self._finish(image, img, share, inp["sky"], inp["sun_seen"], inp["camera"], wv,
+                           1.0, inp["exposure"], inp["greyscale"])
+        return img.astype(np.float32)
+
+    def _finish(self, image: np.ndarray, relit: np.ndarray, share: float, sky: np.ndarray,
+                seen: SunInPhoto | None, cam: Camera, w_new: np.ndarray, scale: float,
+                exposure: str, greyscale: bool) -> np.ndarray:
+        """What every relighting (the drag preview's and the working size's) ends with, in
+        this order: drawn toward the photo near its own sun, the photo's own sun taken out
+        (on the blend too), metered when asked, and black and white for such a photo."""
+        relit = toward_photo(image, relit, share)
+        relit = self._without_old_sun(relit, sky, seen, cam, w_new, scale)
+        if exposure == "metered":
+            relit = meter_exposure(image, relit)
+        return self._in_photo_colours(relit, greyscale)
 
     def _in_photo_colours(self, img: np.ndarray, greyscale: bool | None = None) -> np.ndarray:
         """``img`` made black and white when the photo is (:attr:`greyscale`, or the

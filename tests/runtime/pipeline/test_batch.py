@@ -394,6 +394,12 @@ def test_job_settings_name_what_decides_an_output(tmp_path: Path) -> None:
     assert job_settings(job, relight) != key
     save(exposure="metered")
     assert job_settings(job, relight) != key
+    # The project's metering is this job's exposure: --exposure photo is another output (a
+    # review found both recorded alike, so the metered output was "done" for the unmetered run).
+    assert job_settings(job, replace(relight, exposure=None)) != job_settings(
+        job, replace(relight, exposure="photo"))
+    assert job_settings(job, replace(relight, exposure=None)) == job_settings(
+        job, replace(relight, exposure="metered"))
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
