@@ -6,7 +6,12 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from outcast_core.runtime.io.imageio import DEPTH_EXTENSIONS
+from outcast_core.runtime.io.imageio import (
+    DEPTH_EXTENSIONS,
+    MAX_DECODE_PIXELS,
+    ImageReadError,
+    ImageReadReason,
+)
 from outcast_core.runtime.io.models import ModelError
 
 DEPTH_KINDS = "a .npy array (float32, H × W), a 16-bit grayscale PNG or an OpenEXR (.exr) file"
@@ -33,11 +38,15 @@ def _one_line(exc: BaseException) -> str:
     """The exception in one line for a dialog: an operating-system error as its plain reason
     and the file (not ``[Errno 13] ...``), and an output's temporary file (``.NAME.part...``,
     :func:`~outcast_core.runtime.io.imageio.atomic_output`) as the folder it was written in.
+    A file that could not be read (:class:`ImageReadError`) is its message for a person,
+    without the decoder's own words (they say nothing more to a photographer: a user trial).
 
     Example:
         >>> _one_line(PermissionError(13, "Permission denied", "/photos/.t.x1.part.gif"))
         "Permission denied: cannot write in the folder '/photos'"
     """
+    if isinstance(exc, ImageReadError):
+        return exc.message
     if isinstance(exc, OSError) and exc.strerror:
         if not exc.filename:
             return exc.strerror
@@ -49,6 +58,28 @@ def _one_line(exc: BaseException) -> str:
         return f"{exc.strerror}: '{path}'"
     text = str(exc).strip().splitlines()
     return text[0] if text else type(exc).__name__
+
+
+_CHOOSE_A_PHOTO = "Choose a JPEG, PNG, TIFF, WebP or HEIC photo."
+
+_OPEN_ADVICE: dict[ImageReadReason | None, str] = {
+    ImageReadReason.DAMAGED: "The file looks damaged or cut short (an interrupted copy or "
+                             "download?): open another copy of it.",
+    ImageReadReason.UNSUPPORTED_LAYOUT: "If the file opens elsewhere, export it again as a "
+                                        "16-bit PNG or TIFF, or open another copy of it.",
+    ImageReadReason.CAMERA_RAW: "Export the photo from your RAW editor as a JPEG, PNG or "
+                                "16-bit TIFF, then open that.",
+    ImageReadReason.TOO_LARGE: f"Open a copy of it reduced to at most "
+                               f"{MAX_DECODE_PIXELS / 1e6:.0f} megapixels.",
+    ImageReadReason.OUT_OF_MEMORY: "Close other programs, or open a copy of the photo with "
+                                   "fewer pixels.",
+    ImageReadReason.MISSING: "It may have been moved, renamed or deleted: open it from where "
+                             "it is now.",
+    ImageReadReason.NO_ACCESS: "Check that the disk is connected and that you may read the "
+                               "file, then try again.",
+}
+"""What to do when a photo could not be opened, by :attr:`ImageReadError.reason` (anything
+else: choose a photo)."""
 
 
 def message_for(exc: BaseException, action: str) -> UserMessage:
@@ -85,18 +116,8 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
             "Choose the Fast quality preset or a smaller photo, then try again.",
         )
     if action == "open":
-        if "laid out in a way" in detail:  # a 16-bit file OpenCV cannot decode
-            todo = ("If the file opens elsewhere, export it again as a 16-bit PNG or TIFF, or "
-                    "open another copy of it. Your current work is unchanged.")
-        elif "truncated or corrupt" in detail:  # a photo file, damaged
-            todo = ("The file looks damaged or cut short (an interrupted copy or download?): "
-                    "open another copy of it. Your current work is unchanged.")
-            # The decoder's own words after it ("(OSError: image file is truncated (35 bytes
-            # not processed))") say nothing more to a photographer (a user trial).
-            end = detail.find(" (", detail.find("truncated or corrupt"))
-            detail = detail if end < 0 else detail[:end]
-        else:
-            todo = "Choose a JPEG, PNG, TIFF, WebP or HEIC photo. Your current work is unchanged."
+        reason = exc.reason if isinstance(exc, ImageReadError) else None
+        todo = _OPEN_ADVICE.get(reason, _CHOOSE_A_PHOTO) + " Your current work is unchanged."
         return UserMessage("Could not open the photo", detail, todo)
     if action == "depth":
         return UserMessage(

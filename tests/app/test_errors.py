@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from app.errors import message_for
+from app.errors import UserMessage, message_for
 
 
 def test_os_errors_read_as_plain_words_and_never_name_a_temporary_file() -> None:
@@ -62,3 +62,67 @@ def test_an_export_over_the_open_photo_is_not_a_disk_problem() -> None:
     msg = message_for(OwnFileError("'pool.jpg' is the photo you opened; choose another name"),
                       "export")
     assert "never replaces the photo" in msg.todo and "disk" not in msg.todo
+
+
+def _open_message(path) -> UserMessage:
+    from outcast_core.runtime.io.imageio import ImageReadError, read_image
+
+    try:
+        read_image(path)
+    except ImageReadError as exc:
+        return message_for(exc, "open")
+    raise AssertionError(f"{path} was read")
+
+
+def test_open_advice_follows_the_reason_not_the_words(tmp_path) -> None:
+    """The advice is chosen by the error's reason: a message that merely contains "truncated
+    or corrupt" (another error's words) is not taken for a damaged photo, and a damaged
+    photo's message need not contain them."""
+    from outcast_core.runtime.io.imageio import ImageReadError, ImageReadReason
+
+    words = ValueError("cannot read 'a.jpg': the file is truncated or corrupt (x)")
+    assert "damaged" not in message_for(words, "open").todo
+    assert message_for(words, "open").what == str(words)  # only an ImageReadError is cut
+    odd = ImageReadError("cannot read image 'a.tif': it cannot be decoded",
+                         ImageReadReason.UNSUPPORTED_LAYOUT, "cv2.imdecode returned None")
+    msg = message_for(odd, "open")
+    assert "16-bit PNG or TIFF" in msg.todo and msg.what == odd.message
+    damaged = ImageReadError("cannot read image 'a.jpg': it stops half-way",
+                             ImageReadReason.DAMAGED, "OSError: (7 bytes not processed)")
+    msg = message_for(damaged, "open")
+    assert "damaged or cut short" in msg.todo and "not processed" not in msg.text()
+    assert msg.what == "cannot read image 'a.jpg': it stops half-way"
+
+
+def test_a_too_short_jpeg_keeps_its_byte_counts(tmp_path) -> None:
+    """Cutting the message at " (" lost what tells the user the file is cut short: its size
+    against the size its header declares."""
+    import io
+    import struct
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.new("RGB", (64, 64), (10, 200, 30)).save(buf, "JPEG")
+    data = bytearray(buf.getvalue())
+    struct.pack_into(">HH", data, data.index(b"\xff\xc0") + 5, 9000, 9000)
+    (tmp_path / "big.jpg").write_bytes(bytes(data))
+    msg = _open_message(tmp_path / "big.jpg")
+    assert msg.what.endswith(f"its {len(data):,} bytes cannot hold the 9000 x 9000 JPEG its "
+                             "header declares")
+    assert "damaged or cut short" in msg.todo
+
+
+def test_each_kind_of_unopenable_file_gets_its_own_advice(tmp_path) -> None:
+    from PIL import Image
+
+    (tmp_path / "shot.nef").write_bytes(b"MM\x00* raw")
+    assert "RAW editor" in _open_message(tmp_path / "shot.nef").todo
+    missing = _open_message(tmp_path / "gone.jpg")
+    assert "moved, renamed or deleted" in missing.todo and "gone.jpg" in missing.what
+    (tmp_path / "notes.jpg").write_text("text")
+    assert _open_message(tmp_path / "notes.jpg").todo.startswith("Choose a JPEG")
+    Image.new("RGB", (4, 4)).save(tmp_path / "a.gif")
+    assert _open_message(tmp_path / "a.gif").todo.startswith("Choose a JPEG")
+    (tmp_path / "empty.png").write_bytes(b"")
+    assert "damaged or cut short" in _open_message(tmp_path / "empty.png").todo

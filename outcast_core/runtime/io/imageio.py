@@ -20,8 +20,9 @@ Reading (:func:`read_image`) turns any supported photo into ``image_srgb``, a fl
   from large sensors; it is replaced by :data:`MAX_DECODE_PIXELS` (160 MP), checked from the
   header before any pixel is decoded (a PNG's EXIF is found by walking its chunks, not by
   decoding it), so a decompression bomb costs milliseconds and no memory.
-* Every failure is an :class:`ImageReadError` (a ``ValueError``) with a one-line message;
-  the library exception is chained as ``__cause__``.
+* Every failure is an :class:`ImageReadError` (a ``ValueError``) with a one-line message
+  for a person, a machine-readable :class:`ImageReadReason` and, apart, the decoder's own
+  words; the library exception is chained as ``__cause__``.
 
 Writing is atomic: :func:`atomic_output` yields a temporary path in the destination folder and
 renames it over the destination only when the writer succeeded; an existing file is only
@@ -53,6 +54,7 @@ import warnings
 import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
+from enum import StrEnum
 from pathlib import Path
 
 import cv2
@@ -96,8 +98,61 @@ _READABLE_NAMES = "JPEG, PNG, TIFF, WebP, HEIC/HEIF or BMP"
 _PIL_LIMIT_LOCK = threading.Lock()
 
 
+class ImageReadReason(StrEnum):
+    """Why a file could not be read as an image or a depth map (:attr:`ImageReadError.reason`),
+    for choosing what to tell the user without reading the message's words."""
+
+    MISSING = "missing"
+    """No file by that name."""
+    NO_ACCESS = "no-access"
+    """The file is there but cannot be read (permissions, a disconnected disk...)."""
+    DAMAGED = "damaged"
+    """Empty, cut short or corrupt."""
+    UNSUPPORTED_LAYOUT = "unsupported-layout"
+    """A 16-bit file in a layout the decoder cannot read (or damaged: the two cannot be told)."""
+    NOT_AN_IMAGE = "not-an-image"
+    """Not an image (or not a depth map) at all, or a folder."""
+    UNSUPPORTED_FORMAT = "unsupported-format"
+    """An image format OutCast does not read (GIF, OpenEXR as a photo...)."""
+    CAMERA_RAW = "camera-raw"
+    """A camera RAW file."""
+    TOO_LARGE = "too-large"
+    """More pixels than :data:`MAX_DECODE_PIXELS`."""
+    OUT_OF_MEMORY = "out-of-memory"
+    """Decoding ran out of memory."""
+    NO_VALID_DEPTH = "no-valid-depth"
+    """A depth map whose every pixel is invalid (zero, negative, NaN or infinite)."""
+
+
 class ImageReadError(ValueError):
-    """A file could not be read as an image (or depth map); the message says why, in one line."""
+    """A file could not be read as an image (or depth map).
+
+    ``str(exc)`` is one line: :attr:`message`, then the decoder's :attr:`detail` in
+    parentheses when there is one (what the command line prints).
+
+    Attributes:
+        message: one line for a person, naming the file and saying what is wrong in words a
+            photographer knows (with what is worth knowing, such as byte counts), without the
+            decoder's own words.
+        reason: why, as an :class:`ImageReadReason`.
+        detail: the decoder's own words (``"OSError: image file is truncated (35 bytes not
+            processed)"``), or ``""``.
+
+    Example:
+        >>> err = ImageReadError("cannot read image 'a.jpg': the file is truncated or corrupt",
+        ...                      ImageReadReason.DAMAGED, "OSError: image file is truncated")
+        >>> err.reason == "damaged", str(err).endswith("corrupt (OSError: image file is truncated)")
+        (True, True)
+    """
+
+    def __init__(self, message: str, reason: ImageReadReason | str, detail: str = "") -> None:
+        super().__init__(message, reason, detail)  # all three: a pickled copy is the same
+        self.message = message
+        self.reason = ImageReadReason(reason)
+        self.detail = detail
+
+    def __str__(self) -> str:
+        return f"{self.message} ({self.detail})" if self.detail else self.message
 
 
 @dataclass
@@ -206,17 +261,22 @@ def read_image(
     except ImageReadError:
         raise
     except UnidentifiedImageError as exc:
+        if _starts_like_a_photo(path):  # cut short before Pillow could tell what it is
+            raise ImageReadError(f"cannot read image '{path}': the file is truncated or corrupt",
+                                 ImageReadReason.DAMAGED, _one_line(exc)) from exc
         raise ImageReadError(
             f"cannot read image '{path}': not an image file, or a format OutCast cannot read "
-            f"(expected {_READABLE_NAMES})"
+            f"(expected {_READABLE_NAMES})", ImageReadReason.NOT_AN_IMAGE
         ) from exc
     except MemoryError as exc:
         raise ImageReadError(
-            f"cannot read image '{path}': not enough memory; load it with a smaller max_pixels"
+            f"cannot read image '{path}': not enough memory", ImageReadReason.OUT_OF_MEMORY,
+            "load it with a smaller max_pixels"
         ) from exc
     except Exception as exc:  # Pillow/OpenCV/libheif raise many types for broken files
         raise ImageReadError(
-            f"cannot read image '{path}': the file is truncated or corrupt ({_one_line(exc)})"
+            f"cannot read image '{path}': the file is truncated or corrupt",
+            ImageReadReason.DAMAGED, _one_line(exc)
         ) from exc
     if not upright:
         image = _apply_orientation(image, meta.orientation)
@@ -246,7 +306,7 @@ def read_metadata(path: str | os.PathLike[str]) -> PhotoMetadata:
         with _open_pil(path) as im:
             exif, _ = _exif_of(im, path)
     except (OSError, UnidentifiedImageError) as exc:
-        raise ImageReadError(f"cannot read '{path}': {_one_line(exc)}") from exc
+        raise _error_for(exc, path, f"cannot read '{path}'") from exc
     return metadata_from_exif(exif)
 
 
@@ -271,11 +331,45 @@ def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
             stored = _stored_size(im, orientation)
     except ImageReadError:
         raise
-    except UnidentifiedImageError as exc:
-        raise ImageReadError(f"cannot read image '{path}': not an image file") from exc
-    except Exception as exc:
-        raise ImageReadError(f"cannot read image '{path}': {_one_line(exc)}") from exc
+    except Exception as exc:  # noqa: BLE001 - Pillow raises many types for broken headers
+        raise _error_for(exc, path, f"cannot read image '{path}'") from exc
     return _upright_size(stored, orientation)
+
+
+def _starts_like_a_photo(path: Path) -> bool:
+    """Whether the file starts as a JPEG, PNG, TIFF, WebP, HEIF or BMP file does.
+
+    Pillow cannot identify such a file when it was cut short before what it reads first (a
+    TIFF's directory is often written after its pixels): damaged, not "not an image".
+    """
+    try:
+        with open(path, "rb") as f:
+            head = f.read(16)
+    except OSError:
+        return False
+    return (head.startswith((b"\xff\xd8\xff", b"\x89PNG\r\n\x1a\n", b"II*\x00", b"MM\x00*",
+                             b"BM"))
+            or (head[:4] == b"RIFF" and head[8:12] == b"WEBP") or head[4:8] == b"ftyp")
+
+
+def _error_for(exc: BaseException, path: Path, what: str) -> ImageReadError:
+    """The :class:`ImageReadError` for a library's ``exc`` raised while reading ``path``.
+
+    Args:
+        exc: what the library raised.
+        path: the file.
+        what: the start of the message, naming the file (``"cannot read image 'a.jpg'"``).
+    """
+    if isinstance(exc, UnidentifiedImageError) and not _starts_like_a_photo(path):
+        return ImageReadError(f"{what}: not an image file", ImageReadReason.NOT_AN_IMAGE)
+    if isinstance(exc, FileNotFoundError):
+        return ImageReadError(f"{what}: file not found", ImageReadReason.MISSING)
+    if isinstance(exc, PermissionError):
+        return ImageReadError(f"{what}: permission denied", ImageReadReason.NO_ACCESS)
+    if isinstance(exc, MemoryError):
+        return ImageReadError(f"{what}: not enough memory", ImageReadReason.OUT_OF_MEMORY)
+    return ImageReadError(f"{what}: the file is truncated or corrupt", ImageReadReason.DAMAGED,
+                          _one_line(exc))
 
 
 #: The fewest bytes per pixel a complete JPEG can have: a flat frame at any quality still
@@ -293,8 +387,9 @@ def _check_jpeg_size(path: Path, fmt: str, width: int, height: int) -> None:
     size = path.stat().st_size
     if size < MIN_JPEG_BYTES_PER_PIXEL * width * height:
         raise ImageReadError(
-            f"cannot read image '{path}': the file is truncated or corrupt ({size} bytes "
-            f"cannot hold the {width} x {height} JPEG its header declares)")
+            f"cannot read image '{path}': the file is truncated or corrupt: its {size:,} bytes "
+            f"cannot hold the {width} x {height} JPEG its header declares",
+            ImageReadReason.DAMAGED)
 
 
 def _jpeg_lacking_only_its_end(path: Path, fmt: str) -> bytes | None:
@@ -375,7 +470,8 @@ def _checked_header(
     fmt = im.format or "unknown"
     if fmt not in READ_FORMATS:
         raise ImageReadError(
-            f"cannot read image '{path}': unsupported format {fmt}; expected {_READABLE_NAMES}"
+            f"cannot read image '{path}': unsupported format {fmt}; expected {_READABLE_NAMES}",
+            ImageReadReason.UNSUPPORTED_FORMAT,
         )
     _check_pixel_count(path, *im.size)
     exif, exif_bytes = _exif_of(im, path)
@@ -384,28 +480,31 @@ def _checked_header(
 
 def _check_input_file(path: Path) -> None:
     if not path.exists():
-        raise ImageReadError(f"cannot read '{path}': file not found")
+        raise ImageReadError(f"cannot read '{path}': file not found", ImageReadReason.MISSING)
     if path.is_dir():
-        raise ImageReadError(f"cannot read '{path}': it is a folder, not a file")
+        raise ImageReadError(f"cannot read '{path}': it is a folder, not a file",
+                             ImageReadReason.NOT_AN_IMAGE)
     try:
         size = path.stat().st_size
     except OSError as exc:
-        raise ImageReadError(f"cannot read '{path}': {_one_line(exc)}") from exc
+        raise ImageReadError(f"cannot read '{path}': {exc.strerror or 'the file is unreadable'}",
+                             ImageReadReason.NO_ACCESS, _one_line(exc)) from exc
     if size == 0:
-        raise ImageReadError(f"cannot read '{path}': the file is empty")
+        raise ImageReadError(f"cannot read '{path}': the file is empty", ImageReadReason.DAMAGED)
     suffix = path.suffix.lower()
     if suffix in _RAW_EXTENSIONS:
         raise ImageReadError(
             f"cannot read '{path}': camera RAW files are not supported; "
-            f"export a JPEG, PNG or 16-bit TIFF first"
+            f"export a JPEG, PNG or 16-bit TIFF first", ImageReadReason.CAMERA_RAW
         )
     if suffix in (".exr", ".hdr", ".pfm", ".npy"):
         raise ImageReadError(
             f"cannot read '{path}' as a photo: {suffix} is not a supported photo format; "
-            f"expected {_READABLE_NAMES}"
+            f"expected {_READABLE_NAMES}", ImageReadReason.UNSUPPORTED_FORMAT
         )
     if not os.access(path, os.R_OK):
-        raise ImageReadError(f"cannot read '{path}': permission denied")
+        raise ImageReadError(f"cannot read '{path}': permission denied",
+                             ImageReadReason.NO_ACCESS)
 
 
 @contextlib.contextmanager
@@ -440,7 +539,7 @@ def _check_pixel_count(path: Path, width: int, height: int) -> None:
     if width * height > MAX_DECODE_PIXELS:
         raise ImageReadError(
             f"cannot read '{path}': {width}x{height} is larger than the "
-            f"{MAX_DECODE_PIXELS / 1e6:.0f} MP limit"
+            f"{MAX_DECODE_PIXELS / 1e6:.0f} MP limit", ImageReadReason.TOO_LARGE
         )
 
 
@@ -782,12 +881,14 @@ def _decode_cv2(path: Path, target: tuple[int, int] | None) -> np.ndarray:
     if data[:8].tobytes() == b"\x89PNG\r\n\x1a\n" and b"IEND" not in data[-4096:].tobytes() \
             and b"IEND" not in data.tobytes():  # (bytes may follow the IEND chunk)
         # Cut short: said here, before libpng prints its own error line on stderr.
-        raise ImageReadError(f"cannot read image '{path}': the file is truncated or corrupt "
-                             "(the PNG ends before its IEND chunk)")
+        raise ImageReadError(f"cannot read image '{path}': the file is truncated or corrupt: "
+                             f"its {data.size:,} bytes stop before the end of the PNG",
+                             ImageReadReason.DAMAGED, "no IEND chunk")
     array = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if array is None:
-        raise ImageReadError(f"cannot read image '{path}': the 16-bit file is truncated or "
-                             "corrupt, or laid out in a way OpenCV cannot decode")
+        raise ImageReadError(f"cannot read image '{path}': this 16-bit file is stored in a way "
+                             "OutCast cannot decode, or it is damaged",
+                             ImageReadReason.UNSUPPORTED_LAYOUT, "cv2.imdecode returned None")
     if target is not None:
         array = cv2.resize(array, target, interpolation=cv2.INTER_AREA)
     if array.dtype == np.uint16:
@@ -1200,9 +1301,11 @@ def read_depth(path: str | os.PathLike[str]) -> np.ndarray:
     if ext not in DEPTH_EXTENSIONS:
         raise ValueError(f"expected a depth extension in {DEPTH_EXTENSIONS}, got '{path.suffix}'")
     if not path.is_file():
-        raise ImageReadError(f"cannot read depth '{path}': file not found")
+        raise ImageReadError(f"cannot read depth '{path}': file not found",
+                             ImageReadReason.MISSING)
     if path.stat().st_size == 0:
-        raise ImageReadError(f"cannot read depth '{path}': the file is empty")
+        raise ImageReadError(f"cannot read depth '{path}': the file is empty",
+                             ImageReadReason.DAMAGED)
     try:
         if ext == ".npy":
             depth = _read_npy(path)
@@ -1213,11 +1316,12 @@ def read_depth(path: str | os.PathLike[str]) -> np.ndarray:
     except (ImageReadError, _DepthContentError):
         raise
     except UnidentifiedImageError as exc:
-        raise ImageReadError(f"cannot read depth '{path}': not a PNG file") from exc
+        raise ImageReadError(f"cannot read depth '{path}': not a PNG file",
+                             ImageReadReason.NOT_AN_IMAGE) from exc
     except Exception as exc:  # numpy/OpenEXR/Pillow errors for broken files
         raise ImageReadError(
-            f"cannot read depth '{path}': not a {ext} depth file, or truncated/corrupt "
-            f"({_one_line(exc)})"
+            f"cannot read depth '{path}': not a {ext} depth file, or truncated/corrupt",
+            ImageReadReason.DAMAGED, _one_line(exc)
         ) from exc
     depth = _check_depth(np.asarray(depth), f"depth in '{path}'")
     depth = depth.copy()
@@ -1225,7 +1329,7 @@ def read_depth(path: str | os.PathLike[str]) -> np.ndarray:
     if not np.isfinite(depth).any():
         raise ImageReadError(
             f"cannot use depth '{path}': no valid pixel (every value is zero, negative, NaN or "
-            "infinite, which would make the whole frame sky)"
+            "infinite, which would make the whole frame sky)", ImageReadReason.NO_VALID_DEPTH
         )
     return depth
 
@@ -1262,7 +1366,8 @@ def _read_npy(path: Path) -> np.ndarray:
                 raise ValueError(f"unsupported .npy version {version}")
         except ValueError as exc:
             raise ImageReadError(
-                f"cannot read depth '{path}': not a NumPy .npy file ({_one_line(exc)})"
+                f"cannot read depth '{path}': not a NumPy .npy file",
+                ImageReadReason.NOT_AN_IMAGE, _one_line(exc)
             ) from exc
         header_bytes = f.tell()
     if dtype.kind != "f" or len(shape) != 2:
@@ -1270,8 +1375,10 @@ def _read_npy(path: Path) -> np.ndarray:
             f"expected depth in '{path}' to be an H x W float array, got {dtype} of shape {shape}"
         )
     _check_pixel_count(path, shape[1], shape[0])
-    if path.stat().st_size < header_bytes + dtype.itemsize * shape[0] * shape[1]:
-        raise ImageReadError(f"cannot read depth '{path}': the file is truncated")
+    size, whole = path.stat().st_size, header_bytes + dtype.itemsize * shape[0] * shape[1]
+    if size < whole:
+        raise ImageReadError(f"cannot read depth '{path}': the file is truncated: it ends "
+                             f"after {size:,} of {whole:,} bytes", ImageReadReason.DAMAGED)
     return np.load(path, allow_pickle=False)
 
 

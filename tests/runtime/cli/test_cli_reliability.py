@@ -71,8 +71,9 @@ def test_steps_at_the_limit_runs(photo, tmp_path) -> None:
 def test_depth_without_a_valid_pixel_is_refused(tmp_path, fill, ext) -> None:
     path = tmp_path / f"d{ext}"
     write_depth(path, np.full((6, 8), fill, np.float32))
-    with pytest.raises(ImageReadError, match="no valid pixel"):
+    with pytest.raises(ImageReadError, match="no valid pixel") as info:
         read_depth(path)
+    assert info.value.reason == "no-valid-depth"
 
 
 def test_depth_png_with_a_scale_float32_cannot_hold_is_refused(tmp_path) -> None:
@@ -124,8 +125,12 @@ def test_npy_bomb_is_refused_from_its_header(tmp_path) -> None:
     with open(path, "wb") as f:
         np.lib.format.write_array_header_1_0(f, header)
         f.write(b"\0" * 64)
-    with pytest.raises(ImageReadError, match="truncated"):
+    with pytest.raises(ImageReadError, match="truncated") as info:
         read_depth(path)
+    whole = path.stat().st_size - 64 + 60 * 80 * 4
+    assert info.value.message.endswith(f"it ends after {path.stat().st_size:,} of {whole:,} "
+                                       "bytes")
+    assert info.value.reason == "damaged"
 
 
 # ------------------------------------------------------------------------------------------

@@ -19,6 +19,7 @@ from PIL import Image, ImageFile, ImageOps
 from outcast_core.runtime.io import imageio
 from outcast_core.runtime.io.imageio import (
     ImageReadError,
+    ImageReadReason,
     atomic_output,
     read_depth,
     read_image,
@@ -340,28 +341,72 @@ def _truncated(tmp_path: Path, name: str, **kwargs) -> Path:
     return path
 
 
-def _check_error(path: Path, fragment: str) -> ImageReadError:
+def _check_error(path: Path, fragment: str, reason: ImageReadReason) -> ImageReadError:
+    """``read_image(path)`` raises a one-line ImageReadError with ``fragment`` in its text,
+    the file named in its message for a person, and ``reason``."""
     with pytest.raises(ImageReadError) as info:
         read_image(path)
     message = str(info.value)
-    assert "\n" not in message and fragment in message and path.name in message
+    assert "\n" not in message and fragment in message and path.name in info.value.message
     assert isinstance(info.value, ValueError)
+    assert info.value.reason == reason
     return info.value
 
 
 def test_read_errors_are_one_line_image_read_errors(tmp_path: Path) -> None:
-    _check_error(tmp_path / "missing.jpg", "not found")
+    _check_error(tmp_path / "missing.jpg", "not found", ImageReadReason.MISSING)
     (tmp_path / "empty.png").write_bytes(b"")
-    _check_error(tmp_path / "empty.png", "empty")
+    _check_error(tmp_path / "empty.png", "empty", ImageReadReason.DAMAGED)
     (tmp_path / "notes.jpg").write_text("this is text, not a photo\n")
-    err = _check_error(tmp_path / "notes.jpg", "not an image")
+    err = _check_error(tmp_path / "notes.jpg", "not an image", ImageReadReason.NOT_AN_IMAGE)
     assert err.__cause__ is not None  # Pillow's error is chained, not printed
     Image.new("RGB", (8, 8)).save(tmp_path / "anim.gif")
-    _check_error(tmp_path / "anim.gif", "unsupported format GIF")
+    _check_error(tmp_path / "anim.gif", "unsupported format GIF",
+                 ImageReadReason.UNSUPPORTED_FORMAT)
     (tmp_path / "shot.cr2").write_bytes(b"II*\x00 raw data")
-    _check_error(tmp_path / "shot.cr2", "RAW")
+    _check_error(tmp_path / "shot.cr2", "RAW", ImageReadReason.CAMERA_RAW)
     (tmp_path / "folder.png").mkdir()
-    _check_error(tmp_path / "folder.png", "folder")
+    _check_error(tmp_path / "folder.png", "folder", ImageReadReason.NOT_AN_IMAGE)
+    (tmp_path / "depth.exr").write_bytes(b"v/1\x01 not a photo")
+    _check_error(tmp_path / "depth.exr", "not a supported photo format",
+                 ImageReadReason.UNSUPPORTED_FORMAT)
+
+
+def test_an_image_read_error_keeps_the_decoders_words_apart(tmp_path: Path) -> None:
+    """The message for a person has no decoder words; ``str`` adds them in parentheses (what
+    the command line prints), on one line; a pickled copy (from a batch worker process) is the
+    same."""
+    import pickle
+
+    cut = _truncated(tmp_path, "cut.jpg")
+    err = _check_error(cut, "truncated or corrupt", ImageReadReason.DAMAGED)
+    assert err.message == f"cannot read image '{cut}': the file is truncated or corrupt"
+    assert err.detail.startswith("OSError: image file is truncated")
+    assert str(err) == f"{err.message} ({err.detail})"
+    copy = pickle.loads(pickle.dumps(err))
+    assert (str(copy), copy.message, copy.reason, copy.detail) == (
+        str(err), err.message, err.reason, err.detail)
+    plain = ImageReadError("cannot read 'x.png': file not found", "missing")
+    assert str(plain) == plain.message and plain.reason is ImageReadReason.MISSING
+    with pytest.raises(ValueError, match="not-a-reason"):
+        ImageReadError("cannot read 'x.png'", "not-a-reason")
+
+
+def test_a_tiff_cut_before_its_directory_is_damaged_not_not_an_image(tmp_path: Path) -> None:
+    """Pillow cannot identify a TIFF whose directory (written after the pixels) was cut off;
+    it starts as a TIFF, so it is damaged, not "not an image" with advice to choose a TIFF.
+    (Outside pytest, where Pillow's "Corrupt EXIF data" warning is no error, this is what a
+    user gets.)"""
+    import warnings
+
+    for name, bit_depth in (("cut.tif", 8), ("cut16.tif", 16)):
+        path = _truncated(tmp_path, name, bit_depth=bit_depth)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            _check_error(path, "truncated or corrupt", ImageReadReason.DAMAGED)
+            with pytest.raises(ImageReadError) as info:
+                imageio.read_metadata(path)
+            assert info.value.reason is ImageReadReason.DAMAGED
     with pytest.raises(ValueError, match="max_pixels"):
         read_image(tmp_path / "notes.jpg", max_pixels=0)
 
@@ -370,7 +415,7 @@ def test_read_errors_are_one_line_image_read_errors(tmp_path: Path) -> None:
                                                  ("t.webp", 8), ("t16.tif", 16)])
 def test_truncated_files(tmp_path: Path, name: str, bit_depth: int) -> None:
     path = _truncated(tmp_path, name, bit_depth=bit_depth)
-    _check_error(path, "truncated or corrupt")
+    _check_error(path, "truncated or corrupt", ImageReadReason.DAMAGED)
 
 
 @pytest.mark.parametrize("subsampling", [0, 2])  # 4:4:4 (8 x 8 blocks), 4:2:0 (16 x 16)
@@ -392,7 +437,7 @@ def test_a_jpeg_lacking_only_its_end_marker_is_read(tmp_path: Path, subsampling:
     assert np.array_equal(read_image(no_end, max_pixels=30 * 20).image_srgb, small)
     cut = tmp_path / "cut.jpg"
     cut.write_bytes(data[:-400])
-    _check_error(cut, "truncated or corrupt")
+    _check_error(cut, "truncated or corrupt", ImageReadReason.DAMAGED)
 
 
 @pytest.mark.parametrize("kind", ["progressive", "cmyk"])
@@ -411,7 +456,7 @@ def test_a_cut_progressive_or_cmyk_jpeg_stays_refused(tmp_path: Path, kind: str)
     for keep in (len(data) // 2, len(data) - 2):
         cut = tmp_path / f"cut{keep}.jpg"
         cut.write_bytes(data[:keep])
-        _check_error(cut, "truncated or corrupt")
+        _check_error(cut, "truncated or corrupt", ImageReadReason.DAMAGED)
 
 
 def test_read_image_size_errors(tmp_path: Path) -> None:
@@ -445,10 +490,11 @@ def test_pillow_bomb_guard_is_replaced_by_our_limit(tmp_path: Path) -> None:
     with pytest.warns(Image.DecompressionBombWarning):
         Image.open(big).close()
     assert read_image_size(big) == (12000, 10000)
-    _check_error(big, "truncated or corrupt")  # the pixels are missing, not a bomb error
+    # the pixels are missing, not a bomb error
+    _check_error(big, "truncated or corrupt", ImageReadReason.DAMAGED)
     huge = tmp_path / "huge.png"
     _png_header_only(huge, 40000, 30000)
-    _check_error(huge, "MP limit")
+    _check_error(huge, "MP limit", ImageReadReason.TOO_LARGE)
     assert limit_before == Image.MAX_IMAGE_PIXELS
 
 
@@ -499,7 +545,7 @@ def test_bomb_is_refused_from_the_header_without_decoding(
         _png_with_late_exif(bomb, 50000, 50000, 1, pixels=False)
     else:
         _png_header_only(bomb, 50000, 50000)
-    _check_error(bomb, "MP limit")
+    _check_error(bomb, "MP limit", ImageReadReason.TOO_LARGE)
     with pytest.raises(ImageReadError, match="MP limit"):
         read_image(bomb, max_pixels=1000)
     with pytest.raises(ImageReadError, match="MP limit"):
@@ -781,15 +827,20 @@ def test_depth_errors(tmp_path: Path) -> None:
     write_image(tmp_path / "photo.png", np.zeros((4, 4, 3), np.float32))
     with pytest.raises(ValueError, match="16-bit grey"):
         read_depth(tmp_path / "photo.png")
-    with pytest.raises(ImageReadError, match="not found"):
+    with pytest.raises(ImageReadError, match="not found") as info:
         read_depth(tmp_path / "none.exr")
+    assert info.value.reason is ImageReadReason.MISSING
     (tmp_path / "empty.npy").write_bytes(b"")
-    with pytest.raises(ImageReadError, match="empty"):
+    with pytest.raises(ImageReadError, match="empty") as info:
         read_depth(tmp_path / "empty.npy")
-    for name in ("bad.npy", "bad.exr", "bad.png"):
+    assert info.value.reason is ImageReadReason.DAMAGED
+    for name, reason in (("bad.npy", ImageReadReason.NOT_AN_IMAGE),
+                         ("bad.exr", ImageReadReason.DAMAGED),
+                         ("bad.png", ImageReadReason.NOT_AN_IMAGE)):
         (tmp_path / name).write_text("not a depth map")
-        with pytest.raises(ImageReadError, match="bad"):
+        with pytest.raises(ImageReadError, match="bad") as info:
             read_depth(tmp_path / name)
+        assert info.value.reason is reason, name
     good = write_depth(tmp_path / "good.exr", _depth())
     data = good.read_bytes()
     good.write_bytes(data[: len(data) // 2])
@@ -963,8 +1014,11 @@ def test_jpeg_whose_header_declares_far_more_than_its_data_is_refused(tmp_path: 
     sof = data.index(b"\xff\xc0")
     struct.pack_into(">HH", data, sof + 5, 9000, 9000)  # height, width
     (tmp_path / "big.jpg").write_bytes(bytes(data))
-    with pytest.raises(ImageReadError, match="cannot hold the 9000 x 9000 JPEG"):
-        read_image(tmp_path / "big.jpg")
+    err = _check_error(tmp_path / "big.jpg", "cannot hold the 9000 x 9000 JPEG",
+                       ImageReadReason.DAMAGED)
+    size = len(data)
+    assert err.message.endswith(f"its {size:,} bytes cannot hold the 9000 x 9000 JPEG its "
+                                "header declares") and err.detail == ""
     flat = tmp_path / "flat.jpg"  # a real flat frame compresses far less than that
     Image.new("L", (2000, 1500), 0).save(flat, "JPEG", quality=1, optimize=True)
     assert read_image(flat, max_pixels=300 * 200).original_size == (2000, 1500)
@@ -979,7 +1033,9 @@ def test_a_cut_short_16_bit_png_is_refused_without_libpng_noise(tmp_path: Path,
     assert ok
     whole = data.tobytes()
     (tmp_path / "cut.png").write_bytes(whole[: len(whole) // 2])
-    _check_error(tmp_path / "cut.png", "ends before its IEND chunk")
+    err = _check_error(tmp_path / "cut.png", "truncated or corrupt", ImageReadReason.DAMAGED)
+    assert err.message.endswith(f"its {len(whole) // 2:,} bytes stop before the end of the PNG")
+    assert "IEND" not in err.message and "IEND" in err.detail
     assert "libpng" not in capfd.readouterr().err
     (tmp_path / "tail.png").write_bytes(whole + b"\0" * 5000)
     assert read_image(tmp_path / "tail.png").bit_depth == 16
