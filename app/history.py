@@ -9,11 +9,18 @@ either, but they count as unsaved work (``MainWindow.has_unsaved_changes``).
 Each user action records ``EditState`` before and after; undo applies "before", redo "after".
 The window applies a state through one narrow method, :meth:`EditTarget.apply_edit_state`, so
 the command knows nothing of widgets.
+
+Steps of one field in a burst (the camera heading box's arrow keys, its arrow buttons, the mouse
+wheel) make one undo step, as editors merge them (``QUndoCommand.mergeWith``): a step merges
+into the last command when that is a step of the same field, nothing else changed in between,
+and it came within :data:`STEP_BURST_S` of the previous step. A typed value (Enter) is always
+its own step. Qt never merges across the saved (clean) state.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
+from time import monotonic
 from typing import Protocol
 
 from PySide6.QtGui import QUndoCommand
@@ -79,6 +86,14 @@ def describe_change(before: EditState, after: EditState) -> str:
     return "Change"
 
 
+STEP_BURST_S = 1.0
+"""Steps of one field at most this far apart (seconds) make one undo step (a held arrow key
+repeats about 30 times a second; clicks on a spin box's arrows come a few tenths apart)."""
+
+_MERGE_IDS = {f.name: i for i, f in enumerate(fields(EditState), start=1)}
+"""``QUndoCommand.id`` of the steps of each field (``-1``, Qt's "never merge", for others)."""
+
+
 class EditTarget(Protocol):
     """What an :class:`EditCommand` needs from the window."""
 
@@ -97,16 +112,55 @@ class EditCommand(QUndoCommand):
         before: the state before the edit.
         after: the state after it.
         text: the Edit-menu label; default: :func:`describe_change`.
+        step_of: the :class:`EditState` field this edit steps (an arrow key in its box), or
+            ``""`` (a typed value, a drag...: never merged). Consecutive steps of one field
+            merge into one command (:meth:`mergeWith`).
+
+    Raises:
+        ValueError: ``step_of`` is not a field of :class:`EditState`.
     """
 
     def __init__(
-        self, target: EditTarget, before: EditState, after: EditState, text: str = ""
+        self, target: EditTarget, before: EditState, after: EditState, text: str = "",
+        *, step_of: str = "",
     ) -> None:
         super().__init__(text or describe_change(before, after))
+        if step_of and step_of not in _MERGE_IDS:
+            raise ValueError(f"expected step_of to be a field of EditState, got {step_of!r}")
         self.target = target
         self.before = before
         self.after = after
+        self.step_of = step_of
+        self.last_step_at = monotonic()
         self._done = True
+
+    def id(self) -> int:
+        """Qt's merge key: the stepped field's, or -1 (never merged)."""
+        return _MERGE_IDS.get(self.step_of, -1)
+
+    def mergeWith(self, other: QUndoCommand) -> bool:  # noqa: N802 - Qt's name
+        """Take in ``other``, the command pushed right after this one, when it is a step of
+        the same field that follows on from this one's ``after`` (nothing else changed in
+        between) within :data:`STEP_BURST_S` of this one's last step.
+
+        A burst that ends where it began leaves nothing to undo: the command is obsolete and
+        Qt drops it.
+
+        Returns:
+            Whether ``other`` was merged (Qt then discards it).
+        """
+        if not (isinstance(other, EditCommand) and self.step_of
+                and other.step_of == self.step_of):
+            return False
+        if other.last_step_at - self.last_step_at > STEP_BURST_S or other.before != self.after:
+            return False
+        field = self.step_of
+        if replace(other.after, **{field: getattr(self.after, field)}) != self.after:
+            return False  # the step changed another field too
+        self.after = other.after
+        self.last_step_at = other.last_step_at
+        self.setObsolete(self.after == self.before)
+        return True
 
     def redo(self) -> None:
         if self._done:  # pushed after the fact

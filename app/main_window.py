@@ -591,15 +591,19 @@ class MainWindow(QMainWindow):
             exposure=self.relight_panel.exposure(),
         )
 
-    def _record(self, after: EditState | None = None, text: str = "") -> None:
-        """Push the change from the last recorded state to ``after`` (default: the current one)."""
+    def _record(self, after: EditState | None = None, text: str = "", step_of: str = "") -> None:
+        """Push the change from the last recorded state to ``after`` (default: the current one).
+
+        ``step_of``: the field an arrow-key step changed (a burst of them is one undo step,
+        :meth:`EditCommand.mergeWith`), or ``""``.
+        """
         if self._applying_edit:
             return
         after = after if after is not None else self.edit_state()
         before, self._edit_state = self._edit_state, after
         if before is None or after is None or before == after:
             return
-        self.undo_stack.push(EditCommand(self, before, after, text))
+        self.undo_stack.push(EditCommand(self, before, after, text, step_of=step_of))
 
     def _reset_history(self, state: EditState | None) -> None:
         self._timelapse_baseline = None
@@ -1046,11 +1050,12 @@ class MainWindow(QMainWindow):
         if dialog is not None and dialog.isVisible():
             dialog.refresh_preview()
 
-    @Slot(object)
-    def _on_heading_typed(self, heading: float | None) -> None:
-        """A heading typed (or cleared) in step 1: applied, and undoable."""
+    @Slot(object, bool)
+    def _on_heading_typed(self, heading: float | None, stepped: bool = False) -> None:
+        """A heading typed (or cleared) in step 1: applied, and undoable; ``stepped`` (arrow
+        keys, the box's arrows): a burst of steps is one undo step."""
         self.set_user_heading(heading)
-        self._record(text="Camera heading")
+        self._record(text="Camera heading", step_of="heading" if stepped else "")
 
     def set_user_heading(self, heading: float | None) -> None:
         """The camera heading typed in step 1 (degrees from true north; None: unknown, or the

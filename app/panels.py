@@ -47,13 +47,33 @@ def _percent_slider(value: int, parent: QWidget) -> QSlider:
     return s
 
 
+class SteppedSpinBox(QDoubleSpinBox):
+    """A ``QDoubleSpinBox`` that tells a step from a typed value: :attr:`stepping` is true
+    while it steps (arrow keys, Page Up/Down, its arrow buttons, the mouse wheel all step
+    through :meth:`stepBy`), so the ``valueChanged`` it emits then can be told apart."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.stepping = False
+
+    def stepBy(self, steps: int) -> None:  # noqa: N802 - Qt's name
+        self.stepping = True
+        try:
+            super().stepBy(steps)
+        finally:
+            self.stepping = False
+
+
 class AlignPanel(QWidget):
     """Step 1: drag the sun until the predicted shadows (tinted) match the photo's."""
 
     confirm_clicked = Signal()
     exif_clicked = Signal()
     find_sun_clicked = Signal()
-    heading_changed = Signal(object)  # float (degrees from north) or None
+    #: A heading entered: float (degrees from north) or None, and whether it came from a step
+    #: (arrow keys, the box's arrows, the mouse wheel: :attr:`SteppedSpinBox.stepping`)
+    #: rather than a typed value.
+    heading_changed = Signal(object, bool)
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -81,7 +101,7 @@ class AlignPanel(QWidget):
         self.exif_note.setWordWrap(True)
         self.exif_note.setStyleSheet("color: palette(mid); font-size: 9pt;")
         self.exif_note.hide()
-        self.heading_box = QDoubleSpinBox(self)
+        self.heading_box = SteppedSpinBox(self)
         self.heading_box.setRange(-1.0, 359.9)
         self.heading_box.setDecimals(1)
         self.heading_box.setSuffix("°")
@@ -96,7 +116,8 @@ class AlignPanel(QWidget):
         )
         self.heading_box.setToolTip(self._heading_tip)
         self.heading_box.valueChanged.connect(
-            lambda v: self.heading_changed.emit(None if v < 0 else float(v))
+            lambda v: self.heading_changed.emit(None if v < 0 else float(v),
+                                                self.heading_box.stepping)
         )
         self.find_button = QPushButton("Find sun from shadows", self)
         self.find_button.setToolTip(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from PySide6.QtCore import Qt
@@ -734,3 +736,106 @@ def test_a_typed_number_counts_before_a_shortcut(qtbot, window, photo, settle):
     qtbot.keyClick(box, Qt.Key.Key_Return, Qt.KeyboardModifier.ControlModifier)  # confirm
     settle()
     assert window.step is Step.RELIGHT and window.original_sun.azimuth == pytest.approx(77.0)
+
+
+# ------------------------------------------------------- heading steps: one undo step a burst
+POOL = str(Path(__file__).resolve().parents[2] / "samples" / "exif_003_th_pool.jpg")
+
+
+class _Clock:
+    """``app.history``'s clock, moved by hand."""
+
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
+@pytest.fixture
+def clock(monkeypatch) -> _Clock:
+    import app.history
+
+    fake = _Clock()
+    monkeypatch.setattr(app.history, "monotonic", fake)
+    return fake
+
+
+def _step(qtbot, box, key, clock: _Clock, after: float = 0.2) -> None:
+    qtbot.keyClick(box, key)
+    clock.now += after
+
+
+def test_a_burst_of_heading_steps_is_one_undo_step(qtbot, window, settle, clock):
+    """Each arrow-key step in the camera heading box was an undo step of its own (ten
+    presses, ten undos). A burst of steps is one; a pause, a typed value or another edit
+    starts another; a burst back to where it began leaves nothing to undo."""
+    from app.history import STEP_BURST_S
+
+    window.open_path(POOL)
+    settle()
+    box = window.align_panel.heading_box
+    assert box.isEnabled() and window.user_heading is None  # the EXIF's 163.7°
+    box.setFocus()
+    _step(qtbot, box, Qt.Key.Key_Up, clock)
+    _step(qtbot, box, Qt.Key.Key_Down, clock)
+    assert window.user_heading is None and window.undo_stack.count() == 0
+    assert not window.has_unsaved_changes()
+    for _ in range(3):
+        _step(qtbot, box, Qt.Key.Key_Up, clock)
+    _step(qtbot, box, Qt.Key.Key_PageUp, clock)  # ten steps at once
+    assert window.user_heading == pytest.approx(176.7)
+    assert _undo_texts(window) == ["Camera heading"]
+    clock.now += STEP_BURST_S  # a pause
+    _step(qtbot, box, Qt.Key.Key_Down, clock)
+    assert window.user_heading == pytest.approx(175.7) and window.undo_stack.count() == 2
+    box.lineEdit().setText("200")  # typed, committed with Enter: a step of its own...
+    qtbot.keyClick(box, Qt.Key.Key_Return)
+    assert window.user_heading == pytest.approx(200.0) and window.undo_stack.count() == 3
+    _step(qtbot, box, Qt.Key.Key_Up, clock)  # ... which the next step does not join
+    _step(qtbot, box, Qt.Key.Key_Up, clock)
+    assert window.user_heading == pytest.approx(202.0) and window.undo_stack.count() == 4
+    _type_sun(window.align_panel.sun_panel, 100.0, 35.0)  # another edit in between
+    count = window.undo_stack.count()
+    _step(qtbot, box, Qt.Key.Key_Up, clock)
+    assert window.undo_stack.count() == count + 1
+    assert _undo_texts(window)[-1] == "Camera heading"
+    while window.undo_stack.index() > 4:  # the last step, the sun's two boxes
+        window.act_undo.trigger()
+        settle()
+    seen = []
+    for _ in range(4):
+        window.act_undo.trigger()
+        settle()
+        seen.append(window.user_heading)
+    assert seen == [pytest.approx(200.0), pytest.approx(175.7), pytest.approx(176.7), None]
+    assert box.text() == "EXIF 163.7°" and not window.has_unsaved_changes()
+    window.act_redo.trigger()
+    settle()
+    assert window.user_heading == pytest.approx(176.7)
+
+
+def test_a_step_merges_only_into_a_step_of_the_same_field_that_follows_on() -> None:
+    """``EditCommand.mergeWith`` takes in the next command only when it steps the same field
+    from where this one ended and changes nothing else."""
+    from app.history import EditCommand
+
+    class Target:
+        def apply_edit_state(self, state: EditState) -> None:
+            self.state = state
+
+    target = Target()
+    a = EditState("align", (10.0, 30.0), None, (90.0, 30.0), "fast")
+    b = EditState("align", (10.0, 30.0), None, (90.0, 30.0), "fast", heading=10.0)
+    c = EditState("align", (10.0, 30.0), None, (90.0, 30.0), "fast", heading=11.0)
+    moved = EditState("align", (20.0, 30.0), None, (90.0, 30.0), "fast", heading=11.0)
+    first = EditCommand(target, a, b, step_of="heading")
+    assert first.id() > 0 and EditCommand(target, a, b).id() == -1
+    assert not first.mergeWith(EditCommand(target, b, c))  # typed: its own
+    assert not first.mergeWith(EditCommand(target, b, moved, step_of="heading"))
+    assert not first.mergeWith(EditCommand(target, a, c, step_of="heading"))  # not from b
+    assert first.mergeWith(EditCommand(target, b, c, step_of="heading"))
+    assert (first.before, first.after, first.isObsolete()) == (a, c, False)
+    assert first.mergeWith(EditCommand(target, c, a, step_of="heading")) and first.isObsolete()
+    with pytest.raises(ValueError, match="field of EditState"):
+        EditCommand(target, a, b, step_of="azimuth")
