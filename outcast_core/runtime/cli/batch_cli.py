@@ -148,16 +148,24 @@ def check_batch_output(args: argparse.Namespace) -> None:
         check_output_path(args.report, extensions=(".json",), force=args.force)
 
 
+def _suns(r: JobResult) -> str:
+    """A result's suns in words ("sun 273.5,66.8 from exif -> 90,30"), or ``""``."""
+    sun = f"sun {r.from_sun[0]:.1f},{r.from_sun[1]:.1f} from {r.sun_source}" if r.from_sun else ""
+    to = f"-> {r.to_sun[0]:g},{r.to_sun[1]:g}" if r.to_sun else ""
+    return " ".join(part for part in (sun, to) if part)
+
+
 def _line(r: JobResult, index: int, total: int) -> str:
     name = Path(r.image).name
     head = f"[{index:>{len(str(total))}}/{total}] {name}"
     if r.status == "failed":
         return f"{head}: failed: {r.message}"
-    if r.status in ("skipped", "stale"):
-        return f"{head}: {'skipped' if r.status == 'skipped' else 'kept'}: {r.message}"
-    sun = f"sun {r.from_sun[0]:.1f},{r.from_sun[1]:.1f} from {r.sun_source}" if r.from_sun else ""
-    to = f" -> {r.to_sun[0]:g},{r.to_sun[1]:g}" if r.to_sun else ""
-    return f"{head} -> {Path(r.output).name} ({sun}{to}; {r.seconds:.1f} s)"
+    if r.status == "skipped":
+        suns = _suns(r)
+        return f"{head}: skipped{f' ({suns})' if suns else ''}: {r.message}"
+    if r.status == "stale":
+        return f"{head}: kept: {r.message}"
+    return f"{head} -> {Path(r.output).name} ({_suns(r)}; {r.seconds:.1f} s)"
 
 
 def run_batch_command(args: argparse.Namespace) -> int:
@@ -184,9 +192,9 @@ def run_batch_command(args: argparse.Namespace) -> int:
     redone = {job.output: job for job in jobs if Path(job.output).exists()}
     by_output = {job.output: job for job in jobs}
 
-    def record(done: list[BatchJob]) -> None:
+    def record(done: list[BatchJob], results: tuple[JobResult, ...] = ()) -> None:
         try:
-            record_done(out_dir, done)
+            record_done(out_dir, done, results)
         except OSError as exc:  # the outputs matter more than the record
             print(f"outcast batch: warning: cannot update {RECORD_NAME}: "
                   f"{exc.strerror or exc}", file=sys.stderr)
@@ -198,7 +206,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
         count += 1
         if r.status == "done" and r.output in by_output:
             job = by_output[r.output]
-            record([replace(job, settings=settings_for_source(job, options, r.sun_source))])
+            record([replace(job, settings=settings_for_source(job, options, r.sun_source))], (r,))
         if r.status == "failed" or not args.quiet:
             print(_line(r, count, total), file=sys.stderr, flush=True)
 

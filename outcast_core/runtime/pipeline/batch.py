@@ -51,9 +51,10 @@ FORMATS = {"relight": ("jpg", "png", "tif", "webp"), "deshadow": ("jpg", "png", 
 PROJECT_SUFFIX = ".outcast.json"
 MAX_PROJECT_BYTES = 1_000_000
 #: A batch's record in its output folder: the settings each finished output was made with
-#: (:func:`job_settings`). A batch run again skips an output only when it was made with the
-#: same settings; one made otherwise (another sun, preset, format...) or not by a batch is
-#: kept and reported as ``stale`` until ``force`` redoes it.
+#: (:func:`job_settings`) and the suns it was made with (:class:`RecordEntry`). A batch run
+#: again skips an output only when it was made with the same settings (and reports its suns);
+#: one made otherwise (another sun, preset, format...) or not by a batch is kept and reported
+#: as ``stale`` until ``force`` redoes it.
 RECORD_NAME = ".outcast-batch.json"
 
 Sun = tuple[float, float]
@@ -245,7 +246,8 @@ def plan_batch(
     ``IMG_1.png``, get ``IMG_1_jpg.FMT`` and ``IMG_1_png.FMT``, so none is left out). An
     existing output is ``skipped`` when the folder's record (:data:`RECORD_NAME`) says it was
     made with these settings, else ``stale`` (kept); ``options.force`` redoes both. Running a
-    batch again resumes it.
+    batch again resumes it. A skipped output's result has the suns it was made with: the
+    record's, else those known without running it (:func:`planned_suns`).
 
     Args:
         in_dir: the folder of photos.
@@ -275,7 +277,7 @@ def plan_batch(
     else:
         rows = list(targets)
     names = {p.name for p in photos}
-    record = read_record(out_dir)
+    record = read_record_entries(out_dir)
     jobs: list[BatchJob] = []
     results: list[JobResult] = []
     claimed: dict[str, str] = {}
@@ -301,9 +303,15 @@ def plan_batch(
         job = BatchJob(str(image), str(output), row["to_sun"], row["from_sun"])
         job = replace(job, settings=job_settings(job, options))
         if output.exists() and not options.force:
-            if record.get(name) in (job.settings, settings_for_source(job, options, None)):
+            entry = record.get(name)
+            if entry is not None and entry.settings in (
+                    job.settings, settings_for_source(job, options, None)):
+                from_sun, source, to_sun = (
+                    (entry.from_sun, entry.sun_source, entry.to_sun) if entry.from_sun is not None
+                    else planned_suns(job, options))
                 results.append(JobResult(str(image), str(output), "skipped",
-                                         "done with these settings (use --force to redo it)"))
+                                         "done with these settings (use --force to redo it)",
+                                         from_sun=from_sun, sun_source=source, to_sun=to_sun))
             else:
                 results.append(JobResult(
                     str(image), str(output), "stale",
@@ -424,9 +432,57 @@ def settings_for_source(job: BatchJob, options: BatchOptions, source: str | None
     return json.dumps(keys, sort_keys=True)
 
 
-def read_record(out_dir: str | os.PathLike[str]) -> dict[str, str]:
-    """The output folder's :data:`RECORD_NAME` (output name -> settings); empty when it is
-    missing or unreadable (every existing output is then ``stale``, never overwritten)."""
+@dataclass(frozen=True)
+class RecordEntry:
+    """One output in the batch record (:data:`RECORD_NAME`).
+
+    Attributes:
+        settings: what it was made with (:func:`job_settings`, :func:`settings_for_source`).
+        from_sun: the original sun it was made with; None until its job was heard to finish
+            (recorded before the work) and in records written before suns were kept.
+        sun_source: where ``from_sun`` came from (:attr:`JobResult.sun_source`).
+        to_sun: the new sun (relighting), or None.
+    """
+
+    settings: str
+    from_sun: Sun | None = None
+    sun_source: str = ""
+    to_sun: Sun | None = None
+
+    def as_json(self) -> dict[str, Any]:
+        return {"settings": self.settings, "from_sun": _plain_sun(self.from_sun),
+                "sun_source": self.sun_source, "to_sun": _plain_sun(self.to_sun)}
+
+    @classmethod
+    def from_json(cls, value: Any) -> RecordEntry | None:
+        """An entry as :meth:`as_json` writes it, or a bare settings string (records written
+        before suns were kept); None for anything else."""
+        if isinstance(value, str):
+            return cls(value)
+        if not (isinstance(value, dict) and isinstance(value.get("settings"), str)):
+            return None
+        source = value.get("sun_source")
+        return cls(value["settings"], _recorded_sun(value.get("from_sun")),
+                   source if isinstance(source, str) else "", _recorded_sun(value.get("to_sun")))
+
+
+def _plain_sun(sun: Sun | None) -> list[float] | None:
+    return None if sun is None else [float(sun[0]), float(sun[1])]
+
+
+def _recorded_sun(value: Any) -> Sun | None:
+    """A sun as the record keeps it (``[az, el]``), or None when it is not one."""
+    if not (isinstance(value, list) and len(value) == 2
+            and all(isinstance(v, int | float) and not isinstance(v, bool)
+                    and math.isfinite(v) for v in value)):
+        return None
+    return float(value[0]), float(value[1])
+
+
+def read_record_entries(out_dir: str | os.PathLike[str]) -> dict[str, RecordEntry]:
+    """The output folder's :data:`RECORD_NAME` (output name -> :class:`RecordEntry`); empty
+    when it is missing or unreadable (every existing output is then ``stale``, never
+    overwritten)."""
     path = Path(out_dir) / RECORD_NAME
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
@@ -434,23 +490,64 @@ def read_record(out_dir: str | os.PathLike[str]) -> dict[str, str]:
         return {}
     if not isinstance(data, dict):
         return {}
-    return {str(k): v for k, v in data.items() if isinstance(v, str)}
+    entries = {str(k): RecordEntry.from_json(v) for k, v in data.items()}
+    return {k: v for k, v in entries.items() if v is not None}
 
 
-def record_done(out_dir: str | os.PathLike[str], jobs: Sequence[BatchJob]) -> None:
+def read_record(out_dir: str | os.PathLike[str]) -> dict[str, str]:
+    """The settings of :func:`read_record_entries` (output name -> settings)."""
+    return {k: v.settings for k, v in read_record_entries(out_dir).items()}
+
+
+def record_done(out_dir: str | os.PathLike[str], jobs: Sequence[BatchJob],
+                results: Sequence[JobResult] = ()) -> None:
     """Add jobs to the output folder's record (one write, replaced atomically). The batch
     command records the jobs whose outputs are new before it runs them (an output is written
     atomically, so an existing one is then finished and made with these settings, even when
-    the batch was stopped before it heard so), and a redone output when it is done."""
+    the batch was stopped before it heard so), and every output again when it is done, with
+    its ``done`` result (of ``results``, by output): its suns are recorded with it."""
     from outcast_core.runtime.io.imageio import atomic_output
 
     if not jobs:
         return
-    record = read_record(out_dir)
+    record = read_record_entries(out_dir)
+    done = {r.output: r for r in results if r.status == "done"}
     for job in jobs:
-        record[Path(job.output).name] = job.settings
+        r = done.get(job.output)
+        record[Path(job.output).name] = RecordEntry(job.settings) if r is None else RecordEntry(
+            job.settings, r.from_sun, r.sun_source, r.to_sun)
+    data = {k: v.as_json() for k, v in record.items()}
     with atomic_output(Path(out_dir) / RECORD_NAME, force=True) as tmp:
-        tmp.write_text(json.dumps(record, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+
+
+def planned_suns(job: BatchJob, options: BatchOptions) -> tuple[Sun | None, str, Sun | None]:
+    """``(from_sun, sun_source, to_sun)`` of ``job`` as far as they are known without running
+    it (for an output done by an earlier batch whose record does not say them): the original
+    sun of a CSV row, or of ``options.sources`` up to the first that needs the photo read
+    (``exif``, ``auto``; then ``(None, "")``), and the new sun of a relighting
+    (:func:`target_sun_for`, or None when there is none).
+    """
+    try:
+        read = read_project(job.image)
+    except ValueError:  # the job would fail; it did not, or it would not be done
+        read = None
+    project_sun, project_target = (None, None) if read is None else (read.original_sun,
+                                                                     read.target_sun)
+    to_sun = None
+    if options.kind == "relight":
+        to_sun = next((s for s in (job.to_sun, options.to_sun, project_target) if s is not None),
+                      None)
+    if job.from_sun is not None:
+        return job.from_sun, "csv", to_sun
+    for source in options.sources:
+        if source == "project" and project_sun is not None:
+            return project_sun, "project", to_sun
+        if source == "given" and options.from_sun is not None:
+            return options.from_sun, "given", to_sun
+        if source in ("exif", "auto"):  # (and the sun in the frame) need the photo
+            break
+    return None, "", to_sun
 
 
 # -------------------------------------------------------------------------------- suns

@@ -492,3 +492,64 @@ def test_a_photo_that_shows_its_sun_is_relit_from_it(tmp_path: Path) -> None:
     r = json.loads(report.read_text())["results"][0]
     assert r["sun_source"] == "sun in the frame"
     assert abs((r["from_sun"][0] - 354.0 + 180.0) % 360.0 - 180.0) < 4.0
+
+
+def test_skipped_outputs_report_their_suns(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """A rerun reported the outputs it skipped without their suns (empty in the report and
+    the line): they come from the record of the run that made them, else (a record written
+    before suns were kept) from what is known without running the job: the project's."""
+    from app.state import ProjectState, Sun, save_project
+
+    d, out = tmp_path / "in", tmp_path / "out"
+    d.mkdir()
+    _exif_photo(d / "exif.jpg")
+    aligned = _photo(d / "aligned.png", 2)
+    save_project(ProjectState(image_path=str(aligned), original_sun=Sun(120.0, 35.0)),
+                 d / f"aligned{PROJECT_SUFFIX}")
+    args = ["batch", str(d), "-o", str(out), "--to", "90,30", "--preset", "fast", "--mode",
+            "classic", "--sources", "project,exif"]
+
+    def results(report: str) -> dict[str, dict]:
+        assert main([*args, "--report", str(tmp_path / report)]) == 0
+        data = json.loads((tmp_path / report).read_text())["results"]
+        return {Path(r["image"]).name: r for r in data}
+
+    first = results("first.json")
+    assert first["aligned.png"]["sun_source"] == "project"
+    assert first["exif.jpg"]["sun_source"] == "exif"
+    capsys.readouterr()
+    again = results("again.json")
+    for name, made in first.items():
+        assert made["status"] == "done" and again[name]["status"] == "skipped"
+        for key in ("from_sun", "sun_source", "to_sun"):
+            assert again[name][key] == made[key], (name, key)
+    lines = capsys.readouterr().err.splitlines()
+    assert "aligned.png: skipped (sun 120.0,35.0 from project -> 90,30): done with these " \
+           "settings" in "\n".join(lines)
+    az, el = first["exif.jpg"]["from_sun"]
+    assert f"exif.jpg: skipped (sun {az:.1f},{el:.1f} from exif -> 90,30)" in "\n".join(lines)
+
+    record = json.loads((out / RECORD_NAME).read_text())
+    (out / RECORD_NAME).write_text(json.dumps({k: v["settings"] for k, v in record.items()}))
+    old = results("old.json")
+    assert [old[n]["status"] for n in sorted(old)] == ["skipped", "skipped"]
+    assert (old["aligned.png"]["from_sun"], old["aligned.png"]["sun_source"]) == (
+        [120.0, 35.0], "project")
+    # The EXIF sun needs the photo read (its tilt): not guessed.
+    assert (old["exif.jpg"]["from_sun"], old["exif.jpg"]["sun_source"]) == (None, "")
+    assert old["exif.jpg"]["to_sun"] == old["aligned.png"]["to_sun"] == [90.0, 30.0]
+
+
+def test_planned_suns_stop_where_the_photo_would_have_to_be_read(tmp_path: Path) -> None:
+    from outcast_core.runtime.pipeline.batch import planned_suns
+
+    job = BatchJob(str(_photo(tmp_path / "a.png", 0)), str(tmp_path / "o" / "a.jpg"))
+    given = BatchOptions(kind="relight", from_sun=(10.0, 50.0), to_sun=(90.0, 30.0))
+    assert planned_suns(job, given) == (None, "", (90.0, 30.0))  # exif comes before given
+    only_given = replace_sources(given, ("project", "given"))
+    assert planned_suns(job, only_given) == ((10.0, 50.0), "given", (90.0, 30.0))
+    row = BatchJob(job.image, job.output, to_sun=(5.0, 6.0), from_sun=(7.0, 8.0))
+    assert planned_suns(row, given) == ((7.0, 8.0), "csv", (5.0, 6.0))
+    assert planned_suns(job, BatchOptions(kind="deshadow", sources=("given",),
+                                          from_sun=(1.0, 2.0))) == ((1.0, 2.0), "given", None)
