@@ -108,7 +108,7 @@ def _clear_blue(image_srgb: np.ndarray, lum: np.ndarray | None = None) -> np.nda
     return (b > r + 0.03) & (b >= g - 0.02) & (lum > 0.2)
 
 
-def sky_colour(image_srgb: np.ndarray) -> np.ndarray:
+def sky_colour(image_srgb: np.ndarray, greyscale: bool | None = None) -> np.ndarray:
     """Where a pixel has a sky's colour: bluish (clear sky), or bright and unsaturated (cloud,
     haze, overcast). ``H x W x 3`` sRGB -> ``H x W`` bool.
 
@@ -117,11 +117,17 @@ def sky_colour(image_srgb: np.ndarray) -> np.ndarray:
     colour (the prior's smoothness and top-edge tests still apply). Found by a user trial: the
     field-path sample in black and white had a sky prior of 4 % of the frame (54 % in colour),
     and dark shadows were cast across its sky.
+
+    ``greyscale``: whether the photo is black and white, when the caller has decided it (once
+    per photo, on the whole photo: :func:`postprocess_z` and the session do); None decides it
+    from ``image_srgb``.
     """
     img = np.asarray(image_srgb, dtype=np.float32)  # NaN compares False: never sky-coloured
     r, g, b = cv2.split(img)
     lum = cv2.transform(img, LUMA_709[None])
-    if is_greyscale(np.nan_to_num(img)):
+    if greyscale is None:
+        greyscale = is_greyscale(np.nan_to_num(img))
+    if greyscale:
         return lum > GREY_SKY_LUMA
     lo, hi = np.minimum(np.minimum(r, g), b), np.maximum(np.maximum(r, g), b)
     bluish = _clear_blue(img, lum)
@@ -129,11 +135,13 @@ def sky_colour(image_srgb: np.ndarray) -> np.ndarray:
     return bluish | cloudish
 
 
-def sky_prior(image_srgb: np.ndarray) -> np.ndarray:
+def sky_prior(image_srgb: np.ndarray, greyscale: bool | None = None) -> np.ndarray:
     """A boolean ``H x W`` sky mask from colour, smoothness and connection to the top edge.
 
     Args:
         image_srgb: ``H x W x 3`` float sRGB in ``[0, 1]``.
+        greyscale: whether the photo is black and white (:func:`sky_colour`); None: decided
+            from ``image_srgb``.
 
     Returns:
         ``H x W`` bool, True where the photo shows sky.
@@ -152,7 +160,7 @@ def sky_prior(image_srgb: np.ndarray) -> np.ndarray:
     gx = cv2.Sobel(blurred, cv2.CV_32F, 1, 0, ksize=3) / 8.0
     gy = cv2.Sobel(blurred, cv2.CV_32F, 0, 1, ksize=3) / 8.0
     texture = cv2.blur(np.hypot(gx, gy).max(axis=2), (5, 5))
-    colour = sky_colour(small)
+    colour = sky_colour(small, greyscale)
     sky = _fill_holes(top_connected(colour & (texture < SMOOTH)), colour)
     if (sh, sw) != (h, w):
         sky = cv2.resize(sky.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
@@ -196,7 +204,8 @@ def _fill_holes(sky: np.ndarray, colour: np.ndarray) -> np.ndarray:
     return sky | fill[labels]
 
 
-def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
+def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray,
+                greyscale: bool | None = None) -> np.ndarray:
     """``Z``'s sky mask combined with :func:`sky_prior` of the same photo (same ``H x W``).
 
     * A region of the prior is added only if ``Z`` marked at least :data:`MIN_AGREEMENT` of it
@@ -214,6 +223,9 @@ def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
       snow is bluish too, but does not span the top row (on the dev photos such regions touch
       at most 9 % of it).
     * Holes are closed as in :func:`sky_prior`.
+
+    ``greyscale``: whether the photo is black and white (:func:`sky_colour`); None: decided
+    here, once.
     """
     model_sky = np.asarray(model_sky, dtype=bool)
     image = np.asarray(image_srgb, dtype=np.float32)
@@ -222,7 +234,9 @@ def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
             f"expected a sky mask of the image's size {image.shape[:2]}, got {model_sky.shape}"
         )
     h = model_sky.shape[0]
-    prior = sky_prior(image)
+    if greyscale is None:
+        greyscale = is_greyscale(np.nan_to_num(image))
+    prior = sky_prior(image, greyscale)
     clear = np.zeros_like(prior)
     n, labels = cv2.connectedComponents(prior.astype(np.uint8), connectivity=4)
     if n > 1:
@@ -249,7 +263,7 @@ def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
     rows_with_sky = np.nonzero(z_kept.any(axis=1))[0]
     limit = rows_with_sky[-1] + 1 + round(HORIZON_MARGIN * h) if rows_with_sky.size else 0
     prior[limit:] = False
-    return _fill_holes(z_kept | prior | clear, sky_colour(image))
+    return _fill_holes(z_kept | prior | clear, sky_colour(image, greyscale))
 
 
 #: :func:`refine_sky_edge`: how far (fraction of the longer side) the sky may grow past the
@@ -259,7 +273,8 @@ SKY_EDGE_BAND = 0.03
 SKY_EDGE_TOL = 0.08
 
 
-def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
+def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray,
+                    greyscale: bool | None = None) -> np.ndarray:
     """Grow a sky mask up to the photo's own sky edge.
 
     ``Z`` sees the sky at 128 px and :func:`sky_prior` needs a smooth window, so both stop a few
@@ -277,6 +292,8 @@ def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
     Args:
         sky: ``H x W`` bool.
         image_srgb: ``H x W x 3`` sRGB of the same size.
+        greyscale: whether the photo is black and white (:func:`sky_colour`); None: decided
+            from ``image_srgb``.
 
     Returns:
         ``H x W`` bool, a superset of ``sky``.
@@ -294,7 +311,7 @@ def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray) -> np.ndarray:
     local = cv2.GaussianBlur(img * sky[..., None], (0, 0), sigma) / np.maximum(weight, 1e-6)[
         ..., None]
     close = (np.abs(img - local).max(axis=2) < SKY_EDGE_TOL) & (weight > 1e-3)
-    candidate = close & sky_colour(img) & ~sky
+    candidate = close & sky_colour(img, greyscale) & ~sky
     if not candidate.any():
         return sky
     near = cv2.distanceTransform((~sky).astype(np.uint8), cv2.DIST_L2, 3) <= band
@@ -513,7 +530,7 @@ def run_depth_model(
 
 def postprocess_z(
     depth: np.ndarray, sky_prob: np.ndarray, image_srgb: np.ndarray,
-    camera: Camera | None = None,
+    camera: Camera | None = None, *, greyscale: bool | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``Z``'s raw outputs (``H x W`` depth and sky probability) to the runtime's depth and sky.
 
@@ -522,14 +539,19 @@ def postprocess_z(
     clamped to be positive and smoothed by :func:`smooth_depth`, and, given the ``camera``
     (intrinsics of the same size), its ground is snapped to a plane by :func:`snap_ground`. As
     everywhere for estimated depth (DESIGN.md), the depth stays finite on sky pixels and the
-    mask says where the sky is.
+    mask says where the sky is. Whether the photo is black and white (its sky is then found by
+    brightness: :func:`sky_colour`) is decided once: ``greyscale`` when the caller decided it on
+    the whole photo (the session does), else here.
 
     Returns:
         ``(depth, sky)``: ``H x W`` float32, finite and > 0, and ``H x W`` bool.
     """
     raw = np.asarray(depth, np.float32)
     depth = np.clip(np.nan_to_num(raw, nan=1e-6, posinf=1e6, neginf=1e-6), 1e-6, None)
-    sky = refine_sky_edge(combine_sky(np.asarray(sky_prob) > 0.5, image_srgb), image_srgb)
+    if greyscale is None:
+        greyscale = is_greyscale(np.nan_to_num(np.asarray(image_srgb, np.float32)))
+    sky = refine_sky_edge(combine_sky(np.asarray(sky_prob) > 0.5, image_srgb, greyscale),
+                          image_srgb, greyscale)
     depth = smooth_depth(depth, sky, image_srgb)
     if camera is not None:
         depth = snap_ground(depth, sky, camera)[0]

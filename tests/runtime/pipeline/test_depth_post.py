@@ -67,6 +67,29 @@ def test_prior_finds_the_sky_of_a_black_and_white_photo() -> None:
     assert not dark[:10, :60].any() and dark[:5, -10:].all()
 
 
+def test_black_and_white_is_decided_once_and_a_callers_decision_is_kept(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """``postprocess_z`` decides "black and white" once for all its sky stages (it was decided
+    about three times per photo, at two sizes), and takes the session's decision when given."""
+    img, truth = _photo()
+    grey = np.repeat(cv2.transform(img, np.float32([[0.2126, 0.7152, 0.0722]]))[..., None], 3, 2)
+    calls = []
+    real = sky_mod.is_greyscale
+    monkeypatch.setattr(sky_mod, "is_greyscale", lambda x: calls.append(1) or real(x))
+    depth = np.full(truth.shape, 3.0, np.float32)
+    _, sky = sky_mod.postprocess_z(depth, truth.astype(np.float32), grey)
+    assert len(calls) == 1 and _iou(sky, truth) > 0.9
+    calls.clear()
+    _, told = sky_mod.postprocess_z(depth, truth.astype(np.float32), grey, greyscale=True)
+    assert not calls and (told == sky).all()
+    # The decision is the caller's: told "colour", a darker grey sky (luma 0.43, below a
+    # cloud's) is not a sky's colour.
+    dim = grey * np.float32(0.8)
+    assert _iou(sky_mod.sky_prior(dim, greyscale=True), truth) > 0.9
+    assert _iou(sky_mod.sky_prior(dim, greyscale=False), truth) < 0.5  # the cloud only
+    assert not calls
+
+
 def test_prior_ignores_a_pale_smooth_patch_cut_off_from_the_top() -> None:
     img, truth = _photo()
     img[80:110, 40:90] = 0.9  # a white wall standing in the textured ground
@@ -86,7 +109,7 @@ def test_combine_adds_a_horizon_cloud_only_the_prior_finds() -> None:
     out = combine_sky(z_sky, img)
     assert out[30:44, 24:66].all()  # the last rows above the ground edge are textured
     with pytest.MonkeyPatch.context() as mp:  # without the prior nothing restores it
-        mp.setattr(sky_mod, "sky_prior", lambda im: np.zeros(im.shape[:2], bool))
+        mp.setattr(sky_mod, "sky_prior", lambda im, *_: np.zeros(im.shape[:2], bool))
         assert not combine_sky(z_sky, img)[30:44, 24:66].any()
 
 
