@@ -16,6 +16,13 @@ photo and on average (DESIGN.md, "Real photographs: how we measure"):
 * ``otsu_ber``: Otsu's threshold on luminance, a photometric anchor that knows no sun;
 * ``shuffled_ber``: the other photos' best overlays laid on this photo's mask (a control: an
   overlay that knows the photo sits far below it);
+* ``swept_shuffled_ber``: the same control given the same choice as the ideal user: each other
+  photo's shadow images at all :data:`SWEEP_SUNS`, thresholded off *this* photo's sky, the best
+  sun taken against this photo's mask, averaged over the other photos (compared on a grid of
+  :data:`SWEEP_GRID` px, longer side). ``shuffled_ber`` lays one mask per other photo, chosen for
+  that photo; the overlay itself is the best of 24. Picking the best of 24 lowers any
+  prediction's BER, a wrong photo's geometry too, so the gap to this control is how much the
+  geometry knows about the photo beyond that choice (added 2026-12-01, seventh session);
 * ``sky_claim``: the fraction of the mask's shadow pixels the sky mask claims;
 * ``deshadow_in`` / ``deshadow_out`` (photos with a shadow-free twin ``NAME_free.*``): the
   de-shadowed photo's RMSE in CIE Lab against the twin inside the mask, as a ratio to the
@@ -78,6 +85,8 @@ OLD_SHADE_RING = 0.03
 #: fine, and the fewest both-lit pixels it needs.
 DETAIL_BAND = 1.0 / 128
 DETAIL_MIN_PIXELS = 100
+#: ``swept_shuffled_ber``: the longer side (px) of the grid its masks are compared on.
+SWEEP_GRID = 128
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp")
 
 Progress = Callable[[str, float], None]
@@ -188,6 +197,7 @@ class PhotoResult:
     overlay_fraction: float
     seconds: float
     shuffled_ber: float = float("nan")
+    swept_shuffled_ber: float = float("nan")
     deshadow_in: float | None = None
     deshadow_out: float | None = None
     relit_chroma: float | None = None
@@ -213,23 +223,30 @@ def evaluate_photo(
         item: the photo, its mask and its twin.
         suns: ``(azimuth, elevation)`` pairs in degrees.
         keep: if given, filled with the pictures of the photo (``image``, ``overlay``,
-            ``refined``, ``deshadowed``, ``truth``) for a contact sheet.
+            ``refined``, ``deshadowed``, ``truth``) for a contact sheet, and with ``sweep``:
+            the shadow images at every sun, the sky and the mask on the grid of
+            :func:`swept_shuffled_control`.
     """
     from outcast_core.runtime.io.imageio import read_image
 
     t0 = time.perf_counter()
-    loaded = read_image(item.image)
+    loaded = read_image(item.image, keep_uint8=True)  # as the app reads it: the same session
+    photo = loaded.image_srgb  # uint8 from an 8-bit file, else float
+    image = photo.astype(np.float32) / 255.0 if photo.dtype == np.uint8 else photo
     truth = read_mask(item.mask)
     shape = truth.shape
-    if loaded.image_srgb.shape[:2] != shape:
+    if image.shape[:2] != shape:
         raise ValueError(f"{item.name}: expected a mask of the image's size "
-                         f"{loaded.image_srgb.shape[:2]}, got {shape}")
-    session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
+                         f"{image.shape[:2]}, got {shape}")
+    session.set_image(photo, focal_35mm=loaded.exif.focal_35mm)
     sky = session.sky
-    scores = []
+    grid = _grid_shape(shape)
+    scores, swept = [], []
     for az, el in suns:
-        pred = shadow_mask(session.shadow(sun_vector(az, el)), sky, shape)
-        scores.append(balanced_error_rate(pred, truth))
+        shadow = session.shadow(sun_vector(az, el))
+        scores.append(balanced_error_rate(shadow_mask(shadow, sky, shape), truth))
+        swept.append(cv2.resize(np.asarray(shadow, np.float32), grid[::-1],
+                                interpolation=cv2.INTER_AREA).astype(np.float16))
     best = int(np.argmin(scores))
     az, el = suns[best]
     opp = (az + 180.0) % 360.0
@@ -256,7 +273,7 @@ def evaluate_photo(
         overlay_ber=float(scores[best]),
         opposite_ber=float(opposite),
         refined_ber=balanced_error_rate(refined, truth),
-        otsu_ber=balanced_error_rate(otsu_shadow_mask(loaded.image_srgb), truth),
+        otsu_ber=balanced_error_rate(otsu_shadow_mask(image), truth),
         sky_claim=float((sky_full & truth).sum()) / n_true,
         shadow_fraction=float(truth.mean()),
         overlay_fraction=float(overlay.mean()),
@@ -266,13 +283,13 @@ def evaluate_photo(
     deshadowed = None
     if item.free is not None and hasattr(session, "deshadow_full"):
         free = read_image(item.free).image_srgb
-        if free.shape != loaded.image_srgb.shape:
+        if free.shape != image.shape:
             free = cv2.resize(free, (shape[1], shape[0]), interpolation=cv2.INTER_AREA)
         deshadowed = session.deshadow_full()
-        base_in = lab_rmse(loaded.image_srgb, free, truth)
+        base_in = lab_rmse(image, free, truth)
         res.deshadow_in = lab_rmse(deshadowed, free, truth) / max(base_in, 1e-6)
         res.deshadow_out = (lab_rmse(deshadowed, free, ~truth)
-                            - lab_rmse(loaded.image_srgb, free, ~truth))
+                            - lab_rmse(image, free, ~truth))
         res.extra["input_lab_rmse_in"] = base_in
     if hasattr(session, "relight"):
         _relight_checks(session, res, az, el, truth)
@@ -280,8 +297,10 @@ def evaluate_photo(
     if keep is not None:
         if deshadowed is None and hasattr(session, "deshadow"):
             deshadowed = session.deshadow()  # working resolution is enough for a thumbnail
-        keep.update(image=loaded.image_srgb, truth=truth, overlay=overlay, refined=refined,
-                    deshadowed=deshadowed)
+        keep.update(image=image, truth=truth, overlay=overlay, refined=refined,
+                    deshadowed=deshadowed,
+                    sweep={"shadows": np.stack(swept), "sky": _on_grid(sky, grid),
+                           "truth": _on_grid(truth, grid)})
         if hasattr(session, "relight"):  # two relit suns, +-RELIGHT_TURN (cached in the session)
             keep["relit"] = [session.relight(sun_vector((az + turn) % 360.0, el))
                              for turn in (RELIGHT_TURN, -RELIGHT_TURN)]
@@ -428,7 +447,52 @@ def shuffled_control(
     return out
 
 
+def _grid_shape(shape: tuple[int, int]) -> tuple[int, int]:
+    """``(h, w)`` of the :data:`SWEEP_GRID` grid for a mask of ``shape`` (aspect kept)."""
+    h, w = shape
+    k = SWEEP_GRID / max(h, w)
+    return max(1, round(h * k)), max(1, round(w * k))
+
+
+def _on_grid(mask: np.ndarray, grid: tuple[int, int]) -> np.ndarray:
+    """A boolean mask brought to ``grid`` (the share of each cell it covers, over half)."""
+    m = cv2.resize(np.asarray(mask, np.float32), grid[::-1], interpolation=cv2.INTER_AREA)
+    return m > 0.5
+
+
+def swept_shuffled_control(sweeps: dict[str, dict[str, np.ndarray]]) -> dict[str, float]:
+    """For each photo, the mean over the other photos of the best BER of their shadow images
+    at every sun laid on this photo's mask (``swept_shuffled_ber``, module docstring).
+
+    Args:
+        sweeps: per photo, ``shadows`` (``K x h x w`` float shadow images at the swept suns),
+            ``sky`` and ``truth`` (``h x w`` bool), all on its :data:`SWEEP_GRID` grid.
+
+    Returns:
+        Per photo, the control's BER (NaN for a lone photo).
+    """
+    out: dict[str, float] = {}
+    for name, own in sweeps.items():
+        truth, sky = own["truth"], own["sky"]
+        h, w = truth.shape
+        p, n = int(truth.sum()), int((~truth).sum())
+        bests = []
+        for other, theirs in sweeps.items():
+            if other == name:
+                continue
+            shadows = np.stack([cv2.resize(np.asarray(s, np.float32), (w, h),
+                                           interpolation=cv2.INTER_LINEAR)
+                                for s in theirs["shadows"]])  # K x h x w
+            pred = (shadows < SHADOW_THRESHOLD) & ~sky[None]
+            tpr = (pred & truth).sum(axis=(1, 2)) / p if p else np.ones(len(pred))
+            tnr = (~pred & ~truth).sum(axis=(1, 2)) / n if n else np.ones(len(pred))
+            bests.append(float(np.min(1.0 - 0.5 * (tpr + tnr))))
+        out[name] = float(np.mean(bests)) if bests else float("nan")
+    return out
+
+
 SUMMARY_KEYS = ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuffled_ber",
+                "swept_shuffled_ber",
                 "sky_claim", "overlay_fraction", "shadow_fraction", "seconds",
                 "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky", "new_shade",
                 "old_shade", "relit_detail")
@@ -444,6 +508,8 @@ def summarize(results: Sequence[PhotoResult]) -> dict[str, float]:
             out[key] = float(np.mean(vals))
     out["opposite_gap"] = out.get("opposite_ber", math.nan) - out.get("overlay_ber", math.nan)
     out["shuffled_gap"] = out.get("shuffled_ber", math.nan) - out.get("overlay_ber", math.nan)
+    out["swept_shuffled_gap"] = (out.get("swept_shuffled_ber", math.nan)
+                                 - out.get("overlay_ber", math.nan))
     return out
 
 
@@ -474,6 +540,7 @@ def evaluate_real(
     results: list[PhotoResult] = []
     masks: dict[str, np.ndarray] = {}
     truths: dict[str, np.ndarray] = {}
+    sweeps: dict[str, dict[str, np.ndarray]] = {}
     rows: list[list[np.ndarray]] = []
     for i, item in enumerate(items):
         if progress:
@@ -483,11 +550,14 @@ def evaluate_real(
         results.append(res)
         masks[item.name] = keep["overlay"]
         truths[item.name] = keep["truth"]
+        sweeps[item.name] = keep["sweep"]
         if sheet is not None:
             rows.append(_sheet_row(keep))
     shuffled = shuffled_control(masks, truths)
+    swept = swept_shuffled_control(sweeps)
     for r in results:
         r.shuffled_ber = shuffled[r.name]
+        r.swept_shuffled_ber = swept[r.name]
     if sheet is not None and rows:
         _write_sheet(Path(sheet), rows)
     if progress:
@@ -539,8 +609,9 @@ def _write_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
 
 def render_table(report: dict[str, Any]) -> str:
     """The per-photo results and their means as a Markdown table."""
-    head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | Shuffled | Sky claim |"
-            " De-shadow in / out | Relit chroma / sky / new shade / old shade / detail | s |")
+    head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | Shuffled / swept |"
+            " Sky claim | De-shadow in / out | Relit chroma / sky / new shade / old shade / "
+            "detail | s |")
     lines = [head, "|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(v: Any, d: int = 3) -> str:
@@ -552,7 +623,8 @@ def render_table(report: dict[str, Any]) -> str:
         lines.append(
             f"| {r['name']} | {r['best_sun'][0]:.0f},{r['best_sun'][1]:.0f} | "
             f"{f(r['overlay_ber'])} | {f(r['opposite_ber'])} | {f(r['refined_ber'])} | "
-            f"{f(r['otsu_ber'])} | {f(r['shuffled_ber'])} | {f(r['sky_claim'])} | {ds} | "
+            f"{f(r['otsu_ber'])} | {f(r['shuffled_ber'])} / {f(r.get('swept_shuffled_ber'))} | "
+            f"{f(r['sky_claim'])} | {ds} | "
             f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} / {f(r.get('new_shade'), 2)} / "
             f"{f(r.get('old_shade'), 2)} / {f(r.get('relit_detail'), 2)} | "
             f"{f(r['seconds'], 1)} |")
@@ -562,7 +634,8 @@ def render_table(report: dict[str, Any]) -> str:
     lines.append(
         f"| **mean ({int(m['photos'])})** | | **{f(m.get('overlay_ber'))}** | "
         f"{f(m.get('opposite_ber'))} | **{f(m.get('refined_ber'))}** | {f(m.get('otsu_ber'))} | "
-        f"{f(m.get('shuffled_ber'))} | {f(m.get('sky_claim'))} | {ds} | "
+        f"{f(m.get('shuffled_ber'))} / {f(m.get('swept_shuffled_ber'))} | "
+        f"{f(m.get('sky_claim'))} | {ds} | "
         f"{f(m.get('relit_chroma'), 2)} / {f(m.get('relit_sky'), 2)} / "
         f"{f(m.get('new_shade'), 2)} / {f(m.get('old_shade'), 2)} / "
         f"{f(m.get('relit_detail'), 2)} | {f(m.get('seconds'), 1)} |")
@@ -627,4 +700,5 @@ __all__ = [
     "shadow_mask",
     "shuffled_control",
     "summarize",
+    "swept_shuffled_control",
 ]
