@@ -1,6 +1,8 @@
 """``outcast sun IMAGE [--json]``: the photo's sun from its shadows (and its EXIF).
 
-Prints the sun's azimuth and elevation relative to the camera and a confidence; with no clear
+Prints the sun's azimuth and elevation relative to the camera and a confidence (a photo whose
+EXIF time and place put the sun below the horizon is said so on stderr, in one line: the
+shadows alone are searched); with no clear
 shadows in the photo it says so on stderr instead of guessing and exits with
 :data:`NO_SUN_STATUS` (with ``--json`` the JSON is printed all the same, with the best guess
 under ``best_guess`` and ``azimuth`` and ``elevation`` null), unless the EXIF's compass heading
@@ -30,13 +32,21 @@ def cmd_sun(args: argparse.Namespace) -> int:
         find_sun,
         photo_camera_tilt,
     )
-    from outcast_core.runtime.pipeline.timelapse import exif_heading_from_sun
+    from outcast_core.runtime.pipeline.timelapse import (
+        exif_heading_from_sun,
+        sun_below_horizon_at_capture,
+    )
 
     loaded = _load(args.image, keep_uint8=True)  # as the app reads it: the same sun
     session = _make_session(args, shadow_mode=args.mode)
     _set_image(session, loaded, args)
     heading = None if args.heading is None else args.heading % 360.0
     prior = None if args.no_exif else exif_sun_prior(loaded.exif, heading=heading)
+    night = None if args.no_exif else sun_below_horizon_at_capture(loaded.exif)
+    if night is not None and not args.quiet:  # its EXIF gives no sun: say why, once
+        print(f"outcast sun: note: {night}, so the EXIF gives no sun and the shadows alone are "
+              "searched (if it was daylight, the camera's clock or time zone is wrong)",
+              file=sys.stderr)
     # The camera's tilt as the app and batch take it: metadata, the sun in the frame, the
     # ground plane.
     tilt = None if args.no_exif else photo_camera_tilt(session, args.image)

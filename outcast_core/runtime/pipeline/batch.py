@@ -663,7 +663,8 @@ def original_sun_for(
             sample's).
 
     Raises:
-        ValueError: none of the sources has a sun (the message lists what was tried).
+        ValueError: none of the sources has a sun (one line: what each source lacked, a
+            night photo's sun below the horizon included, and what to do).
     """
     if job.from_sun is not None:
         return job.from_sun, "csv"
@@ -684,13 +685,18 @@ def original_sun_for(
             sun = auto()
             if sun is not None:
                 return sun, "auto"
+    from outcast_core.runtime.pipeline.timelapse import exif_sun_problem
+
     tried = {"project": f"no {Path(job.image).stem}{PROJECT_SUFFIX} with a confirmed sun",
-             "exif": "no EXIF GPS, time and heading (or the sun was down)",
-             "given": "no --from",
+             # what is missing, or the sun below the horizon at the EXIF time and place
+             "exif": exif_sun_problem(exif) or "no EXIF sun",
              "auto": "the automatic sun is not sure" if auto is not None
              else "no automatic sun in this version"}
-    return_text = "; ".join(tried[s] for s in options.sources)
-    raise ValueError(f"no original sun: {return_text}")
+    said = "; ".join(tried[s] for s in options.sources if s != "given")
+    todo = "give --from AZ,EL"
+    if "given" not in options.sources:
+        todo = "add 'given' to --sources" + ("" if options.from_sun else f" and {todo}")
+    raise ValueError(f"no original sun: {said}: {todo}" if said else f"no original sun: {todo}")
 
 
 def target_sun_for(job: BatchJob, options: BatchOptions, project_target: Sun | None) -> Sun:

@@ -219,6 +219,59 @@ def exif_sun(
     return sun_angles(sun_vector(az, el, *tilt))
 
 
+def sun_below_horizon_at_capture(exif: Any) -> str | None:
+    """What happened when the photo's EXIF GPS and capture time put the sun below the horizon
+    (a night photo, or a camera clock or time zone that is wrong), in words for a message;
+    None when the sun was up, or without GPS or time.
+
+    Example:
+        >>> from outcast_core.runtime.io.exif import PhotoMetadata
+        >>> night = dt.datetime(2026, 6, 1, 23, 30, tzinfo=dt.timezone(dt.timedelta(hours=2)))
+        >>> text = sun_below_horizon_at_capture(PhotoMetadata(latitude=50.1, longitude=14.4,
+        ...                                                   capture_time=night))
+        >>> text.split(" below")[0], text.split("place ")[1]
+        ('the sun was 15.0°', '(2026-06-01 23:30 +02:00)')
+    """
+    when = getattr(exif, "capture_time", None)
+    lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
+    if when is None or lat is None or lon is None:
+        return None
+    _, el = true_sun_position(when, lat, lon)
+    if el > 0:
+        return None
+    return (f"the sun was {-el + 0.0:.1f}° below the horizon at the photo's time and place "
+            f"({_capture_time_words(when)})")
+
+
+def _capture_time_words(when: dt.datetime) -> str:
+    """``2026-06-01 22:14 +02:00``; a time without a zone says it was read as UTC (as
+    :func:`true_sun_position` reads it)."""
+    offset = when.utcoffset()
+    if offset is None:
+        return f"{when:%Y-%m-%d %H:%M}, read as UTC: the EXIF gives no time zone"
+    minutes = round(offset.total_seconds() / 60)
+    sign = "-" if minutes < 0 else "+"
+    return f"{when:%Y-%m-%d %H:%M} {sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+
+
+def exif_sun_problem(exif: Any, heading: float | None = None) -> str | None:
+    """Why :func:`exif_sun` gives no sun for ``exif`` (and ``heading``), in words ("no EXIF
+    compass heading", :func:`sun_below_horizon_at_capture`...); None when it gives one."""
+    when = getattr(exif, "capture_time", None)
+    lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
+    missing = [name for name, value in (("GPS position", lat), ("capture time", when),
+                                        ("compass heading", heading if heading is not None
+                                         else getattr(exif, "heading_deg", None)))
+               if value is None]
+    if lat is None or lon is None or when is None:
+        return "no EXIF " + (" or ".join(missing) if len(missing) < 3
+                             else f"{missing[0]}, {missing[1]} or {missing[2]}")
+    night = sun_below_horizon_at_capture(exif)
+    if night is not None:
+        return night
+    return f"no EXIF {missing[0]}" if missing else None
+
+
 def exif_heading_from_sun(
     exif: Any, azimuth: float, elevation: float, tilt: tuple[float, float] = (0.0, 0.0)
 ) -> float | None:

@@ -5,6 +5,10 @@ Decision: OutCast renders sunlight and the shadows it casts, not twilight. A sti
 the horizon is refused with one line and exit status 2; a time-lapse path that dips below the
 horizon (a real day's sunrise and sunset, a sweep: ``timelapse --sweep`` and ``batch --sweep``
 alike) renders those frames with the sun at the horizon.
+
+A photo whose EXIF time and place put the sun below the horizon (a night photo, or a wrong
+camera clock or time zone) gives no EXIF sun: ``outcast sun`` and ``outcast batch`` say so in
+one line, how far below and at what time as read, and what to do.
 """
 
 from __future__ import annotations
@@ -87,3 +91,81 @@ def test_batch_refuses_a_still_sun_below_the_horizon(option, capsys):
         parser.parse_args(["batch", "photos", "-o", "out", option, "90,-10"])
     assert exc.value.code == 2
     assert "above the horizon" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ a photo taken at night
+def _photo_at(path, when: str, offset: str | None = "+07:00"):
+    """A small photo whose EXIF places it at Phuket (the pool sample's GPS) at ``when``
+    (``YYYY:MM:DD HH:MM:SS``, local at ``offset``; no offset: a time without a zone)."""
+    from PIL import Image
+
+    exif = Image.Exif()
+    ifd = exif.get_ifd(0x8769)
+    ifd[0x9003] = when  # DateTimeOriginal
+    if offset is not None:
+        ifd[0x9011] = offset  # OffsetTimeOriginal
+    exif.get_ifd(0x8825).update({1: "N", 2: (7.0, 49.0, 53.15), 3: "E", 4: (98.0, 17.0, 47.95)})
+    rng = np.random.default_rng(5)
+    img = np.full((60, 80, 3), (150, 160, 170), np.uint8)
+    img[30:] = (140, 120, 100)
+    img[45:55, 20:40] //= 3
+    img = np.clip(img + rng.normal(0, 3, img.shape), 0, 255).astype(np.uint8)
+    Image.fromarray(img).save(path, exif=exif.tobytes())
+    return path
+
+
+def test_the_words_for_a_sun_below_the_horizon_at_the_photos_time(tmp_path):
+    """What happened, with the numbers that tell why: how far below, and the time as read (a
+    time without a zone is read as UTC: the usual cause for a daylight photo)."""
+    from outcast_core.runtime.io.imageio import read_metadata
+    from outcast_core.runtime.pipeline.timelapse import (
+        exif_sun_problem,
+        sun_below_horizon_at_capture,
+        true_sun_position,
+    )
+
+    night = read_metadata(_photo_at(tmp_path / "n.jpg", "2019:08:21 23:00:00"))
+    el = true_sun_position(night.capture_time, night.latitude, night.longitude)[1]
+    assert el < -10.0
+    text = sun_below_horizon_at_capture(night)
+    assert text == (f"the sun was {-el:.1f}° below the horizon at the photo's time and place "
+                    "(2019-08-21 23:00 +07:00)")
+    assert exif_sun_problem(night) == text  # before the missing compass heading
+    naive = read_metadata(_photo_at(tmp_path / "u.jpg", "2019:08:21 18:00:00", offset=None))
+    assert sun_below_horizon_at_capture(naive).endswith(
+        "(2019-08-21 18:00, read as UTC: the EXIF gives no time zone)")
+    day = read_metadata(_photo_at(tmp_path / "d.jpg", "2019:08:21 11:00:00"))
+    assert sun_below_horizon_at_capture(day) is None
+    assert exif_sun_problem(day) == "no EXIF compass heading"
+    assert exif_sun_problem(day, heading=120.0) is None
+    from outcast_core.runtime.io.exif import PhotoMetadata
+
+    assert exif_sun_problem(PhotoMetadata()) == (
+        "no EXIF GPS position, capture time or compass heading")
+
+
+def test_batch_says_a_night_photos_sun_was_below_the_horizon_and_what_to_do(tmp_path, capsys):
+    """It said "no EXIF GPS, time and heading (or the sun was down)" of a photo that has them
+    all but was taken at night."""
+    photos = tmp_path / "in"
+    photos.mkdir()
+    _photo_at(photos / "night.jpg", "2019:08:21 23:00:00")
+    assert main(["batch", str(photos), "-o", str(tmp_path / "out"), "--to", "90,30",
+                 "--sources", "project,exif,given", "--preset", "fast", "-q"]) == 2
+    line = next(x for x in capsys.readouterr().err.splitlines() if "night.jpg: failed" in x)
+    assert line.endswith(
+        "failed: no original sun: no night.outcast.json with a confirmed sun; the sun was "
+        f"{line.split('the sun was ')[1].split('°')[0]}° below the horizon at the photo's time "
+        "and place (2019-08-21 23:00 +07:00): give --from AZ,EL")
+
+
+def test_outcast_sun_says_why_a_night_photos_exif_gives_no_sun(tmp_path, capsys):
+    photo = _photo_at(tmp_path / "night.jpg", "2019:08:21 23:00:00")
+    args = ["sun", str(photo), "--mode", "direct", "--preset", "fast"]
+    assert main(args) in (0, 3)
+    notes = [x for x in capsys.readouterr().err.splitlines() if "below the horizon" in x]
+    assert len(notes) == 1 and notes[0].startswith("outcast sun: note: the sun was ")
+    assert "(2019-08-21 23:00 +07:00), so the EXIF gives no sun" in notes[0]
+    assert "clock or time zone" in notes[0]
+    assert main([*args, "--no-exif"]) in (0, 3)  # the EXIF not asked for: nothing to say
+    assert "below the horizon" not in capsys.readouterr().err
