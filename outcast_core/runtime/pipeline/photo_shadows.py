@@ -81,6 +81,9 @@ shade's colour cast on the 47 photos (``a*b*`` gap 14.95): the blue-grey ghosts 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 
@@ -500,7 +503,151 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
     return linear_to_srgb((lin + _LOG_EPS) * np.exp(gain) - _LOG_EPS)
 
 
+#: :class:`ShadowEdit` "a shadow": the flood fill takes pixels whose (lightly blurred) log
+#: luminance is within this of the clicked point's (a cast shadow on one surface is even to
+#: within about a third of a stop; the lit surface around it is 1-3 stops brighter).
+ADD_RANGE = 0.35
+#: :class:`ShadowEdit` "not a shadow": how far (fraction of the longer side) from the click a
+#: found shadow may be and still be the one meant (a click on a thin pole may miss it).
+PICK_RADIUS = 0.02
+#: The soft edge of an edited region (Gaussian sigma, fraction of the longer side), and the
+#: radius of the holes (texture) closed in an added region.
+EDIT_SOFT = 1.0 / 768
+EDIT_CLOSE = 1.0 / 192
+
+
+@dataclass(frozen=True)
+class ShadowEdit:
+    """A user's correction of the found shadows: a click on the photo.
+
+    Attributes:
+        x, y: where, as fractions of the upright photo's width and height (0-1), so one edit
+            holds at every size the shadows are found at.
+        shadow: True: "this is a shadow" (the region of even brightness round the point is
+            added); False: "not a shadow" (the found shadow there is dropped: a dark material,
+            foliage, a black car).
+    """
+
+    x: float
+    y: float
+    shadow: bool
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.x <= 1.0 and 0.0 <= self.y <= 1.0):
+            raise ValueError(f"expected a point inside the photo (x, y in 0-1), got "
+                             f"({self.x}, {self.y})")
+
+    def pixel(self, shape: tuple[int, int]) -> tuple[int, int]:
+        """``(row, column)`` of the point in an ``H x W`` image."""
+        h, w = shape
+        return min(h - 1, int(self.y * h)), min(w - 1, int(self.x * w))
+
+
+def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.ndarray,
+                       edit: ShadowEdit) -> np.ndarray:
+    """The pixels one :class:`ShadowEdit` changes (``H x W`` bool; may be empty).
+
+    "Not a shadow": the found shadow (``probability > 0.5``, 8-connected) under the point, or
+    the nearest one within :data:`PICK_RADIUS`. "A shadow": a flood fill from the point over
+    the surface (never the sky) through pixels within :data:`ADD_RANGE` of the point's log
+    luminance, its small holes (the surface's texture) closed; empty on the sky.
+    """
+    p = np.asarray(probability, np.float32)
+    sky = np.asarray(sky, bool)
+    h, w = p.shape
+    side = max(h, w)
+    row, col = edit.pixel((h, w))
+    if not edit.shadow:
+        found = ((p > 0.5) & ~sky).astype(np.uint8)
+        if not found.any():
+            return np.zeros((h, w), bool)
+        n, labels = cv2.connectedComponents(found, connectivity=8)
+        label = int(labels[row, col])
+        if label == 0:  # the nearest found shadow within reach
+            dist, nearest = cv2.distanceTransformWithLabels(
+                1 - found, cv2.DIST_L2, 5, labelType=cv2.DIST_LABEL_PIXEL)
+            if dist[row, col] > max(1.0, PICK_RADIUS * side):
+                return np.zeros((h, w), bool)
+            ys, xs = np.nonzero(found)
+            index = nearest[ys, xs]  # label of each found pixel in the distance transform
+            pick = np.nonzero(index == nearest[row, col])[0]
+            label = int(labels[ys[pick[0]], xs[pick[0]]])
+        return labels == label
+    if sky[row, col]:
+        return np.zeros((h, w), bool)
+    img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
+    log_y = np.log(luminance(srgb_to_linear(img)) + _LOG_EPS).astype(np.float32)
+    log_y = cv2.GaussianBlur(log_y, (0, 0), max(0.5, side / 384.0))
+    mask = np.zeros((h + 2, w + 2), np.uint8)
+    mask[1:-1, 1:-1] = sky  # the fill never crosses the sky
+    flags = 8 | cv2.FLOODFILL_FIXED_RANGE | cv2.FLOODFILL_MASK_ONLY | (2 << 8)
+    cv2.floodFill(log_y, mask, (col, row), 0, ADD_RANGE, ADD_RANGE, flags)
+    region = (mask[1:-1, 1:-1] == 2).astype(np.uint8)
+    k = max(1, round(EDIT_CLOSE * side))
+    region = cv2.morphologyEx(region, cv2.MORPH_CLOSE,
+                              cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
+    return (region > 0) & ~sky
+
+
+def apply_shadow_edits(probability: np.ndarray, image_srgb: np.ndarray, sky: np.ndarray,
+                       edits: Sequence[ShadowEdit]) -> tuple[np.ndarray, np.ndarray]:
+    """The shadow probability with a user's corrections applied, at any size, and where the
+    user said "not a shadow".
+
+    "A shadow" adds its region (:func:`shadow_edit_region`). "Not a shadow" drops a region the
+    user added earlier when the click lands in it, else the found shadow there (found before
+    any edit: a shadow the user added next to a dark pole is not dropped with the pole). Added
+    regions are set to 1, dropped ones (with their soft fringe) to 0; edges are soft
+    (:data:`EDIT_SOFT`).
+
+    Returns:
+        ``(probability, not_shadow)``: ``H x W`` float32, and ``H x W`` bool, the dropped
+        regions: dark materials, which the lift's statistics must not take for lit surface
+        (:func:`deshadow` and the guards leave them out, as the sky).
+
+    Example:
+        >>> img = np.full((32, 32, 3), 0.8, np.float32); img[:, 16:] *= 0.3  # one dark half
+        >>> p = photo_shadow_probability(img, np.zeros((32, 32), bool))
+        >>> sky = np.zeros((32, 32), bool)
+        >>> out, dark = apply_shadow_edits(p, img, sky, [ShadowEdit(0.9, 0.5, shadow=False)])
+        >>> bool(p[16, 28] > 0.9 and out[16, 28] < 0.01 and dark[16, 28] and not dark[16, 4])
+        True
+    """
+    found = np.clip(np.asarray(probability, np.float32), 0.0, 1.0)
+    sky = np.asarray(sky, bool)
+    shape = found.shape
+    added: list[np.ndarray] = []
+    dropped = np.zeros(shape, bool)
+    for edit in edits:
+        if edit.shadow:
+            region = shadow_edit_region(found, image_srgb, sky, edit)
+            if region.any():
+                added.append(region)
+            continue
+        row, col = edit.pixel(shape)
+        hit = [i for i, region in enumerate(added) if region[row, col]]
+        if hit:  # a click in a region the user added takes that addition back
+            added = [region for i, region in enumerate(added) if i not in hit]
+        else:
+            dropped |= shadow_edit_region(found * ~dropped, image_srgb, sky, edit)
+    sigma = max(0.5, EDIT_SOFT * max(shape))
+    p = found
+    if dropped.any():  # the region and the soft fringe of probability round it
+        k = max(1, round(2 * sigma))
+        grown = cv2.dilate(dropped.astype(np.uint8),
+                           cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
+        soft = cv2.GaussianBlur(grown.astype(np.float32), (0, 0), sigma)
+        p = p * (1.0 - np.clip(2.0 * soft, 0.0, 1.0))
+    if added:
+        union = np.logical_or.reduce(added).astype(np.float32)
+        p = np.maximum(p, np.clip(2.0 * cv2.GaussianBlur(union, (0, 0), sigma), 0.0, 1.0))
+    return np.where(sky, 0.0, p).astype(np.float32), dropped & ~sky
+
+
 __all__ = [
+    "ShadowEdit",
+    "apply_shadow_edits",
+    "shadow_edit_region",
     "deshadow",
     "deshadow_log_gain",
     "lit_surface_colour",

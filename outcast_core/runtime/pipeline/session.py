@@ -17,7 +17,7 @@ import math
 import threading
 import time
 from collections import OrderedDict
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
@@ -47,6 +47,8 @@ from outcast_core.runtime.pipeline.depth_post import postprocess_z, run_depth_mo
 from outcast_core.runtime.pipeline.photo_shadows import (
     LIT_FLOOR,
     PRIOR_RADIUS,
+    ShadowEdit,
+    apply_shadow_edits,
     deshadow,
     lit_surface_colour,
     material_guard,
@@ -295,6 +297,9 @@ class RelightSession:
         self.depth_provider: Any = None
         self.original_sun: np.ndarray | None = None
         self.original_shadow: np.ndarray | None = None
+        #: The user's corrections of the found shadows (:meth:`set_shadow_edits`), for this
+        #: photo: kept across presets and original suns, cleared by :meth:`set_image`.
+        self.shadow_edits: tuple[ShadowEdit, ...] = ()
         self._reset_working()
 
     @property
@@ -361,6 +366,11 @@ class RelightSession:
         self.sun_seen: SunInPhoto | None = None
         #: :meth:`found_shadows_detail`'s arrays, for one ``S_o``.
         self._detail: dict[str, Any] | None = None
+        #: ``S_o`` and the shadow probability as found, before :attr:`shadow_edits`.
+        self._found: tuple[np.ndarray, np.ndarray] | None = None
+        #: What the lift's statistics and guards leave out at working size: the sky, and what
+        #: the user marked "not a shadow" (dark materials are no lit surface either).
+        self._lift_excluded: np.ndarray | None = None
 
     def _time(self, stage: str, t0: float) -> None:
         self.timings[stage] = time.perf_counter() - t0
@@ -423,6 +433,7 @@ class RelightSession:
             self._given_depth = depth
             self.original_sun = None
             self.original_shadow = None
+            self.shadow_edits = ()
             self._prepare(progress)
 
     def set_preset(self, name: str, progress: Progress | None = None) -> None:
@@ -492,7 +503,8 @@ class RelightSession:
             # Z at the scale it was trained at, then the sky prior, edge-aware smoothing and
             # the ground plane for real photos (runtime.pipeline.depth_post).
             raw, sky_prob = run_depth_model(self.registry.load("depth"), self.image_srgb)
-            depth, sky = postprocess_z(raw, sky_prob, self.image_srgb, cam)
+            depth, sky = postprocess_z(raw, sky_prob, self.image_srgb, cam,
+                                       greyscale=self.greyscale)
             self.depth_source = "model"
             return depth, sky
         self.depth_source = "ground-plane prior (no depth model)"
@@ -602,16 +614,51 @@ class RelightSession:
                 lit = np.maximum(cosine_term(self.normals, wv), LIT_FLOOR)
                 prob = np.where(self.sky, 0.0, np.clip(1.0 - s / lit, 0.0, 1.0))
             self.original_sun = wv
-            self.original_shadow = s.astype(np.float32)
-            self.shadow_probability = prob.astype(np.float32)
-            self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self.sky)
-            self._relight_cache.clear()
-            self._deshadowed = None
-            self._lift_guards = {"of": self.original_shadow}
             self._original_geometry = geometry
-            self._detail = None
+            self._found = (s.astype(np.float32), prob.astype(np.float32))
+            self._apply_found()
             self._time("original_sun", t0)
             return self.original_shadow
+
+    def set_shadow_edits(self, edits: Sequence[ShadowEdit]) -> None:
+        """Set the user's corrections of the photo's found shadows (:class:`~outcast_core.
+        runtime.pipeline.photo_shadows.ShadowEdit`: "a shadow" / "not a shadow" at a point), in
+        order; ``()`` clears them. They apply to ``S_o`` and the shadow probability at every
+        size (working, :meth:`found_shadows_detail`), so to de-shadowing and relighting; with an
+        original sun set, what depends on them is redone now (cheap: no network runs).
+        """
+        edits = tuple(edits)
+        for e in edits:
+            if not isinstance(e, ShadowEdit):
+                raise ValueError(f"expected ShadowEdit items, got {type(e).__name__}")
+        with self._lock:
+            if edits == self.shadow_edits:
+                return
+            self.shadow_edits = edits
+            if self._found is not None and self.original_sun is not None:
+                self._apply_found()
+
+    def _apply_found(self) -> None:
+        """``S_o`` and the shadow probability from the found ones and :attr:`shadow_edits`;
+        everything made from them is dropped."""
+        assert self._found is not None and self.original_sun is not None
+        s, prob = self._found
+        self._lift_excluded = self.sky
+        if self.shadow_edits:
+            edited, not_shadow = apply_shadow_edits(prob, self.image_srgb, self.sky,
+                                                    self.shadow_edits)
+            changed = np.abs(edited - prob) > 1e-4
+            redone = original_shadow_from_photo(
+                edited, cosine_term(self.normals, self.original_sun), self.sky)
+            s, prob = np.where(changed, redone, s).astype(np.float32), edited
+            self._lift_excluded = self.sky | not_shadow
+        self.original_shadow = s
+        self.shadow_probability = prob
+        self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self.sky)
+        self._relight_cache.clear()
+        self._deshadowed = None
+        self._lift_guards = {"of": self.original_shadow}
+        self._detail = None
 
     @property
     def refinement(self) -> str:
@@ -635,7 +682,7 @@ class RelightSession:
             if self._deshadowed is None:
                 t0 = time.perf_counter()
                 self._deshadowed = self._in_photo_colours(
-                    deshadow(self.image_srgb, self.shadow_probability, self.sky))
+                    deshadow(self.image_srgb, self.shadow_probability, self._lift_excluded))
                 self._time("deshadow", t0)
             return self._deshadowed
 
@@ -651,8 +698,10 @@ class RelightSession:
         refinements upsample the working-size result.
 
         Returns:
-            ``{"image", "sky", "probability", "original_shadow"}`` at that size (``h x w x 3``
-            sRGB float32, ``h x w`` bool, ``h x w`` float32, ``h x w`` float32).
+            ``{"image", "sky", "probability", "original_shadow", "excluded"}`` at that size
+            (``h x w x 3`` sRGB float32, ``h x w`` bool, ``h x w`` float32, ``h x w`` float32,
+            ``h x w`` bool: the sky and what the user marked "not a shadow", which the lift
+            leaves out).
         """
         with self._lock:
             self._require_image()
@@ -672,6 +721,9 @@ class RelightSession:
             else:
                 image = resize_to_working(full, shape)
                 sky = resize(self.sky.astype(np.uint8), shape, nearest=True) > 0
+            assert self._lift_excluded is not None
+            excluded = (self._lift_excluded if working else
+                        resize(self._lift_excluded.astype(np.uint8), shape, nearest=True) > 0)
             if working or self.refinement != "photo" or self._original_geometry is None:
                 prob = np.clip(resize(self.shadow_probability, shape), 0.0, 1.0)
                 s_o = np.clip(resize(self.original_shadow, shape), 0.0, 1.0)
@@ -682,9 +734,12 @@ class RelightSession:
                 if gate.shape != shape:
                     gate = np.clip(resize(gate, shape), 0.0, 1.0)
                 prob = photo_shadow_probability(image, sky) * gate
+                if self.shadow_edits:  # found again at this size: so are the user's edits
+                    prob, not_shadow = apply_shadow_edits(prob, image, sky, self.shadow_edits)
+                    excluded = sky | not_shadow
                 s_o = original_shadow_from_photo(prob, cosine, sky)
             self._detail = {"image": image, "sky": sky, "probability": prob.astype(np.float32),
-                            "original_shadow": s_o.astype(np.float32)}
+                            "original_shadow": s_o.astype(np.float32), "excluded": excluded}
             self._time("found_shadows_detail", t0)
             return self._detail
 
@@ -698,7 +753,8 @@ class RelightSession:
             if d["image"] is self.image_srgb:  # found at the working size: lifted there already
                 out = self.deshadow()
             else:
-                out = self._in_photo_colours(deshadow(d["image"], d["probability"], d["sky"]))
+                out = self._in_photo_colours(
+                    deshadow(d["image"], d["probability"], d["excluded"]))
             full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out,
                                                sky=d["sky"])
         self._time("deshadow_full", t0)
@@ -957,12 +1013,12 @@ class RelightSession:
         if "base" not in guards:
             assert self.original_sun is not None and self.normals is not None
             assert self.shadow_probability is not None
-            base = deshadow(self.image_srgb, self.shadow_probability, self.sky,
+            base = deshadow(self.image_srgb, self.shadow_probability, self._lift_excluded,
                             LIFT_SHADE_SHIFT)
             lit_old = np.maximum(cosine_term(self.normals, self.original_sun), LIT_FLOOR)
             lit_old = np.where(self.sky, 0.0, lit_old)
             guards["colour"] = lit_surface_colour(self.image_srgb, self.shadow_probability,
-                                                  self.sky, LIFT_COLOUR_SIGMA)
+                                                  self._lift_excluded, LIFT_COLOUR_SIGMA)
             # Last: a thread that finds "base" finds "colour" too.
             guards["base"] = (base.astype(np.float32), lit_old.astype(np.float32))
         key = ("base", tuple(shape))
@@ -988,7 +1044,7 @@ class RelightSession:
             return None
         if "working" not in guards:
             guards["working"] = (
-                material_guard(self.image_srgb, self.shadow_probability, self.sky,
+                material_guard(self.image_srgb, self.shadow_probability, self._lift_excluded,
                                LIFT_SHADE_SHIFT)
                 * near_predicted_shadow(self._original_geometry, self.sky, LIFT_PRIOR_RADIUS))
         key = tuple(shape)

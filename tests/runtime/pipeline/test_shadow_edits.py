@@ -1,0 +1,161 @@
+"""The user's corrections of the found shadows (``ShadowEdit``: "a shadow" / "not a shadow").
+
+The scene is the ski-slope sample's failure in small: bright snow, a wide shadow on it, and a
+large dark material (pines). One threshold calls the pines shadow and the shaded snow lit.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from outcast_core.runtime.pipeline.photo_shadows import (
+    PICK_RADIUS,
+    ShadowEdit,
+    apply_shadow_edits,
+    deshadow,
+    photo_shadow_probability,
+    shadow_edit_region,
+)
+from outcast_core.runtime.pipeline.session import RelightSession
+
+H, W = 96, 128
+SNOW = np.array([0.85, 0.86, 0.9], np.float32)
+
+
+def _slope(seed: int = 0) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Snow, its shadow (2.2x darker, bluer), pines (near black, green) and a sky strip."""
+    rng = np.random.default_rng(seed)
+    img = np.clip(SNOW * (1 + 0.03 * rng.standard_normal((H, W, 1))), 0, 1).astype(np.float32)
+    parts = {k: np.zeros((H, W), bool) for k in ("sky", "shadow", "pines")}
+    parts["sky"][:12] = True
+    parts["pines"][12:40, :] = True  # a tree line across the frame
+    parts["pines"][40:60, 10:22] = True  # a trunk down to the snow
+    parts["shadow"][55:90, 40:100] = True
+    img[parts["sky"]] = [0.55, 0.7, 0.95]
+    img[parts["pines"]] = [0.05, 0.09, 0.05]
+    img[parts["shadow"]] *= np.array([0.42, 0.45, 0.52], np.float32)
+    return img, parts
+
+
+def _centre(mask: np.ndarray) -> tuple[float, float]:
+    ys, xs = np.nonzero(mask)
+    return (xs.mean() + 0.5) / mask.shape[1], (ys.mean() + 0.5) / mask.shape[0]
+
+
+def test_the_automatic_split_fails_here_as_on_the_ski_slope() -> None:
+    img, parts = _slope()
+    p = photo_shadow_probability(img, parts["sky"])
+    assert p[parts["pines"]].mean() > 0.9  # the pines are called shadow
+    assert p[parts["shadow"]].mean() < 0.1  # the shaded snow is called lit
+
+
+def test_not_a_shadow_drops_the_found_region_under_or_near_the_click() -> None:
+    img, parts = _slope()
+    sky = parts["sky"]
+    p = photo_shadow_probability(img, sky)
+    on = shadow_edit_region(p, img, sky, ShadowEdit(0.5, 20 / H, shadow=False))
+    assert (on == ((p > 0.5) & parts["pines"])).mean() > 0.99
+    # A click just beside the trunk (within PICK_RADIUS) still means it.
+    beside = ShadowEdit((22 + 0.5 * PICK_RADIUS * W) / W, 50 / H, shadow=False)
+    assert (shadow_edit_region(p, img, sky, beside) == on).all()
+    # Far from every found shadow: nothing.
+    assert not shadow_edit_region(p, img, sky, ShadowEdit(0.9, 0.95, shadow=False)).any()
+
+
+def test_a_shadow_fills_the_even_region_round_the_click_and_never_the_sky() -> None:
+    img, parts = _slope()
+    sky = parts["sky"]
+    p = photo_shadow_probability(img, sky)
+    x, y = _centre(parts["shadow"])
+    region = shadow_edit_region(p, img, sky, ShadowEdit(x, y, shadow=True))
+    inside = (region & parts["shadow"]).sum() / parts["shadow"].sum()
+    outside = (region & ~parts["shadow"]).sum() / parts["shadow"].sum()
+    assert inside > 0.97 and outside < 0.05  # the shadow, not the lit snow or the pines
+    assert not shadow_edit_region(p, img, sky, ShadowEdit(0.5, 0.02, shadow=True)).any()
+
+
+def test_edits_apply_in_order_and_a_drop_never_takes_an_added_shadow_with_it() -> None:
+    img, parts = _slope()
+    sky = parts["sky"]
+    p = photo_shadow_probability(img, sky)
+    add = ShadowEdit(*_centre(parts["shadow"]), shadow=True)
+    drop = ShadowEdit(0.5, 20 / H, shadow=False)
+    out, not_shadow = apply_shadow_edits(p, img, sky, [add, drop])
+    assert out[parts["shadow"]].mean() > 0.95 and out[parts["pines"]].mean() < 0.05
+    assert not_shadow[parts["pines"]].mean() > 0.95 and not not_shadow[parts["shadow"]].any()
+    assert not out[sky].any()
+    same, _ = apply_shadow_edits(p, img, sky, [drop, add])
+    assert np.abs(same - out).max() < 1e-6
+    # "Not a shadow" clicked in a region the user added takes that addition back.
+    back, _ = apply_shadow_edits(p, img, sky, [add, drop, ShadowEdit(add.x, add.y, False)])
+    assert back[parts["shadow"]].mean() < 0.1
+    none, nothing = apply_shadow_edits(p, img, sky, [])
+    assert np.abs(none - np.where(sky, 0, p)).max() < 1e-6 and not nothing.any()
+
+
+def test_a_point_must_lie_in_the_photo() -> None:
+    with pytest.raises(ValueError, match="inside the photo"):
+        ShadowEdit(1.2, 0.5, shadow=True)
+
+
+def test_the_lift_leaves_what_is_not_a_shadow_out_of_its_statistics() -> None:
+    """Dropped pines are no lit surface: counted as lit (their probability 0), they made the
+    shadow look brighter than its "lit" surroundings and it was not lifted at all."""
+    img, parts = _slope()
+    sky = parts["sky"]
+    p = photo_shadow_probability(img, sky)
+    edits = [ShadowEdit(*_centre(parts["shadow"]), shadow=True), ShadowEdit(0.5, 0.2, False)]
+    edited, not_shadow = apply_shadow_edits(p, img, sky, edits)
+    core = np.zeros((H, W), bool)
+    core[62:84, 50:90] = True
+    lit = ~parts["shadow"] & ~parts["pines"] & ~sky
+    naive = deshadow(img, edited, sky)
+    lifted = deshadow(img, edited, sky | not_shadow)
+    assert naive[core].mean() < 1.2 * img[core].mean()  # the pines as lit: hardly lifted
+    assert abs(lifted[core].mean() - img[lit].mean()) < 0.1 * img[lit].mean()
+    assert np.abs(lifted[parts["pines"]] - img[parts["pines"]]).max() < 0.02
+
+
+def test_session_edits_redo_the_found_shadows_at_every_size_and_stay_with_the_photo() -> None:
+    img, parts = _slope()
+    big = np.repeat(np.repeat(img, 3, axis=0), 3, axis=1)  # larger than the working size
+    depth = np.full(big.shape[:2], 10.0, np.float32)
+    depth[:36] = np.inf  # the sky strip
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(big, depth=depth)
+    s.set_original_sun((0.3, -0.5, 0.8))
+    found = s.shadow_probability.copy()
+    plain = s.deshadow_full()
+    shadow = np.repeat(np.repeat(parts["shadow"], 3, axis=0), 3, axis=1)
+    pines = np.repeat(np.repeat(parts["pines"], 3, axis=0), 3, axis=1)
+    edits = (ShadowEdit(*_centre(parts["shadow"]), shadow=True), ShadowEdit(0.5, 0.2, False))
+    s.set_shadow_edits(edits)
+    assert s.shadow_edits == edits
+    detail = s.found_shadows_detail()
+    assert detail["probability"].shape == big.shape[:2]  # found again at the detail size
+    assert detail["probability"][shadow].mean() > 0.9
+    assert detail["probability"][pines].mean() < 0.1 and detail["excluded"][pines].mean() > 0.95
+    fixed = s.deshadow_full()
+    assert fixed[shadow].mean() > 1.6 * plain[shadow].mean()
+    assert np.abs(fixed[pines] - big[pines]).mean() < np.abs(plain[pines] - big[pines]).mean()
+    # S_o follows: the shaded snow is shadow now, the pines lit (their cosine term).
+    s_o = s.original_shadow
+    on_working = {k: cv2.resize(m.astype(np.uint8), s_o.shape[::-1],
+                                interpolation=cv2.INTER_NEAREST) > 0 for k, m in parts.items()}
+    assert s_o[on_working["shadow"]].mean() < 0.15 < s_o[on_working["pines"]].mean()
+    # Kept across a preset with another working size and a new original sun.
+    s.set_preset("balanced")
+    s.set_original_sun((0.2, -0.6, 0.77))
+    assert s.shadow_edits == edits and s.shadow_probability.max() > 0.9
+    # () gives back exactly the found shadows; a new photo starts without edits.
+    s.set_preset("fast")
+    s.set_original_sun((0.3, -0.5, 0.8))
+    s.set_shadow_edits(())
+    assert np.array_equal(s.shadow_probability, found)
+    s.set_shadow_edits(edits)
+    s.set_image(big, depth=depth)
+    assert s.shadow_edits == ()
+    with pytest.raises(ValueError, match="ShadowEdit"):
+        s.set_shadow_edits([(0.5, 0.5, True)])
