@@ -81,8 +81,10 @@ shade's colour cast on the 47 photos (``a*b*`` gap 14.95): the blue-grey ghosts 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -533,7 +535,8 @@ class ShadowEdit:
     shadow: bool
 
     def __post_init__(self) -> None:
-        if not (0.0 <= self.x <= 1.0 and 0.0 <= self.y <= 1.0):
+        if not (math.isfinite(self.x) and math.isfinite(self.y)
+                and 0.0 <= self.x <= 1.0 and 0.0 <= self.y <= 1.0):
             raise ValueError(f"expected a point inside the photo (x, y in 0-1), got "
                              f"({self.x}, {self.y})")
 
@@ -541,6 +544,45 @@ class ShadowEdit:
         """``(row, column)`` of the point in an ``H x W`` image."""
         h, w = shape
         return min(h - 1, int(self.y * h)), min(w - 1, int(self.x * w))
+
+
+#: The most edits a project or a command line may hold (a sane bound on a file's content).
+MAX_SHADOW_EDITS = 500
+
+
+def shadow_edits_to_json(edits: Sequence[ShadowEdit]) -> list[dict[str, Any]]:
+    """Edits as a project file stores them: ``[{"x": .., "y": .., "shadow": ..}, ...]``."""
+    return [{"x": round(e.x, 5), "y": round(e.y, 5), "shadow": bool(e.shadow)} for e in edits]
+
+
+def shadow_edits_from_json(value: Any) -> tuple[ShadowEdit, ...]:
+    """Edits from a project file's ``shadow_edits`` (None or missing: none).
+
+    Raises:
+        ValueError: not a list of ``{"x", "y", "shadow"}`` with the point inside the photo, or
+            more than :data:`MAX_SHADOW_EDITS` of them.
+
+    Example:
+        >>> shadow_edits_from_json([{"x": 0.25, "y": 0.5, "shadow": False}])
+        (ShadowEdit(x=0.25, y=0.5, shadow=False),)
+    """
+    if value is None:
+        return ()
+    if not isinstance(value, list):
+        raise ValueError(f"expected a list of shadow edits, got {type(value).__name__}")
+    if len(value) > MAX_SHADOW_EDITS:
+        raise ValueError(f"expected at most {MAX_SHADOW_EDITS} shadow edits, got {len(value)}")
+    out = []
+    for item in value:
+        try:
+            x, y, shadow = item["x"], item["y"], item["shadow"]
+        except (KeyError, TypeError):
+            raise ValueError(f"expected a shadow edit {{x, y, shadow}}, got {item!r}") from None
+        if (not isinstance(shadow, bool) or isinstance(x, bool) or isinstance(y, bool)
+                or not isinstance(x, (int, float)) or not isinstance(y, (int, float))):
+            raise ValueError(f"expected numbers x, y and true/false shadow, got {item!r}")
+        out.append(ShadowEdit(float(x), float(y), shadow))
+    return tuple(out)
 
 
 def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.ndarray,
@@ -645,8 +687,11 @@ def apply_shadow_edits(probability: np.ndarray, image_srgb: np.ndarray, sky: np.
 
 
 __all__ = [
+    "MAX_SHADOW_EDITS",
     "ShadowEdit",
     "apply_shadow_edits",
+    "shadow_edits_from_json",
+    "shadow_edits_to_json",
     "shadow_edit_region",
     "deshadow",
     "deshadow_log_gain",

@@ -11,12 +11,15 @@ import numpy as np
 import pytest
 
 from outcast_core.runtime.pipeline.photo_shadows import (
+    MAX_SHADOW_EDITS,
     PICK_RADIUS,
     ShadowEdit,
     apply_shadow_edits,
     deshadow,
     photo_shadow_probability,
     shadow_edit_region,
+    shadow_edits_from_json,
+    shadow_edits_to_json,
 )
 from outcast_core.runtime.pipeline.session import RelightSession
 
@@ -159,3 +162,18 @@ def test_session_edits_redo_the_found_shadows_at_every_size_and_stay_with_the_ph
     assert s.shadow_edits == ()
     with pytest.raises(ValueError, match="ShadowEdit"):
         s.set_shadow_edits([(0.5, 0.5, True)])
+
+
+def test_edits_round_trip_through_a_project_and_bad_ones_are_refused() -> None:
+    edits = (ShadowEdit(0.25, 0.5, shadow=False), ShadowEdit(1.0, 0.0, shadow=True))
+    assert shadow_edits_from_json(shadow_edits_to_json(edits)) == edits
+    assert shadow_edits_from_json(None) == ()
+    for bad, words in [({"x": 0.1}, "list"), ([{"x": 0.1, "y": 0.2}], "x, y, shadow"),
+                       ([{"x": "0.1", "y": 0.2, "shadow": True}], "numbers"),
+                       ([{"x": 0.1, "y": 0.2, "shadow": 1}], "true/false"),
+                       ([{"x": 1.5, "y": 0.2, "shadow": True}], "inside the photo"),
+                       ([{"x": float("nan"), "y": 0.2, "shadow": True}], "inside the photo"),
+                       ([{"x": 0.1, "y": 0.2, "shadow": True}] * (MAX_SHADOW_EDITS + 1),
+                        "at most")]:
+        with pytest.raises(ValueError, match=words):
+            shadow_edits_from_json(bad)
