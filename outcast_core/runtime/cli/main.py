@@ -136,6 +136,48 @@ def add_exposure_option(p: argparse.ArgumentParser, help_text: str = "",
                    "puts in shade comes out dark), or meter the new light again as a camera would")
 
 
+def parse_point(text: str) -> tuple[float, float]:
+    """``"X,Y"``: a point as fractions (0-1) of the upright photo's width and height, from its
+    top left."""
+    parts = text.split(",")
+    try:
+        x, y = (float(v) for v in parts)
+    except ValueError:
+        x = y = math.nan
+    if len(parts) != 2 or not (0.0 <= x <= 1.0 and 0.0 <= y <= 1.0):
+        raise ValueError(f"expected X,Y as fractions 0-1 of the photo's width and height from "
+                         f"its top left (e.g. 0.3,0.6), got {text!r}")
+    return x, y
+
+
+class _ShadowEditAction(argparse.Action):
+    """``--shadow`` / ``--not-shadow X,Y``: one edit each, kept in command-line order."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
+
+        try:
+            x, y = parse_point(str(values))
+        except ValueError as exc:
+            raise argparse.ArgumentError(self, str(exc)) from None
+        edits = list(getattr(namespace, "shadow_edits", None) or [])
+        edits.append(ShadowEdit(x, y, shadow=self.const))
+        namespace.shadow_edits = edits
+
+
+def add_shadow_edit_options(p: argparse.ArgumentParser) -> None:
+    """``--not-shadow`` / ``--shadow X,Y``: correct the photo's found shadows, as the app's
+    "Not a shadow" and "Mark shadow" clicks do (applied in order)."""
+    p.set_defaults(shadow_edits=[])
+    p.add_argument("--not-shadow", action=_ShadowEditAction, const=False, metavar="X,Y",
+                   help="the found shadow at this point is not one (a dark object, foliage): "
+                   "X,Y as fractions 0-1 of the photo's width and height from its top left; "
+                   "repeatable")
+    p.add_argument("--shadow", action=_ShadowEditAction, const=True, metavar="X,Y",
+                   help="a shadow the app did not find: the region of even brightness round "
+                   "this point; repeatable")
+
+
 def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:
     """Give the session ``--depth-model``, else the photo's own depth map (unless
     ``--no-phone-depth``); a broken embedded map is said in one line and the depth model used."""
@@ -217,6 +259,7 @@ def cmd_relight(args: argparse.Namespace) -> int:
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
     _set_image(session, loaded, args)
+    session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(w_from)
     out = session.relight_full(w_to, dtype=np.uint8 if bit_depth == 8 else np.float32)
     # GPS and time, as the app's export.
@@ -243,6 +286,7 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     loaded = _load(args.image, keep_uint8=True)  # as the app reads it
     session = _make_session(args, shadow_mode="auto")
     _set_image(session, loaded, args)
+    session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(w_from)
     out = session.deshadow_full()
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
@@ -362,6 +406,7 @@ def build_parser(
                    help="shadow method (default: learned when installed, else Direct)")
     p.add_argument("--thickness", default=math.inf, type=_thickness, help=argparse.SUPPRESS)
     add_exposure_option(p)
+    add_shadow_edit_options(p)
     _add_common(p)
     p.set_defaults(func=cmd_relight)
 
@@ -371,6 +416,7 @@ def build_parser(
                    help="the photo's sun (the shadows are found where it can cast them)")
     p.add_argument("--mask", default="",
                    help="also write the found shadows as a 16-bit grey PNG (white = shadow)")
+    add_shadow_edit_options(p)
     _add_common(p)
     p.set_defaults(func=cmd_deshadow)
 

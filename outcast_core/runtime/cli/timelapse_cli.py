@@ -14,7 +14,12 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from outcast_core.runtime.cli.main import add_exposure_option, add_input_options, int_in
+from outcast_core.runtime.cli.main import (
+    add_exposure_option,
+    add_input_options,
+    add_shadow_edit_options,
+    int_in,
+)
 from outcast_core.runtime.geometry.camera import sun_vector
 from outcast_core.runtime.pipeline.timelapse import (
     DEFAULT_FPS,
@@ -196,6 +201,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     # the other commands take them (a time-lapse's frames match a relit still).
     add_input_options(p)
     add_exposure_option(p)
+    add_shadow_edit_options(p)
     p.set_defaults(func=run_timelapse_command, check_output=check_timelapse_output)
     return p
 
@@ -306,6 +312,7 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     if not quiet:
         print(file=sys.stderr)
     samples = _samples_from_args(args, exif, tilt)
+    session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(sun_vector(*args.from_sun))
     size = args.size or ("full" if args.full_res else DEFAULT_FRAME_SIZE)
     if args.full_res and size != "full":

@@ -6,6 +6,8 @@ large dark material (pines). One threshold calls the pines shadow and the shaded
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import cv2
 import numpy as np
 import pytest
@@ -177,3 +179,36 @@ def test_edits_round_trip_through_a_project_and_bad_ones_are_refused() -> None:
                         "at most")]:
         with pytest.raises(ValueError, match=words):
             shadow_edits_from_json(bad)
+
+
+def test_cli_takes_the_corrections_in_their_order(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture) -> None:
+    from outcast_core.runtime.cli.main import main
+    from outcast_core.runtime.io import imageio
+
+    img, parts = _slope()
+    depth = np.full((H, W), 10.0, np.float32)
+    depth[parts["sky"]] = np.inf
+    photo, dpath = tmp_path / "slope.png", tmp_path / "d.npy"
+    imageio.write_image(photo, img)
+    imageio.write_depth(dpath, depth)
+    x, y = _centre(parts["shadow"])
+    base = ["deshadow", str(photo), "--from", "20,30", "--depth", str(dpath), "-q", "--force"]
+    assert main([*base, "-o", str(tmp_path / "a.png"), "--mask", str(tmp_path / "a_m.png")]) == 0
+    assert main([*base, "-o", str(tmp_path / "b.png"), "--mask", str(tmp_path / "b_m.png"),
+                 "--not-shadow", "0.5,0.2", "--shadow", f"{x},{y}"]) == 0
+    plain, fixed = (imageio.read_shadow_png(tmp_path / f"{k}_m.png") for k in "ab")
+    assert plain[parts["pines"]].mean() > 0.9 and fixed[parts["pines"]].mean() < 0.1
+    assert plain[parts["shadow"]].mean() < 0.1 and fixed[parts["shadow"]].mean() > 0.9
+    lifted = imageio.read_image(tmp_path / "b.png").image_srgb
+    assert lifted[parts["shadow"]].mean() > 1.6 * img[parts["shadow"]].mean()
+    # Order matters: "not a shadow" clicked in the added shadow takes it back.
+    assert main([*base, "-o", str(tmp_path / "c.png"), "--mask", str(tmp_path / "c_m.png"),
+                 "--shadow", f"{x},{y}", "--not-shadow", f"{x},{y}"]) == 0
+    assert imageio.read_shadow_png(tmp_path / "c_m.png")[parts["shadow"]].mean() < 0.1
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as info:
+        main([*base, "-o", str(tmp_path / "d.png"), "--shadow", "0.5"])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "--shadow" in err and "fractions 0-1" in err and len(err.strip().splitlines()) == 1
