@@ -346,14 +346,19 @@ def exposure_for(options: BatchOptions, read: ProjectSettings | None) -> str:
 
 
 def _project_key(read: ProjectSettings | None, photo: Path) -> Any:
-    """The photo's project as the record compares it: what a batch reads of it (its suns and
-    depth map; its exposure counts in the job's), so a project saved again with the same
-    ones (the dial moved in step 1, say) is not other settings (a user trial's was redone);
-    None without one."""
+    """The photo's project as the record compares it: what a batch reads of it (its suns,
+    depth map and shadow corrections; its exposure counts in the job's), so a project saved
+    again with the same ones (the dial moved in step 1, say) is not other settings (a user
+    trial's was redone); None without one."""
     if read is None:
         return None
-    return [_sun_key(read.original_sun), _sun_key(read.target_sun),
-            _file_key(Path(read.depth_path)) if read.depth_path else None]
+    key = [_sun_key(read.original_sun), _sun_key(read.target_sun),
+           _file_key(Path(read.depth_path)) if read.depth_path else None]
+    if read.shadow_edits:  # (absent without any: records made before them match)
+        from outcast_core.runtime.pipeline.photo_shadows import shadow_edits_to_json
+
+        key.append(shadow_edits_to_json(read.shadow_edits))
+    return key
 
 
 def _file_key(path: Path | None) -> Any:
@@ -559,6 +564,9 @@ class ProjectSettings:
     target_sun: Sun | None
     depth_path: str
     exposure: str | None
+    #: The user's corrections of the found shadows (the app's "Not a shadow" / "Mark
+    #: shadow"; :class:`~outcast_core.runtime.pipeline.photo_shadows.ShadowEdit`).
+    shadow_edits: tuple[Any, ...] = ()
 
 
 def _project_data(photo: Path) -> tuple[Path, dict[str, Any]] | None:
@@ -588,8 +596,9 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
     Reads ``NAME.outcast.json`` (the format of :mod:`app.state`) without the app: its
     ``original_sun`` (the sun the user confirmed last: a project saved while re-aligning
     still gives that one, the dial's being no answer yet), ``target_sun``, ``depth_path`` (a
-    depth map the user loaded, relative to the project file) and ``exposure`` ("Meter the new
-    light"; None in projects from before it).
+    depth map the user loaded, relative to the project file), ``exposure`` ("Meter the new
+    light"; None in projects from before it) and ``shadow_edits`` (the user's corrections of
+    the found shadows; none in projects from before them).
 
     Raises:
         ValueError: the project file is not a valid OutCast project, is for another photo, or
@@ -620,7 +629,13 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
     if exposure is not None and exposure not in EXPOSURES:
         raise ValueError(f"project '{project.name}' exposure: expected one of {EXPOSURES}, got "
                          f"{exposure!r}")
-    return ProjectSettings(sun("original_sun"), sun("target_sun"), str(depth), exposure)
+    from outcast_core.runtime.pipeline.photo_shadows import shadow_edits_from_json
+
+    try:
+        edits = shadow_edits_from_json(data.get("shadow_edits"))
+    except ValueError as exc:
+        raise ValueError(f"project '{project.name}' shadow_edits: {exc}") from None
+    return ProjectSettings(sun("original_sun"), sun("target_sun"), str(depth), exposure, edits)
 
 
 def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None, str]:
@@ -795,6 +810,8 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
                                    _auto_sun(session, loaded.exif, result, tilt), tilt[:2],
                                    seen=None if seen is None else sun_angles(seen.w))
     result.from_sun, result.sun_source = sun, source
+    if read is not None:
+        session.set_shadow_edits(read.shadow_edits)
     session.set_original_sun(sun_vector(*sun))
     Path(job.output).parent.mkdir(parents=True, exist_ok=True)
     if options.kind == "timelapse":

@@ -259,6 +259,42 @@ def test_batch_takes_the_projects_exposure_unless_told(tmp_path: Path,
         batch.project_exposure(photo)
 
 
+def test_batch_applies_the_projects_shadow_corrections(tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """The app's "Not a shadow" / "Mark shadow" clicks, saved in the project, act on a batch
+    job as in the app; changed corrections are other settings (the output is redone), and a
+    project without any keeps its record key (records from before them still match)."""
+    from outcast_core.runtime.pipeline import batch
+    from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    photo = _photo(tmp_path / "a.png", 0)
+    project = photo.with_name("a" + PROJECT_SUFFIX)
+    data = {"outcast_project": 1, "image": "a.png",
+            "original_sun": {"azimuth": 200.0, "elevation": 40.0}}
+    project.write_text(json.dumps(data))
+    opts = BatchOptions(kind="deshadow", preset="fast", mode="classic")
+    job = BatchJob(str(photo), str(tmp_path / "o" / "a.png"))
+    before = batch.job_settings(job, opts)
+    assert batch.read_project(photo).shadow_edits == ()
+    data["shadow_edits"] = [{"x": 0.5, "y": 0.5, "shadow": False},
+                            {"x": 0.25, "y": 0.75, "shadow": True}]
+    project.write_text(json.dumps(data))
+    edits = (ShadowEdit(0.5, 0.5, False), ShadowEdit(0.25, 0.75, True))
+    assert batch.read_project(photo).shadow_edits == edits
+    assert batch.job_settings(job, opts) != before
+    seen = []
+    real = RelightSession.set_shadow_edits
+    monkeypatch.setattr(RelightSession, "set_shadow_edits",
+                        lambda self, e: seen.append(tuple(e)) or real(self, e))
+    assert run_job(job, opts).status == "done"
+    assert seen == [edits]
+    data["shadow_edits"] = [{"x": 2.0, "y": 0.5, "shadow": True}]
+    project.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match="shadow_edits: expected a point inside the photo"):
+        batch.read_project(photo)
+
+
 def test_targets_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     d = tmp_path / "in"
     d.mkdir()
