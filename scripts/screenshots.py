@@ -39,6 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     from app import sun_dial_math as dm
     from app.errors import message_for
     from app.main_window import MainWindow, process_until_idle
+    from outcast_core.runtime.io.imageio import ImageReadError, ImageReadReason
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -180,8 +181,9 @@ def main(argv: list[str] | None = None) -> int:
     dialog.close()
 
     win.save_project()
-    msg = message_for(ValueError(f"cannot read image '{work / 'broken.jpg'}': the file is "
-                                 "truncated or corrupt"), "open")  # fmt: skip
+    msg = message_for(ImageReadError(f"cannot read image '{work / 'broken.jpg'}': the file is "
+                                     "truncated or corrupt", ImageReadReason.DAMAGED),
+                      "open")  # fmt: skip
     box = QMessageBox(QMessageBox.Icon.Critical, msg.title, msg.text(), parent=win)
     box.show()
     app.processEvents()

@@ -28,6 +28,8 @@ def cmd_sun(args: argparse.Namespace) -> int:
     result."""
     from outcast_core.runtime.cli.main import _load, _make_session, _say, _set_image
     from outcast_core.runtime.pipeline.auto_sun import (
+        SOURCE_EXIF,
+        SOURCE_SUN_IN_FRAME,
         exif_sun_prior,
         find_sun,
         photo_camera_tilt,
@@ -51,10 +53,10 @@ def cmd_sun(args: argparse.Namespace) -> int:
     # ground plane.
     tilt = None if args.no_exif else photo_camera_tilt(session, args.image)
     fit = find_sun(session, prior=prior, pitch_roll=tilt)
-    sure = fit.found or fit.source == "EXIF"
+    sure = fit.found or fit.source == SOURCE_EXIF
     # A sun seen in the frame and the photo's GPS and time give the compass heading.
     seen_heading = None
-    if fit.source == "sun in the frame" and tilt is not None:
+    if fit.source == SOURCE_SUN_IN_FRAME and tilt is not None:
         seen_heading = exif_heading_from_sun(loaded.exif, fit.azimuth, fit.elevation,
                                              tilt=tilt[:2])
     if args.json:

@@ -18,7 +18,8 @@ time-zone offset is derived from their difference, rounded to 15 minutes (``tz_o
 
 Example:
     >>> from PIL import Image
-    >>> meta = metadata_from_exif(Image.open("samples/exif_001_cz_fieldpath.jpg").getexif())
+    >>> with Image.open("samples/exif_001_cz_fieldpath.jpg") as im:
+    ...     meta = metadata_from_exif(im.getexif())
     >>> round(meta.latitude, 4), meta.capture_time.isoformat()
     (50.2996, '2018-07-25T16:34:23+02:00')
 """

@@ -167,6 +167,13 @@ MAX_SHADE = 0.85
 #: luminance) or ``"mask+shading"`` (the agreement plus :data:`SHADING_WEIGHT` times the
 #: correlation).
 MEASURES = ("mask", "shading", "mask+shading")
+#: :attr:`SunFit.source` when no shadows told the sun and the EXIF sun stands, and when the
+#: photo shows the sun itself.
+SOURCE_EXIF = "EXIF"
+SOURCE_SUN_IN_FRAME = "sun in the frame"
+#: :attr:`SunFit.unfound`: the photo is too small or narrow for its shadows, it has no clear
+#: shadows, or no sun's predicted shadows fit them.
+UNFOUND_REASONS = ("too-small", "no-clear-shadows", "no-fit")
 MEASURE = "mask"
 SHADING_WEIGHT = 0.5
 #: Shorter side (pixels of the working image, where shadows are read) below which / from which
@@ -308,9 +315,13 @@ class SunFit:
         measure: what the search ranked suns by (:data:`MEASURES`).
         confidence: 0-1 (see the module docstring).
         found: whether the confidence reaches :data:`CONFIDENT`.
-        source: ``"shadows"``, ``"shadows + EXIF elevation"``, ``"shadows + EXIF"`` or
-            ``"EXIF"`` (no clear shadows; the EXIF sun stands).
+        source: ``"shadows"``, ``"shadows + EXIF elevation"``, ``"shadows + EXIF"``,
+            ``"EXIF"`` (no clear shadows; the EXIF sun stands) or ``"sun in the frame"``
+            (:data:`SOURCE_EXIF`, :data:`SOURCE_SUN_IN_FRAME`).
         note: one line for the user.
+        unfound: why the shadows could not tell the sun (:data:`UNFOUND_REASONS`:
+            ``"too-small"``, ``"no-clear-shadows"``, ``"no-fit"``), or ``""`` when they could;
+            for choosing what to tell the user without reading :attr:`note`'s words.
         map: the coarse agreement map (the dial's heat map).
         candidates: ``(azimuth, elevation, agreement)`` of the last candidates, best first
             as the search ranks them: agreement, the shading term and the EXIF prior's pull
@@ -352,6 +363,7 @@ class SunFit:
     seconds: float = 0.0
     stage_seconds: dict[str, float] = field(default_factory=dict)
     compass_decided: bool = False
+    unfound: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         """Plain values for JSON (the map is left out)."""
@@ -362,7 +374,7 @@ class SunFit:
             "measure": self.measure, "source": self.source, "note": self.note,
             "true_elevation": round(self.true_elevation, 2), "pitch": round(self.pitch, 2),
             "roll": round(self.roll, 2), "pose_source": self.pose_source,
-            "compass_decided": self.compass_decided,
+            "compass_decided": self.compass_decided, "unfound": self.unfound,
             "evaluations": self.evaluations,
             "seconds": round(self.seconds, 3), "stage_seconds": self.stage_seconds,
             "candidates": [[round(a, 2), round(e, 2), round(s, 4)] for a, e, s in self.candidates],
@@ -1027,10 +1039,11 @@ def find_sun(
     if prior is not None and prior.azimuth is not None and not found:
         w_best = frame.vector(prior.azimuth, prior.elevation)
         best_a, best_e = prior.azimuth % 360.0, prior.elevation
-        source = "EXIF"
+        source = SOURCE_EXIF
     cam_az, cam_el = sun_angles(w_best)
     cam_el = min(90.0, max(0.0, cam_el))
     compass_decided = False
+    unfound = ""
     if found:
         note = f"sun found from the photo's shadows (confidence {confidence:.2f})"
         if prior is not None:
@@ -1052,14 +1065,17 @@ def find_sun(
     else:
         if legible < 1.0 and (legible < 0.5 or clarity * peak * strength >= CONFIDENT):
             h, w = session.image_srgb.shape[:2]
+            unfound = "too-small"
             why = (f"the photo is too small or too narrow for its shadows to tell the sun "
                    f"({w} x {h} pixels where they are read)")
         elif clarity < CONFIDENT:
+            unfound = "no-clear-shadows"
             why = "no clear shadows in the photo"
         else:
+            unfound = "no-fit"
             why = ("no sun makes the predicted shadows fit the photo's (the depth may be too "
                    "rough: try a depth map or another depth model)")
-        if source == "EXIF":
+        if source == SOURCE_EXIF:
             note = f"{why}: the sun is the EXIF sun ({prior.description if prior else ''})"
         else:
             note = (f"{why}: its sun cannot be told from them (confidence {confidence:.2f}); "
@@ -1074,8 +1090,8 @@ def find_sun(
         ag, sh = measures(session.shadow(seen.w)[None], found_full, ~session.sky, y_full)
         best_score, best_shading = float(ag[0]), float(sh[0])
         evaluations += 1
-        found, confidence, source = True, 1.0, "sun in the frame"
-        compass_decided = False
+        found, confidence, source = True, 1.0, SOURCE_SUN_IN_FRAME
+        compass_decided, unfound = False, ""
         true_el = float(prior.elevation) if prior is not None else float(cam_el)
         note = (f"the sun is in the frame (at pixel {seen.u:.0f}, {seen.v:.0f} of the working "
                 "image): its direction is taken from there")
@@ -1096,12 +1112,15 @@ def find_sun(
         shading=best_shading, measure=measure, true_elevation=true_el,
         pitch=frame.pitch, roll=frame.roll, pose_source=pose_source, evaluations=evaluations,
         stage_seconds={k: round(v, 4) for k, v in stages.items()},
-        compass_decided=compass_decided,
+        compass_decided=compass_decided, unfound=unfound,
         seconds=time.perf_counter() - t0,
     )
 
 
 __all__ = [
+    "SOURCE_EXIF",
+    "SOURCE_SUN_IN_FRAME",
+    "UNFOUND_REASONS",
     "AgreementMap",
     "FindSunCancelledError",
     "SunFit",

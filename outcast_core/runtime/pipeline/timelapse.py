@@ -121,7 +121,7 @@ def ease(t: np.ndarray | float, easing: str = "linear") -> np.ndarray:
         Eased values, same shape as ``t`` (float64).
 
     Example:
-        >>> float(ease(0.5, "ease-in-out"))
+        >>> round(float(ease(0.5, "ease-in-out")), 12)
         0.5
     """
     t = np.clip(np.asarray(t, dtype=np.float64), 0.0, 1.0)

@@ -68,7 +68,7 @@ def test_find_sun_recovers_a_known_sun(sun: tuple[float, float]) -> None:
     steps: list[str] = []
     fit = find_sun(session, progress=lambda stage, frac: steps.append(stage))
     assert _angle(fit.w, w) <= 6.0, (fit.azimuth, fit.elevation)
-    assert fit.found and fit.confidence >= 0.5
+    assert fit.found and fit.confidence >= 0.5 and fit.unfound == ""
     assert fit.agreement > 0.95
     assert steps[-1] == "done"
     m = fit.map
@@ -82,7 +82,8 @@ def test_find_sun_recovers_a_known_sun(sun: tuple[float, float]) -> None:
 def test_no_shadows_low_confidence_and_no_guess() -> None:
     fit = find_sun(_session(_shadowless_photo()))
     assert fit.confidence < 0.3 and not fit.found
-    assert "no clear shadows" in fit.note
+    assert "no clear shadows" in fit.note and fit.unfound == "no-clear-shadows"
+    assert fit.as_dict()["unfound"] == "no-clear-shadows"
 
 
 def test_elevation_prior_holds_the_elevation() -> None:
@@ -425,4 +426,4 @@ def test_a_thumbnail_or_a_strip_tells_no_sun(shape: tuple[int, int]) -> None:
     s.set_image(small, fov_deg=60.0)
     fit = find_sun(s)
     assert not fit.found and fit.confidence < 0.3
-    assert "too small or too narrow" in fit.note
+    assert "too small or too narrow" in fit.note and fit.unfound == "too-small"
