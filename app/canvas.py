@@ -8,7 +8,9 @@ Layers, painted in order (each a small overridable step):
 
 All layers are drawn into the same rectangle, whatever their own resolution, so a working-size
 relit image lines up with the full-size photo. Wheel zooms about the cursor, dragging pans,
-double-click fits the image to the window.
+double-click fits the image to the window. With a click tool on (:meth:`ImageCanvas.set_click_tool`,
+step 2's shadow corrections) a click on the image (press and release without dragging) emits
+:attr:`ImageCanvas.image_clicked`; dragging still pans or moves the split line.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import numpy as np
 from PySide6.QtCore import QPointF, QRectF, QSize, Qt, Signal
 from PySide6.QtGui import (
     QColor,
+    QCursor,
     QFont,
     QImage,
     QMouseEvent,
@@ -26,7 +29,7 @@ from PySide6.QtGui import (
     QResizeEvent,
     QWheelEvent,
 )
-from PySide6.QtWidgets import QSizePolicy, QWidget
+from PySide6.QtWidgets import QApplication, QSizePolicy, QWidget
 
 MIN_ZOOM = 0.02
 MAX_ZOOM = 16.0
@@ -48,10 +51,13 @@ class ImageCanvas(QWidget):
     Signals:
         zoom_changed(zoom): the zoom factor (1.0 = one image pixel per screen pixel).
         split_dragged(fraction): the user dragged the before/after line.
+        image_clicked(x, y): with a click tool on, a click on the image, as fractions (0-1) of
+            its width and height.
     """
 
     zoom_changed = Signal(float)
     split_dragged = Signal(float)
+    image_clicked = Signal(float, float)
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -66,6 +72,10 @@ class ImageCanvas(QWidget):
         self._fit = True
         self._pan_from: QPointF | None = None
         self._dragging_split = False
+        self._click_tool = False
+        #: With a click tool on: where the left button went down (widget coordinates) and the
+        #: image point under it then (the pan may move the image a pixel or two before release).
+        self._press: tuple[QPointF, QPointF] | None = None
         self._empty_text = "Open a photo (Ctrl+O) or drop one here"
         self.overlay_updates = 0  # counted for tests and the benchmark
         self.after_updates = 0  # relit images shown (step 2), counted likewise
@@ -131,6 +141,32 @@ class ImageCanvas(QWidget):
 
     def split(self) -> float | None:
         return self._split
+
+    def set_click_tool(self, on: bool) -> None:
+        """Turn the click tool on or off: a crosshair over the image, and a click there emits
+        :attr:`image_clicked`."""
+        self._click_tool = bool(on)
+        self._press = None
+        self.setMouseTracking(self._click_tool)  # the cursor follows the image's edge
+        self._update_cursor(self.mapFromGlobal(QCursor.pos()).toPointF())
+
+    def click_tool(self) -> bool:
+        return self._click_tool
+
+    def image_fraction(self, pos: QPointF) -> tuple[float, float] | None:
+        """The image point under ``pos`` (widget coordinates) as fractions of its width and
+        height, or None outside the image."""
+        if self._before is None or self._before.isNull():
+            return None
+        pt = self.widget_to_image(pos)
+        x, y = pt.x() / self._before.width(), pt.y() / self._before.height()
+        return (x, y) if 0.0 <= x < 1.0 and 0.0 <= y < 1.0 else None
+
+    def _update_cursor(self, pos: QPointF) -> None:
+        if self._click_tool and self.image_fraction(pos) is not None:
+            self.setCursor(Qt.CursorShape.CrossCursor)
+        else:
+            self.unsetCursor()
 
     # ------------------------------------------------------------------ view transform
     def zoom(self) -> float:
@@ -284,11 +320,14 @@ class ImageCanvas(QWidget):
     def mousePressEvent(self, event: QMouseEvent) -> None:
         x = self._split_x()
         near_split = x is not None and abs(event.position().x() - x) <= 6.0
+        self._press = None
         if event.button() == Qt.MouseButton.LeftButton and near_split:
             self._dragging_split = True
             self.setCursor(Qt.CursorShape.SplitHCursor)
             event.accept()
         elif event.button() in (Qt.MouseButton.LeftButton, Qt.MouseButton.MiddleButton):
+            if self._click_tool and event.button() == Qt.MouseButton.LeftButton:
+                self._press = (event.position(), self.widget_to_image(event.position()))
             self._pan_from = event.position()
             self.setCursor(Qt.CursorShape.ClosedHandCursor)
             event.accept()
@@ -308,11 +347,23 @@ class ImageCanvas(QWidget):
             self._fit = False
             self.update()
             event.accept()
+        elif self._click_tool:  # (mouse tracking) crosshair over the image only
+            self._update_cursor(event.position())
 
     def mouseReleaseEvent(self, event: QMouseEvent) -> None:
+        press, self._press = self._press, None
         self._pan_from = None
         self._dragging_split = False
         self.unsetCursor()
+        if press is not None and event.button() == Qt.MouseButton.LeftButton:
+            moved = (event.position() - press[0]).manhattanLength()
+            if moved < QApplication.startDragDistance() and self._before is not None:
+                # a click, not a drag: the image point under the press
+                x = press[1].x() / self._before.width()
+                y = press[1].y() / self._before.height()
+                if 0.0 <= x < 1.0 and 0.0 <= y < 1.0:
+                    self.image_clicked.emit(x, y)
+        self._update_cursor(event.position())
         super().mouseReleaseEvent(event)
 
     def mouseDoubleClickEvent(self, event: QMouseEvent) -> None:

@@ -2,7 +2,8 @@
 
 What is undoable: moving either sun (a drag counts once, on release; a key nudge or a typed value
 once each), confirming the original sun and going back to re-align it (the step), the quality
-preset, the depth map, the camera heading typed in step 1 and step 2's exposure. View settings
+preset, the depth map, the camera heading typed in step 1, step 2's exposure and the user's
+corrections of the photo's found shadows (step 2's "Not a shadow" / "Mark shadow"). View settings
 (overlay opacity, split, buffer view, zoom) are not; the time-lapse dialog's settings are not
 either, but they count as unsaved work (``MainWindow.has_unsaved_changes``).
 
@@ -21,9 +22,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
 from time import monotonic
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from PySide6.QtGui import QUndoCommand
+
+if TYPE_CHECKING:
+    from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
 
 SunPair = tuple[float, float]
 
@@ -43,6 +47,8 @@ class EditState:
         heading: the camera's compass heading typed in step 1 (degrees from true north), or
             ``None`` (unknown, or the one the photo's EXIF records).
         exposure: ``"photo"`` (the photo's exposure kept) or ``"metered"`` (step 2).
+        shadow_edits: the user's corrections of the photo's found shadows, in order
+            (:class:`~outcast_core.runtime.pipeline.photo_shadows.ShadowEdit`); ``()``: none.
     """
 
     step: str
@@ -53,6 +59,7 @@ class EditState:
     depth_path: str = ""
     heading: float | None = None
     exposure: str = "photo"
+    shadow_edits: tuple[ShadowEdit, ...] = ()
 
     def __post_init__(self) -> None:
         if self.step not in ("align", "relight"):
@@ -81,9 +88,19 @@ def describe_change(before: EditState, after: EditState) -> str:
         return "Camera heading"
     if before.exposure != after.exposure:
         return "Meter the new light" if after.exposure == "metered" else "Keep the photo's exposure"
+    if before.shadow_edits != after.shadow_edits:
+        return shadow_edit_text(after.shadow_edits)
     if before.target_sun != after.target_sun:
         return "Move new sun"
     return "Change"
+
+
+def shadow_edit_text(edits: tuple[ShadowEdit, ...]) -> str:
+    """The Edit-menu label of a change of the shadow corrections to ``edits`` (one added to
+    the end, or all cleared): "Mark shadow", "Not a shadow" or "Clear shadow corrections"."""
+    if not edits:
+        return "Clear shadow corrections"
+    return "Mark shadow" if edits[-1].shadow else "Not a shadow"
 
 
 STEP_BURST_S = 1.0

@@ -5,12 +5,21 @@ functions capture plain values and never touch widgets. Results come back as sig
 this window, in the GUI thread. Channels (one pending job each, latest wins):
 
 ``load``, ``preset``, ``shadow`` (step-1 overlay), ``find_sun`` (step 1's automatic sun),
-``confirm``, ``relight`` (step-2 view),
+``confirm``, ``relight`` (step-2 view), ``shadow_edits`` (the session follows the shadow
+corrections when the view shows kept images: undo and redo),
 ``export_still``, ``export_shadows_removed``, ``tl_preview``, ``tl_export``.
 
 The step-2 views "Shadows removed" and "Shadows found" do not depend on the new sun: their
-images are computed once per photo, original sun and preset (on the ``relight`` channel, so the
-latest view choice wins) and kept, so dragging the new sun there costs nothing.
+images are computed once per photo, original sun, preset and shadow corrections (on the
+``relight`` channel, so the latest view choice wins) and kept, so dragging the new sun there
+costs nothing.
+
+The user's corrections of the found shadows (:attr:`MainWindow.shadow_edits`, step 2's "Not a
+shadow" / "Mark shadow" tools) are app state like the suns: undoable, saved in the project.
+Every job whose result depends on the found shadows captures the tuple and hands it to
+``session.set_shadow_edits`` before its work (cheap when unchanged), so a job never runs with
+older or newer corrections than the ones it was asked for, whichever jobs the latest-wins
+channels dropped.
 """
 
 from __future__ import annotations
@@ -19,6 +28,7 @@ import functools
 import math
 import os
 import time
+from collections import OrderedDict
 from collections.abc import Callable, Iterable
 from dataclasses import replace
 from pathlib import Path
@@ -62,7 +72,7 @@ from app import display
 from app import sun_dial_math as dm
 from app.canvas import ImageCanvas, qimage_from_array
 from app.errors import OwnFileError, depth_file_problem, message_for
-from app.history import EditCommand, EditState
+from app.history import EditCommand, EditState, shadow_edit_text
 from app.leave_prompts import (
     REPLACE,
     SAVE,
@@ -73,7 +83,7 @@ from app.leave_prompts import (
     leave_questions,
     replace_project_question,
 )
-from app.panels import VIEW_CHOICES, AlignPanel, RelightPanel
+from app.panels import SHADOW_TOOLS, VIEW_CHOICES, AlignPanel, RelightPanel
 from app.state import (
     IMAGE_SUFFIXES,
     PRESET_NAMES,
@@ -92,6 +102,7 @@ from app.workers import JobContext, TaskRunner
 from outcast_core.runtime.geometry.camera import cosine_term, sun_angles, sun_vector
 from outcast_core.runtime.io.imageio import same_file
 from outcast_core.runtime.io.models import ModelError
+from outcast_core.runtime.pipeline.photo_shadows import MAX_SHADOW_EDITS, ShadowEdit
 from outcast_core.runtime.pipeline.session import elongation_note
 
 APP_NAME = "OutCast"
@@ -102,6 +113,7 @@ STAGE_WORDS = {
     "find_sun": "Finding the sun",
     "confirm": "Refining the original shadows",
     "relight": "Relighting",
+    "shadow_edits": "Applying shadow corrections",
     "export_still": "Exporting still",
     "export_shadows_removed": "Exporting shadows removed",
     "tl_preview": "Rendering time-lapse frame",
@@ -117,6 +129,11 @@ DEFAULT_SUN = (135.0, 45.0)  # behind-right of the camera, half-way up: where a 
 LEVEL_TILT = (0.0, 0.0, "level")  # the camera's (pitch, roll, source) before a photo is loaded
 ICON_PATH = Path(__file__).resolve().parent / "resources" / "outcast.svg"
 STILL_FILTERS = "PNG image (*.png);;JPEG image (*.jpg *.jpeg);;16-bit TIFF (*.tif *.tiff)"
+#: The deshadow views' images kept for other corrections (undo and redo show them at once): at
+#: most this many bytes of images besides the shown ones (a 24-megapixel photo's take 72 MB).
+DESHADOW_KEEP_BYTES = 256 * 1024 * 1024
+#: The status-bar hint while a shadow-correction tool is on.
+SHADOW_TOOL_HINTS = {key: f"{hint} (Esc ends the tool)" for key, _, _, hint in SHADOW_TOOLS}
 
 
 def _timings(session: Any) -> dict[str, float]:
@@ -248,11 +265,18 @@ class MainWindow(QMainWindow):
         self._timelapse_dialog: Any = None
         self._last_load: tuple[Any, ...] | None = None
         self._after_label = "Relit"
-        # The deshadow views' images: (load, original sun, preset) -> (photo, overlay).
+        #: The user's corrections of the photo's found shadows, in order (step 2's tools).
+        self.shadow_edits: tuple[ShadowEdit, ...] = ()
+        self._edit_note = ""  # said after "Ready" when the last correction changed nothing
+        # The deshadow views' images: (load, original sun, preset, shadow corrections) ->
+        # (de-shadowed photo or None, found-shadows overlay); the shown ones and a few more.
         self._loads = 0  # counts loaded sessions
         self._deshadow_key: tuple[Any, ...] | None = None
-        self._deshadow_images: tuple[QImage, QImage] | None = None
-        self._deshadow_job: tuple[tuple[Any, ...], int] | None = None  # (key, id) being computed
+        self._deshadow_images: tuple[QImage | None, QImage] | None = None
+        self._deshadow_kept: OrderedDict[tuple[Any, ...], tuple[QImage | None, QImage]] = (
+            OrderedDict())
+        #: (key, with the de-shadowed photo, id) of the deshadow job being computed.
+        self._deshadow_job: tuple[tuple[Any, ...], bool, int] | None = None
         # Undo/redo (app/history.py): the last recorded state, and a reload's state to restore.
         self.undo_stack = QUndoStack(self)
         self._edit_state: EditState | None = None
@@ -387,6 +411,14 @@ class MainWindow(QMainWindow):
         self.act_about.triggered.connect(self._about)
         self.act_keys = QAction("&Keyboard shortcuts", self, shortcut=QKeySequence("F1"))
         self.act_keys.triggered.connect(self._shortcuts)
+        # Esc ends a shadow-correction tool (enabled only while one is on, so Esc is left alone
+        # otherwise); no menu entry: the window holds it.
+        self.act_end_shadow_tool = QAction("End the shadow tool", self,
+                                           shortcut=QKeySequence(Qt.Key.Key_Escape))
+        self.act_end_shadow_tool.setEnabled(False)
+        self.act_end_shadow_tool.triggered.connect(
+            lambda: self.relight_panel.set_shadow_tool(""))
+        self.addAction(self.act_end_shadow_tool)
 
         file_menu = self.menuBar().addMenu("&File")
         file_menu.addAction(self.act_open)
@@ -483,6 +515,9 @@ class MainWindow(QMainWindow):
         rp.export_still_clicked.connect(self.export_still_dialog)
         rp.timelapse_clicked.connect(self.open_timelapse)
         rp.realign_clicked.connect(self.back_to_align)
+        rp.shadow_tool_changed.connect(self._on_shadow_tool_changed)
+        rp.clear_shadow_edits_clicked.connect(self.clear_shadow_edits)
+        self.canvas.image_clicked.connect(self._on_canvas_clicked)
         self.canvas.set_overlay_opacity(ap.opacity_slider.value() / 100.0)
         shortcuts_win = WindowShortcutsWin(self._window_shortcuts, self)
         for box in self.findChildren(QAbstractSpinBox):
@@ -542,6 +577,7 @@ class MainWindow(QMainWindow):
                            if has_photo else f"{tip}. First open a photo")
         self.act_confirm.setEnabled(step is Step.ALIGN)
         self.act_find_sun.setEnabled(step is Step.ALIGN)
+        self._update_shadow_tools()
         if step is Step.RELIGHT:
             self.canvas.set_overlay(None)
             self._on_split_changed(self.relight_panel.split_slider.value())
@@ -589,6 +625,7 @@ class MainWindow(QMainWindow):
             depth_path=self.depth_path,
             heading=self.user_heading,
             exposure=self.relight_panel.exposure(),
+            shadow_edits=self.shadow_edits,
         )
 
     def _record(self, after: EditState | None = None, text: str = "", step_of: str = "") -> None:
@@ -623,6 +660,9 @@ class MainWindow(QMainWindow):
             return
         self._applying_edit = True
         try:
+            if state.shadow_edits != self.shadow_edits:  # shown below (the relit view, ...)
+                self._show_shadow_edits(state.shadow_edits)
+                self._refresh_timelapse_preview()
             if state.heading != self.user_heading:
                 self.set_user_heading(state.heading)
             if state.exposure != self.relight_panel.exposure():
@@ -654,6 +694,7 @@ class MainWindow(QMainWindow):
         project.depth_path = state.depth_path
         project.heading = state.heading
         project.exposure = state.exposure
+        project.shadow_edits = state.shadow_edits
         relight = state.step == "relight" and state.original_sun is not None
         project.original_sun = Sun(*state.original_sun) if relight else None
         project.align_sun = Sun(*state.align_sun)
@@ -679,7 +720,9 @@ class MainWindow(QMainWindow):
             "Ctrl+O open · Ctrl+S save project · Ctrl+Return confirm the sun · Ctrl+E export still"
             " · Ctrl+Shift+E export shadows removed · Ctrl+T time-lapse\n"
             "Canvas: mouse wheel zooms, drag pans, double-click or Ctrl+0 fits, Ctrl+1 actual "
-            "pixels.",
+            "pixels.\n"
+            "Step 2, Shadows found / removed: \"Not a shadow\" or \"Mark shadow\", then click the "
+            "photo; Esc ends the tool.",
         )
 
     def show_error(self, exc: BaseException, action: str) -> None:
@@ -805,7 +848,8 @@ class MainWindow(QMainWindow):
             self._save_recent()
         self._photo_qimage = qimage_from_array(result["photo"])
         self._deshadow_key = self._deshadow_images = None
-        self._exposure_hint = ""
+        self._deshadow_kept.clear()
+        self._exposure_hint = self._edit_note = ""
         self._loads += 1
         self.canvas.set_image(self._photo_qimage)
         self.original_sun = None
@@ -880,6 +924,8 @@ class MainWindow(QMainWindow):
                 seen_sun = None  # not where the dial starts: not said
             if project is None:
                 self.relight_panel.sun_panel.set_sun(*DEFAULT_SUN)
+        # Another photo starts without corrections; a project (a reload too) brings its own.
+        self._show_shadow_edits(project.shadow_edits if project is not None else ())
         self._applying_edit = True
         try:
             if project is not None:
@@ -1346,9 +1392,11 @@ class MainWindow(QMainWindow):
             target = current.target_sun if keep_target else (az, el)
             self._record(replace(current, step="relight", align_sun=(az, el),
                                  original_sun=(az, el), target_sun=target))  # fmt: skip
+        edits = self.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
             ctx.progress("refining", 0.1)
+            session.set_shadow_edits(edits)  # (applied by set_original_sun)
             session.set_original_sun(sun_vector(az, el))
             session.prepare_relight_preview()  # so the first drag in step 2 is as quick
             return {"sun": (az, el), "keep_target": keep_target, "timings": _timings(session)}
@@ -1381,7 +1429,84 @@ class MainWindow(QMainWindow):
 
     def _on_view_changed(self, _index: int) -> None:
         self.relight_panel.split_slider.setEnabled(self.relight_panel.view() in SPLIT_VIEWS)
+        self._update_shadow_tools()
         self.request_relight(preview=False)
+
+    # ---- correcting the found shadows
+    def shadow_tools_available(self) -> bool:
+        """Whether the shadow corrections can be made now: step 2, in a view of the photo's
+        own shadows ("Shadows found", "Shadows removed")."""
+        return (self.step is Step.RELIGHT and self.session is not None
+                and self.relight_panel.view() in DESHADOW_VIEWS)
+
+    def _update_shadow_tools(self) -> None:
+        """Show the correction tools in the views they work in; elsewhere hide them, off."""
+        self.relight_panel.show_shadow_tools(self.shadow_tools_available())
+
+    @Slot(str)
+    def _on_shadow_tool_changed(self, tool: str) -> None:
+        """A correction tool turned on or off: the canvas's clicks and cursor, Esc, the hint."""
+        on = bool(tool) and self.shadow_tools_available()
+        self.canvas.set_click_tool(on)
+        self.act_end_shadow_tool.setEnabled(on)
+        if on:
+            self.stage_label.setText(SHADOW_TOOL_HINTS[tool])
+            self.canvas.setFocus()  # Esc reaches the window's action from here
+        elif not self.runner.busy():
+            self.stage_label.setText("Ready")
+
+    @Slot(float, float)
+    def _on_canvas_clicked(self, x: float, y: float) -> None:
+        tool = self.relight_panel.shadow_tool()
+        if tool and self.shadow_tools_available():
+            self.add_shadow_edit(x, y, shadow=tool == "shadow")
+
+    def add_shadow_edit(self, x: float, y: float, shadow: bool) -> bool:
+        """Correct the found shadows at the photo's point ``(x, y)`` (fractions of its width and
+        height): ``shadow`` True, "this is a shadow"; False, "not a shadow". Undoable; the
+        view is redrawn in the worker.
+
+        Returns:
+            Whether the correction was made (not outside the photo, not past
+            :data:`~outcast_core.runtime.pipeline.photo_shadows.MAX_SHADOW_EDITS`).
+        """
+        if not self.shadow_tools_available() or not (0.0 <= x <= 1.0 and 0.0 <= y <= 1.0):
+            return False
+        if len(self.shadow_edits) >= MAX_SHADOW_EDITS:
+            self.stage_label.setText(f"At most {MAX_SHADOW_EDITS} corrections: clear them or "
+                                     "undo some first")
+            return False
+        self.set_shadow_edits((*self.shadow_edits, ShadowEdit(float(x), float(y), shadow)))
+        self._record(text=shadow_edit_text(self.shadow_edits))
+        return True
+
+    def clear_shadow_edits(self) -> None:
+        """Take back every correction of the found shadows (one undo step)."""
+        if not self.shadow_edits:
+            return
+        self.set_shadow_edits(())
+        self._record(text=shadow_edit_text(()))
+
+    def set_shadow_edits(self, edits: tuple[ShadowEdit, ...]) -> None:
+        """Use ``edits`` as the photo's shadow corrections (records nothing) and draw what
+        depends on them again: the step-2 view and an open time-lapse preview."""
+        edits = tuple(edits)
+        if edits == self.shadow_edits:
+            return
+        self._show_shadow_edits(edits)
+        if self.step is Step.RELIGHT:
+            self.request_relight(preview=False)
+            self._refresh_timelapse_preview()
+
+    def _show_shadow_edits(self, edits: tuple[ShadowEdit, ...]) -> None:
+        """The corrections, and their count in the panel; no job (the next ones take them)."""
+        self.shadow_edits = tuple(edits)
+        self.relight_panel.set_shadow_edit_count(len(self.shadow_edits))
+
+    def _refresh_timelapse_preview(self) -> None:
+        dialog = self._timelapse_dialog
+        if dialog is not None and dialog.isVisible():
+            dialog.refresh_preview()
 
     def _on_split_changed(self, value: int) -> None:
         view = self.relight_panel.view()
@@ -1403,8 +1528,10 @@ class MainWindow(QMainWindow):
         if az is None or el is None:
             az, el = self.relight_panel.sun_panel.sun()
         exposure = self.relight_panel.exposure()
+        edits = self.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
+            session.set_shadow_edits(edits)  # what lifts the photo's shadows
             w = sun_vector(az, el)
             if view == "output":
                 # While dragging: the working-size preview. On release: full resolution, so the
@@ -1430,8 +1557,9 @@ class MainWindow(QMainWindow):
     def request_deshadow(self) -> int | None:
         """Show the photo with its own shadows removed, or the shadows found (step-2 views).
 
-        Computed in the worker once per photo, original sun and preset, at full resolution;
-        later requests show the kept images at once.
+        Computed in the worker once per photo, original sun, preset and shadow corrections (the
+        found shadows' overlay always, cheap; the de-shadowed photo, at full resolution, for
+        "Shadows removed" only); later requests show the kept images at once.
 
         Returns:
             The job's id, or ``None`` when nothing had to be computed.
@@ -1440,31 +1568,75 @@ class MainWindow(QMainWindow):
         if session is None or key is None or self.step is not Step.RELIGHT:
             return None
         view = self.relight_panel.view()
-        if key == self._deshadow_key and self._deshadow_images is not None:
+        with_image = view == "shadows_removed"
+        kept = self._deshadow_kept.get(key)
+        if kept is not None and (kept[0] is not None or not with_image):
+            self._deshadow_kept.move_to_end(key)
+            self._deshadow_key, self._deshadow_images = key, kept
+            self._edit_note = ""
             self._show_deshadow(view)
+            edits = self.shadow_edits  # the session follows (undo, redo): cheap, in the worker
+            self.runner.submit("shadow_edits", lambda ctx: session.set_shadow_edits(edits),
+                               STAGE_WORDS["shadow_edits"])
             return None
-        if self._deshadow_job is not None and self._deshadow_job[0] == key:
-            job_id = self._deshadow_job[1]
-            waiting = self.runner.latest("relight") == job_id
-            if waiting and any(i == job_id for i, _, _ in self.runner.active()):
-                return job_id  # already on its way (the new sun moved: nothing else to do)
+        if self._deshadow_job is not None:
+            job_key, job_with_image, job_id = self._deshadow_job
+            if job_key == key and (job_with_image or not with_image):
+                waiting = self.runner.latest("relight") == job_id
+                if waiting and any(i == job_id for i, _, _ in self.runner.active()):
+                    return job_id  # already on its way (the new sun moved: nothing else to do)
+        edits = self.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            ctx.progress("removing shadows", 0.1)
-            image = display.to_uint8_rgb(session.deshadow_full())
-            overlay = display.found_shadow_overlay_rgba(session.shadow_probability, session.sky)
+            before = session.shadow_probability
+            last_added = bool(edits) and session.shadow_edits == edits[:-1]
+            session.set_shadow_edits(edits)
+            after = session.shadow_probability
+            # The correction just made changed nothing (no found shadow near a "not a shadow"
+            # click, the sky or a shadow already under a "mark shadow" one): said after Ready.
+            idle_edit = (edits[-1] if last_added and before is not None and after is not None
+                         and float(np.max(np.abs(after - before), initial=0.0)) < 0.05 else None)
+            overlay = display.found_shadow_overlay_rgba(after, session.sky)
+            image = None
+            if with_image:
+                ctx.progress("removing shadows", 0.1)
+                image = display.to_uint8_rgb(session.deshadow_full())
             return {"view": view, "key": key, "image": image, "overlay": overlay,
-                    "timings": _timings(session)}  # fmt: skip
+                    "idle_edit": idle_edit, "timings": _timings(session)}  # fmt: skip
 
-        job_id = self.runner.submit("relight", job, "Removing the photo's shadows")
-        self._deshadow_job = (key, job_id)
+        words = "Removing the photo's shadows" if with_image else "Finding the photo's shadows"
+        job_id = self.runner.submit("relight", job, words)
+        self._deshadow_job = (key, with_image, job_id)
         return job_id
 
     def _deshadow_key_now(self) -> tuple[Any, ...] | None:
-        """What the deshadow views' images depend on: the session, the original sun, the preset."""
+        """What the deshadow views' images depend on: the session, the original sun, the preset
+        and the shadow corrections."""
         if self.session is None or self.original_sun is None:
             return None
-        return self._loads, self.original_sun.as_tuple(), self.preset
+        return self._loads, self.original_sun.as_tuple(), self.preset, self.shadow_edits
+
+    def _keep_deshadow(self, key: tuple[Any, ...], image: QImage | None,
+                       overlay: QImage) -> tuple[QImage | None, QImage]:
+        """Keep a deshadow result (with the de-shadowed photo already kept for ``key`` when this
+        one has none), within :data:`DESHADOW_KEEP_BYTES` besides the shown images."""
+        old = self._deshadow_kept.pop(key, None)
+        if image is None and old is not None:
+            image = old[0]
+        entry = (image, overlay)
+        self._deshadow_kept[key] = entry
+
+        def size(e: tuple[QImage | None, QImage]) -> int:
+            return sum(int(i.sizeInBytes()) for i in e if i is not None)
+
+        shown = self._deshadow_key
+        others = [k for k in self._deshadow_kept if k not in (key, shown)]
+        total = sum(size(self._deshadow_kept[k]) for k in others)
+        for k in others:  # the oldest first
+            if total <= DESHADOW_KEEP_BYTES:
+                break
+            total -= size(self._deshadow_kept.pop(k))
+        return entry
 
     def _show_deshadow(self, view: str) -> None:
         """Put the kept de-shadowed photo (split with the original) or the found shadows up."""
@@ -1473,6 +1645,8 @@ class MainWindow(QMainWindow):
         image, overlay = self._deshadow_images
         self._photo_as_base()
         if view == "shadows_removed":
+            if image is None:  # (only the overlay is kept: asked for by the other view)
+                return
             self.canvas.set_overlay(None)
             self.canvas.set_after(image)
             self._on_split_changed(self.relight_panel.split_slider.value())
@@ -1491,20 +1665,29 @@ class MainWindow(QMainWindow):
         self.canvas.set_image(photo, fit=shown is None or shown.size() != photo.size())
 
     def _on_relit(self, result: dict[str, Any]) -> None:
+        view = result["view"]
+        entry = None
+        if view in DESHADOW_VIEWS and result["key"][0] == self._loads:  # (not another photo's)
+            # Kept even when not shown now: for undo and redo, and the other deshadow view.
+            image = result["image"]
+            entry = self._keep_deshadow(
+                result["key"], None if image is None else qimage_from_array(image),
+                qimage_from_array(result["overlay"]))
         if self.step is not Step.RELIGHT:
             return
-        view = result["view"]
         if view != self.relight_panel.view():
             return  # the user chose another view since; its own request is on the way
-        self._exposure_hint = ""  # said only after the relit photo it is about
+        self._exposure_hint = self._edit_note = ""  # said only after the image it is about
         if view in DESHADOW_VIEWS:
-            if result["key"] != self._deshadow_key_now():
-                return  # for a photo, sun or preset that has changed since
-            self._deshadow_key = result["key"]
-            self._deshadow_images = (
-                qimage_from_array(result["image"]),
-                qimage_from_array(result["overlay"]),
-            )
+            key = result["key"]
+            if entry is None or key != self._deshadow_key_now():
+                return  # for a photo, sun, preset or correction that has changed since
+            self._deshadow_key, self._deshadow_images = key, entry
+            idle = result.get("idle_edit")
+            self._edit_note = "" if idle is None else (
+                "nothing was added there (the sky, or a shadow already): click inside a shadow "
+                "the app missed" if idle.shadow else
+                "no found shadow there: click on the magenta area of \"Shadows found\"")
             self._show_deshadow(view)
             return
         if view == "output":
@@ -1609,7 +1792,8 @@ class MainWindow(QMainWindow):
 
         Every format keeps the photo's EXIF; ``.tif``, and a PNG of a 16-bit photo, are 16-bit
         (:func:`~outcast_core.runtime.io.imageio.output_bit_depth`). Without ``force`` an
-        existing file is refused (here at once, and again by the writer).
+        existing file is refused (here at once, and again by the writer). The shadow
+        corrections are those of when it was asked for.
 
         Args:
             channel: one of :data:`IMAGE_EXPORT_CHANNELS`.
@@ -1622,6 +1806,7 @@ class MainWindow(QMainWindow):
             The job's id, or ``None`` when the file exists and ``force`` is off.
         """
         session, loaded = self.session, self.loaded
+        edits = self.shadow_edits  # as asked, whatever is corrected later
         if self.refuse_own_file(path):  # never, even confirmed in the file dialog
             return None
         if not force and os.path.exists(path):
@@ -1631,6 +1816,7 @@ class MainWindow(QMainWindow):
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.io.imageio import output_bit_depth, write_image
 
+            session.set_shadow_edits(edits)  # the photo's shadows as corrected when asked
             ctx.progress(stage, 0.1)
             img = render()
             ctx.progress("writing", 0.8)
@@ -1768,6 +1954,7 @@ class MainWindow(QMainWindow):
             timelapse=self._timelapse_to_save(),
             heading=self.user_heading,
             exposure=self.relight_panel.exposure(),
+            shadow_edits=self.shadow_edits,
         )
 
     def _timelapse_to_save(self) -> TimelapseSettings:
@@ -1917,12 +2104,20 @@ class MainWindow(QMainWindow):
             else:
                 words = STAGE_WORDS.get(channel, channel)
                 if isinstance(result, dict) and result.get("view") in DESHADOW_VIEWS:
-                    words = "Removing shadows"
+                    words = "Removing shadows" if result.get("image") is not None else (
+                        "Finding shadows")
                 text = f"Ready · {words.lower()} took {seconds:.2f} s"
                 if channel == "shadow" and self._held_message:
                     text, self._held_message = self._held_message, ""
                 if channel == "relight" and self._exposure_hint:
                     text += f" · {self._exposure_hint}"
+                if channel == "shadow_edits":  # the kept images were shown at once
+                    text = "Ready"
+                tool = self.relight_panel.shadow_tool()
+                if channel in ("relight", "shadow_edits") and self._edit_note:
+                    text = f"Ready · {self._edit_note}"  # what the correction did (nothing)
+                elif channel in ("relight", "shadow_edits") and tool:
+                    text = SHADOW_TOOL_HINTS[tool]  # what the tool that is on does
             self.stage_label.setText(text)
 
     @Slot(int, str, object)

@@ -9,10 +9,12 @@ from PySide6.QtWidgets import (
     QComboBox,
     QDoubleSpinBox,
     QFormLayout,
+    QGroupBox,
     QHBoxLayout,
     QLabel,
     QPushButton,
     QSlider,
+    QToolButton,
     QVBoxLayout,
     QWidget,
 )
@@ -28,6 +30,18 @@ VIEW_CHOICES = (
     ("original_shadow", "Original shadow"),
     ("new_shadow", "New shadow"),
     ("all", "All buffers"),
+)
+
+#: Step 2's shadow-correction tools: key, button text, tooltip, status-bar hint while on.
+SHADOW_TOOLS = (
+    ("not_shadow", "Not a shadow",
+     "Click an area marked as shadow that is not one (a dark object, foliage, a black car): "
+     "it is no longer lifted. Undo (Ctrl+Z) takes the click back; Esc ends the tool.",
+     "Click a marked area that is not a shadow (a dark object, foliage)"),
+    ("shadow", "Mark shadow",
+     "Click inside a shadow the app missed: the area of even brightness around the point is "
+     "added and lifted. Undo (Ctrl+Z) takes the click back; Esc ends the tool.",
+     "Click inside a shadow the app missed"),
 )
 
 
@@ -208,6 +222,9 @@ class RelightPanel(QWidget):
     timelapse_clicked = Signal()
     realign_clicked = Signal()
     exposure_changed = Signal(str)  # "photo" or "metered"
+    #: The shadow-correction tool turned on (a key of :data:`SHADOW_TOOLS`) or off (``""``).
+    shadow_tool_changed = Signal(str)
+    clear_shadow_edits_clicked = Signal()
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -242,6 +259,36 @@ class RelightPanel(QWidget):
         self.export_button.clicked.connect(self.export_still_clicked)
         self.timelapse_button.clicked.connect(self.timelapse_clicked)
         self.realign_button.clicked.connect(self.realign_clicked)
+        # Correcting the found shadows (the "Shadows found" / "Shadows removed" views only):
+        # two checkable tools, at most one on (both may be off), and a reset.
+        self.shadow_tools = QGroupBox("Correct the found shadows", self)
+        self.shadow_tool_buttons: dict[str, QToolButton] = {}
+        tools_row = QHBoxLayout()
+        for key, text, tip, _hint in SHADOW_TOOLS:
+            button = QToolButton(self.shadow_tools)
+            button.setText(text)
+            button.setCheckable(True)
+            button.setToolTip(tip)
+            button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+            button.toggled.connect(lambda on, k=key: self._on_tool_toggled(k, on))
+            self.shadow_tool_buttons[key] = button
+            tools_row.addWidget(button)
+        tools_row.addStretch(1)
+        self.clear_shadow_edits_button = QPushButton("Clear corrections", self.shadow_tools)
+        self.clear_shadow_edits_button.setToolTip(
+            "Take back every correction of the found shadows (undoable)")
+        self.clear_shadow_edits_button.setEnabled(False)
+        self.clear_shadow_edits_button.clicked.connect(self.clear_shadow_edits_clicked)
+        self.shadow_edits_label = QLabel(self.shadow_tools)
+        self.shadow_edits_label.setStyleSheet("color: palette(mid); font-size: 9pt;")
+        clear_row = QHBoxLayout()
+        clear_row.addWidget(self.shadow_edits_label, 1)
+        clear_row.addWidget(self.clear_shadow_edits_button)
+        tools_layout = QVBoxLayout(self.shadow_tools)
+        tools_layout.addLayout(tools_row)
+        tools_layout.addLayout(clear_row)
+        self.set_shadow_edit_count(0)
+        self.shadow_tools.hide()
 
         form = QFormLayout()
         form.addRow("View", self.view_combo)
@@ -255,6 +302,7 @@ class RelightPanel(QWidget):
         layout.addWidget(body)
         layout.addWidget(self.sun_panel)
         layout.addLayout(form)
+        layout.addWidget(self.shadow_tools)
         layout.addWidget(self.realign_button, 0, Qt.AlignmentFlag.AlignLeft)
         layout.addStretch(1)
         self.footer = QWidget(self)  # below the scrolling panel, always in view
@@ -278,3 +326,41 @@ class RelightPanel(QWidget):
         idx = self.view_combo.findData(key)
         if idx >= 0:
             self.view_combo.setCurrentIndex(idx)
+
+    # ---- correcting the found shadows
+    def shadow_tool(self) -> str:
+        """The shadow-correction tool that is on (a key of :data:`SHADOW_TOOLS`), or ``""``."""
+        return next((k for k, b in self.shadow_tool_buttons.items() if b.isChecked()), "")
+
+    def set_shadow_tool(self, key: str) -> None:
+        """Turn the tool ``key`` on (the other off), or both off with ``""``; emits
+        :attr:`shadow_tool_changed` when that changes what is on."""
+        for k, button in self.shadow_tool_buttons.items():
+            if k != key:
+                button.setChecked(False)
+        if key in self.shadow_tool_buttons:
+            self.shadow_tool_buttons[key].setChecked(True)
+
+    def _on_tool_toggled(self, key: str, on: bool) -> None:
+        if on:  # exclusive, but both may be off (a QButtonGroup keeps one on)
+            for k, button in self.shadow_tool_buttons.items():
+                if k != key and button.isChecked():
+                    button.blockSignals(True)
+                    button.setChecked(False)
+                    button.blockSignals(False)
+        self.shadow_tool_changed.emit(self.shadow_tool())
+
+    def show_shadow_tools(self, shown: bool) -> None:
+        """Show the correction tools (the views of the photo's own shadows) or hide them, with
+        the tool turned off."""
+        if not shown:
+            self.set_shadow_tool("")
+        self.shadow_tools.setVisible(shown)
+        self.shadow_tools.setEnabled(shown)
+
+    def set_shadow_edit_count(self, count: int) -> None:
+        """How many corrections there are: "Clear corrections" is enabled with any."""
+        self.clear_shadow_edits_button.setEnabled(count > 0)
+        self.shadow_edits_label.setText(
+            "No corrections" if count == 0
+            else f"{count} correction{'s' if count != 1 else ''}")

@@ -2,7 +2,9 @@
 
 Project files are JSON next to the photo (``photo.jpg`` -> ``photo.outcast.json``). They hold the
 image path (relative to the project file when possible), the depth source, the original and
-target suns, the preset, view settings and the time-lapse settings.
+target suns, the preset, view settings, the time-lapse settings and the user's corrections of the
+photo's found shadows (``shadow_edits``, the runtime's format:
+:func:`~outcast_core.runtime.pipeline.photo_shadows.shadow_edits_to_json`).
 """
 
 from __future__ import annotations
@@ -14,7 +16,10 @@ import os
 from dataclasses import asdict, dataclass, field
 from enum import Enum
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
 
 PROJECT_SUFFIX = ".outcast.json"
 PROJECT_VERSION = 1
@@ -185,6 +190,9 @@ class ProjectState:
     heading: float | None = None
     #: How relit photos are exposed (:data:`EXPOSURE_NAMES`: the photo's, or metered again).
     exposure: str = "photo"
+    #: The user's corrections of the photo's found shadows, in order (step 2's "Not a shadow"
+    #: / "Mark shadow" clicks); ``()`` (and a project saved before them): none.
+    shadow_edits: tuple[ShadowEdit, ...] = ()
 
     @property
     def step(self) -> Step:
@@ -217,6 +225,7 @@ class ProjectState:
             "timelapse": self.timelapse.to_dict(),
             "heading": self.heading,
             "exposure": self.exposure,
+            "shadow_edits": _shadow_edits_json(self.shadow_edits),
         }
 
     @classmethod
@@ -256,7 +265,28 @@ class ProjectState:
             timelapse=TimelapseSettings.from_dict(d.get("timelapse", {})),
             heading=_heading(d.get("heading")),
             exposure=exposure,
+            shadow_edits=_shadow_edits(d.get("shadow_edits")),
         )
+
+
+def _shadow_edits_json(edits: tuple[ShadowEdit, ...]) -> list[dict[str, Any]]:
+    from outcast_core.runtime.pipeline.photo_shadows import shadow_edits_to_json
+
+    return shadow_edits_to_json(edits)
+
+
+def _shadow_edits(v: Any) -> tuple[ShadowEdit, ...]:
+    """A project's shadow corrections (None or missing: none); ``ValueError`` naming the
+    field for anything else than the runtime's list of ``{x, y, shadow}``."""
+    from outcast_core.runtime.pipeline.photo_shadows import shadow_edits_from_json
+
+    try:
+        return shadow_edits_from_json(v)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"shadow_edits: {exc}") from None
+    except OverflowError:  # an integer too large for a float
+        raise ValueError("shadow_edits: expected points x, y in 0-1, got a number too large "
+                         "for a float") from None
 
 
 def _flag(v: Any, name: str) -> bool:

@@ -495,7 +495,7 @@ class TimelapseDialog(QDialog):
         self._settings_changed()
 
     def refresh_preview(self) -> None:
-        """Draw the shown frame again (the exposure has changed)."""
+        """Draw the shown frame again (the exposure or the shadow corrections have changed)."""
         self._on_scrub(self.scrubber.value())
 
     def _on_daylight_toggled(self, checked: bool) -> None:
@@ -575,8 +575,10 @@ class TimelapseDialog(QDialog):
         w = tl.sun_vectors([s])[0]
 
         exposure = self.main.relight_panel.exposure()  # as the user sees it now
+        edits = self.main.shadow_edits  # the photo's shadows as corrected now
 
         def job(ctx: JobContext) -> dict[str, Any]:
+            session.set_shadow_edits(edits)
             return {"index": index, "image": display.to_uint8_rgb(
                 session.relight(w, preview=True, exposure=exposure))}
 
@@ -637,8 +639,10 @@ class TimelapseDialog(QDialog):
             return None
 
         exposure = self.main.relight_panel.exposure()  # as asked, whatever is ticked later
+        edits = self.main.shadow_edits  # likewise the shadow corrections
 
         def job(ctx: JobContext) -> dict[str, Any]:
+            session.set_shadow_edits(edits)
             out = tl.render_timelapse(
                 session, samples, path, fps=fps, size=size, fmt=fmt, force=force,
                 progress=ctx.progress, cancel=ctx.cancel_event, exposure=exposure,

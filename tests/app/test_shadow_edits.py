@@ -1,0 +1,429 @@
+"""Correcting the found shadows in step 2: "Not a shadow" / "Mark shadow" clicks on the photo,
+undoable, saved in the project, applied by every job that depends on the found shadows."""
+
+from __future__ import annotations
+
+import json
+import threading
+
+import cv2
+import numpy as np
+import pytest
+from PIL import Image
+from PySide6.QtCore import QEvent, QPoint, QPointF, Qt
+from PySide6.QtGui import QImage, QMouseEvent
+from PySide6.QtWidgets import QApplication
+
+from app.state import ProjectState, Step, load_project
+from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
+from tests.app.conftest import make_photo
+from tests.app.test_main_window import _confirm, _load, _timelapse
+
+# make_photo's dark band (found as a shadow) at 128 x 96, and where to click it.
+BAND = (slice(66, 72), slice(34, 62))
+BAND_XY = (0.375, 0.7)
+# The lighter patch of _photo_with_missed_shadow (not found: the band's darkness sets the
+# threshold), and where to click it.
+PATCH = (slice(54, 59), slice(82, 113))
+PATCH_XY = (0.75, 0.585)
+LIT = (slice(80, 90), slice(70, 120))  # lit ground below both
+
+
+def _photo_with_missed_shadow(path) -> str:
+    """make_photo with a second, lighter shadow (x 0.75) right of the band that is not found."""
+    make_photo(path)
+    a = np.asarray(Image.open(path)).astype(np.float32)
+    a[53:60, 79:115] *= 0.75
+    Image.fromarray(np.clip(a, 0, 255).astype(np.uint8)).save(path, quality=92)
+    return str(path)
+
+
+@pytest.fixture
+def patch_photo(tmp_path):
+    return _photo_with_missed_shadow(tmp_path / "patch.jpg")
+
+
+def _rgb(img: QImage) -> np.ndarray:
+    img = img.convertToFormat(QImage.Format.Format_RGB888)
+    a = np.frombuffer(img.constBits(), np.uint8).reshape(img.height(), img.bytesPerLine())
+    return a[:, : 3 * img.width()].reshape(img.height(), img.width(), 3).copy()
+
+
+def _alpha(img: QImage) -> np.ndarray:
+    img = img.convertToFormat(QImage.Format.Format_RGBA8888)
+    a = np.frombuffer(img.constBits(), np.uint8).reshape(img.height(), img.bytesPerLine())
+    return a[:, : 4 * img.width()].reshape(img.height(), img.width(), 4)[..., 3].copy()
+
+
+def _widget_point(canvas, x: float, y: float) -> QPoint:
+    """Where the image point at fractions ``(x, y)`` lies on the canvas."""
+    r = canvas.image_rect()
+    return QPoint(round(r.left() + x * r.width()), round(r.top() + y * r.height()))
+
+
+def _click(qtbot, window, x: float, y: float) -> None:
+    qtbot.mouseClick(window.canvas, Qt.MouseButton.LeftButton,
+                     pos=_widget_point(window.canvas, x, y))
+
+
+def _mouse(canvas, kind: QEvent.Type, pos: QPoint, buttons: Qt.MouseButton) -> None:
+    button = Qt.MouseButton.NoButton if kind == QEvent.Type.MouseMove else (
+        Qt.MouseButton.LeftButton)
+    event = QMouseEvent(kind, QPointF(pos), canvas.mapToGlobal(QPointF(pos)), button, buttons,
+                        Qt.KeyboardModifier.NoModifier)
+    QApplication.sendEvent(canvas, event)
+
+
+def _shadows_view(window, photo, settle, view: str = "shadows_found") -> None:
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    window.relight_panel.set_view(view)
+    settle()
+
+
+def _tool(window, key: str) -> None:
+    window.relight_panel.shadow_tool_buttons[key].click()
+    assert window.relight_panel.shadow_tool() == key
+
+
+def _undo_texts(window) -> list[str]:
+    return [window.undo_stack.text(i) for i in range(window.undo_stack.count())]
+
+
+def test_edit_menu_names_the_corrections():
+    from app.history import EditState, describe_change
+
+    a = EditState("relight", (10.0, 30.0), (10.0, 30.0), (90.0, 30.0), "fast")
+    not_shadow = ShadowEdit(0.5, 0.5, shadow=False)
+    b = EditState("relight", (10.0, 30.0), (10.0, 30.0), (90.0, 30.0), "fast",
+                  shadow_edits=(not_shadow,))
+    c = EditState("relight", (10.0, 30.0), (10.0, 30.0), (90.0, 30.0), "fast",
+                  shadow_edits=(not_shadow, ShadowEdit(0.2, 0.8, shadow=True)))
+    assert describe_change(a, b) == "Not a shadow"
+    assert describe_change(b, c) == "Mark shadow"
+    assert describe_change(c, a) == "Clear shadow corrections"
+
+
+def test_not_a_shadow_drops_the_found_region(qtbot, window, photo, settle, errors):
+    _shadows_view(window, photo, settle)
+    rp = window.relight_panel
+    assert rp.shadow_tools.isVisible() and not rp.clear_shadow_edits_button.isEnabled()
+    assert window.session.shadow_probability[BAND].mean() > 0.8
+    overlay = _alpha(window.canvas.overlay())
+    assert overlay[BAND].mean() > 128  # the band is tinted as found
+    _tool(window, "not_shadow")
+    assert window.stage_label.text().startswith(
+        "Click a marked area that is not a shadow (a dark object, foliage)")
+    canvas = window.canvas  # a crosshair over the photo, the usual cursor beside it
+    _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, *BAND_XY), Qt.MouseButton.NoButton)
+    assert canvas.cursor().shape() == Qt.CursorShape.CrossCursor
+    _mouse(canvas, QEvent.Type.MouseMove, QPoint(2, 2), Qt.MouseButton.NoButton)
+    assert canvas.cursor().shape() == Qt.CursorShape.ArrowCursor
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    assert errors == []
+    (edit,) = window.shadow_edits
+    assert not edit.shadow and edit.x == pytest.approx(BAND_XY[0], abs=0.01)
+    assert edit.y == pytest.approx(BAND_XY[1], abs=0.01)
+    assert window.session.shadow_edits == window.shadow_edits
+    assert window.session.shadow_probability[BAND].mean() < 0.1
+    assert _alpha(window.canvas.overlay())[BAND].mean() < 30  # the shown overlay follows
+    assert _undo_texts(window)[-1] == "Not a shadow"
+    assert window.has_unsaved_changes() and window.isWindowModified()
+    assert rp.clear_shadow_edits_button.isEnabled() and rp.shadow_tool() == "not_shadow"
+
+
+def test_mark_shadow_adds_a_missed_shadow_and_lifts_it(qtbot, window, patch_photo, settle):
+    _shadows_view(window, patch_photo, settle, "shadows_removed")
+    assert window.session.shadow_probability[PATCH].mean() < 0.1  # missed
+    before = _rgb(window.canvas.after()).astype(np.float32)
+    _tool(window, "shadow")
+    assert window.stage_label.text().startswith("Click inside a shadow the app missed")
+    _click(qtbot, window, *PATCH_XY)
+    settle()
+    assert window.shadow_edits[-1].shadow and _undo_texts(window)[-1] == "Mark shadow"
+    p = window.session.shadow_probability
+    assert p[PATCH].mean() > 0.9 and p[LIT].mean() < 0.1  # the patch, not the ground round it
+    after = _rgb(window.canvas.after()).astype(np.float32)  # redrawn without asking
+    assert after[PATCH].mean() > before[PATCH].mean() + 15
+    assert abs(after[LIT].mean() - before[LIT].mean()) < 4
+
+
+def test_a_correction_that_changes_nothing_is_said(qtbot, window, photo, settle):
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, 0.85, 0.9)  # lit ground, far from any found shadow
+    settle()
+    assert len(window.shadow_edits) == 1
+    assert "no found shadow there" in window.stage_label.text()
+
+
+def test_undo_and_redo_restore_the_edits_and_the_image(qtbot, window, photo, settle):
+    _shadows_view(window, photo, settle)
+    first = window.canvas.overlay()
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    edits = window.shadow_edits
+    dropped = _alpha(window.canvas.overlay())
+    assert dropped[BAND].mean() < 30
+    window.act_undo.trigger()
+    settle()
+    assert window.shadow_edits == () and window.session.shadow_edits == ()
+    assert window.session.shadow_probability[BAND].mean() > 0.8
+    assert window.canvas.overlay() is first  # the kept image, shown at once
+    assert window.undo_stack.redoText() == "Not a shadow"
+    assert not window.relight_panel.clear_shadow_edits_button.isEnabled()
+    window.act_redo.trigger()
+    settle()
+    assert window.shadow_edits == edits and window.session.shadow_edits == edits
+    assert np.array_equal(_alpha(window.canvas.overlay()), dropped)
+    assert window.relight_panel.clear_shadow_edits_button.isEnabled()
+
+
+def test_clear_corrections_is_one_undo_step(qtbot, window, photo, settle):
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    _tool(window, "shadow")
+    _click(qtbot, window, *PATCH_XY)
+    settle()
+    assert len(window.shadow_edits) == 2 and window.relight_panel.shadow_tool() == "shadow"
+    window.relight_panel.clear_shadow_edits_button.click()
+    settle()
+    assert window.shadow_edits == () and window.session.shadow_edits == ()
+    assert _undo_texts(window)[-3:] == ["Not a shadow", "Mark shadow", "Clear shadow corrections"]
+    assert not window.relight_panel.clear_shadow_edits_button.isEnabled()
+    window.act_undo.trigger()
+    settle()
+    assert len(window.session.shadow_edits) == 2
+
+
+def test_edits_are_saved_and_restored_with_the_project(qtbot, window, photo, settle, reopen):
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    edits = window.shadow_edits
+    saved = window.save_project()
+    assert not window.has_unsaved_changes()
+    with open(saved, encoding="utf-8") as f:
+        data = json.load(f)
+    assert data["shadow_edits"] == [{"x": round(edits[0].x, 5), "y": round(edits[0].y, 5),
+                                     "shadow": False}]
+    assert load_project(saved).shadow_edits == tuple(
+        ShadowEdit(round(e.x, 5), round(e.y, 5), e.shadow) for e in edits)
+    with reopen(saved, Step.RELIGHT) as other:
+        assert len(other.shadow_edits) == 1 and not other.shadow_edits[0].shadow
+        assert other.session.shadow_edits == other.shadow_edits
+        assert other.session.shadow_probability[BAND].mean() < 0.1
+        assert other.relight_panel.view() == "shadows_found"
+        assert not other.has_unsaved_changes()  # reopened as saved
+        assert other.relight_panel.clear_shadow_edits_button.isEnabled()
+        other.act_undo.trigger()  # the history starts at the reopened state
+        assert other.shadow_edits == other.session.shadow_edits
+
+
+def test_an_older_project_has_no_edits_and_a_bad_value_is_refused(window, photo, errors,
+                                                                   tmp_path):
+    base = ProjectState(image_path=photo).to_dict()
+    del base["shadow_edits"]  # saved before corrections existed
+    assert ProjectState.from_dict(base).shadow_edits == ()
+    assert ProjectState.from_dict({**base, "shadow_edits": None}).shadow_edits == ()
+    bad_values = (5, [{"x": 0.5, "y": 0.5}], [{"x": 1.5, "y": 0.5, "shadow": True}],
+                  [{"x": 10**400, "y": 0.5, "shadow": True}], ["a"],
+                  [{"x": 0.5, "y": 0.5, "shadow": 1}], [{"x": 0.1, "y": 0.1, "shadow": True}] * 501)
+    for bad in bad_values:
+        with pytest.raises(ValueError, match="^shadow_edits: ") as info:
+            ProjectState.from_dict({**base, "shadow_edits": bad})
+        assert type(info.value) is ValueError and "\n" not in str(info.value)
+    project = tmp_path / "scene.outcast.json"
+    project.write_text(json.dumps({**base, "shadow_edits": [{"x": 2, "y": 0, "shadow": True}]}))
+    window.open_path(str(project))
+    assert len(errors) == 1 and "shadow_edits" in errors[0][1]
+    assert window.step is Step.EMPTY
+
+
+def test_another_photo_clears_the_edits_realigning_keeps_them(qtbot, window, photo, settle,
+                                                             tmp_path):
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    edits = window.shadow_edits
+    window.back_to_align()  # re-aligning the sun and a new preset keep them
+    settle()
+    assert window.shadow_edits == edits
+    _confirm(window, settle)
+    window.set_preset("balanced")
+    settle()
+    assert window.shadow_edits == edits and window.session.shadow_edits == edits
+    assert window.session.shadow_probability[BAND].mean() < 0.1
+    other = make_photo(tmp_path / "other.jpg")
+    _load(window, other, settle)
+    assert window.shadow_edits == () and window.session.shadow_edits == ()
+    assert not window.relight_panel.clear_shadow_edits_button.isEnabled()
+    _confirm(window, settle)
+    assert window.session.shadow_probability[BAND].mean() > 0.8
+
+
+def test_tools_are_unavailable_in_step_1_and_in_other_views(qtbot, window, photo, settle):
+    rp = window.relight_panel
+    _load(window, photo, settle)
+    assert not window.shadow_tools_available() and not rp.shadow_tools.isVisible()
+    assert not window.add_shadow_edit(*BAND_XY, shadow=False)
+    _confirm(window, settle)
+    assert rp.view() == "output" and rp.shadow_tools.isHidden()
+    rp.set_view("shadows_removed")
+    settle()
+    assert rp.shadow_tools.isVisible()
+    _tool(window, "not_shadow")
+    assert window.canvas.click_tool() and window.act_end_shadow_tool.isEnabled()
+    rp.set_view("output")  # the tool ends with the view
+    settle()
+    assert rp.shadow_tool() == "" and rp.shadow_tools.isHidden()
+    assert not window.canvas.click_tool() and not window.act_end_shadow_tool.isEnabled()
+    _click(qtbot, window, *BAND_XY)
+    assert not window.add_shadow_edit(*BAND_XY, shadow=False)
+    rp.set_view("shadows_found")
+    settle()
+    _tool(window, "shadow")
+    window.back_to_align()  # step 1: off too
+    settle()
+    assert rp.shadow_tool() == "" and not window.canvas.click_tool()
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    assert window.shadow_edits == () and "Not a shadow" not in _undo_texts(window)
+
+
+def test_tools_are_exclusive_and_esc_ends_them(qtbot, window, photo, settle):
+    _shadows_view(window, photo, settle)
+    rp = window.relight_panel
+    _tool(window, "not_shadow")
+    _tool(window, "shadow")
+    assert not rp.shadow_tool_buttons["not_shadow"].isChecked()
+    rp.shadow_tool_buttons["shadow"].click()  # both may be off
+    assert rp.shadow_tool() == "" and not window.canvas.click_tool()
+    _tool(window, "not_shadow")
+    assert all(b.toolTip() for b in rp.shadow_tool_buttons.values())
+    window.activateWindow()
+    window.canvas.setFocus()
+    qtbot.keyClick(window.canvas, Qt.Key.Key_Escape)
+    assert rp.shadow_tool() == "" and not window.canvas.click_tool()
+
+
+def test_a_drag_with_a_tool_on_pans_and_adds_nothing(qtbot, window, photo, settle):
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    canvas = window.canvas
+    start = _widget_point(canvas, *BAND_XY)
+    left = canvas.image_rect().left()
+    _mouse(canvas, QEvent.Type.MouseButtonPress, start, Qt.MouseButton.LeftButton)
+    for dx in (10, 25, 40):
+        _mouse(canvas, QEvent.Type.MouseMove, start + QPoint(dx, 5), Qt.MouseButton.LeftButton)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, start + QPoint(40, 5), Qt.MouseButton.NoButton)
+    settle()
+    assert canvas.image_rect().left() == pytest.approx(left + 40)  # it panned
+    assert window.shadow_edits == () and window.undo_stack.count() == 1  # (the confirm)
+    _click(qtbot, window, 1.02, 0.5)  # outside the image (right of it): nothing either
+    assert window.shadow_edits == ()
+    _click(qtbot, window, *BAND_XY)  # a click still works after the drag
+    settle()
+    assert len(window.shadow_edits) == 1
+
+
+def test_the_split_line_still_drags_with_a_tool_on(qtbot, window, photo, settle):
+    _shadows_view(window, photo, settle, "shadows_removed")
+    _tool(window, "shadow")
+    canvas = window.canvas
+    r = canvas.image_rect()
+    x = QPoint(round(r.left() + 0.5 * r.width()), round(r.top() + 0.8 * r.height()))
+    _mouse(canvas, QEvent.Type.MouseButtonPress, x, Qt.MouseButton.LeftButton)
+    _mouse(canvas, QEvent.Type.MouseMove, x + QPoint(round(0.2 * r.width()), 0),
+           Qt.MouseButton.LeftButton)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, x + QPoint(round(0.2 * r.width()), 0),
+           Qt.MouseButton.NoButton)
+    assert canvas.split() == pytest.approx(0.7, abs=0.02) and window.shadow_edits == ()
+
+
+def test_the_relit_view_and_its_undo_use_the_edits(qtbot, window, photo, settle):
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    window.relight_panel.set_view("output")
+    window.relight_panel.sun_panel.set_sun(300.0, 70.0)  # another sun: the band's shade goes
+    window.request_relight(preview=False)
+    settle()
+    edited = _rgb(window.canvas.after()).astype(np.float32)
+    window.act_undo.trigger()  # undone in the relit view: it is drawn again
+    settle()
+    assert window.session.shadow_edits == ()
+    undone = _rgb(window.canvas.after()).astype(np.float32)
+    # Drawn again with the found shadows (and the light estimated from them) as they are now.
+    assert np.abs(undone[BAND] - edited[BAND]).mean() > 1.5
+
+
+def test_exports_use_the_edits_asked_with_them(qtbot, window, settle, errors, tmp_path):
+    photo = make_photo(tmp_path / "big.jpg", 400, 300)
+    _shadows_view(window, photo, settle)
+    src = window.loaded.image_srgb.astype(np.float32)
+    band = (slice(200, 220), slice(110, 190))  # the dark band at 400 x 300
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    # Hold the worker, ask for the export, then correct again before it runs: the export
+    # keeps the corrections it was asked with.
+    gate = threading.Event()
+    window.runner.submit("hold", lambda ctx: gate.wait(10), "Holding")
+    path = str(tmp_path / "out.png")
+    window.export_shadows_removed(path)
+    window.act_undo.trigger()  # the band is a shadow again, for later jobs
+    gate.set()
+    settle()
+    assert errors == [] and window.last_export == path
+    rgb = cv2.imread(path)[..., ::-1].astype(np.float32)
+    assert abs(rgb[band].mean() - src[band].mean()) < 6  # not lifted: "not a shadow"
+    window.export_shadows_removed(str(tmp_path / "lifted.png"))
+    settle()
+    lifted = cv2.imread(str(tmp_path / "lifted.png"))[..., ::-1].astype(np.float32)
+    assert lifted[band].mean() > src[band].mean() + 20
+
+
+def test_still_and_timelapse_jobs_set_the_edits(qtbot, window, photo, settle, monkeypatch,
+                                                tmp_path):
+    from outcast_core.runtime.pipeline import timelapse as tl
+
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    edits = window.shadow_edits
+    session = window.session
+    seen: dict[str, tuple] = {}
+    real_full = session.relight_full
+
+    def relight_full(*args, **kwargs):
+        seen["still"] = session.shadow_edits
+        return real_full(*args, **kwargs)
+
+    def render(session_, samples, path, **kwargs):
+        seen["timelapse"] = session_.shadow_edits
+        raise RuntimeError("not rendered in this test")
+
+    monkeypatch.setattr(session, "relight_full", relight_full)
+    monkeypatch.setattr(tl, "render_timelapse", render)
+    session.set_shadow_edits(())  # as if another job had left other corrections
+    window.export_still(str(tmp_path / "still.png"))
+    settle()
+    assert seen["still"] == edits
+    dialog = _timelapse(window, 3)
+    settle()
+    session.set_shadow_edits(())
+    dialog.scrubber.setValue(2)  # the preview job
+    settle()
+    assert session.shadow_edits == edits
+    session.set_shadow_edits(())
+    dialog.export(str(tmp_path / "clip.mp4"))
+    settle()
+    assert seen["timelapse"] == edits
