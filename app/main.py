@@ -40,9 +40,15 @@ def quit_on_sigterm(app: Any, window: Any) -> Any:
 
     from PySide6.QtCore import QTimer
 
-    def handler(signum: int, frame: object) -> None:
+    def quit_now() -> None:
         window.close_without_asking()
         app.exit(143)
+
+    def handler(signum: int, frame: object) -> None:
+        # Python runs the handler between any two bytecodes of the GUI thread, in the middle of
+        # a slot too (a photo that has just loaded, asking the worker for its overlay): the
+        # window closes once that slot has returned, from the event loop.
+        QTimer.singleShot(0, quit_now)
 
     signal.signal(signal.SIGTERM, handler)
     timer = QTimer(window)

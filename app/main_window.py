@@ -2256,6 +2256,10 @@ class MainWindow(QMainWindow):
             event.ignore()
             return
         self.runner.shutdown()
+        # A job that ended while shutting down (a photo that finished loading as SIGTERM came)
+        # has its result queued for this thread: dropped, not handled (it would ask the
+        # stopped worker for more and raise).
+        self.runner.blockSignals(True)
         if self._timelapse_dialog is not None:
             self._timelapse_dialog.close()
         super().closeEvent(event)
