@@ -17,6 +17,11 @@ from outcast_core.runtime.io.models import ModelError
 DEPTH_KINDS = "a .npy array (float32, H × W), a 16-bit grayscale PNG or an OpenEXR (.exr) file"
 
 
+class DepthMapError(ValueError):
+    """The depth map a project names could not be read or does not fit its photo (told as a
+    depth-map problem, not as a photo that cannot be opened)."""
+
+
 class OwnFileError(ValueError):
     """An export named the open photo, its depth map or a project file of it, which an export
     never replaces (:meth:`~app.main_window.MainWindow.refuse_own_file`)."""
@@ -119,6 +124,14 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
         reason = exc.reason if isinstance(exc, ImageReadError) else None
         todo = _OPEN_ADVICE.get(reason, _CHOOSE_A_PHOTO) + " Your current work is unchanged."
         return UserMessage("Could not open the photo", detail, todo)
+    if action == "depth" and isinstance(exc, DepthMapError):
+        return UserMessage(
+            "Could not open the project's depth map",
+            detail,
+            "Put the depth map back where the project expects it, or open the photo on its own "
+            f"(File \u25b8 Open) and load another depth map: {DEPTH_KINDS}, the size of the "
+            "photo or with its aspect ratio. Your current work is unchanged.",
+        )
     if action == "depth":
         return UserMessage(
             "Could not load the depth map",

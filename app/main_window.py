@@ -71,7 +71,7 @@ from PySide6.QtWidgets import (
 from app import display
 from app import sun_dial_math as dm
 from app.canvas import ImageCanvas, qimage_from_array
-from app.errors import OwnFileError, depth_file_problem, message_for
+from app.errors import DepthMapError, OwnFileError, depth_file_problem, message_for
 from app.history import EditCommand, EditState, shadow_edit_text
 from app.leave_prompts import (
     REPLACE,
@@ -102,6 +102,7 @@ from app.workers import JobContext, TaskRunner
 from outcast_core.runtime.geometry.camera import cosine_term, sun_angles, sun_vector
 from outcast_core.runtime.io.imageio import same_file
 from outcast_core.runtime.io.models import ModelError
+from outcast_core.runtime.pipeline.auto_sun import SOURCE_EXIF, SOURCE_SUN_IN_FRAME
 from outcast_core.runtime.pipeline.photo_shadows import MAX_SHADOW_EDITS, ShadowEdit
 from outcast_core.runtime.pipeline.session import elongation_note
 
@@ -793,13 +794,19 @@ class MainWindow(QMainWindow):
             from outcast_core.runtime.io.depth_models import pick_depth_source
             from outcast_core.runtime.io.imageio import read_depth, read_image
             from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
-            from outcast_core.runtime.pipeline.session import RelightSession
+            from outcast_core.runtime.pipeline.session import RelightSession, check_given_depth
 
             ctx.progress("reading", 0.02)
             # 8-bit photos stay 8-bit: the session keeps this array (no float copy) and the
             # full-resolution passes read it in bands.
             loaded = read_image(path, keep_uint8=True)
-            depth = read_depth(depth_path) if depth_path else None
+            depth = None
+            if depth_path:  # a project's depth map: its failure is the map's, not the photo's
+                try:
+                    depth = check_given_depth(read_depth(depth_path),
+                                              loaded.image_srgb.shape[:2])
+                except ValueError as exc:
+                    raise DepthMapError(str(exc)) from exc
             session = RelightSession(preset=preset, mode=mode, depth_mode=depth_mode)
             note = ""
             if depth is None:  # a chosen model, else the photo's own depth map, else Z
@@ -1024,10 +1031,11 @@ class MainWindow(QMainWindow):
             missing = " and ".join(n for n, v in (("GPS position", lat), ("capture time", when))
                                    if v is None)
             return f"The photo's EXIF has no {missing}: set the sun by eye or find it."
+        night = tl.sun_below_horizon_at_capture(exif)
+        if night is not None:  # how far below, at what time as read (a zone-less one as UTC)
+            return (f"{night[0].upper()}{night[1:]}: check the camera's clock and time zone, "
+                    "or set the sun by eye or find it.")
         _, el = tl.true_sun_position(when, lat, lon)
-        if el <= 0:
-            return ("The sun was below the horizon at the photo's time and place (check the "
-                    "camera's clock): set the sun by eye or find it.")
         if getattr(exif, "heading_deg", None) is None and self.user_heading is None:
             above = " above the true horizon" if self.tilt_note() else ""
             return (f"No compass heading in the photo's EXIF: Find sun uses the elevation "
@@ -1163,7 +1171,7 @@ class MainWindow(QMainWindow):
             m.azimuths.tolist(), m.elevations.tolist(), m.normalised().tolist())
         if self.step is not Step.ALIGN:
             return
-        if fit.found or fit.source == "EXIF":
+        if fit.found or fit.source == SOURCE_EXIF:
             self.align_panel.sun_panel.set_sun(fit.azimuth, fit.elevation)
             self.request_shadow(fit.azimuth, fit.elevation, preview=False)
             self._record(text="Find sun")
@@ -1171,11 +1179,11 @@ class MainWindow(QMainWindow):
             text = (f"Sun found: azimuth {fit.azimuth:.1f}°, elevation {fit.elevation:.1f}°, "
                     f"confidence {fit.confidence:.2f}")
             tilt = self.tilt_note()
-            if fit.source == "EXIF":
+            if fit.source == SOURCE_EXIF:
                 text = (f"Sun from EXIF: azimuth {fit.azimuth:.1f}°, elevation "
                         f"{fit.elevation:.1f}°{f' for a {tilt}' if tilt else ''} (the photo's "
                         "shadows do not tell it; check it against them)")
-            elif fit.source == "sun in the frame":  # exact: no prior had a say
+            elif fit.source == SOURCE_SUN_IN_FRAME:  # exact: no prior had a say
                 text = (f"Sun found in the frame: azimuth {fit.azimuth:.1f}°, elevation "
                         f"{fit.elevation:.1f}°")
             elif result.get("prior") is not None:
@@ -1186,12 +1194,11 @@ class MainWindow(QMainWindow):
                          f"they alone fit best near {map_az:.0f}°, {map_el:.0f}° (the warm "
                          "area of the dial)")
         else:
-            if "too small or too narrow" in fit.note:
-                why = "This photo is too small or too narrow for its shadows to tell the sun"
-            elif "no clear shadows" in fit.note:
-                why = "No clear shadows in this photo"
-            else:
-                why = "No sun makes the predicted shadows fit the photo's (rough depth?)"
+            why = {
+                "too-small": "This photo is too small or too narrow for its shadows to tell "
+                             "the sun",
+                "no-clear-shadows": "No clear shadows in this photo",
+            }.get(fit.unfound, "No sun makes the predicted shadows fit the photo's (rough depth?)")
             text = (f"{why}: its sun cannot be told from them (confidence "
                     f"{fit.confidence:.2f}). Set it by eye; the dial shows where suns fit best.")
             prior = result.get("prior")
@@ -1212,7 +1219,8 @@ class MainWindow(QMainWindow):
                          "the shadows fit.")
         self.stage_label.setText(text)
         self._held_message = text if self.runner.busy() else ""
-        notice = text if not (fit.found or fit.source == "EXIF") or fit.compass_decided else ""
+        notice = (text if not (fit.found or fit.source == SOURCE_EXIF) or fit.compass_decided
+                  else "")
         prior = result.get("prior")
         if not notice and prior is not None and prior.azimuth is not None:
             off = abs((fit.azimuth - prior.azimuth + 180.0) % 360.0 - 180.0)
@@ -2137,8 +2145,9 @@ class MainWindow(QMainWindow):
         action = "export" if channel in EXPORT_CHANNELS else {"load": "open"}.get(channel, "")
         last = self._last_load
         restore = last[2] if channel == "load" and last is not None else None
-        if restore is not None and restore.depth_path != self.depth_path:
-            action = "depth"  # the same photo with another depth map: the map failed
+        if isinstance(exc, DepthMapError) or (restore is not None
+                                              and restore.depth_path != self.depth_path):
+            action = "depth"  # a project's depth map, or another one for the same photo
         self.show_error(exc, action)
         if isinstance(exc, ModelError) and self.session_mode != "classic":
             if "depth" in str(exc):  # a broken depth model: use the ground-plane prior instead

@@ -3,6 +3,7 @@ when the photo has no clear shadows; the EXIF button explains itself; a typed he
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 
@@ -23,7 +24,8 @@ def _fit(az: float, el: float, *, found: bool = True, source: str = "shadows") -
     scores[2, 10] = 0.9
     note = "sun found" if found else "no clear shadows in the photo: set it by eye"
     return SunFit(az, el, sun_vector(az, el), 0.9, 0.8 if found else 0.1, found, source,
-                  note, AgreementMap(azs, els, scores), [(az, el, 0.9)])
+                  note, AgreementMap(azs, els, scores), [(az, el, 0.9)],
+                  unfound="" if found else "no-clear-shadows")
 
 
 def _load(window, photo, settle) -> None:
@@ -82,6 +84,14 @@ def test_no_clear_shadows_is_said_and_the_sun_stays(window, photo, settle, monke
     assert "No clear shadows" in window.stage_label.text()
     assert window.align_panel.notice.isVisibleTo(window)
     assert panel.dial.has_heat_map()
+    # The message follows the fit's reason, not its note's words.
+    for unfound, words in (("too-small", "too small or too narrow"),
+                           ("no-fit", "No sun makes the predicted shadows fit")):
+        fit = dataclasses.replace(_fit(10.0, 60.0, found=False), unfound=unfound)
+        monkeypatch.setattr(auto_sun, "find_sun", lambda session, fit=fit, **kw: fit)
+        window.find_sun()
+        settle()
+        assert words in window.stage_label.text()
 
 
 def test_no_clear_shadows_with_gps_and_time_still_sets_the_elevation(
@@ -403,3 +413,18 @@ def test_a_reopened_project_still_says_its_heading_came_from_the_sun_in_the_fram
     with reopen(saved) as other:
         assert other.align_panel.exif_note.text() == note
         assert other.user_heading == pytest.approx(window.user_heading)
+
+
+def test_a_night_photo_says_how_far_below_the_horizon_and_when(window, photo, settle):
+    import datetime as dt
+    import types
+
+    from outcast_core.runtime.io.exif import PhotoMetadata
+
+    _load(window, photo, settle)
+    night = dt.datetime(2026, 6, 1, 23, 30, tzinfo=dt.timezone(dt.timedelta(hours=2)))
+    window.loaded = types.SimpleNamespace(
+        exif=PhotoMetadata(latitude=50.1, longitude=14.4, capture_time=night))
+    note = window.exif_note()
+    assert note.startswith("The sun was 15.0° below the horizon at the photo's time and place")
+    assert "(2026-06-01 23:30 +02:00)" in note and "clock and time zone" in note

@@ -31,6 +31,32 @@ def test_open_malformed_project_shows_one_dialog(window, errors, photo, tmp_path
     assert window.step is Step.EMPTY
 
 
+@pytest.mark.parametrize("problem", ["missing", "not a map", "another aspect ratio"])
+def test_a_projects_broken_depth_map_is_said_as_the_maps_problem(window, errors, photo,
+                                                                 settle, tmp_path, problem):
+    """A project whose depth map is gone, unreadable or for another photo: the dialog is about
+    the depth map (what to do with it), not "Could not open the photo" with advice on photo
+    formats; the work that was open stays."""
+    import numpy as np
+
+    depth = tmp_path / "scene_depth.npy"
+    if problem == "not a map":
+        depth.write_text("hello")
+    elif problem == "another aspect ratio":
+        np.save(depth, np.ones((10, 40), np.float32))
+    project = tmp_path / "scene.outcast.json"
+    project.write_text(json.dumps({"outcast_project": 1, "image": photo,
+                                   "depth_path": str(depth)}))
+    window.open_path(str(project))
+    settle()
+    assert len(errors) == 1
+    title, text = errors[0]
+    assert title == "Could not open the project's depth map", (title, text)
+    assert "scene_depth.npy" in text or "aspect ratio" in text
+    assert "Choose a JPEG" not in text
+    assert window.step is Step.EMPTY
+
+
 def test_gui_started_with_a_nested_project_does_not_abort(tmp_path):
     project = tmp_path / "deep.outcast.json"
     project.write_text('{"outcast_project": 1, "timelapse": ' + "[" * 50000 + "]" * 50000 + "}")

@@ -163,6 +163,34 @@ def resize(image: np.ndarray, shape: tuple[int, int], *, nearest: bool = False) 
     return cv2.resize(image, (w, h), interpolation=interp)
 
 
+def check_given_depth(depth: np.ndarray, photo_shape: tuple[int, int]) -> np.ndarray:
+    """A depth map from elsewhere, checked against its photo (``H x W``): two-dimensional,
+    with the photo's aspect ratio (any resolution) and at least one valid pixel.
+
+    Returns:
+        The depth as float32.
+
+    Raises:
+        ValueError: saying which of those it is not.
+    """
+    depth = np.asarray(depth, np.float32)
+    if depth.ndim != 2:
+        raise ValueError(f"expected depth of shape H x W, got shape {depth.shape}")
+    h, w = photo_shape
+    ar_img, ar_d = w / h, depth.shape[1] / depth.shape[0]
+    if abs(ar_img - ar_d) > 0.02 * ar_img + 1.0 / min(depth.shape):
+        raise ValueError(
+            f"expected depth with the photo's aspect ratio (width / height {ar_img:.3f}),"
+            f" got {depth.shape[1]}x{depth.shape[0]} ({ar_d:.3f})"
+        )
+    if not (np.isfinite(depth) & (depth > 0)).any():
+        raise ValueError(
+            "expected depth with at least one valid pixel (finite and > 0), got none "
+            "(the whole frame would be sky)"
+        )
+    return depth
+
+
 def ground_plane_depth(
     camera: Camera, camera_height: float = 1.6
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -410,20 +438,7 @@ class RelightSession:
         else:
             focal = Camera.from_fov(h, w, DEFAULT_FOV_DEG if fov_deg is None else fov_deg).focal
         if depth is not None:
-            depth = np.asarray(depth, np.float32)
-            if depth.ndim != 2:
-                raise ValueError(f"expected depth of shape H x W, got shape {depth.shape}")
-            ar_img, ar_d = w / h, depth.shape[1] / depth.shape[0]
-            if abs(ar_img - ar_d) > 0.02 * ar_img + 1.0 / min(depth.shape):
-                raise ValueError(
-                    f"expected depth with the photo's aspect ratio (width / height {ar_img:.3f}),"
-                    f" got {depth.shape[1]}x{depth.shape[0]} ({ar_d:.3f})"
-                )
-            if not (np.isfinite(depth) & (depth > 0)).any():
-                raise ValueError(
-                    "expected depth with at least one valid pixel (finite and > 0), got none "
-                    "(the whole frame would be sky)"
-                )
+            depth = check_given_depth(depth, (h, w))
         with self._lock:
             self.full_image_srgb = img
             # A black-and-white photo: every image made from it stays black and white (``L``
@@ -1209,6 +1224,7 @@ __all__ = [
     "RelightSession",
     "depth_for_display",
     "elongation_note",
+    "check_given_depth",
     "ground_plane_depth",
     "normals_for_display",
     "working_shape",
