@@ -787,6 +787,9 @@ class MainWindow(QMainWindow):
         mode = self.session_mode
         depth_mode = self.depth_mode
         depth_path = project.depth_path if project is not None else ""
+        # A project opened now (not a depth map the user just chose, nor an undo across one):
+        # its depth map's failure is said as the project's.
+        opening_project = project is not None and restore is None
         depth_model = self.depth_model
         use_phone = self.use_phone_depth
 
@@ -801,12 +804,14 @@ class MainWindow(QMainWindow):
             # full-resolution passes read it in bands.
             loaded = read_image(path, keep_uint8=True)
             depth = None
-            if depth_path:  # a project's depth map: its failure is the map's, not the photo's
+            if depth_path:
                 try:
                     depth = check_given_depth(read_depth(depth_path),
                                               loaded.image_srgb.shape[:2])
                 except ValueError as exc:
-                    raise DepthMapError(str(exc)) from exc
+                    if not opening_project:  # the map the user chose: "depth" (below)
+                        raise
+                    raise DepthMapError(getattr(exc, "message", str(exc))) from exc
             session = RelightSession(preset=preset, mode=mode, depth_mode=depth_mode)
             note = ""
             if depth is None:  # a chosen model, else the photo's own depth map, else Z

@@ -284,9 +284,6 @@ def _shadow_edits(v: Any) -> tuple[ShadowEdit, ...]:
         return shadow_edits_from_json(v)
     except (ValueError, TypeError) as exc:
         raise ValueError(f"shadow_edits: {exc}") from None
-    except OverflowError:  # an integer too large for a float
-        raise ValueError("shadow_edits: expected points x, y in 0-1, got a number too large "
-                         "for a float") from None
 
 
 def _flag(v: Any, name: str) -> bool:

@@ -349,7 +349,13 @@ def _starts_like_a_photo(path: Path) -> bool:
         return False
     return (head.startswith((b"\xff\xd8\xff", b"\x89PNG\r\n\x1a\n", b"II*\x00", b"MM\x00*",
                              b"BM"))
-            or (head[:4] == b"RIFF" and head[8:12] == b"WEBP") or head[4:8] == b"ftyp")
+            or (head[:4] == b"RIFF" and head[8:12] == b"WEBP")
+            or (head[4:8] == b"ftyp" and head[8:12] in _HEIF_BRANDS))
+
+
+#: The ISO-BMFF brands of HEIC/HEIF still images (an MP4 or MOV video has ``ftyp`` too).
+_HEIF_BRANDS = frozenset({b"heic", b"heix", b"heim", b"heis", b"hevc", b"hevx", b"mif1",
+                          b"msf1"})
 
 
 def _error_for(exc: BaseException, path: Path, what: str) -> ImageReadError:

@@ -48,13 +48,14 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     LIT_FLOOR,
     PRIOR_RADIUS,
     ShadowEdit,
-    apply_shadow_edits,
+    apply_edit_masks,
     deshadow,
     lit_surface_colour,
     material_guard,
     near_predicted_shadow,
     original_shadow_from_photo,
     photo_shadow_probability,
+    shadow_edit_masks,
 )
 from outcast_core.runtime.pipeline.relight import (
     EXPOSURES,
@@ -399,6 +400,9 @@ class RelightSession:
         #: What the lift's statistics and guards leave out at working size: the sky, and what
         #: the user marked "not a shadow" (dark materials are no lit surface either).
         self._lift_excluded: np.ndarray | None = None
+        #: :attr:`shadow_edits` as regions at working size (added, dropped), or None: made
+        #: where the user sees the found shadows and brought to :meth:`found_shadows_detail`.
+        self._edit_masks: tuple[np.ndarray, np.ndarray] | None = None
 
     def _time(self, stage: str, t0: float) -> None:
         self.timings[stage] = time.perf_counter() - t0
@@ -658,10 +662,11 @@ class RelightSession:
         everything made from them is dropped."""
         assert self._found is not None and self.original_sun is not None
         s, prob = self._found
-        self._lift_excluded = self.sky
+        self._lift_excluded, self._edit_masks = self.sky, None
         if self.shadow_edits:
-            edited, not_shadow = apply_shadow_edits(prob, self.image_srgb, self.sky,
-                                                    self.shadow_edits)
+            self._edit_masks = shadow_edit_masks(prob, self.image_srgb, self.sky,
+                                                 self.shadow_edits)
+            edited, not_shadow = apply_edit_masks(prob, self.sky, *self._edit_masks)
             changed = np.abs(edited - prob) > 1e-4
             redone = original_shadow_from_photo(
                 edited, cosine_term(self.normals, self.original_sun), self.sky)
@@ -749,8 +754,8 @@ class RelightSession:
                 if gate.shape != shape:
                     gate = np.clip(resize(gate, shape), 0.0, 1.0)
                 prob = photo_shadow_probability(image, sky) * gate
-                if self.shadow_edits:  # found again at this size: so are the user's edits
-                    prob, not_shadow = apply_shadow_edits(prob, image, sky, self.shadow_edits)
+                if self._edit_masks is not None:  # the regions the user marked, this size
+                    prob, not_shadow = apply_edit_masks(prob, sky, *self._edit_masks)
                     excluded = sky | not_shadow
                 s_o = original_shadow_from_photo(prob, cosine, sky)
             self._detail = {"image": image, "sky": sky, "probability": prob.astype(np.float32),

@@ -259,7 +259,8 @@ def exif_sun_problem(exif: Any, heading: float | None = None) -> str | None:
     compass heading", :func:`sun_below_horizon_at_capture`...); None when it gives one."""
     when = getattr(exif, "capture_time", None)
     lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
-    missing = [name for name, value in (("GPS position", lat), ("capture time", when),
+    gps = None if lat is None or lon is None else lat
+    missing = [name for name, value in (("GPS position", gps), ("capture time", when),
                                         ("compass heading", heading if heading is not None
                                          else getattr(exif, "heading_deg", None)))
                if value is None]

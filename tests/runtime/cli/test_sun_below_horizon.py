@@ -142,6 +142,8 @@ def test_the_words_for_a_sun_below_the_horizon_at_the_photos_time(tmp_path):
 
     assert exif_sun_problem(PhotoMetadata()) == (
         "no EXIF GPS position, capture time or compass heading")
+    half = PhotoMetadata(latitude=50.0, capture_time=day.capture_time)  # no longitude
+    assert exif_sun_problem(half) == "no EXIF GPS position or compass heading"
 
 
 def test_batch_says_a_night_photos_sun_was_below_the_horizon_and_what_to_do(tmp_path, capsys):

@@ -411,6 +411,17 @@ def test_a_tiff_cut_before_its_directory_is_damaged_not_not_an_image(tmp_path: P
         read_image(tmp_path / "notes.jpg", max_pixels=0)
 
 
+def test_a_video_is_not_an_image_not_a_damaged_photo(tmp_path: Path) -> None:
+    """MP4 and MOV files start with an ``ftyp`` box as HEIC does: only HEIF brands count as
+    a photo cut short (a dropped video got the interrupted-download advice)."""
+    video = tmp_path / "clip.mp4"
+    video.write_bytes(b"\x00\x00\x00\x18ftypisom\x00\x00\x02\x00isomiso2" + bytes(64))
+    _check_error(video, "not an image", ImageReadReason.NOT_AN_IMAGE)
+    heic = tmp_path / "cut.heic"
+    heic.write_bytes(b"\x00\x00\x00\x18ftypheic\x00\x00\x00\x00mif1heic" + bytes(8))
+    _check_error(heic, "truncated or corrupt", ImageReadReason.DAMAGED)
+
+
 @pytest.mark.parametrize(("name", "bit_depth"), [("t.jpg", 8), ("t.png", 8), ("t16.png", 16),
                                                  ("t.webp", 8), ("t16.tif", 16)])
 def test_truncated_files(tmp_path: Path, name: str, bit_depth: int) -> None:

@@ -176,7 +176,8 @@ def test_edits_round_trip_through_a_project_and_bad_ones_are_refused() -> None:
                        ([{"x": 1.5, "y": 0.2, "shadow": True}], "inside the photo"),
                        ([{"x": float("nan"), "y": 0.2, "shadow": True}], "inside the photo"),
                        ([{"x": 0.1, "y": 0.2, "shadow": True}] * (MAX_SHADOW_EDITS + 1),
-                        "at most")]:
+                        "at most"),
+                       ([{"x": 10**400, "y": 0.2, "shadow": True}], "too large")]:
         with pytest.raises(ValueError, match=words):
             shadow_edits_from_json(bad)
 
