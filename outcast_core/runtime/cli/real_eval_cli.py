@@ -146,8 +146,9 @@ def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
         "times are noisy). Protocol: DESIGN.md, \"Real photographs: how we measure\"; BER = "
         "balanced error rate against the human masks (0 perfect, 0.5 chance), at each photo's "
         "best of 24 suns; shuffled = other photos' best overlays laid on this photo's mask; "
-        "swept = other photos' shadow images at all 24 suns, the best taken for this photo's "
-        "mask (the choice the overlay itself gets); de-shadow in = Lab RMSE inside the mask "
+        "swept = other photos' overlay masks at all 24 suns, the best taken for this photo's "
+        "mask (the choice the overlay itself gets), and (own) this photo's own best scored "
+        "the same way, both on a 128-px grid; de-shadow in = Lab RMSE inside the mask "
         "against the shadow-free twin "
         "over the unchanged input's; out = excess over the input's own RMSE outside the mask; "
         "relit chroma = mean a*b* change where lit under both suns (sun 120 deg away), sky = mean "
@@ -177,7 +178,8 @@ def _summary_line(preset: str, report: dict[str, Any]) -> str:
 
 def render_trade(reports: dict[str, Any]) -> str:
     """One row per preset: the mean figures beside the time per photo."""
-    lines = ["| Preset | Overlay BER | Opposite | S_o BER | Otsu | Shuffled / swept | Sky claim | "
+    lines = ["| Preset | Overlay BER | Opposite | S_o BER | Otsu | Shuffled / swept (own) | "
+             "Sky claim | "
              "De-shadow in / out | Relit chroma / sky / new shade / old shade / detail | "
              "s / photo |",
              "|---|---|---|---|---|---|---|---|---|---|"]
@@ -191,7 +193,7 @@ def render_trade(reports: dict[str, Any]) -> str:
               else f"{f(m, 'deshadow_in', 2)} / {f(m, 'deshadow_out', 2)}")
         lines.append(f"| {preset} | {f(m, 'overlay_ber')} | {f(m, 'opposite_ber')} | "
                      f"{f(m, 'refined_ber')} | {f(m, 'otsu_ber')} | {f(m, 'shuffled_ber')} / "
-                     f"{f(m, 'swept_shuffled_ber')} | "
+                     f"{f(m, 'swept_shuffled_ber')} ({f(m, 'swept_own_ber')}) | "
                      f"{f(m, 'sky_claim')} | {ds} | {f(m, 'relit_chroma', 2)} / "
                      f"{f(m, 'relit_sky', 2)} / {f(m, 'new_shade', 2)} / "
                      f"{f(m, 'old_shade', 2)} / {f(m, 'relit_detail', 2)} | "

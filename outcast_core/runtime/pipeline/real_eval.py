@@ -17,12 +17,15 @@ photo and on average (DESIGN.md, "Real photographs: how we measure"):
 * ``shuffled_ber``: the other photos' best overlays laid on this photo's mask (a control: an
   overlay that knows the photo sits far below it);
 * ``swept_shuffled_ber``: the same control given the same choice as the ideal user: each other
-  photo's shadow images at all :data:`SWEEP_SUNS`, thresholded off *this* photo's sky, the best
-  sun taken against this photo's mask, averaged over the other photos (compared on a grid of
-  :data:`SWEEP_GRID` px, longer side). ``shuffled_ber`` lays one mask per other photo, chosen for
-  that photo; the overlay itself is the best of 24. Picking the best of 24 lowers any
-  prediction's BER, a wrong photo's geometry too, so the gap to this control is how much the
-  geometry knows about the photo beyond that choice (added 2026-12-01, seventh session);
+  photo's overlay masks at all :data:`SWEEP_SUNS`, off *this* photo's sky, the best sun taken
+  against this photo's mask, averaged over the other photos; and ``swept_own_ber``, this
+  photo's own best of the 24 scored the same way. Both are compared on a grid of
+  :data:`SWEEP_GRID` px (longer side; each mask thresholded first, then a grid cell is shadow
+  when over half of it is). ``shuffled_ber`` lays one mask per other photo, chosen for that
+  photo, while the overlay is the best of 24, and picking the best of 24 lowers any
+  prediction's BER, a wrong photo's geometry too: ``swept_shuffled_ber - swept_own_ber`` is how
+  much the geometry knows about the photo beyond that choice (added 2026-12-01, seventh
+  session);
 * ``sky_claim``: the fraction of the mask's shadow pixels the sky mask claims;
 * ``deshadow_in`` / ``deshadow_out`` (photos with a shadow-free twin ``NAME_free.*``): the
   de-shadowed photo's RMSE in CIE Lab against the twin inside the mask, as a ratio to the
@@ -198,6 +201,7 @@ class PhotoResult:
     seconds: float
     shuffled_ber: float = float("nan")
     swept_shuffled_ber: float = float("nan")
+    swept_own_ber: float = float("nan")
     deshadow_in: float | None = None
     deshadow_out: float | None = None
     relit_chroma: float | None = None
@@ -245,8 +249,7 @@ def evaluate_photo(
     for az, el in suns:
         shadow = session.shadow(sun_vector(az, el))
         scores.append(balanced_error_rate(shadow_mask(shadow, sky, shape), truth))
-        swept.append(cv2.resize(np.asarray(shadow, np.float32), grid[::-1],
-                                interpolation=cv2.INTER_AREA).astype(np.float16))
+        swept.append(_on_grid(np.asarray(shadow) < SHADOW_THRESHOLD, grid))
     best = int(np.argmin(scores))
     az, el = suns[best]
     opp = (az + 180.0) % 360.0
@@ -299,7 +302,7 @@ def evaluate_photo(
             deshadowed = session.deshadow()  # working resolution is enough for a thumbnail
         keep.update(image=image, truth=truth, overlay=overlay, refined=refined,
                     deshadowed=deshadowed,
-                    sweep={"shadows": np.stack(swept), "sky": _on_grid(sky, grid),
+                    sweep={"masks": np.stack(swept), "sky": _on_grid(sky, grid),
                            "truth": _on_grid(truth, grid)})
         if hasattr(session, "relight"):  # two relit suns, +-RELIGHT_TURN (cached in the session)
             keep["relit"] = [session.relight(sun_vector((az + turn) % 360.0, el))
@@ -460,39 +463,48 @@ def _on_grid(mask: np.ndarray, grid: tuple[int, int]) -> np.ndarray:
     return m > 0.5
 
 
-def swept_shuffled_control(sweeps: dict[str, dict[str, np.ndarray]]) -> dict[str, float]:
-    """For each photo, the mean over the other photos of the best BER of their shadow images
-    at every sun laid on this photo's mask (``swept_shuffled_ber``, module docstring).
+def _best_of(masks: np.ndarray, sky: np.ndarray, truth: np.ndarray) -> float:
+    """The least BER of ``K x h x w`` predicted masks, off ``sky``, against ``truth``."""
+    pred = masks & ~sky[None]
+    p, n = int(truth.sum()), int((~truth).sum())
+    tpr = (pred & truth).sum(axis=(1, 2)) / p if p else np.ones(len(pred))
+    tnr = (~pred & ~truth).sum(axis=(1, 2)) / n if n else np.ones(len(pred))
+    return float(np.min(1.0 - 0.5 * (tpr + tnr)))
+
+
+def swept_shuffled_control(sweeps: dict[str, dict[str, np.ndarray]]
+                           ) -> dict[str, tuple[float, float]]:
+    """For each photo, the mean over the other photos of the best BER of their overlay masks
+    at every sun laid on this photo's mask, and this photo's own best scored the same way
+    (``swept_shuffled_ber``, ``swept_own_ber``: module docstring).
 
     Args:
-        sweeps: per photo, ``shadows`` (``K x h x w`` float shadow images at the swept suns),
-            ``sky`` and ``truth`` (``h x w`` bool), all on its :data:`SWEEP_GRID` grid.
+        sweeps: per photo, ``masks`` (``K x h x w`` bool, the overlay's shadow masks at the
+            swept suns, sky not yet removed), ``sky`` and ``truth`` (``h x w`` bool), all on
+            its :data:`SWEEP_GRID` grid.
 
     Returns:
-        Per photo, the control's BER (NaN for a lone photo).
+        Per photo, ``(control, own)`` (the control NaN for a lone photo).
     """
-    out: dict[str, float] = {}
+    out: dict[str, tuple[float, float]] = {}
     for name, own in sweeps.items():
         truth, sky = own["truth"], own["sky"]
         h, w = truth.shape
-        p, n = int(truth.sum()), int((~truth).sum())
         bests = []
         for other, theirs in sweeps.items():
             if other == name:
                 continue
-            shadows = np.stack([cv2.resize(np.asarray(s, np.float32), (w, h),
-                                           interpolation=cv2.INTER_LINEAR)
-                                for s in theirs["shadows"]])  # K x h x w
-            pred = (shadows < SHADOW_THRESHOLD) & ~sky[None]
-            tpr = (pred & truth).sum(axis=(1, 2)) / p if p else np.ones(len(pred))
-            tnr = (~pred & ~truth).sum(axis=(1, 2)) / n if n else np.ones(len(pred))
-            bests.append(float(np.min(1.0 - 0.5 * (tpr + tnr))))
-        out[name] = float(np.mean(bests)) if bests else float("nan")
+            masks = np.stack([cv2.resize(m.astype(np.uint8), (w, h),
+                                         interpolation=cv2.INTER_NEAREST) > 0
+                              for m in theirs["masks"]])  # K x h x w
+            bests.append(_best_of(masks, sky, truth))
+        out[name] = (float(np.mean(bests)) if bests else float("nan"),
+                     _best_of(np.asarray(own["masks"], bool), sky, truth))
     return out
 
 
 SUMMARY_KEYS = ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuffled_ber",
-                "swept_shuffled_ber",
+                "swept_shuffled_ber", "swept_own_ber",
                 "sky_claim", "overlay_fraction", "shadow_fraction", "seconds",
                 "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky", "new_shade",
                 "old_shade", "relit_detail")
@@ -509,7 +521,7 @@ def summarize(results: Sequence[PhotoResult]) -> dict[str, float]:
     out["opposite_gap"] = out.get("opposite_ber", math.nan) - out.get("overlay_ber", math.nan)
     out["shuffled_gap"] = out.get("shuffled_ber", math.nan) - out.get("overlay_ber", math.nan)
     out["swept_shuffled_gap"] = (out.get("swept_shuffled_ber", math.nan)
-                                 - out.get("overlay_ber", math.nan))
+                                 - out.get("swept_own_ber", math.nan))
     return out
 
 
@@ -557,7 +569,7 @@ def evaluate_real(
     swept = swept_shuffled_control(sweeps)
     for r in results:
         r.shuffled_ber = shuffled[r.name]
-        r.swept_shuffled_ber = swept[r.name]
+        r.swept_shuffled_ber, r.swept_own_ber = swept[r.name]
     if sheet is not None and rows:
         _write_sheet(Path(sheet), rows)
     if progress:
@@ -609,9 +621,9 @@ def _write_sheet(path: Path, rows: list[list[np.ndarray]]) -> None:
 
 def render_table(report: dict[str, Any]) -> str:
     """The per-photo results and their means as a Markdown table."""
-    head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | Shuffled / swept |"
-            " Sky claim | De-shadow in / out | Relit chroma / sky / new shade / old shade / "
-            "detail | s |")
+    head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | "
+            "Shuffled / swept (own) | Sky claim | De-shadow in / out | "
+            "Relit chroma / sky / new shade / old shade / detail | s |")
     lines = [head, "|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(v: Any, d: int = 3) -> str:
@@ -623,7 +635,8 @@ def render_table(report: dict[str, Any]) -> str:
         lines.append(
             f"| {r['name']} | {r['best_sun'][0]:.0f},{r['best_sun'][1]:.0f} | "
             f"{f(r['overlay_ber'])} | {f(r['opposite_ber'])} | {f(r['refined_ber'])} | "
-            f"{f(r['otsu_ber'])} | {f(r['shuffled_ber'])} / {f(r.get('swept_shuffled_ber'))} | "
+            f"{f(r['otsu_ber'])} | {f(r['shuffled_ber'])} / {f(r.get('swept_shuffled_ber'))} "
+            f"({f(r.get('swept_own_ber'))}) | "
             f"{f(r['sky_claim'])} | {ds} | "
             f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} / {f(r.get('new_shade'), 2)} / "
             f"{f(r.get('old_shade'), 2)} / {f(r.get('relit_detail'), 2)} | "
@@ -634,7 +647,8 @@ def render_table(report: dict[str, Any]) -> str:
     lines.append(
         f"| **mean ({int(m['photos'])})** | | **{f(m.get('overlay_ber'))}** | "
         f"{f(m.get('opposite_ber'))} | **{f(m.get('refined_ber'))}** | {f(m.get('otsu_ber'))} | "
-        f"{f(m.get('shuffled_ber'))} / {f(m.get('swept_shuffled_ber'))} | "
+        f"{f(m.get('shuffled_ber'))} / {f(m.get('swept_shuffled_ber'))} "
+        f"({f(m.get('swept_own_ber'))}) | "
         f"{f(m.get('sky_claim'))} | {ds} | "
         f"{f(m.get('relit_chroma'), 2)} / {f(m.get('relit_sky'), 2)} / "
         f"{f(m.get('new_shade'), 2)} / {f(m.get('old_shade'), 2)} / "

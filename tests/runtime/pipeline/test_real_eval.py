@@ -121,25 +121,22 @@ def test_shuffled_control_uses_other_photos_only() -> None:
 def test_swept_control_gives_the_other_photos_their_best_sun_and_this_photos_sky() -> None:
     top = np.zeros((8, 8), bool)
     top[:4] = True
-    lit = np.ones((8, 8), np.float32)
-    no_sky = np.zeros((8, 8), bool)
+    none = np.zeros((8, 8), bool)
     # b's sweep holds one sun that shadows a's shadow exactly: the control finds it, where
     # one mask per photo (b's best for b) would not.
     sweeps = {
-        "a": {"shadows": np.stack([lit, np.where(top, 0.0, 1.0)]), "sky": no_sky,
-              "truth": top},
-        "b": {"shadows": np.stack([np.where(top, 1.0, 0.0), np.where(top, 0.0, 1.0)]),
-              "sky": no_sky, "truth": ~top},
+        "a": {"masks": np.stack([none, top]), "sky": none, "truth": top},
+        "b": {"masks": np.stack([~top, top]), "sky": none, "truth": ~top},
     }
     out = swept_shuffled_control(sweeps)
-    assert out["a"] == 0.0  # b's second sun on a's mask
-    assert out["b"] == pytest.approx(0.5)  # a's suns: all lit (chance) or the inverse (1.0)
+    assert out["a"] == (0.0, 0.0)  # b's second sun on a's mask; a's own second sun
+    assert out["b"][0] == pytest.approx(0.5)  # a's suns: none (chance) or the inverse (1.0)
+    assert out["b"][1] == 0.0  # b's own first sun
     # This photo's sky is never shadow: b's exact match falls to chance under a's sky.
-    sweeps["b"]["shadows"] = np.stack([np.where(top, 0.0, 1.0)])
-    assert swept_shuffled_control(sweeps)["a"] == 0.0
     sweeps["a"]["sky"] = top
-    assert swept_shuffled_control(sweeps)["a"] == pytest.approx(0.5)
-    assert np.isnan(swept_shuffled_control({"a": sweeps["a"]})["a"])
+    assert swept_shuffled_control(sweeps)["a"] == (pytest.approx(0.5), pytest.approx(0.5))
+    lone = swept_shuffled_control({"a": sweeps["a"]})["a"]
+    assert np.isnan(lone[0]) and lone[1] == pytest.approx(0.5)
 
 
 def test_lab_rmse_zero_for_equal_images() -> None:
@@ -170,7 +167,7 @@ def test_cli_eval_real_on_a_tiny_folder(tmp_path: Path, capsys: pytest.CaptureFi
     assert [p["name"] for p in photos] == ["p0", "p1"]
     for p in photos:
         for key in ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuffled_ber",
-                    "swept_shuffled_ber", "sky_claim"):
+                    "swept_shuffled_ber", "swept_own_ber", "sky_claim"):
             assert 0.0 <= p[key] <= 1.0, key
         assert p["otsu_ber"] < 0.05
         assert p["relit_chroma"] is not None and 0.0 <= p["relit_chroma"] < 50.0
