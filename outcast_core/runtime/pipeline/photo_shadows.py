@@ -599,8 +599,15 @@ def shadow_edits_from_json(value: Any) -> tuple[ShadowEdit, ...]:
     return tuple(out)
 
 
+def edit_luminance(image_srgb: np.ndarray) -> np.ndarray:
+    """The lightly blurred log luminance a "Mark shadow" fill reads (``H x W`` float32)."""
+    img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
+    log_y = np.log(luminance(srgb_to_linear(img)) + _LOG_EPS).astype(np.float32)
+    return cv2.GaussianBlur(log_y, (0, 0), max(0.5, max(log_y.shape) / 384.0))
+
+
 def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.ndarray,
-                       edit: ShadowEdit) -> np.ndarray:
+                       edit: ShadowEdit, log_y: np.ndarray | None = None) -> np.ndarray:
     """The pixels one :class:`ShadowEdit` changes (``H x W`` bool; may be empty).
 
     "Not a shadow": the found shadow (``probability > 0.5``, 8-connected) under the point, or
@@ -608,6 +615,7 @@ def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.
     the surface (never the sky) through pixels within :data:`ADD_RANGE` of the point's log
     luminance, its small holes (the surface's texture) closed; empty on the sky, and when it
     would cover more than :data:`ADD_MAX_SHARE` of the surface (a leak into the lit surface).
+    ``log_y``: :func:`edit_luminance` of the image, when the caller has it (several edits).
     """
     p = np.asarray(probability, np.float32)
     sky = np.asarray(sky, bool)
@@ -632,9 +640,9 @@ def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.
         return labels == label
     if sky[row, col]:
         return np.zeros((h, w), bool)
-    img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
-    log_y = np.log(luminance(srgb_to_linear(img)) + _LOG_EPS).astype(np.float32)
-    log_y = cv2.GaussianBlur(log_y, (0, 0), max(0.5, side / 384.0))
+    if log_y is None:
+        log_y = edit_luminance(image_srgb)
+    log_y = np.ascontiguousarray(log_y, np.float32)  # read only (FLOODFILL_MASK_ONLY)
     mask = np.zeros((h + 2, w + 2), np.uint8)
     mask[1:-1, 1:-1] = sky  # the fill never crosses the sky
     flags = 8 | cv2.FLOODFILL_FIXED_RANGE | cv2.FLOODFILL_MASK_ONLY | (2 << 8)
@@ -668,20 +676,32 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
     found = np.clip(np.asarray(probability, np.float32), 0.0, 1.0)
     sky = np.asarray(sky, bool)
     shape = found.shape
+    reach = max(1.0, PICK_RADIUS * max(shape))
     added: list[np.ndarray] = []
     dropped = np.zeros(shape, bool)
+    log_y = None
     for edit in edits:
+        row, col = edit.pixel(shape)
         if edit.shadow:
-            region = shadow_edit_region(found, image_srgb, sky, edit)
+            if log_y is None:
+                log_y = edit_luminance(image_srgb)
+            region = shadow_edit_region(found, image_srgb, sky, edit, log_y)
             if region.any():
                 added.append(region)
             continue
-        row, col = edit.pixel(shape)
         hit = [i for i, region in enumerate(added) if region[row, col]]
         if hit:  # a click in a region the user added takes that addition back
             added = [region for i, region in enumerate(added) if i not in hit]
-        else:
-            dropped |= shadow_edit_region(found * ~dropped, image_srgb, sky, edit)
+            continue
+        left = found * ~dropped
+        if dropped.any() and left[row, col] <= 0.5:
+            # A click again on (or beside) what is already dropped changes nothing: it must
+            # not reach for the next shadow within PICK_RADIUS (a double click dropped the
+            # real shadow beside a black car).
+            dist = cv2.distanceTransform((~dropped).astype(np.uint8), cv2.DIST_L2, 5)
+            if dist[row, col] <= reach:
+                continue
+        dropped |= shadow_edit_region(left, image_srgb, sky, edit)
     union = np.logical_or.reduce(added) if added else np.zeros(shape, bool)
     return union & ~sky, dropped & ~sky
 
@@ -743,6 +763,7 @@ __all__ = [
     "ShadowEdit",
     "apply_edit_masks",
     "apply_shadow_edits",
+    "edit_luminance",
     "shadow_edit_masks",
     "shadow_edits_from_json",
     "shadow_edits_to_json",

@@ -397,6 +397,8 @@ class RelightSession:
         self._detail: dict[str, Any] | None = None
         #: ``S_o`` and the shadow probability as found, before :attr:`shadow_edits`.
         self._found: tuple[np.ndarray, np.ndarray] | None = None
+        #: :meth:`found_shadows_detail`'s probability as found and cosine term, per ``S_o``.
+        self._detail_found: tuple[np.ndarray, np.ndarray] | None = None
         #: What the lift's statistics and guards leave out at working size: the sky, and what
         #: the user marked "not a shadow" (dark materials are no lit surface either).
         self._lift_excluded: np.ndarray | None = None
@@ -635,6 +637,7 @@ class RelightSession:
             self.original_sun = wv
             self._original_geometry = geometry
             self._found = (s.astype(np.float32), prob.astype(np.float32))
+            self._detail_found = None
             self._apply_found()
             self._time("original_sun", t0)
             return self.original_shadow
@@ -674,7 +677,8 @@ class RelightSession:
             self._lift_excluded = self.sky | not_shadow
         self.original_shadow = s
         self.shadow_probability = prob
-        self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self.sky)
+        # What the user calls "not a shadow" is no lit surface either (a dark material).
+        self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self._lift_excluded)
         self._relight_cache.clear()
         self._deshadowed = None
         self._lift_guards = {"of": self.original_shadow}
@@ -748,12 +752,15 @@ class RelightSession:
                 prob = np.clip(resize(self.shadow_probability, shape), 0.0, 1.0)
                 s_o = np.clip(resize(self.original_shadow, shape), 0.0, 1.0)
             else:
-                cosine = np.clip(resize(cosine_term(self.normals, self.original_sun), shape),
-                                 0.0, 1.0)
-                gate = near_predicted_shadow(self._original_geometry, self.sky, PRIOR_RADIUS)
-                if gate.shape != shape:
-                    gate = np.clip(resize(gate, shape), 0.0, 1.0)
-                prob = photo_shadow_probability(image, sky) * gate
+                if self._detail_found is None:  # once per S_o: the edits do not change it
+                    cosine = np.clip(resize(cosine_term(self.normals, self.original_sun),
+                                            shape), 0.0, 1.0)
+                    gate = near_predicted_shadow(self._original_geometry, self.sky,
+                                                 PRIOR_RADIUS)
+                    if gate.shape != shape:
+                        gate = np.clip(resize(gate, shape), 0.0, 1.0)
+                    self._detail_found = (photo_shadow_probability(image, sky) * gate, cosine)
+                prob, cosine = self._detail_found
                 if self._edit_masks is not None:  # the regions the user marked, this size
                     prob, not_shadow = apply_edit_masks(prob, sky, *self._edit_masks)
                     excluded = sky | not_shadow
@@ -1063,10 +1070,13 @@ class RelightSession:
         if self.shadow_probability is None or guards.get("of") is not self.original_shadow:
             return None
         if "working" not in guards:
-            guards["working"] = (
-                material_guard(self.image_srgb, self.shadow_probability, self._lift_excluded,
-                               LIFT_SHADE_SHIFT)
-                * near_predicted_shadow(self._original_geometry, self.sky, LIFT_PRIOR_RADIUS))
+            guard = (material_guard(self.image_srgb, self.shadow_probability,
+                                    self._lift_excluded, LIFT_SHADE_SHIFT)
+                     * near_predicted_shadow(self._original_geometry, self.sky,
+                                             LIFT_PRIOR_RADIUS))
+            if self._edit_masks is not None:  # the user's word: a shadow, not a material
+                guard = np.where(self._edit_masks[0], 1.0, guard).astype(np.float32)
+            guards["working"] = guard
         key = tuple(shape)
         if key not in guards:
             g = guards["working"]

@@ -81,7 +81,7 @@ def test_a_shadow_fills_the_even_region_round_the_click_and_never_the_sky() -> N
     assert not shadow_edit_region(p, img, sky, ShadowEdit(0.5, 0.02, shadow=True)).any()
 
 
-def test_edits_apply_in_order_and_a_drop_never_takes_an_added_shadow_with_it() -> None:
+def test_a_drop_never_takes_an_added_shadow_with_it_in_either_order() -> None:
     img, parts = _slope()
     sky = parts["sky"]
     p = photo_shadow_probability(img, sky)
@@ -213,3 +213,45 @@ def test_cli_takes_the_corrections_in_their_order(tmp_path: Path,
     assert info.value.code == 2
     err = capsys.readouterr().err
     assert "--shadow" in err and "fractions 0-1" in err and len(err.strip().splitlines()) == 1
+
+
+def test_a_second_not_a_shadow_click_on_the_same_spot_changes_nothing() -> None:
+    """A double click near a dark object's edge must not reach for the real shadow beside it
+    (the nearest found shadow within PICK_RADIUS, once the object is dropped)."""
+    rng = np.random.default_rng(1)
+    img = np.clip(0.8 + 0.01 * rng.standard_normal((256, 256, 3)), 0, 1).astype(np.float32)
+    img[80:160, 40:110] = 0.15  # a dark car
+    img[80:160, 113:190] = 0.3  # its shadow, three pixels away
+    sky = np.zeros((256, 256), bool)
+    p = photo_shadow_probability(img, sky)
+    assert p[120, 150] > 0.9 and p[120, 70] > 0.9
+    assert PICK_RADIUS * 256 > 113 - 108  # the shadow is within reach of the click
+    click = ShadowEdit(108.5 / 256, 120 / 256, shadow=False)
+    once, _ = apply_shadow_edits(p, img, sky, [click])
+    twice, _ = apply_shadow_edits(p, img, sky, [click, click])
+    assert once[120, 70] < 0.01 and once[120, 150] > 0.9
+    assert np.abs(twice - once).max() < 1e-6
+
+
+def test_a_marked_shadow_may_be_lifted_wherever_it_is(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The relighting's lift acts only near a shadow the geometry predicts and on what looks
+    like shade, not material; a shadow the user marked is one, wherever it is."""
+    from outcast_core.runtime.pipeline import session as session_module
+
+    img, parts = _slope()
+    depth = np.full((H, W), 10.0, np.float32)
+    depth[parts["sky"]] = np.inf
+    # A geometry that predicts no shadow anywhere near.
+    monkeypatch.setattr(session_module, "near_predicted_shadow",
+                        lambda prior, sky, radius: np.zeros(np.shape(sky), np.float32))
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(img, depth=depth)
+    s.set_original_sun((0.3, -0.5, 0.8))
+    shape = s.image_srgb.shape[:2]
+    work = cv2.resize(parts["shadow"].astype(np.uint8), shape[::-1],
+                      interpolation=cv2.INTER_NEAREST) > 0
+    before = s._lift_guard(shape)
+    s.set_shadow_edits([ShadowEdit(*_centre(parts["shadow"]), shadow=True)])
+    after = s._lift_guard(shape)
+    assert before is not None and after is not None
+    assert before[work].max() == 0.0 and after[work].mean() > 0.95
