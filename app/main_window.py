@@ -268,6 +268,8 @@ class MainWindow(QMainWindow):
         self._after_label = "Relit"
         #: The user's corrections of the photo's found shadows, in order (step 2's tools).
         self.shadow_edits: tuple[ShadowEdit, ...] = ()
+        #: The corrections the last submitted job hands to the session (:meth:`_edits_for_job`).
+        self._edits_sent: tuple[ShadowEdit, ...] | None = None
         self._edit_note = ""  # said after "Ready" when the last correction changed nothing
         # The deshadow views' images: (load, original sun, preset, shadow corrections) ->
         # (de-shadowed photo or None, found-shadows overlay); the shown ones and a few more.
@@ -863,6 +865,7 @@ class MainWindow(QMainWindow):
         self._deshadow_kept.clear()
         self._exposure_hint = self._edit_note = ""
         self._loads += 1
+        self._edits_sent = None  # a new session: none handed yet
         self.canvas.set_image(self._photo_qimage)
         self.original_sun = None
         cam = getattr(self.session, "camera", None)
@@ -1331,10 +1334,12 @@ class MainWindow(QMainWindow):
             return
 
         path = self.image_path
+        edits = self._edits_for_job()
 
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
 
+            session.set_shadow_edits(edits)  # before the found shadows are redone at its size
             session.set_preset(name, progress=ctx.progress)
             return {"timings": _timings(session), "tilt": photo_camera_tilt(session, path),
                     "session": session}
@@ -1405,7 +1410,7 @@ class MainWindow(QMainWindow):
             target = current.target_sun if keep_target else (az, el)
             self._record(replace(current, step="relight", align_sun=(az, el),
                                  original_sun=(az, el), target_sun=target))  # fmt: skip
-        edits = self.shadow_edits
+        edits = self._edits_for_job()
 
         def job(ctx: JobContext) -> dict[str, Any]:
             ctx.progress("refining", 0.1)
@@ -1493,6 +1498,13 @@ class MainWindow(QMainWindow):
         self._record(text=shadow_edit_text(self.shadow_edits))
         return True
 
+    def _edits_for_job(self) -> tuple[ShadowEdit, ...]:
+        """The corrections a job about to be submitted captures (and hands to the session
+        first): the current ones, remembered, so that showing kept images asks the session to
+        follow only when they differ from what the last job handed it."""
+        self._edits_sent = self.shadow_edits
+        return self.shadow_edits
+
     def clear_shadow_edits(self) -> None:
         """Take back every correction of the found shadows (one undo step)."""
         if not self.shadow_edits:
@@ -1541,7 +1553,7 @@ class MainWindow(QMainWindow):
         if az is None or el is None:
             az, el = self.relight_panel.sun_panel.sun()
         exposure = self.relight_panel.exposure()
-        edits = self.shadow_edits
+        edits = self._edits_for_job()
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)  # what lifts the photo's shadows
@@ -1588,9 +1600,10 @@ class MainWindow(QMainWindow):
             self._deshadow_key, self._deshadow_images = key, kept
             self._edit_note = ""
             self._show_deshadow(view)
-            edits = self.shadow_edits  # the session follows (undo, redo): cheap, in the worker
-            self.runner.submit("shadow_edits", lambda ctx: session.set_shadow_edits(edits),
-                               STAGE_WORDS["shadow_edits"])
+            if self.shadow_edits != self._edits_sent:  # the session follows undo and redo
+                edits = self._edits_for_job()  # (cheap, in the worker); not on every sun move
+                self.runner.submit("shadow_edits", lambda ctx: session.set_shadow_edits(edits),
+                                   STAGE_WORDS["shadow_edits"])
             return None
         if self._deshadow_job is not None:
             job_key, job_with_image, job_id = self._deshadow_job
@@ -1598,7 +1611,7 @@ class MainWindow(QMainWindow):
                 waiting = self.runner.latest("relight") == job_id
                 if waiting and any(i == job_id for i, _, _ in self.runner.active()):
                     return job_id  # already on its way (the new sun moved: nothing else to do)
-        edits = self.shadow_edits
+        edits = self._edits_for_job()
 
         def job(ctx: JobContext) -> dict[str, Any]:
             before = session.shadow_probability
@@ -1819,7 +1832,7 @@ class MainWindow(QMainWindow):
             The job's id, or ``None`` when the file exists and ``force`` is off.
         """
         session, loaded = self.session, self.loaded
-        edits = self.shadow_edits  # as asked, whatever is corrected later
+        edits = self._edits_for_job()  # as asked, whatever is corrected later
         if self.refuse_own_file(path):  # never, even confirmed in the file dialog
             return None
         if not force and os.path.exists(path):

@@ -427,3 +427,27 @@ def test_still_and_timelapse_jobs_set_the_edits(qtbot, window, photo, settle, mo
     dialog.export(str(tmp_path / "clip.mp4"))
     settle()
     assert seen["timelapse"] == edits
+
+
+def test_moving_the_new_sun_over_kept_images_submits_no_work(qtbot, window, photo, settle):
+    """The views of the found shadows do not depend on the new sun: a drag there shows the
+    kept images and asks the worker for nothing (it queued a job per mouse move); an undo
+    there still brings the session's corrections along."""
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    submitted = []
+    real = window.runner.submit
+    window.runner.submit = lambda channel, *a, **k: submitted.append(channel) or real(
+        channel, *a, **k)
+    panel = window.relight_panel.sun_panel
+    az, el = panel.sun()
+    for step in range(5):  # as a drag does: the dial's preview signal for each move
+        window._on_target_sun_changed(az + 10.0 * (step + 1), el, True)
+    window._on_target_sun_committed(az + 50.0, el)
+    settle()
+    assert "shadow_edits" not in submitted and "relight" not in submitted
+    window.act_undo.trigger()
+    settle()
+    assert window.session.shadow_edits == ()
