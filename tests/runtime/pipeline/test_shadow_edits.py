@@ -255,3 +255,17 @@ def test_a_marked_shadow_may_be_lifted_wherever_it_is(monkeypatch: pytest.Monkey
     after = s._lift_guard(shape)
     assert before is not None and after is not None
     assert before[work].max() == 0.0 and after[work].mean() > 0.95
+
+
+def test_a_shadow_click_on_lit_ground_is_refused() -> None:
+    """A sunlit fleck inside a shadow (or lit snow beside a trunk's shadow) is not darker than
+    what is round it: "a shadow" there would be lifted to glare, so it adds nothing."""
+    img, parts = _slope()
+    img[65:75, 60:72] = SNOW  # a sun fleck in the snow's shadow
+    sky = parts["sky"]
+    p = photo_shadow_probability(img, sky)
+    fleck = ShadowEdit(66 / W, 70 / H, shadow=True)
+    assert not shadow_edit_region(p, img, sky, fleck).any()
+    inside = ShadowEdit(45 / W, 85 / H, shadow=True)  # the shadow itself, fleck excluded
+    region = shadow_edit_region(p, img, sky, inside)
+    assert region[parts["shadow"]].mean() > 0.8 and region[65:75, 60:72].mean() < 0.1
