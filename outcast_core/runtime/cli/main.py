@@ -178,6 +178,20 @@ def add_shadow_edit_options(p: argparse.ArgumentParser) -> None:
                    "this point; repeatable")
 
 
+def say_unused_shadow_edits(session, args: argparse.Namespace) -> str:
+    """After the original sun is set: a note for each ``--shadow`` / ``--not-shadow`` that
+    changed nothing, and the words for the "wrote" line (``""`` without corrections)."""
+    edits = getattr(args, "shadow_edits", None) or []
+    for edit, used in zip(edits, session.shadow_edits_used, strict=False):
+        if not used:
+            flag = "--shadow" if edit.shadow else "--not-shadow"
+            why = ("the sky, lit ground (not darker than round it) or a shadow already"
+                   if edit.shadow else "no found shadow there, or one already dropped")
+            _say(args, f"note: {flag} {edit.x:g},{edit.y:g} changed nothing ({why})")
+    n = sum(session.shadow_edits_used)
+    return f"{n} shadow correction{'s' if n != 1 else ''}; " if edits else ""
+
+
 def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:
     """Give the session ``--depth-model``, else the photo's own depth map (unless
     ``--no-phone-depth``); a broken embedded map is said in one line and the depth model used."""
@@ -261,11 +275,12 @@ def cmd_relight(args: argparse.Namespace) -> int:
     _set_image(session, loaded, args)
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(w_from)
+    corrections = say_unused_shadow_edits(session, args)
     out = session.relight_full(w_to, dtype=np.uint8 if bit_depth == 8 else np.float32)
     # GPS and time, as the app's export.
     write_image(args.output, out, bit_depth=bit_depth, force=args.force, exif=loaded.exif_bytes)
     t = session.timings
-    _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows: "
+    _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; {corrections}shadows: "
                f"{session.shadow_mode}, refinement: {session.refinement}, "
                f"relighting: {session.relight_mode}, depth: "
                f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
@@ -288,6 +303,7 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     _set_image(session, loaded, args)
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(w_from)
+    corrections = say_unused_shadow_edits(session, args)
     out = session.deshadow_full()
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     write_image(args.output, out, bit_depth=bit_depth, force=args.force,
@@ -299,8 +315,8 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
             prob = np.clip(resize(prob, full_hw), 0.0, 1.0)
         write_shadow_png(args.mask, prob, force=args.force)
     t = session.timings
-    _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; shadows found at the "
-               f"photo's sun with {session.shadow_mode} S as the prior, depth: "
+    _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; {corrections}shadows "
+               f"found at the photo's sun with {session.shadow_mode} S as the prior, depth: "
                f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
          + ")")
     if args.mask:

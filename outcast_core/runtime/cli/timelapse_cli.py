@@ -19,6 +19,7 @@ from outcast_core.runtime.cli.main import (
     add_input_options,
     add_shadow_edit_options,
     int_in,
+    say_unused_shadow_edits,
 )
 from outcast_core.runtime.geometry.camera import sun_vector
 from outcast_core.runtime.pipeline.timelapse import (
@@ -314,6 +315,7 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     samples = _samples_from_args(args, exif, tilt)
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(sun_vector(*args.from_sun))
+    say_unused_shadow_edits(session, args)
     size = args.size or ("full" if args.full_res else DEFAULT_FRAME_SIZE)
     if args.full_res and size != "full":
         raise ValueError(f"expected either --full-res or --size, got --full-res --size {size}")

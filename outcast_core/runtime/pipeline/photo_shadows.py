@@ -674,7 +674,8 @@ def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.
 
 
 def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.ndarray,
-                      edits: Sequence[ShadowEdit]) -> tuple[np.ndarray, np.ndarray]:
+                      edits: Sequence[ShadowEdit], used: list[bool] | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """Where a user's corrections add shadow and where they drop it (``H x W`` bool each).
 
     In order: "a shadow" adds its region (:func:`shadow_edit_region`); "not a shadow" takes
@@ -684,6 +685,10 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
     (the session's working size), and brought to other sizes by :func:`apply_edit_masks`, so
     what an export lifts is what the user marked (found again at another size, one click
     could pick another region: a dark object joined to the shadow beside it).
+
+    Args:
+        used: if given, one entry per edit is appended: whether it changed anything (a
+            click on the sky, on lit ground or on what is already dropped does not).
 
     Returns:
         ``(added, dropped)``; ``dropped`` is also what the lift must not take for lit
@@ -696,18 +701,21 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
     added: list[np.ndarray] = []
     dropped = np.zeros(shape, bool)
     log_y = None
+    flags: list[bool] = []
     for edit in edits:
         row, col = edit.pixel(shape)
         if edit.shadow:
             if log_y is None:
                 log_y = edit_luminance(image_srgb)
             region = shadow_edit_region(found, image_srgb, sky, edit, log_y)
+            flags.append(bool(region.any()))
             if region.any():
                 added.append(region)
             continue
         hit = [i for i, region in enumerate(added) if region[row, col]]
         if hit:  # a click in a region the user added takes that addition back
             added = [region for i, region in enumerate(added) if i not in hit]
+            flags.append(True)
             continue
         left = found * ~dropped
         if dropped.any() and left[row, col] <= 0.5:
@@ -716,8 +724,13 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
             # real shadow beside a black car).
             dist = cv2.distanceTransform((~dropped).astype(np.uint8), cv2.DIST_L2, 5)
             if dist[row, col] <= reach:
+                flags.append(False)
                 continue
-        dropped |= shadow_edit_region(left, image_srgb, sky, edit)
+        region = shadow_edit_region(left, image_srgb, sky, edit)
+        flags.append(bool(region.any()))
+        dropped |= region
+    if used is not None:
+        used.extend(flags)
     union = np.logical_or.reduce(added) if added else np.zeros(shape, bool)
     return union & ~sky, dropped & ~sky
 

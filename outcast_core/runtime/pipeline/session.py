@@ -329,6 +329,10 @@ class RelightSession:
         #: The user's corrections of the found shadows (:meth:`set_shadow_edits`), for this
         #: photo: kept across presets and original suns, cleared by :meth:`set_image`.
         self.shadow_edits: tuple[ShadowEdit, ...] = ()
+        #: Per edit of :attr:`shadow_edits`, whether it changed the found shadows (set with an
+        #: original sun: a click on the sky, on lit ground or on what is already dropped
+        #: changes nothing).
+        self.shadow_edits_used: tuple[bool, ...] = ()
         self._reset_working()
 
     @property
@@ -454,7 +458,7 @@ class RelightSession:
             self._given_depth = depth
             self.original_sun = None
             self.original_shadow = None
-            self.shadow_edits = ()
+            self.shadow_edits, self.shadow_edits_used = (), ()
             self._prepare(progress)
 
     def set_preset(self, name: str, progress: Progress | None = None) -> None:
@@ -657,6 +661,7 @@ class RelightSession:
             if edits == self.shadow_edits:
                 return
             self.shadow_edits = edits
+            self.shadow_edits_used = ()
             if self._found is not None and self.original_sun is not None:
                 self._apply_found()
 
@@ -666,15 +671,17 @@ class RelightSession:
         assert self._found is not None and self.original_sun is not None
         s, prob = self._found
         self._lift_excluded, self._edit_masks = self.sky, None
+        used: list[bool] = []
         if self.shadow_edits:
             self._edit_masks = shadow_edit_masks(prob, self.image_srgb, self.sky,
-                                                 self.shadow_edits)
+                                                 self.shadow_edits, used)
             edited, not_shadow = apply_edit_masks(prob, self.sky, *self._edit_masks)
             changed = np.abs(edited - prob) > 1e-4
             redone = original_shadow_from_photo(
                 edited, cosine_term(self.normals, self.original_sun), self.sky)
             s, prob = np.where(changed, redone, s).astype(np.float32), edited
             self._lift_excluded = self.sky | not_shadow
+        self.shadow_edits_used = tuple(used)
         self.original_shadow = s
         self.shadow_probability = prob
         # What the user calls "not a shadow" is no lit surface either (a dark material).

@@ -137,7 +137,10 @@ def test_session_edits_redo_the_found_shadows_at_every_size_and_stay_with_the_ph
     pines = np.repeat(np.repeat(parts["pines"], 3, axis=0), 3, axis=1)
     edits = (ShadowEdit(*_centre(parts["shadow"]), shadow=True), ShadowEdit(0.5, 0.2, False))
     s.set_shadow_edits(edits)
-    assert s.shadow_edits == edits
+    assert s.shadow_edits == edits and s.shadow_edits_used == (True, True)
+    s.set_shadow_edits((*edits, ShadowEdit(0.5, 0.05, shadow=True)))  # on the sky
+    assert s.shadow_edits_used == (True, True, False)
+    s.set_shadow_edits(edits)
     detail = s.found_shadows_detail()
     assert detail["probability"].shape == big.shape[:2]  # found again at the detail size
     assert detail["probability"][shadow].mean() > 0.9
@@ -208,6 +211,12 @@ def test_cli_takes_the_corrections_in_their_order(tmp_path: Path,
                  "--shadow", f"{x},{y}", "--not-shadow", f"{x},{y}"]) == 0
     assert imageio.read_shadow_png(tmp_path / "c_m.png")[parts["shadow"]].mean() < 0.1
     capsys.readouterr()
+    # A click that changes nothing is said (the sky), and the "wrote" line counts the rest.
+    assert main([*base[:-2], "--force", "-o", str(tmp_path / "e.png"), "--shadow", "0.5,0.05",
+                 "--not-shadow", "0.5,0.2"]) == 0
+    err = capsys.readouterr().err
+    assert "note: --shadow 0.5,0.05 changed nothing (the sky" in err
+    assert "(128x96; 1 shadow correction; " in err
     with pytest.raises(SystemExit) as info:
         main([*base, "-o", str(tmp_path / "d.png"), "--shadow", "0.5"])
     assert info.value.code == 2
