@@ -1498,6 +1498,22 @@ class MainWindow(QMainWindow):
         self._record(text=shadow_edit_text(self.shadow_edits))
         return True
 
+    def _drop_idle_edit(self, idle: ShadowEdit) -> None:
+        """Take back the click that changed nothing (the last correction, still the last
+        undo step): not counted, not an undo step, no unsaved change (a user trial)."""
+        stack = self.undo_stack
+        top = stack.command(stack.index() - 1) if stack.index() > 0 else None
+        if (not self.shadow_edits or self.shadow_edits[-1] != idle
+                or stack.index() != stack.count() or not isinstance(top, EditCommand)
+                or top.after.shadow_edits != self.shadow_edits):
+            return  # something else happened since: leave it to the user
+        top.setObsolete(True)
+        stack.undo()  # an obsolete command is removed, not undone
+        self._edit_state = top.before
+        self._show_shadow_edits(top.before.shadow_edits)
+        self._deshadow_key = self._deshadow_key_now()  # the images shown are the same
+        self._update_title()
+
     def _edits_for_job(self) -> tuple[ShadowEdit, ...]:
         """The corrections a job about to be submitted captures (and hands to the session
         first): the current ones, remembered, so that showing kept images asks the session to
@@ -1614,14 +1630,13 @@ class MainWindow(QMainWindow):
         edits = self._edits_for_job()
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            before = session.shadow_probability
             last_added = bool(edits) and session.shadow_edits == edits[:-1]
             session.set_shadow_edits(edits)
             after = session.shadow_probability
             # The correction just made changed nothing (no found shadow near a "not a shadow"
             # click, the sky or a shadow already under a "mark shadow" one): said after Ready.
-            idle_edit = (edits[-1] if last_added and before is not None and after is not None
-                         and float(np.max(np.abs(after - before), initial=0.0)) < 0.05 else None)
+            used = session.shadow_edits_used
+            idle_edit = edits[-1] if last_added and used and not used[-1] else None
             overlay = display.found_shadow_overlay_rgba(after, session.sky)
             image = None
             if with_image:
@@ -1711,10 +1726,12 @@ class MainWindow(QMainWindow):
             self._deshadow_key, self._deshadow_images = key, entry
             idle = result.get("idle_edit")
             self._edit_note = "" if idle is None else (
-                "nothing was added there (the sky, or a shadow already): click inside a shadow "
-                "the app missed" if idle.shadow else
+                "nothing was added there (the sky, lit ground, or a shadow already): click "
+                "inside a shadow the app missed" if idle.shadow else
                 "no found shadow there: click on the magenta area of \"Shadows found\"")
             self._show_deshadow(view)
+            if idle is not None:
+                self._drop_idle_edit(idle)
             return
         if view == "output":
             self._exposure_hint = "" if result.get("preview") else exposure_hint(

@@ -230,7 +230,8 @@ class RelightPanel(QWidget):
         super().__init__(parent)
         title, body = _header(
             "Step 2 · Relight",
-            "Drag the new sun. The faint sun marks the photo's original sun.",
+            "Drag the new sun. The faint sun marks the photo's original sun. View \u25b8 "
+            "Shadows found shows the photo's own shadows, and lets you correct them.",
             self,
         )
         self.sun_panel = SunDialPanel("New sun", QColor(255, 140, 30), self)
@@ -270,6 +271,10 @@ class RelightPanel(QWidget):
             button.setCheckable(True)
             button.setToolTip(tip)
             button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+            # On must read as on at a glance (a user trial could not tell them apart).
+            button.setStyleSheet("QToolButton:checked { background: palette(highlight); "
+                                 "color: palette(highlighted-text); border-radius: 3px; "
+                                 "padding: 3px 6px; }")
             button.toggled.connect(lambda on, k=key: self._on_tool_toggled(k, on))
             self.shadow_tool_buttons[key] = button
             tools_row.addWidget(button)

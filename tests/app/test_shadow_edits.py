@@ -152,10 +152,17 @@ def test_mark_shadow_adds_a_missed_shadow_and_lifts_it(qtbot, window, patch_phot
 def test_a_correction_that_changes_nothing_is_said(qtbot, window, photo, settle):
     _shadows_view(window, photo, settle)
     _tool(window, "not_shadow")
+    count, clean = window.undo_stack.count(), window.undo_stack.isClean()
     _click(qtbot, window, 0.85, 0.9)  # lit ground, far from any found shadow
     settle()
-    assert len(window.shadow_edits) == 1
     assert "no found shadow there" in window.stage_label.text()
+    # Not counted, not an undo step, no unsaved change (a user trial saw all three).
+    assert window.shadow_edits == () and window.undo_stack.count() == count
+    assert window.undo_stack.isClean() == clean
+    assert not window.relight_panel.clear_shadow_edits_button.isEnabled()
+    _click(qtbot, window, *BAND_XY)  # and the next, useful click works as before
+    settle()
+    assert len(window.shadow_edits) == 1 and window.undo_stack.count() == count + 1
 
 
 def test_undo_and_redo_restore_the_edits_and_the_image(qtbot, window, photo, settle):
