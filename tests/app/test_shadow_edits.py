@@ -86,6 +86,14 @@ def _tool(window, key: str) -> None:
     assert window.relight_panel.shadow_tool() == key
 
 
+def _drop_the_band(qtbot, window, photo, settle) -> None:
+    """Step 2's "Shadows found", and "Not a shadow" on the photo's dark band."""
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+
+
 def _undo_texts(window) -> list[str]:
     return [window.undo_stack.text(i) for i in range(window.undo_stack.count())]
 
@@ -207,10 +215,7 @@ def test_clear_corrections_is_one_undo_step(qtbot, window, photo, settle):
 
 
 def test_edits_are_saved_and_restored_with_the_project(qtbot, window, photo, settle, reopen):
-    _shadows_view(window, photo, settle)
-    _tool(window, "not_shadow")
-    _click(qtbot, window, *BAND_XY)
-    settle()
+    _drop_the_band(qtbot, window, photo, settle)
     edits = window.shadow_edits
     saved = window.save_project()
     assert not window.has_unsaved_changes()
@@ -253,10 +258,7 @@ def test_an_older_project_has_no_edits_and_a_bad_value_is_refused(window, photo,
 
 def test_another_photo_clears_the_edits_realigning_keeps_them(qtbot, window, photo, settle,
                                                              tmp_path):
-    _shadows_view(window, photo, settle)
-    _tool(window, "not_shadow")
-    _click(qtbot, window, *BAND_XY)
-    settle()
+    _drop_the_band(qtbot, window, photo, settle)
     edits = window.shadow_edits
     window.back_to_align()  # re-aligning the sun and a new preset keep them
     settle()
@@ -354,10 +356,7 @@ def test_the_split_line_still_drags_with_a_tool_on(qtbot, window, photo, settle)
 
 
 def test_the_relit_view_and_its_undo_use_the_edits(qtbot, window, photo, settle):
-    _shadows_view(window, photo, settle)
-    _tool(window, "not_shadow")
-    _click(qtbot, window, *BAND_XY)
-    settle()
+    _drop_the_band(qtbot, window, photo, settle)
     window.relight_panel.set_view("output")
     window.relight_panel.sun_panel.set_sun(300.0, 70.0)  # another sun: the band's shade goes
     window.request_relight(preview=False)
@@ -401,10 +400,7 @@ def test_still_and_timelapse_jobs_set_the_edits(qtbot, window, photo, settle, mo
                                                 tmp_path):
     from outcast_core.runtime.pipeline import timelapse as tl
 
-    _shadows_view(window, photo, settle)
-    _tool(window, "not_shadow")
-    _click(qtbot, window, *BAND_XY)
-    settle()
+    _drop_the_band(qtbot, window, photo, settle)
     edits = window.shadow_edits
     session = window.session
     seen: dict[str, tuple] = {}
@@ -440,10 +436,7 @@ def test_moving_the_new_sun_over_kept_images_submits_no_work(qtbot, window, phot
     """The views of the found shadows do not depend on the new sun: a drag there shows the
     kept images and asks the worker for nothing (it queued a job per mouse move); an undo
     there still brings the session's corrections along."""
-    _shadows_view(window, photo, settle)
-    _tool(window, "not_shadow")
-    _click(qtbot, window, *BAND_XY)
-    settle()
+    _drop_the_band(qtbot, window, photo, settle)
     submitted = []
     real = window.runner.submit
     window.runner.submit = lambda channel, *a, **k: submitted.append(channel) or real(
