@@ -196,8 +196,8 @@ def test_undo_and_redo_restore_the_edits_and_the_image(qtbot, window, photo, set
     assert window.relight_panel.clear_shadow_edits_button.isEnabled()
 
 
-def test_clear_corrections_is_one_undo_step(qtbot, window, photo, settle):
-    _shadows_view(window, photo, settle)
+def test_clear_corrections_is_one_undo_step(qtbot, window, patch_photo, settle):
+    _shadows_view(window, patch_photo, settle)
     _tool(window, "not_shadow")
     _click(qtbot, window, *BAND_XY)
     _tool(window, "shadow")
