@@ -45,6 +45,10 @@ SHADOW_TOOLS = (
 )
 
 
+#: The tools' hint while none is on.
+SHADOW_TOOL_IDLE = "Turn a tool on, then click the photo; the magenta areas are the shadows found."
+
+
 def _header(text: str, hint: str, parent: QWidget) -> tuple[QLabel, QLabel]:
     title = QLabel(f"<span style='font-size:13pt; font-weight:600'>{text}</span>", parent)
     body = QLabel(hint, parent)
@@ -285,12 +289,17 @@ class RelightPanel(QWidget):
         self.clear_shadow_edits_button.setEnabled(False)
         self.clear_shadow_edits_button.clicked.connect(self.clear_shadow_edits_clicked)
         self.shadow_edits_label = QLabel(self.shadow_tools)
-        self.shadow_edits_label.setStyleSheet("color: palette(mid); font-size: 9pt;")
+        self.shadow_edits_label.setStyleSheet("font-size: 9pt;")
+        # What the tool that is on does, in full (the status bar cuts it in a narrow window).
+        self.shadow_tool_hint = QLabel(SHADOW_TOOL_IDLE, self.shadow_tools)
+        self.shadow_tool_hint.setWordWrap(True)
+        self.shadow_tool_hint.setStyleSheet("font-size: 9pt;")
         clear_row = QHBoxLayout()
         clear_row.addWidget(self.shadow_edits_label, 1)
         clear_row.addWidget(self.clear_shadow_edits_button)
         tools_layout = QVBoxLayout(self.shadow_tools)
         tools_layout.addLayout(tools_row)
+        tools_layout.addWidget(self.shadow_tool_hint)
         tools_layout.addLayout(clear_row)
         self.set_shadow_edit_count(0)
         self.shadow_tools.hide()
@@ -353,7 +362,10 @@ class RelightPanel(QWidget):
                     button.blockSignals(True)
                     button.setChecked(False)
                     button.blockSignals(False)
-        self.shadow_tool_changed.emit(self.shadow_tool())
+        tool = self.shadow_tool()
+        self.shadow_tool_hint.setText(next((hint for k, _, _, hint in SHADOW_TOOLS if k == tool),
+                                           SHADOW_TOOL_IDLE))
+        self.shadow_tool_changed.emit(tool)
 
     def show_shadow_tools(self, shown: bool) -> None:
         """Show the correction tools (the views of the photo's own shadows) or hide them, with

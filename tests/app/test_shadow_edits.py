@@ -451,3 +451,17 @@ def test_moving_the_new_sun_over_kept_images_submits_no_work(qtbot, window, phot
     window.act_undo.trigger()
     settle()
     assert window.session.shadow_edits == ()
+
+
+def test_the_panel_says_what_the_tool_that_is_on_does(qtbot, window, photo, settle):
+    """In full, in the panel: the status bar cut it in a 1280-px window (a user trial)."""
+    from app.panels import SHADOW_TOOL_IDLE, SHADOW_TOOLS
+
+    _shadows_view(window, photo, settle)
+    hint = window.relight_panel.shadow_tool_hint
+    assert hint.text() == SHADOW_TOOL_IDLE
+    for key, _text, _tip, words in SHADOW_TOOLS:
+        _tool(window, key)
+        assert hint.text() == words
+    window.relight_panel.set_shadow_tool("")
+    assert hint.text() == SHADOW_TOOL_IDLE
