@@ -248,7 +248,7 @@ def photo_shadow_probability(
     surface = ~sky
     if surface.sum() < 16:
         return np.zeros((h, w), np.float32)
-    log_y = np.log(luminance(srgb_to_linear(img)) + _LOG_EPS).astype(np.float32)
+    log_y = _log_luminance(img)
     t = shade_threshold(log_y[surface])
     p = 1.0 / (1.0 + np.exp(np.clip((log_y - t) / SOFT_LOG, -30.0, 30.0)))
     side = max(h, w)
@@ -606,10 +606,15 @@ def shadow_edits_from_json(value: Any) -> tuple[ShadowEdit, ...]:
     return tuple(out)
 
 
+def _log_luminance(img: np.ndarray) -> np.ndarray:
+    """Natural log of the linear luminance of a clean sRGB image (``H x W`` float32), as the
+    photometric stage splits it."""
+    return np.log(luminance(srgb_to_linear(img)) + _LOG_EPS).astype(np.float32)
+
+
 def edit_luminance(image_srgb: np.ndarray) -> np.ndarray:
     """The lightly blurred log luminance a "Mark shadow" fill reads (``H x W`` float32)."""
-    img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
-    log_y = np.log(luminance(srgb_to_linear(img)) + _LOG_EPS).astype(np.float32)
+    log_y = _log_luminance(np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0, 1)))
     return cv2.GaussianBlur(log_y, (0, 0), max(0.5, max(log_y.shape) / 384.0))
 
 
@@ -747,6 +752,15 @@ def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray
         ``(probability, not_shadow)``: ``H x W`` float32, and ``H x W`` bool, the dropped
         regions: dark materials, which the lift's statistics must not take for lit surface
         (:func:`deshadow` and the guards leave them out, as the sky).
+
+    Example:
+        >>> img = np.full((32, 32, 3), 0.8, np.float32); img[:, 16:] *= 0.3  # one dark half
+        >>> sky = np.zeros((32, 32), bool)
+        >>> p = photo_shadow_probability(img, sky)
+        >>> masks = shadow_edit_masks(p, img, sky, [ShadowEdit(0.9, 0.5, shadow=False)])
+        >>> out, dark = apply_edit_masks(p, sky, *masks)
+        >>> bool(p[16, 28] > 0.9 and out[16, 28] < 0.01 and dark[16, 28] and not dark[16, 4])
+        True
     """
     p = np.clip(np.asarray(probability, np.float32), 0.0, 1.0)
     sky = np.asarray(sky, bool)
@@ -770,28 +784,10 @@ def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray
     return np.where(sky, 0.0, p).astype(np.float32), dropped & ~sky
 
 
-def apply_shadow_edits(probability: np.ndarray, image_srgb: np.ndarray, sky: np.ndarray,
-                       edits: Sequence[ShadowEdit]) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`shadow_edit_masks` and :func:`apply_edit_masks` at one size: the shadow
-    probability with a user's corrections applied, and where the user said "not a shadow".
-
-    Example:
-        >>> img = np.full((32, 32, 3), 0.8, np.float32); img[:, 16:] *= 0.3  # one dark half
-        >>> p = photo_shadow_probability(img, np.zeros((32, 32), bool))
-        >>> sky = np.zeros((32, 32), bool)
-        >>> out, dark = apply_shadow_edits(p, img, sky, [ShadowEdit(0.9, 0.5, shadow=False)])
-        >>> bool(p[16, 28] > 0.9 and out[16, 28] < 0.01 and dark[16, 28] and not dark[16, 4])
-        True
-    """
-    added, dropped = shadow_edit_masks(probability, image_srgb, sky, edits)
-    return apply_edit_masks(probability, sky, added, dropped)
-
-
 __all__ = [
     "MAX_SHADOW_EDITS",
     "ShadowEdit",
     "apply_edit_masks",
-    "apply_shadow_edits",
     "edit_luminance",
     "shadow_edit_masks",
     "shadow_edits_from_json",

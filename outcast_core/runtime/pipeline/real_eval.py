@@ -228,7 +228,7 @@ def evaluate_photo(
         suns: ``(azimuth, elevation)`` pairs in degrees.
         keep: if given, filled with the pictures of the photo (``image``, ``overlay``,
             ``refined``, ``deshadowed``, ``truth``) for a contact sheet, and with ``sweep``:
-            the shadow images at every sun, the sky and the mask on the grid of
+            the overlay's masks at every sun, the sky and the human mask on the grid of
             :func:`swept_shuffled_control`.
     """
     from outcast_core.runtime.io.imageio import read_image
@@ -464,12 +464,8 @@ def _on_grid(mask: np.ndarray, grid: tuple[int, int]) -> np.ndarray:
 
 
 def _best_of(masks: np.ndarray, sky: np.ndarray, truth: np.ndarray) -> float:
-    """The least BER of ``K x h x w`` predicted masks, off ``sky``, against ``truth``."""
-    pred = masks & ~sky[None]
-    p, n = int(truth.sum()), int((~truth).sum())
-    tpr = (pred & truth).sum(axis=(1, 2)) / p if p else np.ones(len(pred))
-    tnr = (~pred & ~truth).sum(axis=(1, 2)) / n if n else np.ones(len(pred))
-    return float(np.min(1.0 - 0.5 * (tpr + tnr)))
+    """The least :func:`balanced_error_rate` of ``K x h x w`` predicted masks, off ``sky``."""
+    return min(balanced_error_rate(m & ~sky, truth) for m in masks)
 
 
 def swept_shuffled_control(sweeps: dict[str, dict[str, np.ndarray]]

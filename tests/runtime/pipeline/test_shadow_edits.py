@@ -16,9 +16,10 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     MAX_SHADOW_EDITS,
     PICK_RADIUS,
     ShadowEdit,
-    apply_shadow_edits,
+    apply_edit_masks,
     deshadow,
     photo_shadow_probability,
+    shadow_edit_masks,
     shadow_edit_region,
     shadow_edits_from_json,
     shadow_edits_to_json,
@@ -42,6 +43,11 @@ def _slope(seed: int = 0) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     img[parts["pines"]] = [0.05, 0.09, 0.05]
     img[parts["shadow"]] *= np.array([0.42, 0.45, 0.52], np.float32)
     return img, parts
+
+
+def apply_shadow_edits(p, img, sky, edits):
+    """The edits' regions made and applied at one size (as the session does at its own)."""
+    return apply_edit_masks(p, sky, *shadow_edit_masks(p, img, sky, edits))
 
 
 def _centre(mask: np.ndarray) -> tuple[float, float]:
