@@ -114,7 +114,6 @@ STAGE_WORDS = {
     "find_sun": "Finding the sun",
     "confirm": "Refining the original shadows",
     "relight": "Relighting",
-    "shadow_edits": "Applying shadow corrections",
     "export_still": "Exporting still",
     "export_shadows_removed": "Exporting shadows removed",
     "tl_preview": "Rendering time-lapse frame",
@@ -268,8 +267,8 @@ class MainWindow(QMainWindow):
         self._after_label = "Relit"
         #: The user's corrections of the photo's found shadows, in order (step 2's tools).
         self.shadow_edits: tuple[ShadowEdit, ...] = ()
-        #: The corrections the last submitted job hands to the session (:meth:`_edits_for_job`).
-        self._edits_sent: tuple[ShadowEdit, ...] | None = None
+        #: A correction was just added: the next found-shadows job says if it changed nothing.
+        self._edit_just_added = False
         self._edit_note = ""  # said after "Ready" when the last correction changed nothing
         # The deshadow views' images: (load, original sun, preset, shadow corrections) ->
         # (de-shadowed photo or None, found-shadows overlay); the shown ones and a few more.
@@ -865,7 +864,6 @@ class MainWindow(QMainWindow):
         self._deshadow_kept.clear()
         self._exposure_hint = self._edit_note = ""
         self._loads += 1
-        self._edits_sent = None  # a new session: none handed yet
         self.canvas.set_image(self._photo_qimage)
         self.original_sun = None
         cam = getattr(self.session, "camera", None)
@@ -1108,9 +1106,7 @@ class MainWindow(QMainWindow):
         if not refresh or self.step is not Step.RELIGHT:
             return
         self.request_relight(preview=False)
-        dialog = self._timelapse_dialog
-        if dialog is not None and dialog.isVisible():
-            dialog.refresh_preview()
+        self._refresh_timelapse_preview()
 
     @Slot(object, bool)
     def _on_heading_typed(self, heading: float | None, stepped: bool = False) -> None:
@@ -1334,7 +1330,7 @@ class MainWindow(QMainWindow):
             return
 
         path = self.image_path
-        edits = self._edits_for_job()
+        edits = self.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
@@ -1410,7 +1406,7 @@ class MainWindow(QMainWindow):
             target = current.target_sun if keep_target else (az, el)
             self._record(replace(current, step="relight", align_sun=(az, el),
                                  original_sun=(az, el), target_sun=target))  # fmt: skip
-        edits = self._edits_for_job()
+        edits = self.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
             ctx.progress("refining", 0.1)
@@ -1494,7 +1490,9 @@ class MainWindow(QMainWindow):
             self.stage_label.setText(f"At most {MAX_SHADOW_EDITS} corrections: clear them or "
                                      "undo some first")
             return False
+        self._edit_just_added = True  # (read by the found-shadows job this submits)
         self.set_shadow_edits((*self.shadow_edits, ShadowEdit(float(x), float(y), shadow)))
+        self._edit_just_added = False
         self._record(text=shadow_edit_text(self.shadow_edits))
         return True
 
@@ -1505,21 +1503,16 @@ class MainWindow(QMainWindow):
         top = stack.command(stack.index() - 1) if stack.index() > 0 else None
         if (not self.shadow_edits or self.shadow_edits[-1] != idle
                 or stack.index() != stack.count() or not isinstance(top, EditCommand)
-                or top.after.shadow_edits != self.shadow_edits):
-            return  # something else happened since: leave it to the user
+                or top.after != self._edit_state
+                or top.before != replace(top.after, shadow_edits=self.shadow_edits[:-1])):
+            return  # the last step is not that click alone (a sun moved since): leave it
+        before = top.before  # (Qt deletes the command in undo())
         top.setObsolete(True)
         stack.undo()  # an obsolete command is removed, not undone
-        self._edit_state = top.before
-        self._show_shadow_edits(top.before.shadow_edits)
+        self._edit_state = before
+        self._show_shadow_edits(before.shadow_edits)
         self._deshadow_key = self._deshadow_key_now()  # the images shown are the same
         self._update_title()
-
-    def _edits_for_job(self) -> tuple[ShadowEdit, ...]:
-        """The corrections a job about to be submitted captures (and hands to the session
-        first): the current ones, remembered, so that showing kept images asks the session to
-        follow only when they differ from what the last job handed it."""
-        self._edits_sent = self.shadow_edits
-        return self.shadow_edits
 
     def clear_shadow_edits(self) -> None:
         """Take back every correction of the found shadows (one undo step)."""
@@ -1569,7 +1562,7 @@ class MainWindow(QMainWindow):
         if az is None or el is None:
             az, el = self.relight_panel.sun_panel.sun()
         exposure = self.relight_panel.exposure()
-        edits = self._edits_for_job()
+        edits = self.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)  # what lifts the photo's shadows
@@ -1615,11 +1608,7 @@ class MainWindow(QMainWindow):
             self._deshadow_kept.move_to_end(key)
             self._deshadow_key, self._deshadow_images = key, kept
             self._edit_note = ""
-            self._show_deshadow(view)
-            if self.shadow_edits != self._edits_sent:  # the session follows undo and redo
-                edits = self._edits_for_job()  # (cheap, in the worker); not on every sun move
-                self.runner.submit("shadow_edits", lambda ctx: session.set_shadow_edits(edits),
-                                   STAGE_WORDS["shadow_edits"])
+            self._show_deshadow(view)  # (every job hands the session its own corrections)
             return None
         if self._deshadow_job is not None:
             job_key, job_with_image, job_id = self._deshadow_job
@@ -1627,16 +1616,15 @@ class MainWindow(QMainWindow):
                 waiting = self.runner.latest("relight") == job_id
                 if waiting and any(i == job_id for i, _, _ in self.runner.active()):
                     return job_id  # already on its way (the new sun moved: nothing else to do)
-        edits = self._edits_for_job()
+        edits, just_added = self.shadow_edits, self._edit_just_added
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            last_added = bool(edits) and session.shadow_edits == edits[:-1]
             session.set_shadow_edits(edits)
             after = session.shadow_probability
             # The correction just made changed nothing (no found shadow near a "not a shadow"
             # click, the sky or a shadow already under a "mark shadow" one): said after Ready.
             used = session.shadow_edits_used
-            idle_edit = edits[-1] if last_added and used and not used[-1] else None
+            idle_edit = edits[-1] if just_added and used and not used[-1] else None
             overlay = display.found_shadow_overlay_rgba(after, session.sky)
             image = None
             if with_image:
@@ -1849,7 +1837,7 @@ class MainWindow(QMainWindow):
             The job's id, or ``None`` when the file exists and ``force`` is off.
         """
         session, loaded = self.session, self.loaded
-        edits = self._edits_for_job()  # as asked, whatever is corrected later
+        edits = self.shadow_edits  # as asked, whatever is corrected later
         if self.refuse_own_file(path):  # never, even confirmed in the file dialog
             return None
         if not force and os.path.exists(path):
@@ -2154,12 +2142,10 @@ class MainWindow(QMainWindow):
                     text, self._held_message = self._held_message, ""
                 if channel == "relight" and self._exposure_hint:
                     text += f" · {self._exposure_hint}"
-                if channel == "shadow_edits":  # the kept images were shown at once
-                    text = "Ready"
                 tool = self.relight_panel.shadow_tool()
-                if channel in ("relight", "shadow_edits") and self._edit_note:
+                if channel == "relight" and self._edit_note:
                     text = f"Ready · {self._edit_note}"  # what the correction did (nothing)
-                elif channel in ("relight", "shadow_edits") and tool:
+                elif channel == "relight" and tool:
                     text = SHADOW_TOOL_HINTS[tool]  # what the tool that is on does
             self.stage_label.setText(text)
 

@@ -575,7 +575,7 @@ class TimelapseDialog(QDialog):
         w = tl.sun_vectors([s])[0]
 
         exposure = self.main.relight_panel.exposure()  # as the user sees it now
-        edits = self.main._edits_for_job()  # the photo's shadows as corrected now
+        edits = self.main.shadow_edits  # the photo's shadows as corrected now
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)
@@ -639,7 +639,7 @@ class TimelapseDialog(QDialog):
             return None
 
         exposure = self.main.relight_panel.exposure()  # as asked, whatever is ticked later
-        edits = self.main._edits_for_job()  # likewise the shadow corrections
+        edits = self.main.shadow_edits  # likewise the shadow corrections
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)

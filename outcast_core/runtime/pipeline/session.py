@@ -660,6 +660,12 @@ class RelightSession:
         with self._lock:
             if edits == self.shadow_edits:
                 return
+            used = self.shadow_edits_used
+            if len(used) == len(self.shadow_edits) and edits == tuple(
+                    e for e, u in zip(self.shadow_edits, used, strict=True) if u):
+                # Only edits that changed nothing are gone: nothing to redo.
+                self.shadow_edits, self.shadow_edits_used = edits, (True,) * len(edits)
+                return
             self.shadow_edits = edits
             self.shadow_edits_used = ()
             if self._found is not None and self.original_sun is not None:

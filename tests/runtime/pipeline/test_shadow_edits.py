@@ -284,3 +284,19 @@ def test_a_shadow_click_on_lit_ground_is_refused() -> None:
     inside = ShadowEdit(45 / W, 85 / H, shadow=True)  # the shadow itself, fleck excluded
     region = shadow_edit_region(p, img, sky, inside)
     assert region[parts["shadow"]].mean() > 0.8 and region[65:75, 60:72].mean() < 0.1
+
+
+def test_dropping_edits_that_changed_nothing_redoes_nothing() -> None:
+    img, parts = _slope()
+    depth = np.full((H, W), 10.0, np.float32)
+    depth[parts["sky"]] = np.inf
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(img, depth=depth)
+    s.set_original_sun((0.3, -0.5, 0.8))
+    useful = (ShadowEdit(*_centre(parts["shadow"]), shadow=True),)
+    s.set_shadow_edits((*useful, ShadowEdit(0.5, 0.05, shadow=True)))  # the second: the sky
+    assert s.shadow_edits_used == (True, False)
+    kept = s.deshadow()
+    s.set_shadow_edits(useful)
+    assert s.shadow_edits == useful and s.shadow_edits_used == (True,)
+    assert s.deshadow() is kept  # not made again
