@@ -5,8 +5,7 @@ functions capture plain values and never touch widgets. Results come back as sig
 this window, in the GUI thread. Channels (one pending job each, latest wins):
 
 ``load``, ``preset``, ``shadow`` (step-1 overlay), ``find_sun`` (step 1's automatic sun),
-``confirm``, ``relight`` (step-2 view), ``shadow_edits`` (the session follows the shadow
-corrections when the view shows kept images: undo and redo),
+``confirm``, ``relight`` (step-2 view),
 ``export_still``, ``export_shadows_removed``, ``tl_preview``, ``tl_export``.
 
 The step-2 views "Shadows removed" and "Shadows found" do not depend on the new sun: their
