@@ -10,13 +10,17 @@ All layers are drawn into the same rectangle, whatever their own resolution, so 
 relit image lines up with the full-size photo. Wheel zooms about the cursor, dragging pans,
 double-click fits the image to the window. With a click tool on (:meth:`ImageCanvas.set_click_tool`,
 step 2's shadow corrections) a click on the image (press and release without dragging) emits
-:attr:`ImageCanvas.image_clicked`; dragging still pans or moves the split line.
+:attr:`ImageCanvas.image_clicked`, and a drag that starts on the image paints a brush stroke
+(:meth:`ImageCanvas.set_brush`; drawn as a translucent path while it lasts, emitted once on
+release as :attr:`ImageCanvas.stroke_painted`); the middle button still pans, and a drag that
+starts on the split line or beside the image still moves the line or pans. The brush's circle
+follows the cursor over the image.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QPointF, QRectF, QSize, Qt, Signal
+from PySide6.QtCore import QEvent, QLineF, QPointF, QRectF, QSize, Qt, Signal
 from PySide6.QtGui import (
     QColor,
     QCursor,
@@ -24,6 +28,7 @@ from PySide6.QtGui import (
     QImage,
     QMouseEvent,
     QPainter,
+    QPainterPath,
     QPaintEvent,
     QPen,
     QResizeEvent,
@@ -53,11 +58,15 @@ class ImageCanvas(QWidget):
         split_dragged(fraction): the user dragged the before/after line.
         image_clicked(x, y): with a click tool on, a click on the image, as fractions (0-1) of
             its width and height.
+        stroke_painted(points): with a click tool on, a drag painted on the image: the brush
+            dabs' centres, ``[(x, y), ...]`` fractions as for ``image_clicked``, at most half
+            the brush's radius apart (those off the image left out).
     """
 
     zoom_changed = Signal(float)
     split_dragged = Signal(float)
     image_clicked = Signal(float, float)
+    stroke_painted = Signal(object)
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -76,6 +85,16 @@ class ImageCanvas(QWidget):
         #: With a click tool on: where the left button went down (widget coordinates) and the
         #: image point under it then (the pan may move the image a pixel or two before release).
         self._press: tuple[QPointF, QPointF] | None = None
+        #: The brush: radius (fraction of the image's longer side) and the colour of a stroke.
+        self._brush = 0.02
+        self._brush_colour = QColor(255, 255, 255)
+        #: A stroke being painted: the dabs' centres and the mouse's path (image pixels), the
+        #: last mouse point and how far the path went since the last dab.
+        self._stroke: list[QPointF] | None = None
+        self._stroke_path = QPainterPath()
+        self._stroke_last = QPointF()
+        self._stroke_carry = 0.0
+        self._hover: QPointF | None = None  # where the brush's circle is drawn (widget)
         self._empty_text = "Open a photo (Ctrl+O) or drop one here"
         self.overlay_updates = 0  # counted for tests and the benchmark
         self.after_updates = 0  # relit images shown (step 2), counted likewise
@@ -143,15 +162,37 @@ class ImageCanvas(QWidget):
         return self._split
 
     def set_click_tool(self, on: bool) -> None:
-        """Turn the click tool on or off: a crosshair over the image, and a click there emits
-        :attr:`image_clicked`."""
+        """Turn the click tool on or off: a crosshair and the brush's circle over the image; a
+        click there emits :attr:`image_clicked`, a drag :attr:`stroke_painted`."""
         self._click_tool = bool(on)
         self._press = None
+        self._end_stroke()
         self.setMouseTracking(self._click_tool)  # the cursor follows the image's edge
         self._update_cursor(self.mapFromGlobal(QCursor.pos()).toPointF())
 
     def click_tool(self) -> bool:
         return self._click_tool
+
+    def set_brush(self, radius: float, colour: QColor | None = None) -> None:
+        """The brush: its radius as a fraction of the image's longer side (its circle follows
+        the cursor), and the colour a stroke is drawn in while painted."""
+        self._brush = max(0.0, float(radius))
+        if colour is not None:
+            self._brush_colour = QColor(colour)
+        self.update()
+
+    def brush(self) -> float:
+        return self._brush
+
+    def brush_pixels(self) -> float:
+        """The brush's radius in image pixels (0 without an image)."""
+        if self._before is None or self._before.isNull():
+            return 0.0
+        return self._brush * max(self._before.width(), self._before.height())
+
+    def painting(self) -> bool:
+        """Whether a stroke is being painted (the left button held after a drag)."""
+        return self._stroke is not None
 
     def image_fraction(self, pos: QPointF) -> tuple[float, float] | None:
         """The image point under ``pos`` (widget coordinates) as fractions of its width and
@@ -163,10 +204,26 @@ class ImageCanvas(QWidget):
         return (x, y) if 0.0 <= x < 1.0 and 0.0 <= y < 1.0 else None
 
     def _update_cursor(self, pos: QPointF) -> None:
-        if self._click_tool and self.image_fraction(pos) is not None:
+        on_image = self._click_tool and self.image_fraction(pos) is not None
+        if on_image:
             self.setCursor(Qt.CursorShape.CrossCursor)
         else:
             self.unsetCursor()
+        self._move_hover(pos if on_image else None)
+
+    def _brush_rect(self, centre: QPointF) -> QRectF:
+        """The widget area the brush's circle at ``centre`` covers."""
+        r = self.brush_pixels() * self._zoom + 3.0
+        return QRectF(centre.x() - r, centre.y() - r, 2 * r, 2 * r)
+
+    def _move_hover(self, pos: QPointF | None) -> None:
+        """Draw the brush's circle at ``pos`` (None: nowhere), repainting only round it."""
+        if pos == self._hover:
+            return
+        for centre in (self._hover, pos):
+            if centre is not None:
+                self.update(self._brush_rect(centre).toAlignedRect())
+        self._hover = pos
 
     # ------------------------------------------------------------------ view transform
     def zoom(self) -> float:
@@ -228,6 +285,7 @@ class ImageCanvas(QWidget):
         self.paint_before(p, rect)
         self.paint_overlay(p, rect)
         self.paint_after(p, rect)
+        self.paint_brush(p)
         p.end()
 
     def paint_empty_state(self, p: QPainter) -> None:
@@ -283,6 +341,34 @@ class ImageCanvas(QWidget):
         p.drawLine(QPointF(x, top), QPointF(x, bottom))
         self.paint_split_labels(p, x, top)
 
+    def paint_brush(self, p: QPainter) -> None:
+        """The stroke being painted (a translucent band the brush's width along the mouse's
+        path), and the brush's circle under the cursor."""
+        radius = self.brush_pixels()
+        if radius <= 0:
+            return
+        p.save()
+        p.setRenderHint(QPainter.RenderHint.Antialiasing, True)
+        if self._stroke is not None:
+            p.save()
+            p.translate(self._offset)
+            p.scale(self._zoom, self._zoom)
+            colour = QColor(self._brush_colour)
+            colour.setAlpha(110)
+            pen = QPen(colour, 2.0 * radius, Qt.PenStyle.SolidLine, Qt.PenCapStyle.RoundCap,
+                       Qt.PenJoinStyle.RoundJoin)
+            p.setPen(pen)
+            p.setBrush(Qt.BrushStyle.NoBrush)
+            p.drawPath(self._stroke_path)
+            p.restore()
+        if self._hover is not None:
+            r = radius * self._zoom
+            p.setBrush(Qt.BrushStyle.NoBrush)
+            for colour, width in ((QColor(0, 0, 0, 160), 3.0), (QColor(255, 255, 255), 1.0)):
+                p.setPen(QPen(colour, width))
+                p.drawEllipse(self._hover, r, r)
+        p.restore()
+
     def paint_split_labels(self, p: QPainter, x: float, top: float) -> None:
         font = QFont(self.font())
         font.setBold(True)
@@ -325,9 +411,12 @@ class ImageCanvas(QWidget):
             self._dragging_split = True
             self.setCursor(Qt.CursorShape.SplitHCursor)
             event.accept()
+        elif (self._click_tool and event.button() == Qt.MouseButton.LeftButton
+              and self.image_fraction(event.position()) is not None):
+            # On the image: a click, or (once it moves) a brush stroke; no pan.
+            self._press = (event.position(), self.widget_to_image(event.position()))
+            event.accept()
         elif event.button() in (Qt.MouseButton.LeftButton, Qt.MouseButton.MiddleButton):
-            if self._click_tool and event.button() == Qt.MouseButton.LeftButton:
-                self._press = (event.position(), self.widget_to_image(event.position()))
             self._pan_from = event.position()
             self.setCursor(Qt.CursorShape.ClosedHandCursor)
             event.accept()
@@ -347,6 +436,15 @@ class ImageCanvas(QWidget):
             self._fit = False
             self.update()
             event.accept()
+        elif self._press is not None:  # a click tool's press: a stroke once it moves
+            if self._stroke is None:
+                moved = (event.position() - self._press[0]).manhattanLength()
+                if moved < QApplication.startDragDistance():
+                    return
+                self._begin_stroke(self._press[1])
+            self._extend_stroke(self.widget_to_image(event.position()))
+            self._move_hover(event.position())
+            event.accept()
         elif self._click_tool:  # (mouse tracking) crosshair over the image only
             self._update_cursor(event.position())
 
@@ -355,7 +453,13 @@ class ImageCanvas(QWidget):
         self._pan_from = None
         self._dragging_split = False
         self.unsetCursor()
-        if press is not None and event.button() == Qt.MouseButton.LeftButton:
+        if self._stroke is not None and event.button() == Qt.MouseButton.LeftButton:
+            self._extend_stroke(self.widget_to_image(event.position()), last=True)
+            points = self._stroke_points()
+            self._end_stroke()
+            if points:
+                self.stroke_painted.emit(points)
+        elif press is not None and event.button() == Qt.MouseButton.LeftButton:
             moved = (event.position() - press[0]).manhattanLength()
             if moved < QApplication.startDragDistance() and self._before is not None:
                 # a click, not a drag: the image point under the press
@@ -365,6 +469,56 @@ class ImageCanvas(QWidget):
                     self.image_clicked.emit(x, y)
         self._update_cursor(event.position())
         super().mouseReleaseEvent(event)
+
+    def leaveEvent(self, event: QEvent) -> None:
+        self._move_hover(None)
+        super().leaveEvent(event)
+
+    # ------------------------------------------------------------------ brush strokes
+    def _begin_stroke(self, start: QPointF) -> None:
+        self._stroke = [QPointF(start)]
+        self._stroke_path = QPainterPath(start)
+        self._stroke_last = QPointF(start)
+        self._stroke_carry = 0.0
+
+    def _extend_stroke(self, point: QPointF, last: bool = False) -> None:
+        """Carry the stroke on to ``point`` (image pixels): a dab every half radius along the
+        way, whatever the distance between mouse events (a fast drag leaves no gap); ``last``:
+        one more at ``point`` itself, where the stroke ends."""
+        assert self._stroke is not None
+        spacing = max(0.5, 0.5 * self.brush_pixels())
+        start = self._stroke_last
+        length = QLineF(start, point).length()
+        if length > 0:
+            step = (point - start) / length
+            at = spacing - self._stroke_carry  # how far along to the next dab
+            while at <= length:
+                self._stroke.append(start + step * at)
+                at += spacing
+            self._stroke_carry = length - (at - spacing)
+            self._stroke_path.lineTo(point)
+            self._stroke_last = QPointF(point)
+            # Repaint only round the new piece of the path (the mouse moves often).
+            pad = self.brush_pixels() * self._zoom + 3.0
+            a, b = self._offset + start * self._zoom, self._offset + point * self._zoom
+            self.update(QRectF(a, b).normalized().adjusted(-pad, -pad, pad, pad).toAlignedRect())
+        if last and self._stroke_carry > 0:
+            self._stroke.append(QPointF(point))
+            self._stroke_carry = 0.0
+
+    def _stroke_points(self) -> list[tuple[float, float]]:
+        """The stroke's dabs as fractions of the image's width and height (on the image)."""
+        if self._stroke is None or self._before is None or self._before.isNull():
+            return []
+        w, h = self._before.width(), self._before.height()
+        points = ((pt.x() / w, pt.y() / h) for pt in self._stroke)
+        return [(x, y) for x, y in points if 0.0 <= x < 1.0 and 0.0 <= y < 1.0]
+
+    def _end_stroke(self) -> None:
+        if self._stroke is not None:
+            self._stroke = None
+            self._stroke_path = QPainterPath()
+            self.update()
 
     def mouseDoubleClickEvent(self, event: QMouseEvent) -> None:
         self.fit()

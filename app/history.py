@@ -3,7 +3,8 @@
 What is undoable: moving either sun (a drag counts once, on release; a key nudge or a typed value
 once each), confirming the original sun and going back to re-align it (the step), the quality
 preset, the depth map, the camera heading typed in step 1, step 2's exposure and the user's
-corrections of the photo's found shadows (step 2's "Not a shadow" / "Mark shadow"). View settings
+corrections of the photo's found shadows (step 2's "Not a shadow" / "Mark shadow": a click, or
+a brush stroke, one step however many dabs it lays). View settings
 (overlay opacity, split, buffer view, zoom) are not; the time-lapse dialog's settings are not
 either, but they count as unsaved work (``MainWindow.has_unsaved_changes``).
 
@@ -96,11 +97,21 @@ def describe_change(before: EditState, after: EditState) -> str:
 
 
 def shadow_edit_text(edits: tuple[ShadowEdit, ...]) -> str:
-    """The Edit-menu label of a change of the shadow corrections to ``edits`` (one added to
-    the end, or all cleared): "Mark shadow", "Not a shadow" or "Clear shadow corrections"."""
+    """The Edit-menu label of a change of the shadow corrections to ``edits`` (a click or a
+    brush stroke added to the end, or all cleared): "Mark shadow", "Not a shadow" (a click),
+    "Paint shadow", "Paint not a shadow" (a stroke) or "Clear shadow corrections".
+
+    Example:
+        >>> from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
+        >>> shadow_edit_text((ShadowEdit(0.5, 0.5, False), ShadowEdit(0.5, 0.5, False, 0.02)))
+        'Paint not a shadow'
+    """
     if not edits:
         return "Clear shadow corrections"
-    return "Mark shadow" if edits[-1].shadow else "Not a shadow"
+    last = edits[-1]
+    if last.radius > 0:
+        return "Paint shadow" if last.shadow else "Paint not a shadow"
+    return "Mark shadow" if last.shadow else "Not a shadow"
 
 
 STEP_BURST_S = 1.0

@@ -14,7 +14,9 @@ images are computed once per photo, original sun, preset and shadow corrections 
 costs nothing.
 
 The user's corrections of the found shadows (:attr:`MainWindow.shadow_edits`, step 2's "Not a
-shadow" / "Mark shadow" tools) are app state like the suns: undoable, saved in the project.
+shadow" / "Mark shadow" tools: a click on a region, or a brush stroke, its dabs sent to the worker
+once, on release) are app state like the suns: undoable (a stroke as one step), saved in the
+project.
 Every job whose result depends on the found shadows captures the tuple and hands it to
 ``session.set_shadow_edits`` before its work (cheap when unchanged), so a job never runs with
 older or newer corrections than the ones it was asked for, whichever jobs the latest-wins
@@ -82,7 +84,14 @@ from app.leave_prompts import (
     leave_questions,
     replace_project_question,
 )
-from app.panels import SHADOW_TOOLS, VIEW_CHOICES, AlignPanel, RelightPanel
+from app.panels import (
+    BRUSH_DEFAULT,
+    BRUSH_RANGE,
+    SHADOW_TOOLS,
+    VIEW_CHOICES,
+    AlignPanel,
+    RelightPanel,
+)
 from app.state import (
     IMAGE_SUFFIXES,
     PRESET_NAMES,
@@ -102,7 +111,11 @@ from outcast_core.runtime.geometry.camera import cosine_term, sun_angles, sun_ve
 from outcast_core.runtime.io.imageio import same_file
 from outcast_core.runtime.io.models import ModelError
 from outcast_core.runtime.pipeline.auto_sun import SOURCE_EXIF, SOURCE_SUN_IN_FRAME
-from outcast_core.runtime.pipeline.photo_shadows import MAX_SHADOW_EDITS, ShadowEdit
+from outcast_core.runtime.pipeline.photo_shadows import (
+    MAX_SHADOW_EDITS,
+    ShadowEdit,
+    shadow_edit_strokes,
+)
 from outcast_core.runtime.pipeline.session import elongation_note
 
 APP_NAME = "OutCast"
@@ -132,7 +145,11 @@ STILL_FILTERS = "PNG image (*.png);;JPEG image (*.jpg *.jpeg);;16-bit TIFF (*.ti
 #: most this many bytes of images besides the shown ones (a 24-megapixel photo's take 72 MB).
 DESHADOW_KEEP_BYTES = 256 * 1024 * 1024
 #: The status-bar hint while a shadow-correction tool is on.
-SHADOW_TOOL_HINTS = {key: f"{hint} (Esc ends the tool)" for key, _, _, hint in SHADOW_TOOLS}
+SHADOW_TOOL_HINTS = {key: f"{hint} ([ ] brush size, Esc ends the tool)"
+                     for key, _, _, hint in SHADOW_TOOLS}
+#: A brush stroke's colour while it is painted, per tool: the found shadows' magenta for "Mark
+#: shadow", a pale cyan (what stays of the photo) for "Not a shadow".
+BRUSH_COLOURS = {"shadow": QColor(255, 60, 200), "not_shadow": QColor(150, 235, 255)}
 
 
 def _timings(session: Any) -> dict[str, float]:
@@ -266,8 +283,9 @@ class MainWindow(QMainWindow):
         self._after_label = "Relit"
         #: The user's corrections of the photo's found shadows, in order (step 2's tools).
         self.shadow_edits: tuple[ShadowEdit, ...] = ()
-        #: A correction was just added: the next found-shadows job says if it changed nothing.
-        self._edit_just_added = False
+        #: How many edits (a click: 1; a stroke: its dabs) were just added: the next
+        #: found-shadows job says if they changed nothing.
+        self._edit_just_added = 0
         self._edit_note = ""  # said after "Ready" when the last correction changed nothing
         # The deshadow views' images: (load, original sun, preset, shadow corrections) ->
         # (de-shadowed photo or None, found-shadows overlay); the shown ones and a few more.
@@ -420,6 +438,15 @@ class MainWindow(QMainWindow):
         self.act_end_shadow_tool.triggered.connect(
             lambda: self.relight_panel.set_shadow_tool(""))
         self.addAction(self.act_end_shadow_tool)
+        # [ and ] shrink and grow the brush, as in photo editors (with the tools shown).
+        self.act_brush_smaller = QAction("Smaller brush", self,
+                                         shortcut=QKeySequence(Qt.Key.Key_BracketLeft))
+        self.act_brush_larger = QAction("Larger brush", self,
+                                        shortcut=QKeySequence(Qt.Key.Key_BracketRight))
+        for act, steps in ((self.act_brush_smaller, -1), (self.act_brush_larger, 1)):
+            act.setEnabled(False)
+            act.triggered.connect(lambda _c=False, n=steps: self.relight_panel.step_brush(n))
+            self.addAction(act)
 
         file_menu = self.menuBar().addMenu("&File")
         file_menu.addAction(self.act_open)
@@ -519,6 +546,16 @@ class MainWindow(QMainWindow):
         rp.shadow_tool_changed.connect(self._on_shadow_tool_changed)
         rp.clear_shadow_edits_clicked.connect(self.clear_shadow_edits)
         self.canvas.image_clicked.connect(self._on_canvas_clicked)
+        self.canvas.stroke_painted.connect(self._on_canvas_stroke)
+        try:  # the brush's size, as the user left it
+            brush = float(self.settings.value("brush_size", BRUSH_DEFAULT))
+        except (TypeError, ValueError):
+            brush = BRUSH_DEFAULT
+        if not BRUSH_RANGE[0] <= brush <= BRUSH_RANGE[1]:  # (also NaN)
+            brush = BRUSH_DEFAULT
+        rp.set_brush(brush / 100.0)
+        self.canvas.set_brush(rp.brush())
+        rp.brush_changed.connect(self._on_brush_changed)
         self.canvas.set_overlay_opacity(ap.opacity_slider.value() / 100.0)
         shortcuts_win = WindowShortcutsWin(self._window_shortcuts, self)
         for box in self.findChildren(QAbstractSpinBox):
@@ -531,7 +568,7 @@ class MainWindow(QMainWindow):
         acts = (
             self.act_export, self.act_export_deshadow, self.act_timelapse, self.act_confirm,
             self.act_find_sun, self.act_save, self.act_open, self.act_quit, self.act_undo,
-            self.act_redo, self.act_keys,
+            self.act_redo, self.act_keys, self.act_brush_smaller, self.act_brush_larger,
         )  # fmt: skip
         return [seq for act in acts for seq in act.shortcuts()]
 
@@ -722,8 +759,9 @@ class MainWindow(QMainWindow):
             " · Ctrl+Shift+E export shadows removed · Ctrl+T time-lapse\n"
             "Canvas: mouse wheel zooms, drag pans, double-click or Ctrl+0 fits, Ctrl+1 actual "
             "pixels.\n"
-            "Step 2, Shadows found / removed: \"Not a shadow\" or \"Mark shadow\", then click the "
-            "photo; Esc ends the tool.",
+            "Step 2, Shadows found / removed: \"Not a shadow\" or \"Mark shadow\", then click a "
+            "region of the photo or drag to paint (the middle button pans); [ and ] shrink and "
+            "grow the brush; Esc ends the tool.",
         )
 
     def show_error(self, exc: BaseException, action: str) -> None:
@@ -1454,7 +1492,16 @@ class MainWindow(QMainWindow):
 
     def _update_shadow_tools(self) -> None:
         """Show the correction tools in the views they work in; elsewhere hide them, off."""
-        self.relight_panel.show_shadow_tools(self.shadow_tools_available())
+        available = self.shadow_tools_available()
+        self.relight_panel.show_shadow_tools(available)
+        self.act_brush_smaller.setEnabled(available)
+        self.act_brush_larger.setEnabled(available)
+
+    @Slot(float)
+    def _on_brush_changed(self, radius: float) -> None:
+        """The brush's size: the canvas's circle, remembered in the settings (in %)."""
+        self.canvas.set_brush(radius)
+        self.settings.setValue("brush_size", round(100.0 * radius, 2))
 
     @Slot(str)
     def _on_shadow_tool_changed(self, tool: str) -> None:
@@ -1463,6 +1510,7 @@ class MainWindow(QMainWindow):
         self.canvas.set_click_tool(on)
         self.act_end_shadow_tool.setEnabled(on)
         if on:
+            self.canvas.set_brush(self.relight_panel.brush(), BRUSH_COLOURS[tool])
             self.stage_label.setText(SHADOW_TOOL_HINTS[tool])
             self.canvas.setFocus()  # Esc reaches the window's action from here
         elif not self.runner.busy():
@@ -1474,6 +1522,12 @@ class MainWindow(QMainWindow):
         if tool and self.shadow_tools_available():
             self.add_shadow_edit(x, y, shadow=tool == "shadow")
 
+    @Slot(object)
+    def _on_canvas_stroke(self, points: list[tuple[float, float]]) -> None:
+        tool = self.relight_panel.shadow_tool()
+        if tool and self.shadow_tools_available():
+            self.add_shadow_stroke(points, shadow=tool == "shadow")
+
     def add_shadow_edit(self, x: float, y: float, shadow: bool) -> bool:
         """Correct the found shadows at the photo's point ``(x, y)`` (fractions of its width and
         height): ``shadow`` True, "this is a shadow"; False, "not a shadow". Undoable; the
@@ -1483,28 +1537,55 @@ class MainWindow(QMainWindow):
             Whether the correction was made (not outside the photo, not past
             :data:`~outcast_core.runtime.pipeline.photo_shadows.MAX_SHADOW_EDITS`).
         """
-        if not self.shadow_tools_available() or not (0.0 <= x <= 1.0 and 0.0 <= y <= 1.0):
+        if not (0.0 <= x <= 1.0 and 0.0 <= y <= 1.0):
             return False
-        if len(self.shadow_edits) >= MAX_SHADOW_EDITS:
-            self.stage_label.setText(f"At most {MAX_SHADOW_EDITS} corrections: clear them or "
-                                     "undo some first")
+        return self._add_shadow_edits((ShadowEdit(float(x), float(y), shadow),))
+
+    def add_shadow_stroke(self, points: Iterable[tuple[float, float]], shadow: bool,
+                          radius: float | None = None) -> bool:
+        """Paint a brush stroke on the found shadows: a dab at each of ``points`` (fractions of
+        the photo's width and height; those outside it left out) of ``radius`` (a fraction of
+        the longer side; default: the panel's brush). "Not a shadow" drops the found shadow
+        under the brush only; "a shadow" adds what the brush covers. One undo step, however
+        many dabs.
+
+        Returns:
+            Whether the stroke was made (see :meth:`add_shadow_edit`).
+        """
+        radius = self.relight_panel.brush() if radius is None else float(radius)
+        dabs = tuple(ShadowEdit(float(x), float(y), shadow, radius) for x, y in points
+                     if 0.0 <= x <= 1.0 and 0.0 <= y <= 1.0)
+        return self._add_shadow_edits(dabs)
+
+    def _add_shadow_edits(self, new: tuple[ShadowEdit, ...]) -> bool:
+        """Add a click's edit or a stroke's dabs to the corrections, as one undo step."""
+        if not self.shadow_tools_available() or not new:
             return False
-        self._edit_just_added = True  # (read by the found-shadows job this submits)
-        self.set_shadow_edits((*self.shadow_edits, ShadowEdit(float(x), float(y), shadow)))
-        self._edit_just_added = False
+        if len(self.shadow_edits) + len(new) > MAX_SHADOW_EDITS:
+            self.stage_label.setText(f"At most {MAX_SHADOW_EDITS} clicks and brush dabs: clear "
+                                     "the corrections or undo some first")
+            return False
+        self._edit_just_added = len(new)  # (read by the found-shadows job this submits)
+        try:
+            self.set_shadow_edits((*self.shadow_edits, *new))
+        finally:
+            self._edit_just_added = 0
         self._record(text=shadow_edit_text(self.shadow_edits))
         return True
 
-    def _drop_idle_edit(self, idle: ShadowEdit) -> None:
-        """Take back the click that changed nothing (the last correction, still the last
-        undo step): not counted, not an undo step, no unsaved change (a user trial)."""
+    def _drop_idle_edit(self, idle: tuple[ShadowEdit, ...]) -> None:
+        """Take back the click or the stroke that changed nothing (the last corrections, still
+        the last undo step): not counted, not an undo step, no unsaved change (a user
+        trial)."""
         stack = self.undo_stack
         top = stack.command(stack.index() - 1) if stack.index() > 0 else None
-        if (not self.shadow_edits or self.shadow_edits[-1] != idle
+        n = len(idle)
+        edits = self.shadow_edits
+        if (not n or len(edits) < n or edits[-n:] != idle
                 or stack.index() != stack.count() or not isinstance(top, EditCommand)
                 or top.after != self._edit_state
-                or top.before != replace(top.after, shadow_edits=self.shadow_edits[:-1])):
-            return  # the last step is not that click alone (a sun moved since): leave it
+                or top.before != replace(top.after, shadow_edits=edits[:-n])):
+            return  # the last step is not that click or stroke alone (a sun moved since)
         before = top.before  # (Qt deletes the command in undo())
         top.setObsolete(True)
         stack.undo()  # an obsolete command is removed, not undone
@@ -1532,9 +1613,13 @@ class MainWindow(QMainWindow):
             self._refresh_timelapse_preview()
 
     def _show_shadow_edits(self, edits: tuple[ShadowEdit, ...]) -> None:
-        """The corrections, and their count in the panel; no job (the next ones take them)."""
+        """The corrections, and their count in the panel (clicks and strokes, not dabs); no
+        job (the next ones take them)."""
         self.shadow_edits = tuple(edits)
-        self.relight_panel.set_shadow_edit_count(len(self.shadow_edits))
+        photo = self._photo_qimage
+        shape = (1, 1) if photo is None else (photo.height(), photo.width())
+        self.relight_panel.set_shadow_edit_count(
+            len(shadow_edit_strokes(self.shadow_edits, shape)))
 
     def _refresh_timelapse_preview(self) -> None:
         dialog = self._timelapse_dialog
@@ -1620,17 +1705,19 @@ class MainWindow(QMainWindow):
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)
             after = session.shadow_probability
-            # The correction just made changed nothing (no found shadow near a "not a shadow"
-            # click, the sky or a shadow already under a "mark shadow" one): said after Ready.
+            # The correction just made (a click, or every dab of a stroke) changed nothing (no
+            # found shadow near a "not a shadow" click, the sky or a shadow already under a
+            # "mark shadow" one): said after Ready.
             used = session.shadow_edits_used
-            idle_edit = edits[-1] if just_added and used and not used[-1] else None
+            idle_edits = (edits[-just_added:] if just_added and len(used) == len(edits)
+                          and not any(used[-just_added:]) else None)
             overlay = display.found_shadow_overlay_rgba(after, session.sky)
             image = None
             if with_image:
                 ctx.progress("removing shadows", 0.1)
                 image = display.to_uint8_rgb(session.deshadow_full())
             return {"view": view, "key": key, "image": image, "overlay": overlay,
-                    "idle_edit": idle_edit, "timings": _timings(session)}  # fmt: skip
+                    "idle_edits": idle_edits, "timings": _timings(session)}  # fmt: skip
 
         words = "Removing the photo's shadows" if with_image else "Finding the photo's shadows"
         job_id = self.runner.submit("relight", job, words)
@@ -1643,6 +1730,17 @@ class MainWindow(QMainWindow):
         if self.session is None or self.original_sun is None:
             return None
         return self._loads, self.original_sun.as_tuple(), self.preset, self.shadow_edits
+
+    @staticmethod
+    def _idle_note(edit: ShadowEdit) -> str:
+        """What to say of a click or a stroke (``edit``, its last dab) that changed nothing."""
+        if edit.radius > 0:
+            return ("nothing was painted (the sky, or painted already)" if edit.shadow else
+                    "no found shadow under the stroke: paint over the magenta area of "
+                    "\"Shadows found\"")
+        return ("nothing was added there (the sky, lit ground, or a shadow already): click "
+                "inside a shadow the app missed" if edit.shadow else
+                "no found shadow there: click on the magenta area of \"Shadows found\"")
 
     def _keep_deshadow(self, key: tuple[Any, ...], image: QImage | None,
                        overlay: QImage) -> tuple[QImage | None, QImage]:
@@ -1711,11 +1809,8 @@ class MainWindow(QMainWindow):
             if entry is None or key != self._deshadow_key_now():
                 return  # for a photo, sun, preset or correction that has changed since
             self._deshadow_key, self._deshadow_images = key, entry
-            idle = result.get("idle_edit")
-            self._edit_note = "" if idle is None else (
-                "nothing was added there (the sky, lit ground, or a shadow already): click "
-                "inside a shadow the app missed" if idle.shadow else
-                "no found shadow there: click on the magenta area of \"Shadows found\"")
+            idle = result.get("idle_edits")
+            self._edit_note = "" if not idle else self._idle_note(idle[-1])
             self._show_deshadow(view)
             if idle is not None:
                 self._drop_idle_edit(idle)

@@ -36,17 +36,28 @@ VIEW_CHOICES = (
 SHADOW_TOOLS = (
     ("not_shadow", "Not a shadow",
      "Click an area marked as shadow that is not one (a dark object, foliage, a black car): "
-     "it is no longer lifted. Undo (Ctrl+Z) takes the click back; Esc ends the tool.",
-     "Click a marked area that is not a shadow (a dark object, foliage)"),
+     "it is no longer lifted. Or drag to paint over what is not a shadow: only the marked "
+     "area under the brush is dropped (many small pieces, a shadow joined to a dark object). "
+     "Undo (Ctrl+Z) takes the click or the stroke back; [ and ] size the brush; Esc ends the "
+     "tool.",
+     "Click a marked area that is not a shadow (a dark object, foliage), or drag to paint "
+     "over it"),
     ("shadow", "Mark shadow",
      "Click inside a shadow the app missed: the area of even brightness around the point is "
-     "added and lifted. Undo (Ctrl+Z) takes the click back; Esc ends the tool.",
-     "Click inside a shadow the app missed"),
+     "added and lifted. Or drag to paint the shadow with the brush. Undo (Ctrl+Z) takes the "
+     "click or the stroke back; [ and ] size the brush; Esc ends the tool.",
+     "Click inside a shadow the app missed, or drag to paint it"),
 )
 
 
 #: The tools' hint while none is on.
-SHADOW_TOOL_IDLE = "Turn a tool on, then click the photo; the magenta areas are the shadows found."
+SHADOW_TOOL_IDLE = ("Turn a tool on, then click a region of the photo, or drag to paint; the "
+                    "magenta areas are the shadows found.")
+#: The brush's size (radius, % of the photo's longer side): default, range, and the factor
+#: ``[`` and ``]`` divide and multiply it by.
+BRUSH_DEFAULT = 2.0
+BRUSH_RANGE = (0.5, 15.0)
+BRUSH_STEP = 1.25
 
 
 def _header(text: str, hint: str, parent: QWidget) -> tuple[QLabel, QLabel]:
@@ -229,6 +240,8 @@ class RelightPanel(QWidget):
     #: The shadow-correction tool turned on (a key of :data:`SHADOW_TOOLS`) or off (``""``).
     shadow_tool_changed = Signal(str)
     clear_shadow_edits_clicked = Signal()
+    #: The brush's radius changed: a fraction of the photo's longer side.
+    brush_changed = Signal(float)
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -294,11 +307,27 @@ class RelightPanel(QWidget):
         self.shadow_tool_hint = QLabel(SHADOW_TOOL_IDLE, self.shadow_tools)
         self.shadow_tool_hint.setWordWrap(True)
         self.shadow_tool_hint.setStyleSheet("font-size: 9pt;")
+        self.brush_box = QDoubleSpinBox(self.shadow_tools)
+        self.brush_box.setRange(*BRUSH_RANGE)
+        self.brush_box.setDecimals(1)
+        self.brush_box.setSingleStep(0.5)
+        self.brush_box.setSuffix(" %")
+        self.brush_box.setValue(BRUSH_DEFAULT)
+        self.brush_box.setAccessibleName("Brush size")
+        self.brush_box.setToolTip(
+            "The brush's radius, in % of the photo's longer side, when you drag to paint with "
+            "a tool ([ and ] shrink and grow it)")
+        self.brush_box.valueChanged.connect(lambda v: self.brush_changed.emit(v / 100.0))
+        brush_row = QHBoxLayout()
+        brush_row.addWidget(QLabel("Brush size", self.shadow_tools))
+        brush_row.addWidget(self.brush_box)
+        brush_row.addStretch(1)
         clear_row = QHBoxLayout()
         clear_row.addWidget(self.shadow_edits_label, 1)
         clear_row.addWidget(self.clear_shadow_edits_button)
         tools_layout = QVBoxLayout(self.shadow_tools)
         tools_layout.addLayout(tools_row)
+        tools_layout.addLayout(brush_row)
         tools_layout.addWidget(self.shadow_tool_hint)
         tools_layout.addLayout(clear_row)
         self.set_shadow_edit_count(0)
@@ -375,8 +404,28 @@ class RelightPanel(QWidget):
         self.shadow_tools.setVisible(shown)
         self.shadow_tools.setEnabled(shown)
 
+    def brush(self) -> float:
+        """The brush's radius, a fraction of the photo's longer side."""
+        return self.brush_box.value() / 100.0
+
+    def set_brush(self, radius: float) -> None:
+        """Set the brush's radius (a fraction of the longer side; kept within
+        :data:`BRUSH_RANGE`); emits :attr:`brush_changed` when it changes."""
+        self.brush_box.setValue(100.0 * radius)
+
+    def step_brush(self, steps: int) -> None:
+        """Grow (``steps > 0``) or shrink the brush by :data:`BRUSH_STEP` a step, as ``]`` and
+        ``[`` do in photo editors (at least the box's last digit a step)."""
+        box = self.brush_box
+        old = box.value()
+        new = round(old * BRUSH_STEP**steps, 1)
+        if steps and new == old:
+            new = old + (0.1 if steps > 0 else -0.1)
+        box.setValue(new)
+
     def set_shadow_edit_count(self, count: int) -> None:
-        """How many corrections there are: "Clear corrections" is enabled with any."""
+        """How many corrections there are (clicks and brush strokes): "Clear corrections" is
+        enabled with any."""
         self.clear_shadow_edits_button.setEnabled(count > 0)
         self.shadow_edits_label.setText(
             "No corrections" if count == 0

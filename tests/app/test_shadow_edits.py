@@ -15,7 +15,7 @@ from PySide6.QtGui import QImage, QMouseEvent
 from PySide6.QtWidgets import QApplication
 
 from app.state import ProjectState, Step, load_project
-from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
+from outcast_core.runtime.pipeline.photo_shadows import MAX_SHADOW_EDITS, ShadowEdit
 from tests.app.conftest import make_photo
 from tests.app.test_main_window import _confirm, _load, _timelapse
 
@@ -66,9 +66,10 @@ def _click(qtbot, window, x: float, y: float) -> None:
                      pos=_widget_point(window.canvas, x, y))
 
 
-def _mouse(canvas, kind: QEvent.Type, pos: QPoint, buttons: Qt.MouseButton) -> None:
-    button = Qt.MouseButton.NoButton if kind == QEvent.Type.MouseMove else (
-        Qt.MouseButton.LeftButton)
+def _mouse(canvas, kind: QEvent.Type, pos: QPoint, buttons: Qt.MouseButton,
+           button: Qt.MouseButton = Qt.MouseButton.LeftButton) -> None:
+    if kind == QEvent.Type.MouseMove:
+        button = Qt.MouseButton.NoButton
     event = QMouseEvent(kind, QPointF(pos), canvas.mapToGlobal(QPointF(pos)), button, buttons,
                         Qt.KeyboardModifier.NoModifier)
     QApplication.sendEvent(canvas, event)
@@ -122,6 +123,13 @@ def test_edit_menu_names_the_corrections():
     assert describe_change(a, b) == "Not a shadow"
     assert describe_change(b, c) == "Mark shadow"
     assert describe_change(c, a) == "Clear shadow corrections"
+    stroke = tuple(ShadowEdit(0.1 + 0.01 * i, 0.5, False, radius=0.02) for i in range(40))
+    d = EditState("relight", (10.0, 30.0), (10.0, 30.0), (90.0, 30.0), "fast",
+                  shadow_edits=(*c.shadow_edits, *stroke))
+    assert describe_change(c, d) == "Paint not a shadow"
+    e = EditState("relight", (10.0, 30.0), (10.0, 30.0), (90.0, 30.0), "fast",
+                  shadow_edits=tuple(ShadowEdit(s.x, s.y, True, s.radius) for s in stroke))
+    assert describe_change(a, e) == "Paint shadow"
 
 
 def test_not_a_shadow_drops_the_found_region(qtbot, window, photo, settle, errors):
@@ -260,7 +268,9 @@ def test_an_older_project_has_no_edits_and_a_bad_value_is_refused(window, photo,
     assert ProjectState.from_dict({**base, "shadow_edits": None}).shadow_edits == ()
     bad_values = (5, [{"x": 0.5, "y": 0.5}], [{"x": 1.5, "y": 0.5, "shadow": True}],
                   [{"x": 10**400, "y": 0.5, "shadow": True}], ["a"],
-                  [{"x": 0.5, "y": 0.5, "shadow": 1}], [{"x": 0.1, "y": 0.1, "shadow": True}] * 501)
+                  [{"x": 0.5, "y": 0.5, "shadow": 1}],
+                  [{"x": 0.5, "y": 0.5, "shadow": True, "r": 0.9}],
+                  [{"x": 0.1, "y": 0.1, "shadow": True}] * (MAX_SHADOW_EDITS + 1))
     for bad in bad_values:
         with pytest.raises(ValueError, match="^shadow_edits: ") as info:
             ProjectState.from_dict({**base, "shadow_edits": bad})
@@ -337,19 +347,29 @@ def test_tools_are_exclusive_and_esc_ends_them(qtbot, window, photo, settle):
     assert rp.shadow_tool() == "" and not window.canvas.click_tool()
 
 
-def test_a_drag_with_a_tool_on_pans_and_adds_nothing(qtbot, window, photo, settle):
+def test_the_middle_button_pans_with_a_tool_on_and_adds_nothing(qtbot, window, photo, settle):
     _shadows_view(window, photo, settle)
     _tool(window, "not_shadow")
     canvas = window.canvas
     start = _widget_point(canvas, *BAND_XY)
     left = canvas.image_rect().left()
-    _mouse(canvas, QEvent.Type.MouseButtonPress, start, Qt.MouseButton.LeftButton)
+    middle = Qt.MouseButton.MiddleButton
+    _mouse(canvas, QEvent.Type.MouseButtonPress, start, middle, middle)
     for dx in (10, 25, 40):
-        _mouse(canvas, QEvent.Type.MouseMove, start + QPoint(dx, 5), Qt.MouseButton.LeftButton)
-    _mouse(canvas, QEvent.Type.MouseButtonRelease, start + QPoint(40, 5), Qt.MouseButton.NoButton)
+        _mouse(canvas, QEvent.Type.MouseMove, start + QPoint(dx, 5), middle)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, start + QPoint(40, 5), Qt.MouseButton.NoButton,
+           middle)
     settle()
     assert canvas.image_rect().left() == pytest.approx(left + 40)  # it panned
     assert window.shadow_edits == () and window.undo_stack.count() == 1  # (the confirm)
+    # A left drag from beside the image pans too (nothing to paint there).
+    outside = QPoint(round(canvas.image_rect().right()) + 5, start.y())
+    _mouse(canvas, QEvent.Type.MouseButtonPress, outside, Qt.MouseButton.LeftButton)
+    _mouse(canvas, QEvent.Type.MouseMove, outside + QPoint(-30, 0), Qt.MouseButton.LeftButton)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, outside + QPoint(-30, 0),
+           Qt.MouseButton.NoButton)
+    assert canvas.image_rect().left() == pytest.approx(left + 10)
+    assert window.shadow_edits == ()
     _click(qtbot, window, 1.02, 0.5)  # outside the image (right of it): nothing either
     assert window.shadow_edits == ()
     _click(qtbot, window, *BAND_XY)  # a click still works after the drag
@@ -481,3 +501,186 @@ def test_the_panel_says_what_the_tool_that_is_on_does(qtbot, window, photo, sett
         assert hint.text() == words
     window.relight_panel.set_shadow_tool("")
     assert hint.text() == SHADOW_TOOL_IDLE
+
+
+# ---------------------------------------------------------------- the brush
+
+
+def _drag(window, points: list[tuple[float, float]]) -> None:
+    """Press on the first image point, move through the others (as fractions; big jumps, as a
+    fast drag's mouse events come), release on the last."""
+    canvas = window.canvas
+    left = Qt.MouseButton.LeftButton
+    _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, *points[0]), left)
+    for x, y in points[1:]:
+        _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, x, y), left)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, _widget_point(canvas, *points[-1]),
+           Qt.MouseButton.NoButton)
+
+
+def test_a_drag_paints_one_stroke_that_undo_takes_back_whole(qtbot, window, photo, settle,
+                                                               reopen):
+    """"Not a shadow" painted over the left part of the band: only what the brush covered is
+    dropped (a click drops the whole band), one undo step, sent to the worker once."""
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    rp, canvas = window.relight_panel, window.canvas
+    rp.set_brush(0.03)
+    assert canvas.brush() == pytest.approx(0.03)
+    count, left = window.undo_stack.count(), canvas.image_rect().left()
+    submitted = []
+    real = window.runner.submit
+    window.runner.submit = lambda channel, *a, **k: submitted.append(channel) or real(
+        channel, *a, **k)
+    path = [(0.27, 0.7), (0.30, 0.69), (0.36, 0.71), (0.40, 0.7)]
+    unpainted = _rgb(window.grab().toImage())
+    _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, *path[0]),
+           Qt.MouseButton.LeftButton)
+    for x, y in path[1:]:
+        _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, x, y),
+               Qt.MouseButton.LeftButton)
+    assert canvas.painting() and submitted == []  # drawn on the canvas, not sent yet
+    painted = _rgb(window.grab().toImage())
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, _widget_point(canvas, *path[-1]),
+           Qt.MouseButton.NoButton)
+    assert not canvas.painting() and submitted == ["relight"]  # once, on release
+    settle()
+    window.runner.submit = real
+    assert canvas.image_rect().left() == left  # painted, not panned
+    dabs = window.shadow_edits
+    assert len(dabs) >= 8 and all(not d.shadow and d.radius == pytest.approx(0.03) for d in dabs)
+    # No gap however far apart the mouse events: a dab at least every half radius.
+    gaps = [np.hypot((a.x - b.x) * 128, (a.y - b.y) * 96)
+            for a, b in zip(dabs, dabs[1:], strict=False)]
+    assert max(gaps) <= 0.5 * 0.03 * 128 + 1e-6
+    assert dabs[0].x == pytest.approx(0.27, abs=0.01) and dabs[-1].x == pytest.approx(0.40,
+                                                                                       abs=0.01)
+    assert window.undo_stack.count() == count + 1
+    assert _undo_texts(window)[-1] == "Paint not a shadow"
+    assert rp.shadow_edits_label.text() == "1 correction"  # a stroke, not its dabs
+    assert window.has_unsaved_changes()
+    p = window.session.shadow_probability
+    assert p[66:72, 38:48].max() < 0.05  # under the brush: dropped
+    assert p[66:72, 58:62].mean() > 0.8  # the band beyond it: still a shadow
+    assert _alpha(canvas.overlay())[66:72, 38:48].mean() < 30
+    # While painting, the stroke showed on the canvas (a translucent band over the photo).
+    on_path = canvas.mapTo(window, _widget_point(canvas, 0.33, 0.7))
+    seen = [a[on_path.y() - 1:on_path.y() + 2, on_path.x() - 1:on_path.x() + 2].astype(int)
+            for a in (unpainted, painted)]
+    assert np.abs(seen[1] - seen[0]).mean() > 40
+    # A "Mark shadow" stroke on lit ground and a click on what is left of the band: three
+    # corrections, three undo steps.
+    _tool(window, "shadow")
+    _drag(window, [(0.6, 0.9), (0.7, 0.9)])
+    settle()
+    assert _undo_texts(window)[-1] == "Paint shadow"
+    _tool(window, "not_shadow")
+    _click(qtbot, window, 0.48, 0.7)
+    settle()
+    assert _undo_texts(window)[-1] == "Not a shadow" and window.shadow_edits[-1].radius == 0
+    assert rp.shadow_edits_label.text() == "3 corrections"
+    window.act_undo.trigger()
+    window.act_undo.trigger()
+    settle()
+    assert window.shadow_edits == dabs
+    window.act_undo.trigger()  # the whole stroke at once
+    settle()
+    assert window.shadow_edits == () and _handed_edits(window, settle) == ()
+    assert window.session.shadow_probability[66:72, 38:48].mean() > 0.8
+    window.act_redo.trigger()
+    settle()
+    assert window.shadow_edits == dabs and _handed_edits(window, settle) == dabs
+    # Saved in the project, with each dab's radius.
+    saved = window.save_project()
+    with open(saved, encoding="utf-8") as f:
+        data = json.load(f)
+    assert len(data["shadow_edits"]) == len(dabs)
+    assert all(d["r"] == pytest.approx(0.03) for d in data["shadow_edits"])
+    with reopen(saved, Step.RELIGHT) as other:
+        assert len(other.shadow_edits) == len(dabs)
+        assert other.session.shadow_probability[66:72, 38:48].max() < 0.05
+        assert other.relight_panel.shadow_edits_label.text() == "1 correction"
+
+
+def test_a_press_without_a_drag_is_still_a_region_click(qtbot, window, photo, settle):
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    canvas = window.canvas
+    at = _widget_point(canvas, *BAND_XY)
+    _mouse(canvas, QEvent.Type.MouseButtonPress, at, Qt.MouseButton.LeftButton)
+    _mouse(canvas, QEvent.Type.MouseMove, at + QPoint(1, 0), Qt.MouseButton.LeftButton)  # a jitter
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, at + QPoint(1, 0), Qt.MouseButton.NoButton)
+    settle()
+    (edit,) = window.shadow_edits
+    assert edit.radius == 0 and _undo_texts(window)[-1] == "Not a shadow"
+    assert window.session.shadow_probability[BAND].max() < 0.05  # the whole band
+
+
+def test_the_brackets_size_the_brush_and_it_is_remembered(qtbot, window, photo, settle,
+                                                          settings):
+    from app.main_window import MainWindow
+    from app.panels import BRUSH_DEFAULT, BRUSH_RANGE
+
+    rp = window.relight_panel
+    assert rp.brush_box.value() == BRUSH_DEFAULT and window.canvas.brush() == BRUSH_DEFAULT / 100
+    _shadows_view(window, photo, settle)
+    _tool(window, "shadow")
+    window.activateWindow()
+    window.canvas.setFocus()
+    qtbot.keyClick(window.canvas, Qt.Key.Key_BracketRight)
+    grown = rp.brush_box.value()
+    assert grown > BRUSH_DEFAULT and window.canvas.brush() == pytest.approx(grown / 100)
+    for _ in range(3):
+        qtbot.keyClick(window.canvas, Qt.Key.Key_BracketLeft)
+    assert rp.brush_box.value() < BRUSH_DEFAULT
+    for _ in range(60):  # within its range
+        qtbot.keyClick(window.canvas, Qt.Key.Key_BracketLeft)
+    assert rp.brush_box.value() == BRUSH_RANGE[0]
+    qtbot.keyClick(window.canvas, Qt.Key.Key_BracketRight)
+    assert rp.brush_box.value() > BRUSH_RANGE[0]
+    rp.brush_box.setFocus()  # the keys work while the box has focus too
+    qtbot.keyClick(rp.brush_box, Qt.Key.Key_BracketRight)
+    size = rp.brush_box.value()
+    assert size > BRUSH_RANGE[0] + 0.1
+    # The canvas draws the brush's circle under the cursor, and a crosshair.
+    canvas = window.canvas
+    at = _widget_point(canvas, 0.5, 0.8)
+    _mouse(canvas, QEvent.Type.MouseMove, at, Qt.MouseButton.NoButton)
+    assert canvas.cursor().shape() == Qt.CursorShape.CrossCursor
+    assert canvas._hover == QPointF(at)
+    # Remembered: a new window starts with it; a broken setting gives the default.
+    other = MainWindow(settings=settings, preset="fast")
+    qtbot.addWidget(other)
+    assert other.relight_panel.brush_box.value() == pytest.approx(size)
+    other.runner.shutdown()
+    settings.setValue("brush_size", "nan")
+    third = MainWindow(settings=settings, preset="fast")
+    qtbot.addWidget(third)
+    assert third.relight_panel.brush_box.value() == BRUSH_DEFAULT
+    third.runner.shutdown()
+    # Without the tools ([ and ] are left to others): the size stays.
+    window.relight_panel.set_view("output")
+    settle()
+    qtbot.keyClick(window.canvas, Qt.Key.Key_BracketRight)
+    assert rp.brush_box.value() == size
+
+
+def test_a_stroke_that_changed_nothing_is_taken_back(qtbot, window, photo, settle):
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    count, clean = window.undo_stack.count(), window.undo_stack.isClean()
+    _drag(window, [(0.75, 0.9), (0.85, 0.88), (0.95, 0.9)])  # lit ground, no found shadow
+    settle()
+    assert "no found shadow under the stroke" in window.stage_label.text()
+    assert window.shadow_edits == () and window.undo_stack.count() == count
+    assert window.undo_stack.isClean() == clean
+    assert not window.relight_panel.clear_shadow_edits_button.isEnabled()
+    # A stroke of which some dabs changed something is kept whole, whichever they are.
+    for path in ([(0.75, 0.9), (0.6, 0.9), (0.45, 0.75)], [(0.3, 0.7), (0.6, 0.9), (0.75, 0.9)]):
+        edits = window.shadow_edits
+        _drag(window, path)
+        settle()
+        assert len(window.shadow_edits) > len(edits) + 5
+        used = window.session.shadow_edits_used[len(edits):]
+        assert any(used) and not all(used)
+    assert window.undo_stack.count() == count + 2

@@ -150,32 +150,60 @@ def parse_point(text: str) -> tuple[float, float]:
     return x, y
 
 
+def parse_shadow_edit(text: str, shadow: bool):
+    """``"X,Y"`` (a click) or ``"X,Y,R"`` (a brush dab of radius R, a fraction of the photo's
+    longer side): a :class:`~outcast_core.runtime.pipeline.photo_shadows.ShadowEdit`.
+
+    Raises:
+        ValueError: not two or three numbers, the point outside the photo or R outside
+            0 to :data:`~outcast_core.runtime.pipeline.photo_shadows.MAX_BRUSH_RADIUS`.
+
+    Example:
+        >>> parse_shadow_edit("0.3,0.6,0.02", shadow=False)
+        ShadowEdit(x=0.3, y=0.6, shadow=False, radius=0.02)
+    """
+    from outcast_core.runtime.pipeline.photo_shadows import MAX_BRUSH_RADIUS, ShadowEdit
+
+    parts = text.split(",")
+    if len(parts) != 3:
+        return ShadowEdit(*parse_point(text), shadow=shadow)
+    x, y = parse_point(",".join(parts[:2]))
+    try:
+        r = float(parts[2])
+    except ValueError:
+        r = math.nan
+    if not (math.isfinite(r) and 0.0 <= r <= MAX_BRUSH_RADIUS):
+        raise ValueError(f"expected X,Y,R with the brush radius R a fraction 0-"
+                         f"{MAX_BRUSH_RADIUS} of the photo's longer side (e.g. 0.3,0.6,0.02), "
+                         f"got {text!r}")
+    return ShadowEdit(x, y, shadow=shadow, radius=r)
+
+
 class _ShadowEditAction(argparse.Action):
-    """``--shadow`` / ``--not-shadow X,Y``: one edit each, kept in command-line order."""
+    """``--shadow`` / ``--not-shadow X,Y[,R]``: one edit each, kept in command-line order."""
 
     def __call__(self, parser, namespace, values, option_string=None) -> None:
-        from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
-
         try:
-            x, y = parse_point(str(values))
+            edit = parse_shadow_edit(str(values), shadow=self.const)
         except ValueError as exc:
             raise argparse.ArgumentError(self, str(exc)) from None
         edits = list(getattr(namespace, "shadow_edits", None) or [])
-        edits.append(ShadowEdit(x, y, shadow=self.const))
+        edits.append(edit)
         namespace.shadow_edits = edits
 
 
 def add_shadow_edit_options(p: argparse.ArgumentParser) -> None:
-    """``--not-shadow`` / ``--shadow X,Y``: correct the photo's found shadows, as the app's
-    "Not a shadow" and "Mark shadow" clicks do (applied in order)."""
+    """``--not-shadow`` / ``--shadow X,Y[,R]``: correct the photo's found shadows, as the
+    app's "Not a shadow" and "Mark shadow" clicks and brush dabs do (applied in order)."""
     p.set_defaults(shadow_edits=[])
-    p.add_argument("--not-shadow", action=_ShadowEditAction, const=False, metavar="X,Y",
+    p.add_argument("--not-shadow", action=_ShadowEditAction, const=False, metavar="X,Y[,R]",
                    help="the found shadow at this point is not one (a dark object, foliage): "
                    "X,Y as fractions 0-1 of the photo's width and height from its top left; "
-                   "repeatable")
-    p.add_argument("--shadow", action=_ShadowEditAction, const=True, metavar="X,Y",
+                   "with R (a fraction of the longer side, at most 0.25), a brush dab: only "
+                   "the found shadow within R of the point; repeatable")
+    p.add_argument("--shadow", action=_ShadowEditAction, const=True, metavar="X,Y[,R]",
                    help="a shadow the app did not find: the region of even brightness round "
-                   "this point; repeatable")
+                   "this point; with R, a brush dab: the disc of radius R; repeatable")
 
 
 def say_unused_shadow_edits(session, args: argparse.Namespace) -> str:
@@ -187,7 +215,11 @@ def say_unused_shadow_edits(session, args: argparse.Namespace) -> str:
             flag = "--shadow" if edit.shadow else "--not-shadow"
             why = ("the sky, lit ground (not darker than round it) or a shadow already"
                    if edit.shadow else "no found shadow there, or one already dropped")
-            _say(args, f"note: {flag} {edit.x:g},{edit.y:g} changed nothing ({why})")
+            if edit.radius > 0:
+                why = ("the sky, or painted already" if edit.shadow
+                       else "no found shadow within R, or dropped already")
+            point = f"{edit.x:g},{edit.y:g}" + (f",{edit.radius:g}" if edit.radius > 0 else "")
+            _say(args, f"note: {flag} {point} changed nothing ({why})")
     n = sum(session.shadow_edits_used)
     return f"{n} shadow correction{'s' if n != 1 else ''}; " if edits else ""
 

@@ -534,27 +534,43 @@ EDIT_SOFT = 1.0 / 768
 EDIT_CLOSE = 1.0 / 192
 
 
+#: :class:`ShadowEdit`: the largest brush radius (fraction of the photo's longer side).
+MAX_BRUSH_RADIUS = 0.25
+
+
 @dataclass(frozen=True)
 class ShadowEdit:
-    """A user's correction of the found shadows: a click on the photo.
+    """A user's correction of the found shadows: a click on the photo, or one dab of a brush
+    stroke (``radius > 0``; a stroke is the sequence of its dabs).
 
     Attributes:
         x, y: where, as fractions of the upright photo's width and height (0-1), so one edit
             holds at every size the shadows are found at.
-        shadow: True: "this is a shadow" (the region of even brightness round the point is
-            added); False: "not a shadow" (the found shadow there is dropped: a dark material,
-            foliage, a black car).
+        shadow: True: "this is a shadow" (a click: the region of even brightness round the
+            point is added; a dab: its disc); False: "not a shadow" (a click: the found shadow
+            there is dropped, a dark material, foliage, a black car; a dab: the found shadow
+            inside its disc only).
+        radius: 0, a click; else a brush dab's radius, as a fraction of the photo's longer
+            side (at most :data:`MAX_BRUSH_RADIUS`).
     """
 
     x: float
     y: float
     shadow: bool
+    radius: float = 0.0
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.x) and math.isfinite(self.y)
                 and 0.0 <= self.x <= 1.0 and 0.0 <= self.y <= 1.0):
             raise ValueError(f"expected a point inside the photo (x, y in 0-1), got "
                              f"({self.x}, {self.y})")
+        if not (math.isfinite(self.radius) and 0.0 <= self.radius <= MAX_BRUSH_RADIUS):
+            raise ValueError(f"expected a brush radius 0-{MAX_BRUSH_RADIUS} of the photo's "
+                             f"longer side (0: a click), got {self.radius}")
+
+    def __repr__(self) -> str:  # a click reads as before brushes existed
+        brush = f", radius={self.radius!r}" if self.radius else ""
+        return f"ShadowEdit(x={self.x!r}, y={self.y!r}, shadow={self.shadow!r}{brush})"
 
     def pixel(self, shape: tuple[int, int]) -> tuple[int, int]:
         """``(row, column)`` of the point in an ``H x W`` image."""
@@ -562,25 +578,41 @@ class ShadowEdit:
         return min(h - 1, int(self.y * h)), min(w - 1, int(self.x * w))
 
 
-#: The most edits a project or a command line may hold (a sane bound on a file's content).
-MAX_SHADOW_EDITS = 500
+#: The most edits a project or a command line may hold (a sane bound on a file's content: a
+#: brush stroke is one edit per dab, a dab every half radius, so a few hundred a stroke).
+MAX_SHADOW_EDITS = 20000
 
 
 def shadow_edits_to_json(edits: Sequence[ShadowEdit]) -> list[dict[str, Any]]:
-    """Edits as a project file stores them: ``[{"x": .., "y": .., "shadow": ..}, ...]``."""
-    return [{"x": round(e.x, 5), "y": round(e.y, 5), "shadow": bool(e.shadow)} for e in edits]
+    """Edits as a project file stores them: ``[{"x": .., "y": .., "shadow": ..}, ...]``, with
+    ``"r"`` (the radius) for a brush dab only, so files without brushes read as before.
+
+    Example:
+        >>> shadow_edits_to_json([ShadowEdit(0.25, 0.5, False, radius=0.02)])
+        [{'x': 0.25, 'y': 0.5, 'shadow': False, 'r': 0.02}]
+    """
+    out = []
+    for e in edits:
+        item: dict[str, Any] = {"x": round(e.x, 5), "y": round(e.y, 5), "shadow": bool(e.shadow)}
+        if e.radius > 0:  # five significant digits: never rounded to 0 (a click)
+            item["r"] = float(f"{e.radius:.5g}")
+        out.append(item)
+    return out
 
 
 def shadow_edits_from_json(value: Any) -> tuple[ShadowEdit, ...]:
     """Edits from a project file's ``shadow_edits`` (None or missing: none).
 
     Raises:
-        ValueError: not a list of ``{"x", "y", "shadow"}`` with the point inside the photo, or
-            more than :data:`MAX_SHADOW_EDITS` of them.
+        ValueError: not a list of ``{"x", "y", "shadow"}`` (and an optional ``"r"``, a brush
+            dab's radius) with the point inside the photo and the radius 0 to
+            :data:`MAX_BRUSH_RADIUS`, or more than :data:`MAX_SHADOW_EDITS` of them.
 
     Example:
         >>> shadow_edits_from_json([{"x": 0.25, "y": 0.5, "shadow": False}])
         (ShadowEdit(x=0.25, y=0.5, shadow=False),)
+        >>> shadow_edits_from_json([{"x": 0.25, "y": 0.5, "shadow": True, "r": 0.01}])
+        (ShadowEdit(x=0.25, y=0.5, shadow=True, radius=0.01),)
     """
     if value is None:
         return ()
@@ -594,16 +626,49 @@ def shadow_edits_from_json(value: Any) -> tuple[ShadowEdit, ...]:
             x, y, shadow = item["x"], item["y"], item["shadow"]
         except (KeyError, TypeError):
             raise ValueError(f"expected a shadow edit {{x, y, shadow}}, got {item!r}") from None
-        if (not isinstance(shadow, bool) or isinstance(x, bool) or isinstance(y, bool)
-                or not isinstance(x, (int, float)) or not isinstance(y, (int, float))):
-            raise ValueError(f"expected numbers x, y and true/false shadow, got {item!r}")
+        r = item.get("r", 0.0)
+        if (not isinstance(shadow, bool) or any(
+                isinstance(v, bool) or not isinstance(v, (int, float)) for v in (x, y, r))):
+            raise ValueError(f"expected numbers x, y (and r) and true/false shadow, got "
+                             f"{item!r}"[:200])
         try:
-            x, y = float(x), float(y)
+            x, y, r = float(x), float(y), float(r)
         except OverflowError:  # an integer too large for a float
-            raise ValueError(f"expected a point inside the photo (x, y in 0-1), got a number "
-                             f"too large for a float in {item!r}"[:200]) from None
-        out.append(ShadowEdit(x, y, shadow))
+            raise ValueError(f"expected a point inside the photo (x, y in 0-1) and a brush "
+                             f"radius 0-{MAX_BRUSH_RADIUS}, got a number too large for a "
+                             f"float in {item!r}"[:200]) from None
+        out.append(ShadowEdit(x, y, shadow, r))
     return tuple(out)
+
+
+def shadow_edit_strokes(edits: Sequence[ShadowEdit], shape: tuple[int, int]
+                        ) -> list[tuple[int, int]]:
+    """The user's corrections as the user made them: ``(start, stop)`` of each click (one
+    edit) and of each brush stroke (its dabs) in ``edits``, for an ``H x W`` photo (``shape``,
+    any size of it: only its aspect counts).
+
+    A stroke is a run of dabs of one kind and radius, each within a radius of the one before
+    (the app lays them at most half a radius apart); a stroke begun where the one before of
+    the same kind and size ended counts with it (the edits do not record where a stroke
+    ends).
+
+    Example:
+        >>> dabs = [ShadowEdit(0.1 + 0.01 * i, 0.5, False, radius=0.02) for i in range(5)]
+        >>> shadow_edit_strokes([ShadowEdit(0.9, 0.9, True), *dabs, *dabs], (100, 100))
+        [(0, 1), (1, 6), (6, 11)]
+    """
+    h, w = shape
+    side = max(h, w, 1)
+    out: list[tuple[int, int]] = []
+    for i, e in enumerate(edits):
+        if out and e.radius > 0 and i > 0:
+            p = edits[i - 1]
+            if (p.radius == e.radius and p.shadow == e.shadow
+                    and math.hypot((e.x - p.x) * w, (e.y - p.y) * h) <= e.radius * side * 1.01):
+                out[-1] = (out[-1][0], i + 1)
+                continue
+        out.append((i, i + 1))
+    return out
 
 
 def _log_luminance(img: np.ndarray) -> np.ndarray:
@@ -629,12 +694,19 @@ def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.
     would cover more than :data:`ADD_MAX_SHARE` of the surface (a leak into the lit surface),
     and when it is not darker than the surface round it (:data:`ADD_DARKER`: lit ground).
     ``log_y``: :func:`edit_luminance` of the image, when the caller has it (several edits).
+    A brush dab (``edit.radius > 0``): its disc, off the sky ("a shadow"), or the found shadow
+    inside it ("not a shadow"; the region it lies in is not taken whole).
     """
     p = np.asarray(probability, np.float32)
     sky = np.asarray(sky, bool)
     h, w = p.shape
     side = max(h, w)
     row, col = edit.pixel((h, w))
+    if edit.radius > 0:
+        disc = np.zeros((h, w), np.uint8)
+        _draw_dab(disc, edit, (0, 0), (h, w))
+        disc = (disc > 0) & ~sky
+        return disc if edit.shadow else disc & (p > 0.5)
     if not edit.shadow:
         found = ((p > 0.5) & ~sky).astype(np.uint8)
         if not found.any():
@@ -678,36 +750,137 @@ def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.
     return region
 
 
+#: Sub-pixel bits of a brush dab's centre and radius (``cv2.circle``'s ``shift``).
+_DAB_SHIFT = 4
+
+
+def _draw_dab(mask: np.ndarray, edit: ShadowEdit, origin: tuple[int, int],
+              shape: tuple[int, int]) -> None:
+    """Draw one brush dab's disc (255) into ``mask``, a window of an ``H x W`` (``shape``)
+    image whose top-left pixel is ``origin`` (row, column) of the image; the disc's pixels
+    are the same wherever the window lies."""
+    h, w = shape
+    one = 1 << _DAB_SHIFT
+    cx = round((edit.x * w - 0.5 - origin[1]) * one)  # pixel centres at integer coordinates
+    cy = round((edit.y * h - 0.5 - origin[0]) * one)
+    radius = max(one // 2, round(edit.radius * max(h, w) * one))
+    cv2.circle(mask, (cx, cy), radius, 255, -1, cv2.LINE_8, _DAB_SHIFT)
+
+
+def _dab_box(edit: ShadowEdit, shape: tuple[int, int]) -> tuple[int, int, int, int]:
+    """``(top, left, bottom, right)`` of the pixels a dab may touch (within the image)."""
+    h, w = shape
+    r = edit.radius * max(h, w) + 2
+    cx, cy = edit.x * w - 0.5, edit.y * h - 0.5
+    return (max(0, math.floor(cy - r)), max(0, math.floor(cx - r)),
+            min(h, math.ceil(cy + r) + 1), min(w, math.ceil(cx + r) + 1))
+
+
+def _paint_dabs(dabs: Sequence[ShadowEdit], shape: tuple[int, int]
+                ) -> tuple[tuple[slice, slice], np.ndarray, list[tuple[int, ...]]]:
+    """One run of brush dabs: the window of the ``H x W`` image they cover, their discs in it
+    (``uint8``, drawn at once), and each dab's box (:func:`_dab_box`) in the window."""
+    boxes = [_dab_box(e, shape) for e in dabs]
+    top, left = min(b[0] for b in boxes), min(b[1] for b in boxes)
+    bottom, right = max(b[2] for b in boxes), max(b[3] for b in boxes)
+    paint = np.zeros((bottom - top, right - left), np.uint8)
+    for e in dabs:
+        _draw_dab(paint, e, (top, left), shape)
+    window = (slice(top, bottom), slice(left, right))
+    return window, paint, [(t - top, le - left, b - top, r - left) for t, le, b, r in boxes]
+
+
+def _dabs_used(dabs: Sequence[ShadowEdit], shape: tuple[int, int], boxes: list[tuple[int, ...]],
+               window: tuple[slice, slice], changes: np.ndarray) -> list[bool]:
+    """Per dab of a run, whether its disc holds any of ``changes`` (what a dab of its kind
+    would change, before the run; a bool array of the run's window)."""
+    flags = []
+    changes = changes.view(np.uint8)  # (bool: 0 or 1)
+    for e, (t, le, b, r) in zip(dabs, boxes, strict=True):
+        local = changes[t:b, le:r]
+        used = local.size > 0 and cv2.countNonZero(local) > 0
+        if used:  # the disc itself, only where its box holds something it could change
+            disc = np.zeros(local.shape, np.uint8)
+            _draw_dab(disc, e, (window[0].start + t, window[1].start + le), shape)
+            used = cv2.countNonZero(cv2.bitwise_and(local, disc)) > 0
+        flags.append(used)
+    return flags
+
+
 def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.ndarray,
                       edits: Sequence[ShadowEdit], used: list[bool] | None = None
                       ) -> tuple[np.ndarray, np.ndarray]:
     """Where a user's corrections add shadow and where they drop it (``H x W`` bool each).
 
-    In order: "a shadow" adds its region (:func:`shadow_edit_region`); "not a shadow" takes
-    back a region the user added when the click lands in it, else drops the found shadow
-    there (found before any edit: a shadow the user added next to a dark pole is not dropped
-    with the pole). The masks are made once, at the size the user sees the found shadows
-    (the session's working size), and brought to other sizes by :func:`apply_edit_masks`, so
-    what an export lifts is what the user marked (found again at another size, one click
-    could pick another region: a dark object joined to the shadow beside it).
+    In order: an "a shadow" click adds its region (:func:`shadow_edit_region`); a "not a
+    shadow" click takes back a region the user added when the click lands in it (a clicked
+    region, or the painted area there, 8-connected), else drops the found shadow there
+    (found before any edit: a shadow the user added next to a dark pole is not dropped with
+    the pole). Brush dabs paint into the masks, in order: "a shadow" adds its disc (off the
+    sky) and takes back what was dropped in it; "not a shadow" takes back what was added in
+    its disc and drops the found shadow (``> 0.5``) in it, and only there. The masks are
+    made once, at the size the user sees the found shadows (the session's working size), and
+    brought to other sizes by :func:`apply_edit_masks`, so what an export lifts is what the
+    user marked (found again at another size, one click could pick another region: a dark
+    object joined to the shadow beside it).
 
     Args:
         used: if given, one entry per edit is appended: whether it changed anything (a
-            click on the sky, on lit ground or on what is already dropped does not).
+            click on the sky, on lit ground or on what is already dropped does not; nor does
+            a dab whose disc holds nothing its kind would change). Leaving out the edits that
+            changed nothing gives the same masks.
 
     Returns:
         ``(added, dropped)``; ``dropped`` is also what the lift must not take for lit
         surface (dark materials).
+
+    Example:
+        >>> p = np.zeros((40, 40), np.float32); p[10:30, 5:35] = 1.0  # one found shadow
+        >>> img, sky, used = np.full((40, 40, 3), 0.5, np.float32), np.zeros((40, 40), bool), []
+        >>> dab = ShadowEdit(0.5, 0.5, shadow=False, radius=0.1)  # 4 px round the centre
+        >>> on_lit = ShadowEdit(0.5, 0.9, shadow=False, radius=0.1)  # no found shadow there
+        >>> added, dropped = shadow_edit_masks(p, img, sky, [dab, on_lit], used)
+        >>> int(dropped.sum()), bool(dropped[20, 20]), bool(dropped[20, 8]), used
+        (60, True, False, [True, False])
     """
     found = np.clip(np.asarray(probability, np.float32), 0.0, 1.0)
     sky = np.asarray(sky, bool)
     shape = found.shape
     reach = max(1.0, PICK_RADIUS * max(shape))
-    added: list[np.ndarray] = []
+    added: list[np.ndarray] = []  # the "a shadow" clicks' regions
+    painted = np.zeros(shape, bool)  # the "a shadow" dabs' discs
     dropped = np.zeros(shape, bool)
     log_y = None
     flags: list[bool] = []
-    for edit in edits:
+    edits = list(edits)
+    i = 0
+    while i < len(edits):
+        edit = edits[i]
+        if edit.radius > 0:  # a run of dabs of one kind, painted at once
+            j = i + 1
+            while j < len(edits) and edits[j].radius > 0 and edits[j].shadow == edit.shadow:
+                j += 1
+            run, i = edits[i:j], j
+            window, paint, boxes = _paint_dabs(run, shape)
+            disc, off_sky = paint > 0, ~sky[window]
+            if edit.shadow:
+                changes = (~painted[window] & off_sky) | dropped[window]
+            else:
+                changes = painted[window] | ((found[window] > 0.5) & ~dropped[window])
+                for region in added:
+                    changes |= region[window]
+                changes &= off_sky
+            flags.extend(_dabs_used(run, shape, boxes, window, changes))
+            if edit.shadow:
+                painted[window] |= disc & off_sky
+                dropped[window] &= ~disc
+            else:
+                painted[window] &= ~disc
+                for region in added:
+                    region[window] &= ~disc
+                dropped[window] |= disc & (found[window] > 0.5) & off_sky
+            continue
+        i += 1
         row, col = edit.pixel(shape)
         if edit.shadow:
             if log_y is None:
@@ -717,9 +890,12 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
             if region.any():
                 added.append(region)
             continue
-        hit = [i for i, region in enumerate(added) if region[row, col]]
-        if hit:  # a click in a region the user added takes that addition back
-            added = [region for i, region in enumerate(added) if i not in hit]
+        hit = [k for k, region in enumerate(added) if region[row, col]]
+        if hit or painted[row, col]:  # a click on what the user added takes that back
+            added = [region for k, region in enumerate(added) if k not in hit]
+            if painted[row, col]:
+                _, labels = cv2.connectedComponents(painted.astype(np.uint8), connectivity=8)
+                painted &= labels != labels[row, col]
             flags.append(True)
             continue
         left = found * ~dropped
@@ -736,7 +912,9 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
         dropped |= region
     if used is not None:
         used.extend(flags)
-    union = np.logical_or.reduce(added) if added else np.zeros(shape, bool)
+    union = painted
+    for region in added:
+        union = union | region
     return union & ~sky, dropped & ~sky
 
 
@@ -785,6 +963,7 @@ def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray
 
 
 __all__ = [
+    "MAX_BRUSH_RADIUS",
     "MAX_SHADOW_EDITS",
     "ShadowEdit",
     "apply_edit_masks",
@@ -793,6 +972,7 @@ __all__ = [
     "shadow_edits_from_json",
     "shadow_edits_to_json",
     "shadow_edit_region",
+    "shadow_edit_strokes",
     "deshadow",
     "deshadow_log_gain",
     "lit_surface_colour",

@@ -331,7 +331,7 @@ class RelightSession:
         self.shadow_edits: tuple[ShadowEdit, ...] = ()
         #: Per edit of :attr:`shadow_edits`, whether it changed the found shadows (set with an
         #: original sun: a click on the sky, on lit ground or on what is already dropped
-        #: changes nothing).
+        #: changes nothing, nor does a brush dab with nothing of its kind to change under it).
         self.shadow_edits_used: tuple[bool, ...] = ()
         self._reset_working()
 
@@ -648,10 +648,11 @@ class RelightSession:
 
     def set_shadow_edits(self, edits: Sequence[ShadowEdit]) -> None:
         """Set the user's corrections of the photo's found shadows (:class:`~outcast_core.
-        runtime.pipeline.photo_shadows.ShadowEdit`: "a shadow" / "not a shadow" at a point), in
-        order; ``()`` clears them. They apply to ``S_o`` and the shadow probability at every
-        size (working, :meth:`found_shadows_detail`), so to de-shadowing and relighting; with an
-        original sun set, what depends on them is redone now (cheap: no network runs).
+        runtime.pipeline.photo_shadows.ShadowEdit`: "a shadow" / "not a shadow" at a point, or
+        a brush stroke's dabs), in order; ``()`` clears them. They apply to ``S_o`` and the
+        shadow probability at every size (working, :meth:`found_shadows_detail`), so to
+        de-shadowing and relighting; with an original sun set, what depends on them is redone
+        now (cheap: no network runs).
         """
         edits = tuple(edits)
         for e in edits:

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from outcast_core.runtime.pipeline.photo_shadows import (
+    MAX_BRUSH_RADIUS,
     MAX_SHADOW_EDITS,
     PICK_RADIUS,
     ShadowEdit,
@@ -21,6 +22,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     photo_shadow_probability,
     shadow_edit_masks,
     shadow_edit_region,
+    shadow_edit_strokes,
     shadow_edits_from_json,
     shadow_edits_to_json,
 )
@@ -300,3 +302,244 @@ def test_dropping_edits_that_changed_nothing_redoes_nothing() -> None:
     s.set_shadow_edits(useful)
     assert s.shadow_edits == useful and s.shadow_edits_used == (True,)
     assert s.deshadow() is kept  # not made again
+
+
+# ---------------------------------------------------------------- the brush (radius > 0)
+
+
+def _disc(shape: tuple[int, int], x: float, y: float, radius: float) -> np.ndarray:
+    """The pixels whose centres lie within ``radius`` (fraction of the longer side) of the
+    point, give or take the rasterizer's half pixel."""
+    h, w = shape
+    rows, cols = np.mgrid[0:h, 0:w]
+    return np.hypot(cols + 0.5 - x * w, rows + 0.5 - y * h) <= radius * max(h, w)
+
+
+def test_a_not_a_shadow_dab_drops_the_found_shadow_inside_its_disc_only() -> None:
+    """The tree line is one found region across the frame: a click drops it whole, a dab only
+    what lies under it (a shadow joined to a dark object keeps the rest)."""
+    img, parts = _slope()
+    sky = parts["sky"]
+    p = photo_shadow_probability(img, sky)
+    dab = ShadowEdit(0.5, 26 / H, shadow=False, radius=0.05)
+    used: list[bool] = []
+    added, dropped = shadow_edit_masks(p, img, sky, [dab], used)
+    assert used == [True] and not added.any()
+    inside = _disc((H, W), dab.x, dab.y, dab.radius - 1 / W)
+    near = _disc((H, W), dab.x, dab.y, dab.radius + 1 / W)
+    found = (p > 0.5) & ~sky
+    assert dropped[inside & found].all() and not dropped[~near].any()
+    assert (dropped == shadow_edit_region(p, img, sky, dab)).all()
+    out, not_shadow = apply_edit_masks(p, sky, added, dropped)
+    assert out[inside].max() < 0.01 and not_shadow[inside & found].all()
+    # The tree line beyond the disc (and its soft edge) is still found.
+    beyond = parts["pines"] & ~_disc((H, W), dab.x, dab.y, dab.radius + 4 / W)
+    assert out[beyond].mean() > 0.9 and not not_shadow[beyond].any()
+    click, _ = apply_shadow_edits(p, img, sky, [ShadowEdit(dab.x, dab.y, shadow=False)])
+    assert click[beyond].mean() < 0.05  # what a click does: the whole region
+    # On lit snow, far from any found shadow: nothing, and said so.
+    used = []
+    none = shadow_edit_masks(p, img, sky, [ShadowEdit(0.9, 0.95, False, radius=0.03)], used)
+    assert used == [False] and not none[0].any() and not none[1].any()
+
+
+def test_a_shadow_dab_adds_its_disc_off_the_sky() -> None:
+    img, parts = _slope()
+    sky = parts["sky"]
+    p = photo_shadow_probability(img, sky)
+    on_snow = ShadowEdit(0.85, 0.7, shadow=True, radius=0.04)
+    used: list[bool] = []
+    added, dropped = shadow_edit_masks(p, img, sky, [on_snow], used)
+    inside = _disc((H, W), on_snow.x, on_snow.y, on_snow.radius - 1 / W)
+    near = _disc((H, W), on_snow.x, on_snow.y, on_snow.radius + 1 / W)
+    assert used == [True] and added[inside].all() and not added[~near].any()
+    assert not dropped.any()
+    out, _ = apply_edit_masks(p, sky, added, dropped)
+    assert out[inside].min() > 0.99  # lit snow, a shadow now: the user says so
+    # Across the sky's edge: never the sky; on the sky alone: nothing.
+    edge = ShadowEdit(0.5, 12 / H, shadow=True, radius=0.05)
+    added, _ = shadow_edit_masks(p, img, sky, [edge])
+    assert added.any() and not added[sky].any()
+    used = []
+    added, _ = shadow_edit_masks(p, img, sky, [ShadowEdit(0.5, 0.03, True, radius=0.02)], used)
+    assert used == [False] and not added.any()
+
+
+def test_dabs_paint_into_the_masks_in_order() -> None:
+    """A "not a shadow" dab clears what was added under it and drops the found shadow there;
+    a "shadow" dab adds its disc and takes back what was dropped under it; a "not a shadow"
+    click on a painted area takes that painted area back."""
+    img, parts = _slope()
+    sky = parts["sky"]
+    p = photo_shadow_probability(img, sky)
+    x, y = _centre(parts["shadow"])
+    fill = ShadowEdit(x, y, shadow=True)  # a click: the whole shadow
+    rub = ShadowEdit(x, y, shadow=False, radius=0.05)
+    disc = _disc((H, W), x, y, 0.05 - 1 / W)
+    used: list[bool] = []
+    added, _ = shadow_edit_masks(p, img, sky, [fill, rub], used)
+    assert used == [True, True]
+    outside = parts["shadow"] & ~_disc((H, W), x, y, 0.07)
+    assert not added[disc].any() and added[outside].mean() > 0.95
+    # The other way round the dab comes first and the click adds the whole shadow.
+    added, _ = shadow_edit_masks(p, img, sky, [rub, fill])
+    assert added[parts["shadow"]].mean() > 0.97
+    # Dropped pines painted back as shadow: no longer dropped there, added instead.
+    pine = ShadowEdit(0.3, 26 / H, shadow=False, radius=0.05)
+    back = ShadowEdit(0.3, 26 / H, shadow=True, radius=0.03)
+    inner = _disc((H, W), 0.3, 26 / H, 0.03 - 1 / W)
+    added, dropped = shadow_edit_masks(p, img, sky, [pine, back])
+    assert added[inner].all() and not dropped[inner].any()
+    assert dropped[_disc((H, W), 0.3, 26 / H, 0.05 - 1 / W) & ~_disc((H, W), 0.3, 26 / H, 0.04)
+                   ].all()
+    # Two strokes painted on lit snow; a "not a shadow" click on one takes that one back.
+    left = [ShadowEdit(0.05 + 0.01 * i, 0.95, True, radius=0.02) for i in range(5)]
+    right = [ShadowEdit(0.85 + 0.01 * i, 0.95, True, radius=0.02) for i in range(5)]
+    used = []
+    added, _ = shadow_edit_masks(p, img, sky, [*left, *right, ShadowEdit(0.07, 0.95, False)],
+                                 used)
+    assert used[-1] and added[:, 100:].any() and not added[:, :30].any()
+
+
+def test_leaving_out_the_dabs_that_changed_nothing_gives_the_same_masks() -> None:
+    """What the session counts on when the app takes back a stroke that changed nothing."""
+    rng = np.random.default_rng(3)
+    img, parts = _slope()
+    sky = parts["sky"]
+    p = photo_shadow_probability(img, sky)
+    for _ in range(6):
+        edits = []
+        for _ in range(40):
+            x, y = rng.random(2)
+            radius = 0.0 if rng.random() < 0.15 else float(rng.choice([0.01, 0.03, 0.08]))
+            edits.append(ShadowEdit(float(x), float(y), bool(rng.random() < 0.5), radius))
+        used: list[bool] = []
+        masks = shadow_edit_masks(p, img, sky, edits, used)
+        assert len(used) == len(edits) and 0 < sum(used) < len(edits)
+        kept = [e for e, u in zip(edits, used, strict=True) if u]
+        again = shadow_edit_masks(p, img, sky, kept)
+        assert all(np.array_equal(a, b) for a, b in zip(masks, again, strict=True))
+
+
+def test_thousands_of_dabs_are_quick() -> None:
+    """A stroke is hundreds of dabs and a project may hold thousands: each run of dabs is
+    drawn into one mask, never one photo-sized mask a dab (2000 dabs at 1024 px took over
+    a second so; about 0.05 s now: the bound leaves room for a busy machine)."""
+    import time
+
+    rng = np.random.default_rng(0)
+    h, w = 768, 1024
+    p = (rng.random((h, w)) > 0.6).astype(np.float32)
+    img, sky = np.full((h, w, 3), 0.5, np.float32), np.zeros((h, w), bool)
+    edits = [ShadowEdit(0.05 + 0.9 * (i % 200) / 200, 0.1 + 0.08 * (i // 200), i // 200 % 2 == 0,
+                        radius=0.02) for i in range(2000)]
+    best = min(_timed(lambda: shadow_edit_masks(p, img, sky, edits), time) for _ in range(3))
+    assert best < 0.5
+
+
+def _timed(fn, time) -> float:
+    t0 = time.perf_counter()
+    fn()
+    return time.perf_counter() - t0
+
+
+def test_strokes_are_counted_as_the_user_made_them() -> None:
+    stroke = [ShadowEdit(0.1 + 0.01 * i, 0.5, False, radius=0.02) for i in range(30)]
+    other = [ShadowEdit(0.1 + 0.01 * i, 0.8, False, radius=0.02) for i in range(30)]
+    click = ShadowEdit(0.5, 0.5, True)
+    edits = [*stroke, click, click, *stroke, *other]
+    assert shadow_edit_strokes(edits, (H, W)) == [(0, 30), (30, 31), (31, 32), (32, 62),
+                                                  (62, 92)]
+    # Another kind or size starts another stroke, wherever it starts.
+    marked = [ShadowEdit(e.x, e.y, True, e.radius) for e in stroke]
+    assert len(shadow_edit_strokes([*stroke, *marked], (H, W))) == 2
+    assert shadow_edit_strokes([], (H, W)) == []
+
+
+def test_a_dab_s_radius_is_checked_and_round_trips_through_a_project() -> None:
+    dabs = (ShadowEdit(0.25, 0.5, False, radius=0.02), ShadowEdit(0.3, 0.5, True, 0.123456789),
+            ShadowEdit(0.5, 0.5, True), ShadowEdit(0.1, 0.1, False, radius=MAX_BRUSH_RADIUS))
+    data = shadow_edits_to_json(dabs)
+    assert data[0] == {"x": 0.25, "y": 0.5, "shadow": False, "r": 0.02}
+    assert "r" not in data[2]  # a click is written as before brushes existed
+    back = shadow_edits_from_json(data)
+    assert back[0] == dabs[0] and back[2] == dabs[2] and back[3] == dabs[3]
+    assert back[1].radius == pytest.approx(dabs[1].radius, rel=1e-4)
+    tiny = shadow_edits_from_json(shadow_edits_to_json([ShadowEdit(0.5, 0.5, False, 1e-9)]))
+    assert tiny[0].radius > 0  # never rounded to a click
+    # An older file (no "r") reads as clicks.
+    assert shadow_edits_from_json([{"x": 0.2, "y": 0.4, "shadow": True}]) == (
+        ShadowEdit(0.2, 0.4, True, 0.0),)
+    for radius in (-0.01, MAX_BRUSH_RADIUS + 0.01, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="brush radius"):
+            ShadowEdit(0.5, 0.5, False, radius)
+    for bad, words in [([{"x": 0.1, "y": 0.2, "shadow": True, "r": 0.5}], "brush radius"),
+                       ([{"x": 0.1, "y": 0.2, "shadow": True, "r": -1}], "brush radius"),
+                       ([{"x": 0.1, "y": 0.2, "shadow": True, "r": "0.1"}], "numbers"),
+                       ([{"x": 0.1, "y": 0.2, "shadow": True, "r": True}], "numbers"),
+                       ([{"x": 0.1, "y": 0.2, "shadow": True, "r": None}], "numbers"),
+                       ([{"x": 0.1, "y": 0.2, "shadow": True, "r": 10**400}], "too large")]:
+        with pytest.raises(ValueError, match=words):
+            shadow_edits_from_json(bad)
+    # Strokes need many more edits than clicks did: a bound still refuses absurd files.
+    assert MAX_SHADOW_EDITS >= 10000
+    many = [{"x": 0.1, "y": 0.2, "shadow": True, "r": 0.01}] * MAX_SHADOW_EDITS
+    assert len(shadow_edits_from_json(many)) == MAX_SHADOW_EDITS
+
+
+def test_session_takes_strokes_and_drops_one_that_changed_nothing_without_redoing() -> None:
+    img, parts = _slope()
+    depth = np.full((H, W), 10.0, np.float32)
+    depth[parts["sky"]] = np.inf
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(img, depth=depth)
+    s.set_original_sun((0.3, -0.5, 0.8))
+    found = s.shadow_probability.copy()
+    h, w = found.shape
+    stroke = tuple(ShadowEdit(0.3 + 0.01 * i, 26 / H, False, radius=0.03) for i in range(20))
+    s.set_shadow_edits(stroke)
+    assert s.shadow_edits_used == (True,) * 20
+    row = round(26 / H * h)
+    assert s.shadow_probability[row, round(0.4 * w)] < 0.01  # under the stroke: dropped
+    assert s.shadow_probability[row, round(0.9 * w)] > 0.9  # the tree line beyond it: kept
+    idle = tuple(ShadowEdit(0.2 + 0.01 * i, 0.04, True, radius=0.02) for i in range(10))  # sky
+    s.set_shadow_edits((*stroke, *idle))
+    assert s.shadow_edits_used == (True,) * 20 + (False,) * 10
+    kept = s.deshadow()
+    s.set_shadow_edits(stroke)  # the app takes the idle stroke back: nothing to redo
+    assert s.shadow_edits == stroke and s.shadow_edits_used == (True,) * 20
+    assert s.deshadow() is kept
+
+
+def test_cli_takes_a_brush_dab_as_x_y_r(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    from outcast_core.runtime.cli.main import main, parse_shadow_edit
+    from outcast_core.runtime.io import imageio
+
+    assert parse_shadow_edit("0.5,0.2,0.05", shadow=False) == ShadowEdit(0.5, 0.2, False, 0.05)
+    assert parse_shadow_edit("0.5,0.2", shadow=True) == ShadowEdit(0.5, 0.2, True)
+    img, parts = _slope()
+    depth = np.full((H, W), 10.0, np.float32)
+    depth[parts["sky"]] = np.inf
+    photo, dpath = tmp_path / "slope.png", tmp_path / "d.npy"
+    imageio.write_image(photo, img)
+    imageio.write_depth(dpath, depth)
+    base = ["deshadow", str(photo), "--from", "20,30", "--depth", str(dpath), "-q", "--force"]
+    assert main([*base, "-o", str(tmp_path / "b.png"), "--mask", str(tmp_path / "b_m.png"),
+                 "--not-shadow", f"0.5,{26 / H},0.05"]) == 0
+    mask = imageio.read_shadow_png(tmp_path / "b_m.png")
+    dab = _disc((H, W), 0.5, 26 / H, 0.04)
+    beyond = parts["pines"] & ~_disc((H, W), 0.5, 26 / H, 0.09)
+    assert mask[dab].max() < 0.05 and mask[beyond].mean() > 0.9
+    capsys.readouterr()
+    assert main([*base[:-2], "--force", "-o", str(tmp_path / "e.png"),
+                 "--not-shadow", "0.9,0.95,0.02"]) == 0
+    assert "note: --not-shadow 0.9,0.95,0.02 changed nothing (no found shadow within R" in (
+        capsys.readouterr().err)
+    for bad, words in [("0.5,0.5,0.3", "brush radius R"), ("0.5,0.5,-0.1", "brush radius R"),
+                       ("0.5,0.5,nan", "brush radius R"), ("0.5,0.5,big", "brush radius R"),
+                       ("1.5,0.5,0.1", "fractions 0-1"), ("0.5,0.5,0.1,2", "fractions 0-1")]:
+        with pytest.raises(SystemExit) as info:
+            main([*base, "-o", str(tmp_path / "d.png"), "--not-shadow", bad])
+        assert info.value.code == 2
+        err = capsys.readouterr().err
+        assert "--not-shadow" in err and words in err and len(err.strip().splitlines()) == 1
