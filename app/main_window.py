@@ -187,15 +187,33 @@ class WindowShortcutsWin(QObject):
 
 class StatusText(QLabel):
     """The status bar's message, whole in its tooltip too: a long one (a found sun with its
-    EXIF prior) is cut off at the window's edge at 1366 x 768."""
+    EXIF prior, a shadow tool's hint) does not fit at 1366 x 768. It is shown cut with an
+    ellipsis at the width the status bar gives it; drawn whole, it ran under the timings
+    beside it (a screenshot at 1400 px). :meth:`text` is the whole message."""
 
     def __init__(self, text: str, parent: QWidget | None = None) -> None:
         super().__init__(parent)
+        self._full = ""
+        # Its width is what the bar has left, not its text's: it must never push the bar.
+        self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.setText(text)
 
     def setText(self, text: str) -> None:  # noqa: N802 (Qt's name)
-        super().setText(text)
+        self._full = text
         self.setToolTip(text)
+        self._elide()
+
+    def text(self) -> str:
+        return self._full
+
+    def resizeEvent(self, event: Any) -> None:  # noqa: N802 (Qt's name)
+        super().resizeEvent(event)
+        self._elide()
+
+    def _elide(self) -> None:
+        shown = self.fontMetrics().elidedText(self._full, Qt.TextElideMode.ElideRight,
+                                              max(0, self.contentsRect().width()))
+        super().setText(shown)
 
 
 def _typed_numbers_first(method: Callable[..., Any]) -> Callable[..., Any]:

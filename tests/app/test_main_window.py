@@ -81,6 +81,27 @@ def test_step_buttons_stay_in_view_and_follow_the_step(window, photo, settle):
     assert "First confirm" not in window.act_export.toolTip()
 
 
+def test_a_long_status_message_is_cut_with_an_ellipsis_not_drawn_under_the_timings(
+        qtbot, window):
+    """A message longer than the status bar has room for (a shadow tool's hint) ran under the
+    timings beside it; it is cut to the room it has, whole in ``text()`` and its tooltip."""
+    from PySide6.QtWidgets import QLabel
+
+    window.resize(700, 500)
+    window.timings_label.setText("shadow 0.25 s · original_sun 29 ms · relight 0 ms")
+    long = "Click a marked area that is not a shadow, or drag to paint over it " * 4
+    window.stage_label.setText(long)
+    qtbot.waitUntil(lambda: window.stage_label.width() < 700)
+    label = window.stage_label
+    shown = QLabel.text(label)  # what is drawn
+    assert label.text() == long and label.toolTip() == long
+    assert shown.endswith("…") and len(shown) < len(long)
+    assert label.fontMetrics().horizontalAdvance(shown) <= label.contentsRect().width()
+    assert label.geometry().right() < window.timings_label.geometry().left()
+    window.resize(4000, 500)  # room enough: whole again
+    qtbot.waitUntil(lambda: QLabel.text(label) == long)
+
+
 def test_load_photo(window, photo, settle, errors):
     _load(window, photo, settle)
     assert errors == []
