@@ -720,9 +720,20 @@ class RelightSession:
             if self._deshadowed is None:
                 t0 = time.perf_counter()
                 self._deshadowed = self._in_photo_colours(
-                    deshadow(self.image_srgb, self.shadow_probability, self._lift_excluded))
+                    deshadow(self.image_srgb, self.shadow_probability, self._lift_excluded,
+                             marked=self._marked(self.sky)))
                 self._time("deshadow", t0)
             return self._deshadowed
+
+    def _marked(self, sky: np.ndarray) -> np.ndarray | None:
+        """What the user marked as shadow ("Mark shadow") at the size of ``sky``, off it; None
+        without such a mark."""
+        if self._edit_masks is None or not self._edit_masks[0].any():
+            return None
+        added = self._edit_masks[0]
+        if added.shape != sky.shape:  # as apply_edit_masks brings it to a size
+            added = resize(added.astype(np.float32), sky.shape) > 0.5
+        return added & ~sky
 
     def found_shadows_detail(self) -> dict[str, np.ndarray]:
         """The photo's own shadows found at up to :data:`DETAIL_SIDE` pixels (the photo's
@@ -736,10 +747,10 @@ class RelightSession:
         refinements upsample the working-size result.
 
         Returns:
-            ``{"image", "sky", "probability", "original_shadow", "excluded"}`` at that size
-            (``h x w x 3`` sRGB float32, ``h x w`` bool, ``h x w`` float32, ``h x w`` float32,
-            ``h x w`` bool: the sky and what the user marked "not a shadow", which the lift
-            leaves out).
+            ``{"image", "sky", "probability", "original_shadow", "excluded", "marked"}`` at
+            that size (``h x w x 3`` sRGB float32, ``h x w`` bool, ``h x w`` float32, ``h x w``
+            float32, ``h x w`` bool: the sky and what the user marked "not a shadow", which the
+            lift leaves out; ``h x w`` bool or None: what the user marked as shadow).
         """
         with self._lock:
             self._require_image()
@@ -779,8 +790,10 @@ class RelightSession:
                     prob, not_shadow = apply_edit_masks(prob, sky, *self._edit_masks)
                     excluded = sky | not_shadow
                 s_o = original_shadow_from_photo(prob, cosine, sky)
+            marked = self._marked(sky)
             self._detail = {"image": image, "sky": sky, "probability": prob.astype(np.float32),
-                            "original_shadow": s_o.astype(np.float32), "excluded": excluded}
+                            "original_shadow": s_o.astype(np.float32), "excluded": excluded,
+                            "marked": marked}
             self._time("found_shadows_detail", t0)
             return self._detail
 
@@ -795,7 +808,7 @@ class RelightSession:
                 out = self.deshadow()
             else:
                 out = self._in_photo_colours(
-                    deshadow(d["image"], d["probability"], d["excluded"]))
+                    deshadow(d["image"], d["probability"], d["excluded"], marked=d["marked"]))
             full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out,
                                                sky=d["sky"])
         self._time("deshadow_full", t0)
@@ -1055,7 +1068,7 @@ class RelightSession:
             assert self.original_sun is not None and self.normals is not None
             assert self.shadow_probability is not None
             base = deshadow(self.image_srgb, self.shadow_probability, self._lift_excluded,
-                            LIFT_SHADE_SHIFT)
+                            LIFT_SHADE_SHIFT, marked=self._marked(self.sky))
             lit_old = np.maximum(cosine_term(self.normals, self.original_sun), LIT_FLOOR)
             lit_old = np.where(self.sky, 0.0, lit_old)
             guards["colour"] = lit_surface_colour(self.image_srgb, self.shadow_probability,

@@ -106,6 +106,48 @@ def test_deshadow_lifts_the_shadow_and_keeps_the_lit_surface() -> None:
     assert np.abs(out[far] - img[far]).max() < 0.01
 
 
+def test_a_lifted_shadow_beside_cyan_water_is_not_turned_teal() -> None:
+    """Grey paving half in shade beside a sunlit cyan pool: the lit surroundings are mostly
+    water, whose colour the local lit/shade ratio takes for the lift's (teal paving, a user
+    trial). The lift may warm the paving, never cool or green it."""
+    img = np.full((H, W, 3), 0.55, np.float32)  # grey paving in the sun
+    img[:, W // 2:] = [0.1, 0.6, 0.7]  # the pool
+    shade = np.zeros((H, W), bool)
+    shade[8:56, 6:W // 2] = True
+    img[shade] = 0.55 * np.array([0.3, 0.32, 0.36], np.float32)  # its shade: bluish
+    p = shade.astype(np.float32)
+    sky = np.zeros((H, W), bool)
+    out = deshadow(img, p, sky, marked=shade)  # the user marked it ("Mark shadow")
+    lifted = out[20:44, 14:26].mean(axis=(0, 1))
+    assert lifted.mean() > 2.0 * img[20:44, 14:26].mean()  # it is lifted
+    before = img[30, 20]
+    assert lifted[0] / lifted[1] >= 0.99 * before[0] / before[1]  # no less red
+    assert lifted[2] / lifted[1] <= 1.01 * before[2] / before[1]  # no more blue
+    assert np.allclose(ps.warm_lift(np.array([0.2, 0.5, 0.9])), 0.5)
+
+
+def test_a_bright_fleck_inside_a_shadow_is_not_lifted_into_glare(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A sun fleck a "Mark shadow" fill took in: lifted by the shade's ratio it would clip to
+    white; it ends no brighter than the lit surface around it plus LIFT_ABOVE_LIT."""
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+
+    img, mask = _shadowed()
+    img *= 0.6  # a duller day: nothing clips
+    fleck = np.zeros((H, W), bool)
+    fleck[38:42, 36:44] = True
+    img[fleck] = _ground()[fleck] * 0.6  # as bright as the lit gravel
+    sky = np.zeros((H, W), bool)
+
+    def fleck_over_lit() -> float:  # the fleck's linear luminance over the lit gravel's
+        out = luminance(srgb_to_linear(deshadow(img, mask.astype(np.float32), sky)))
+        return float(out[fleck].mean() / out[~mask].mean())
+
+    assert fleck_over_lit() <= np.exp(ps.LIFT_ABOVE_LIT) * 1.05
+    monkeypatch.setattr(ps, "LIFT_ABOVE_LIT", np.inf)
+    assert fleck_over_lit() > 2.5  # unbounded, the fleck is lifted far past the lit gravel
+
+
 def test_deshadow_leaves_a_dark_material_alone() -> None:
     """A dark blue object beside warm gravel is not a shadow the sun can lift."""
     img = _ground()
@@ -313,9 +355,9 @@ def test_session_lift_expects_the_clear_sky_shade_colour(
         shifts.append(("guard", shift))
         return real_guard(img, p, sky, shift)
 
-    def lift(img, p, sky, shift=ps.SHADE_SHIFT):
+    def lift(img, p, sky, shift=ps.SHADE_SHIFT, marked=None):
         shifts.append(("deshadow", shift))
-        return real_deshadow(img, p, sky, shift)
+        return real_deshadow(img, p, sky, shift, marked)
 
     monkeypatch.setattr(session, "material_guard", guard)
     monkeypatch.setattr(session, "deshadow", lift)

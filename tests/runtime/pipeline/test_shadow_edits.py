@@ -16,6 +16,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     MAX_BRUSH_RADIUS,
     MAX_SHADOW_EDITS,
     PICK_RADIUS,
+    SHADE_SHIFT,
     ShadowEdit,
     apply_edit_masks,
     deshadow,
@@ -272,6 +273,46 @@ def test_a_marked_shadow_may_be_lifted_wherever_it_is(monkeypatch: pytest.Monkey
     after = s._lift_guard(shape)
     assert before is not None and after is not None
     assert before[work].max() == 0.0 and after[work].mean() > 0.95
+
+
+def test_every_de_shadow_takes_the_marked_shadow_at_its_own_size(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The export's de-shadow (working and detail size) and the relighting's lift base are
+    told what the user marked as shadow, at their size and off the sky, so that neither
+    weakens it as another material than the lit surface round it."""
+    from outcast_core.runtime.pipeline import session as session_module
+
+    seen: list[tuple[tuple[int, int], np.ndarray | None]] = []
+    real = session_module.deshadow
+
+    def spy(img, p, sky, shift=SHADE_SHIFT, marked=None):
+        seen.append((p.shape, marked))
+        return real(img, p, sky, shift, marked)
+
+    monkeypatch.setattr(session_module, "deshadow", spy)
+    monkeypatch.setattr(session_module, "DETAIL_SIDE", 4 * max(H, W))
+    img, parts = _slope()
+    big = cv2.resize(img, (4 * W, 4 * H), interpolation=cv2.INTER_NEAREST)
+    depth = np.full((H, W), 10.0, np.float32)
+    depth[parts["sky"]] = np.inf
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(big, depth=depth)
+    s.set_original_sun((0.3, -0.5, 0.8))
+    s.deshadow()
+    assert seen[-1][1] is None  # nothing marked
+    s.set_shadow_edits([ShadowEdit(*_centre(parts["shadow"]), shadow=True)])
+    s.deshadow()
+    s.deshadow_full()
+    s._lift_inputs(s.image_srgb.shape[:2])
+    sizes = set()
+    for shape, marked in seen[1:]:
+        assert marked is not None and marked.shape == shape
+        truth = cv2.resize(parts["shadow"].astype(np.uint8), shape[::-1],
+                           interpolation=cv2.INTER_NEAREST) > 0
+        assert (marked & truth).sum() > 0.8 * truth.sum()
+        assert not (marked & ~cv2.dilate(truth.astype(np.uint8), np.ones((5, 5)))).any()
+        sizes.add(shape)
+    assert len(sizes) == 2  # the working size and the detail size
 
 
 def test_a_shadow_click_on_lit_ground_is_refused() -> None:
