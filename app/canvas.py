@@ -194,6 +194,14 @@ class ImageCanvas(QWidget):
         """Whether a stroke is being painted (the left button held after a drag)."""
         return self._stroke is not None
 
+    def cancel_stroke(self) -> bool:
+        """Drop the stroke being painted, or the click tool's press not yet released (its
+        release then adds nothing), as ending the tool does; returns whether there was one."""
+        busy = self._stroke is not None or self._press is not None
+        self._press = None
+        self._end_stroke()
+        return busy
+
     def image_fraction(self, pos: QPointF) -> tuple[float, float] | None:
         """The image point under ``pos`` (widget coordinates) as fractions of its width and
         height, or None outside the image."""

@@ -443,6 +443,12 @@ class MainWindow(QMainWindow):
         self.act_redo.setShortcuts(
             [QKeySequence.StandardKey.Redo, QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")]
         )
+        # While a brush stroke is painted, undo and redo cancel it and do nothing else (they
+        # undid the step before and the stroke was still added on release, its redo lost).
+        for act, step in ((self.act_undo, self.undo_stack.undo),
+                          (self.act_redo, self.undo_stack.redo)):
+            act.triggered.disconnect()  # (the stack's own step)
+            act.triggered.connect(lambda _c=False, step=step: self._undo_step(step))
         self.undo_stack.cleanChanged.connect(self._on_clean_changed)
         self.act_about = QAction("&About OutCast", self)
         self.act_about.triggered.connect(self._about)
@@ -1534,6 +1540,14 @@ class MainWindow(QMainWindow):
         elif not self.runner.busy():
             self.stage_label.setText("Ready")
 
+    def _undo_step(self, step: Callable[[], None]) -> None:
+        """Undo or redo (``step``), unless a brush stroke is being painted: then that stroke is
+        cancelled, as Esc does, and nothing else happens."""
+        if self.canvas.cancel_stroke():
+            self.stage_label.setText("Stroke cancelled")
+            return
+        step()
+
     @Slot(float, float)
     def _on_canvas_clicked(self, x: float, y: float) -> None:
         tool = self.relight_panel.shadow_tool()
@@ -1563,9 +1577,9 @@ class MainWindow(QMainWindow):
                           radius: float | None = None) -> bool:
         """Paint a brush stroke on the found shadows: a dab at each of ``points`` (fractions of
         the photo's width and height; those outside it left out) of ``radius`` (a fraction of
-        the longer side; default: the panel's brush). "Not a shadow" drops the found shadow
-        under the brush only; "a shadow" adds what the brush covers. One undo step, however
-        many dabs.
+        the longer side; default: the panel's brush). "Not a shadow" drops all the brush
+        covers where it holds a found shadow; "a shadow" adds the shadow under the stroke (its
+        darker pixels; nothing on lit ground). One undo step, however many dabs.
 
         Returns:
             Whether the stroke was made (see :meth:`add_shadow_edit`).
@@ -1721,6 +1735,7 @@ class MainWindow(QMainWindow):
         edits, just_added = self.shadow_edits, self._edit_just_added
 
         def job(ctx: JobContext) -> dict[str, Any]:
+            found = session.shadow_probability
             session.set_shadow_edits(edits)
             after = session.shadow_probability
             # The correction just made (a click, or every dab of a stroke) changed nothing (no
@@ -1734,8 +1749,11 @@ class MainWindow(QMainWindow):
             if with_image:
                 ctx.progress("removing shadows", 0.1)
                 image = display.to_uint8_rgb(session.deshadow_full())
+            # Shown as found when the sun was confirmed, nothing redone: no timing to report.
+            computed = with_image or after is not found
             return {"view": view, "key": key, "image": image, "overlay": overlay,
-                    "idle_edits": idle_edits, "timings": _timings(session)}  # fmt: skip
+                    "idle_edits": idle_edits, "computed": computed,
+                    "timings": _timings(session)}  # fmt: skip
 
         words = "Removing the photo's shadows" if with_image else "Finding the photo's shadows"
         job_id = self.runner.submit("relight", job, words)
@@ -1753,7 +1771,8 @@ class MainWindow(QMainWindow):
     def _idle_note(edit: ShadowEdit) -> str:
         """What to say of a click or a stroke (``edit``, its last dab) that changed nothing."""
         if edit.radius > 0:
-            return ("nothing was painted (the sky, or painted already)" if edit.shadow else
+            return ("no shadow under the stroke (lit ground, the sky, or painted already): "
+                    "paint over a shadow the app missed" if edit.shadow else
                     "no found shadow under the stroke: paint over the magenta area of "
                     "\"Shadows found\"")
         return ("nothing was added there (the sky, lit ground, or a shadow already): click "
@@ -2250,6 +2269,8 @@ class MainWindow(QMainWindow):
                     words = "Removing shadows" if result.get("image") is not None else (
                         "Finding shadows")
                 text = f"Ready · {words.lower()} took {seconds:.2f} s"
+                if isinstance(result, dict) and result.get("computed") is False:
+                    text = "Ready"  # the shadows found at confirming, shown: no work to time
                 if channel == "shadow" and self._held_message:
                     text, self._held_message = self._held_message, ""
                 if channel == "relight" and self._exposure_hint:

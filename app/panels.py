@@ -20,6 +20,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.qt_sun_dial import SunDialPanel
+from outcast_core.runtime.pipeline.photo_shadows import MAX_BRUSH_RADIUS
 
 VIEW_CHOICES = (
     ("output", "Relit photo"),
@@ -44,8 +45,9 @@ SHADOW_TOOLS = (
      "over it"),
     ("shadow", "Mark shadow",
      "Click inside a shadow the app missed: the area of even brightness around the point is "
-     "added and lifted. Or drag to paint the shadow with the brush. Undo (Ctrl+Z) takes the "
-     "click or the stroke back; [ and ] size the brush; Esc ends the tool.",
+     "added and lifted. Or drag to paint the shadow with the brush: only the shadow under the "
+     "stroke is added, not the lit ground it crosses. Undo (Ctrl+Z) takes the click or the "
+     "stroke back; [ and ] size the brush; Esc ends the tool.",
      "Click inside a shadow the app missed, or drag to paint it"),
 )
 
@@ -53,10 +55,12 @@ SHADOW_TOOLS = (
 #: The tools' hint while none is on.
 SHADOW_TOOL_IDLE = ("Turn a tool on, then click a region of the photo, or drag to paint; the "
                     "magenta areas are the shadows found.")
-#: The brush's size (radius, % of the photo's longer side): default, range, and the factor
-#: ``[`` and ``]`` divide and multiply it by.
+#: The brush's size (radius, % of the photo's longer side): default, range (up to the
+#: runtime's :data:`~outcast_core.runtime.pipeline.photo_shadows.MAX_BRUSH_RADIUS`, which the
+#: CLI's ``X,Y,R`` and the project files keep to), and the factor ``[`` and ``]`` divide and
+#: multiply it by.
 BRUSH_DEFAULT = 2.0
-BRUSH_RANGE = (0.5, 15.0)
+BRUSH_RANGE = (0.5, 100.0 * MAX_BRUSH_RADIUS)
 BRUSH_STEP = 1.25
 
 

@@ -568,12 +568,14 @@ def test_a_drag_paints_one_stroke_that_undo_takes_back_whole(qtbot, window, phot
     seen = [a[on_path.y() - 1:on_path.y() + 2, on_path.x() - 1:on_path.x() + 2].astype(int)
             for a in (unpainted, painted)]
     assert np.abs(seen[1] - seen[0]).mean() > 40
-    # A "Mark shadow" stroke on lit ground and a click on what is left of the band: three
-    # corrections, three undo steps.
+    # A "Mark shadow" stroke back over the band's dropped part and a click on what is left of
+    # the band: three corrections, three undo steps.
     _tool(window, "shadow")
-    _drag(window, [(0.6, 0.9), (0.7, 0.9)])
+    _drag(window, [(0.33, 0.55), (0.33, 0.7)])  # from lit ground into the band
     settle()
     assert _undo_texts(window)[-1] == "Paint shadow"
+    assert window.session.shadow_probability[64:70, 41:44].min() > 0.9  # the band's
+    assert window.session.shadow_probability[50:59, 41:44].max() < 0.05  # not the lit ground
     _tool(window, "not_shadow")
     _click(qtbot, window, 0.48, 0.7)
     settle()
@@ -684,3 +686,92 @@ def test_a_stroke_that_changed_nothing_is_taken_back(qtbot, window, photo, settl
         used = window.session.shadow_edits_used[len(edits):]
         assert any(used) and not all(used)
     assert window.undo_stack.count() == count + 2
+
+
+def test_a_mark_shadow_stroke_on_lit_ground_is_refused(qtbot, window, photo, settle):
+    """A "Mark shadow" stroke adds only the shadow under it: on lit ground nothing (it was
+    lifted into pale hard-edged discs, a user trial), and it is taken back as a click there."""
+    _shadows_view(window, photo, settle)
+    _tool(window, "shadow")
+    count, before = window.undo_stack.count(), window.session.shadow_probability.copy()
+    _drag(window, [(0.6, 0.9), (0.7, 0.88), (0.8, 0.9)])
+    settle()
+    assert "no shadow under the stroke" in window.stage_label.text()
+    assert window.shadow_edits == () and window.undo_stack.count() == count
+    assert np.array_equal(window.session.shadow_probability, before)
+
+
+def test_undo_while_painting_cancels_the_stroke_only(qtbot, window, photo, settle):
+    """Ctrl+Z in the middle of a stroke undid the step before, and the stroke was still added
+    on release (its redo lost): now it cancels the stroke, as Esc does, and nothing else."""
+    _drop_the_band(qtbot, window, photo, settle)
+    click = window.shadow_edits
+    assert len(click) == 1
+    canvas, left = window.canvas, Qt.MouseButton.LeftButton
+    count = window.undo_stack.count()
+
+    def cancelled_by(act, edits: tuple) -> None:
+        index = window.undo_stack.index()
+        _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, 0.6, 0.9), left)
+        _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.7, 0.9), left)
+        assert canvas.painting() and act.isEnabled()
+        act.trigger()
+        assert not canvas.painting() and window.stage_label.text() == "Stroke cancelled"
+        _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.8, 0.9), left)
+        _mouse(canvas, QEvent.Type.MouseButtonRelease, _widget_point(canvas, 0.8, 0.9),
+               Qt.MouseButton.NoButton)
+        settle()
+        assert window.shadow_edits == edits and window.undo_stack.count() == count
+        assert window.undo_stack.index() == index  # neither undone nor redone
+
+    cancelled_by(window.act_undo, click)
+    # Without a stroke, undo and redo work as before; the tool is still on.
+    assert window.relight_panel.shadow_tool() == "not_shadow"
+    window.act_undo.trigger()
+    settle()
+    assert window.shadow_edits == ()
+    cancelled_by(window.act_redo, ())
+    window.act_redo.trigger()
+    settle()
+    assert window.shadow_edits == click
+
+
+def test_the_brush_and_the_command_line_share_one_largest_radius(window, photo, errors,
+                                                                  tmp_path):
+    """The app's brush topped out at 15 % while the command line took 0.25: one limit now; a
+    project with a larger dab is refused, saying so."""
+    from app.panels import BRUSH_RANGE
+    from outcast_core.runtime.cli.main import build_parser, parse_shadow_edit
+    from outcast_core.runtime.pipeline.photo_shadows import MAX_BRUSH_RADIUS
+
+    assert BRUSH_RANGE[1] == pytest.approx(100 * MAX_BRUSH_RADIUS)
+    assert window.relight_panel.brush_box.maximum() == pytest.approx(100 * MAX_BRUSH_RADIUS)
+    assert parse_shadow_edit(f"0.5,0.5,{MAX_BRUSH_RADIUS}", shadow=True).radius == (
+        MAX_BRUSH_RADIUS)
+    with pytest.raises(ValueError, match="brush radius R"):
+        parse_shadow_edit(f"0.5,0.5,{MAX_BRUSH_RADIUS + 0.01}", shadow=True)
+    sub = next(a for a in build_parser()._actions if a.dest == "command").choices["deshadow"]
+    helps = " ".join(a.help or "" for a in sub._actions)
+    assert f"at most {MAX_BRUSH_RADIUS}:" in helps
+    base = ProjectState(image_path=photo).to_dict()
+    project = tmp_path / "wide.outcast.json"
+    project.write_text(json.dumps({**base, "shadow_edits": [
+        {"x": 0.5, "y": 0.5, "shadow": True, "r": MAX_BRUSH_RADIUS + 0.05}]}))
+    window.open_path(str(project))
+    assert len(errors) == 1 and "shadow_edits" in errors[0][1]
+    assert f"brush radius 0-{MAX_BRUSH_RADIUS}" in errors[0][1]
+    assert window.step is Step.EMPTY
+
+
+def test_opening_shadows_found_reports_no_timing_for_work_not_done(qtbot, window, photo,
+                                                                   settle):
+    """The shadows are found when the sun is confirmed: opening "Shadows found" afterwards
+    said "finding shadows took 0.00 s"."""
+    _shadows_view(window, photo, settle)
+    assert window.stage_label.text() == "Ready"
+    assert window.add_shadow_edit(*BAND_XY, shadow=False)  # work done (no tool on): timed
+    settle()
+    assert "finding shadows took" in window.stage_label.text()
+    window.relight_panel.set_view("shadows_removed")  # the de-shadowed photo made: timed
+    settle()
+    assert "removing shadows took" in window.stage_label.text()

@@ -155,8 +155,10 @@ def parse_shadow_edit(text: str, shadow: bool):
     longer side): a :class:`~outcast_core.runtime.pipeline.photo_shadows.ShadowEdit`.
 
     Raises:
-        ValueError: not two or three numbers, the point outside the photo or R outside
-            0 to :data:`~outcast_core.runtime.pipeline.photo_shadows.MAX_BRUSH_RADIUS`.
+        ValueError: not two or three numbers, the point outside the photo or R not above 0
+            and at most :data:`~outcast_core.runtime.pipeline.photo_shadows.MAX_BRUSH_RADIUS`
+            (the app's largest brush). ``R = 0`` is refused, not taken for a click: the note
+            that one changed nothing would name it ``X,Y``.
 
     Example:
         >>> parse_shadow_edit("0.3,0.6,0.02", shadow=False)
@@ -172,7 +174,10 @@ def parse_shadow_edit(text: str, shadow: bool):
         r = float(parts[2])
     except ValueError:
         r = math.nan
-    if not (math.isfinite(r) and 0.0 <= r <= MAX_BRUSH_RADIUS):
+    if r == 0.0:
+        raise ValueError(f"expected X,Y,R with the brush radius R above 0 (omit R for a "
+                         f"click: X,Y), got {text!r}")
+    if not (math.isfinite(r) and 0.0 < r <= MAX_BRUSH_RADIUS):
         raise ValueError(f"expected X,Y,R with the brush radius R a fraction 0-"
                          f"{MAX_BRUSH_RADIUS} of the photo's longer side (e.g. 0.3,0.6,0.02), "
                          f"got {text!r}")
@@ -199,11 +204,14 @@ def add_shadow_edit_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--not-shadow", action=_ShadowEditAction, const=False, metavar="X,Y[,R]",
                    help="the found shadow at this point is not one (a dark object, foliage): "
                    "X,Y as fractions 0-1 of the photo's width and height from its top left; "
-                   "with R (a fraction of the longer side, at most 0.25), a brush dab: only "
-                   "the found shadow within R of the point; repeatable")
+                   "with R (a fraction of the longer side, above 0, at most 0.15: the "
+                   "app's largest brush), a brush dab: all within R of the point, where it "
+                   "holds a found shadow; repeatable")
     p.add_argument("--shadow", action=_ShadowEditAction, const=True, metavar="X,Y[,R]",
                    help="a shadow the app did not find: the region of even brightness round "
-                   "this point; with R, a brush dab: the disc of radius R; repeatable")
+                   "this point; with R, a brush dab: the shadow within R (a run of dabs, each "
+                   "within R of the one before, is a stroke: only its darker pixels are "
+                   "added, and nothing on lit ground); repeatable")
 
 
 def say_unused_shadow_edits(session, args: argparse.Namespace) -> str:
@@ -216,8 +224,8 @@ def say_unused_shadow_edits(session, args: argparse.Namespace) -> str:
             why = ("the sky, lit ground (not darker than round it) or a shadow already"
                    if edit.shadow else "no found shadow there, or one already dropped")
             if edit.radius > 0:
-                why = ("the sky, or painted already" if edit.shadow
-                       else "no found shadow within R, or dropped already")
+                why = ("no shadow under the stroke: the sky, lit ground or painted already"
+                       if edit.shadow else "no found shadow within R, or dropped already")
             point = f"{edit.x:g},{edit.y:g}" + (f",{edit.radius:g}" if edit.radius > 0 else "")
             _say(args, f"note: {flag} {point} changed nothing ({why})")
     n = sum(session.shadow_edits_used)

@@ -315,7 +315,7 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     samples = _samples_from_args(args, exif, tilt)
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(sun_vector(*args.from_sun))
-    say_unused_shadow_edits(session, args)
+    corrections = say_unused_shadow_edits(session, args)  # (notes as relight and deshadow)
     size = args.size or ("full" if args.full_res else DEFAULT_FRAME_SIZE)
     if args.full_res and size != "full":
         raise ValueError(f"expected either --full-res or --size, got --full-res --size {size}")
@@ -339,5 +339,6 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
         progress=report,
     )
     if not quiet:
-        print(f"\nwrote {len(samples)} frames to {out}", file=sys.stderr)
+        counted = f" ({corrections.removesuffix('; ')})" if corrections else ""
+        print(f"\nwrote {len(samples)} frames to {out}{counted}", file=sys.stderr)
     return 0

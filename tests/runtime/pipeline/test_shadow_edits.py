@@ -15,6 +15,7 @@ import pytest
 from outcast_core.runtime.pipeline.photo_shadows import (
     MAX_BRUSH_RADIUS,
     MAX_SHADOW_EDITS,
+    NOT_SHADOW_LEVEL,
     PICK_RADIUS,
     SHADE_SHIFT,
     ShadowEdit,
@@ -384,26 +385,104 @@ def test_a_not_a_shadow_dab_drops_the_found_shadow_inside_its_disc_only() -> Non
     assert used == [False] and not none[0].any() and not none[1].any()
 
 
-def test_a_shadow_dab_adds_its_disc_off_the_sky() -> None:
+def _line(x0: float, x1: float, y: float, shadow: bool, radius: float) -> list[ShadowEdit]:
+    """A straight stroke from ``x0`` to ``x1`` at height ``y``, a dab every half radius (as
+    the app lays them)."""
+    n = max(2, round(abs(x1 - x0) * W / (0.5 * radius * W)) + 1)
+    return [ShadowEdit(float(x), y, shadow, radius) for x in np.linspace(x0, x1, n)]
+
+
+def test_a_shadow_stroke_adds_only_the_shadow_under_it() -> None:
+    """The slope's shadow is missed (the pines set the threshold). A "Mark shadow" stroke
+    across its edge adds the shadow under it, not the lit snow it crossed (which the lift
+    brightened into hard-edged discs of glare: a user trial); one inside the shadow adds its
+    whole area; one on lit snow alone adds nothing and says so, as a click there."""
     img, parts = _slope()
-    sky = parts["sky"]
+    sky, shadow = parts["sky"], parts["shadow"]
     p = photo_shadow_probability(img, sky)
-    on_snow = ShadowEdit(0.85, 0.7, shadow=True, radius=0.04)
+    assert p[shadow].mean() < 0.2  # missed
+    across = _line(25 / W, 60 / W, 72 / H, True, 0.05)  # lit snow, then the shadow's edge
+    under = np.zeros((H, W), bool)
+    for dab in across:
+        under |= _disc((H, W), dab.x, dab.y, dab.radius - 1 / W)
     used: list[bool] = []
-    added, dropped = shadow_edit_masks(p, img, sky, [on_snow], used)
-    inside = _disc((H, W), on_snow.x, on_snow.y, on_snow.radius - 1 / W)
-    near = _disc((H, W), on_snow.x, on_snow.y, on_snow.radius + 1 / W)
-    assert used == [True] and added[inside].all() and not added[~near].any()
-    assert not dropped.any()
+    added, dropped = shadow_edit_masks(p, img, sky, across, used)
+    assert used == [True] * len(across) and not dropped.any()
+    assert added[under & shadow].all()
+    assert not added[~shadow].any()  # not one pixel of lit snow
     out, _ = apply_edit_masks(p, sky, added, dropped)
-    assert out[inside].min() > 0.99  # lit snow, a shadow now: the user says so
-    # Across the sky's edge: never the sky; on the sky alone: nothing.
+    lit = under & ~shadow
+    lit[:, 36:] = False  # (beyond the soft edge)
+    assert out[under & shadow].min() > 0.99 and out[lit].max() < 0.05
+    # Inside the shadow: one even surface, darker than the snow round it: all of it.
+    inside = _line(55 / W, 85 / W, 72 / H, True, 0.04)
+    added, _ = shadow_edit_masks(p, img, sky, inside)
+    assert added[_disc((H, W), 70 / W, 72 / H, 0.03)].all() and not added[~shadow].any()
+    # On lit snow alone (beside the shadow, and far from it): nothing, every dab unused.
+    for lit in (_line(104 / W, 124 / W, 72 / H, True, 0.04),
+                _line(20 / W, 100 / W, 93 / H, True, 0.02),
+                [ShadowEdit(0.85, 0.7, shadow=True, radius=0.04)]):
+        used = []
+        added, dropped = shadow_edit_masks(p, img, sky, lit, used)
+        assert used == [False] * len(lit) and not added.any() and not dropped.any()
+    # Across the sky's edge (the pines under it: one dark surface): never the sky; on the
+    # sky alone: nothing.
     edge = ShadowEdit(0.5, 12 / H, shadow=True, radius=0.05)
     added, _ = shadow_edit_masks(p, img, sky, [edge])
     assert added.any() and not added[sky].any()
     used = []
     added, _ = shadow_edit_masks(p, img, sky, [ShadowEdit(0.5, 0.03, True, radius=0.02)], used)
     assert used == [False] and not added.any()
+
+
+def test_a_stroke_is_decided_as_a_whole() -> None:
+    """The shadow under a stroke is found for the stroke as a whole (its dabs alone may each
+    lie on one side of the edge): every dab of it changed something, or none did."""
+    img, parts = _slope()
+    sky, shadow = parts["sky"], parts["shadow"]
+    p = photo_shadow_probability(img, sky)
+    across = _line(20 / W, 60 / W, 72 / H, True, 0.03)
+    used: list[bool] = []
+    added, _ = shadow_edit_masks(p, img, sky, across, used)
+    assert used == [True] * len(across) and not added[~shadow].any()
+    # Alone, its first dab lies on lit snow: refused.
+    assert not shadow_edit_region(p, img, sky, across[0]).any()
+    # Painted again over what is painted: changes nothing (and is said so). (Begun where the
+    # first ended, it would be one stroke with it: shadow_edit_strokes.)
+    used = []
+    again = shadow_edit_masks(p, img, sky, [*across, *across], used)
+    assert used == [True] * len(across) + [False] * len(across)
+    assert (again[0] == added).all()
+
+
+def test_not_a_shadow_paints_the_probability_to_zero_in_the_whole_disc() -> None:
+    """A dab drops all of its disc, weak probability too (0.1-0.45 stayed: a pink tint on the
+    overlay and some lift in the export, a user trial on a lattice facade); one whose disc
+    holds nothing above NOT_SHADOW_LEVEL changes nothing."""
+    img, parts = _slope()
+    sky = parts["sky"]
+    p = np.zeros((H, W), np.float32)
+    p[50:70, 20:60] = 0.3  # a weakly found, fragmented facade
+    p[55:60, 25:30] = 0.9
+    p[80:90, 100:120] = NOT_SHADOW_LEVEL  # a faint haze, not seen on the overlay
+    dab = ShadowEdit(40 / W, 60 / H, shadow=False, radius=0.1)
+    used: list[bool] = []
+    added, dropped = shadow_edit_masks(p, img, sky, [dab], used)
+    inside = _disc((H, W), dab.x, dab.y, dab.radius - 1 / W)
+    assert used == [True] and dropped[inside].all() and not added.any()
+    out, not_shadow = apply_edit_masks(p, sky, added, dropped)
+    assert out[inside].max() == 0.0 and not_shadow[inside].all()
+    # Beyond the disc and its soft edge: as found.
+    beyond = ~_disc((H, W), dab.x, dab.y, dab.radius + 4 / W)
+    assert np.allclose(out[beyond], p[beyond])
+    assert (dropped == shadow_edit_region(p, img, sky, dab)).all()
+    # On the faint haze (and on lit snow): nothing; the next dab of a stroke over dropped
+    # ground changes nothing either.
+    used = []
+    faint = ShadowEdit(110 / W, 85 / H, shadow=False, radius=0.03)
+    again = ShadowEdit(41 / W, 60 / H, shadow=False, radius=0.03)
+    masks = shadow_edit_masks(p, img, sky, [dab, faint, again], used)
+    assert used == [True, False, False] and (masks[1] == dropped).all()
 
 
 def test_dabs_paint_into_the_masks_in_order() -> None:
@@ -433,30 +512,39 @@ def test_dabs_paint_into_the_masks_in_order() -> None:
     assert added[inner].all() and not dropped[inner].any()
     assert dropped[_disc((H, W), 0.3, 26 / H, 0.05 - 1 / W) & ~_disc((H, W), 0.3, 26 / H, 0.04)
                    ].all()
-    # Two strokes painted on lit snow; a "not a shadow" click on one takes that one back.
-    left = [ShadowEdit(0.05 + 0.01 * i, 0.95, True, radius=0.02) for i in range(5)]
-    right = [ShadowEdit(0.85 + 0.01 * i, 0.95, True, radius=0.02) for i in range(5)]
+    # Two strokes painted in the shadow; a "not a shadow" click on one takes that one back.
+    left = _line(45 / W, 52 / W, 72 / H, True, 0.02)
+    right = _line(85 / W, 92 / W, 72 / H, True, 0.02)
     used = []
-    added, _ = shadow_edit_masks(p, img, sky, [*left, *right, ShadowEdit(0.07, 0.95, False)],
+    added, _ = shadow_edit_masks(p, img, sky, [*left, *right, ShadowEdit(48 / W, 72 / H, False)],
                                  used)
-    assert used[-1] and added[:, 100:].any() and not added[:, :30].any()
+    assert all(used) and added[:, 80:].any() and not added[:, :60].any()
 
 
 def test_leaving_out_the_dabs_that_changed_nothing_gives_the_same_masks() -> None:
-    """What the session counts on when the app takes back a stroke that changed nothing."""
+    """What the session counts on when the app takes back a stroke that changed nothing (a
+    "not a shadow" dab is decided alone, after the ones before it; a "Mark shadow" stroke as
+    a whole: all its dabs changed something or none did)."""
     rng = np.random.default_rng(3)
     img, parts = _slope()
     sky = parts["sky"]
     p = photo_shadow_probability(img, sky)
     for _ in range(6):
         edits = []
-        for _ in range(40):
+        for _ in range(40):  # clicks, and strokes of 1-8 dabs half a radius apart
             x, y = rng.random(2)
             radius = 0.0 if rng.random() < 0.15 else float(rng.choice([0.01, 0.03, 0.08]))
-            edits.append(ShadowEdit(float(x), float(y), bool(rng.random() < 0.5), radius))
+            shadow, angle = bool(rng.random() < 0.5), rng.random() * 2 * np.pi
+            for k in range(1 if radius == 0 else int(rng.integers(1, 9))):
+                step = 0.5 * radius * k
+                at = np.clip([x + step * np.cos(angle), y + step * np.sin(angle) * W / H], 0, 1)
+                edits.append(ShadowEdit(float(at[0]), float(at[1]), shadow, radius))
         used: list[bool] = []
         masks = shadow_edit_masks(p, img, sky, edits, used)
         assert len(used) == len(edits) and 0 < sum(used) < len(edits)
+        for start, stop in shadow_edit_strokes(edits, (H, W)):
+            if edits[start].shadow:
+                assert len(set(used[start:stop])) == 1
         kept = [e for e, u in zip(edits, used, strict=True) if u]
         again = shadow_edit_masks(p, img, sky, kept)
         assert all(np.array_equal(a, b) for a, b in zip(masks, again, strict=True))
@@ -578,9 +666,35 @@ def test_cli_takes_a_brush_dab_as_x_y_r(tmp_path: Path, capsys: pytest.CaptureFi
         capsys.readouterr().err)
     for bad, words in [("0.5,0.5,0.3", "brush radius R"), ("0.5,0.5,-0.1", "brush radius R"),
                        ("0.5,0.5,nan", "brush radius R"), ("0.5,0.5,big", "brush radius R"),
+                       (f"0.5,0.5,{MAX_BRUSH_RADIUS + 0.01}", "brush radius R a fraction"),
+                       ("0.5,0.5,0", "omit R for a click"), ("0.5,0.5,-0", "omit R"),
                        ("1.5,0.5,0.1", "fractions 0-1"), ("0.5,0.5,0.1,2", "fractions 0-1")]:
         with pytest.raises(SystemExit) as info:
             main([*base, "-o", str(tmp_path / "d.png"), "--not-shadow", bad])
         assert info.value.code == 2
         err = capsys.readouterr().err
         assert "--not-shadow" in err and words in err and len(err.strip().splitlines()) == 1
+
+
+def test_timelapse_says_which_corrections_changed_nothing_and_counts_the_rest(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    """As ``relight`` and ``deshadow`` do."""
+    from outcast_core.runtime.cli.main import main
+    from outcast_core.runtime.io import imageio
+
+    img, parts = _slope()
+    depth = np.full((H, W), 10.0, np.float32)
+    depth[parts["sky"]] = np.inf
+    photo, dpath = tmp_path / "slope.png", tmp_path / "d.npy"
+    imageio.write_image(photo, img)
+    imageio.write_depth(dpath, depth)
+    capsys.readouterr()
+    assert main(["timelapse", str(photo), "--from", "20,30", "--depth", str(dpath), "--sweep",
+                 "10,20:40,50", "--frames", "2", "--size", "working", "-o",
+                 str(tmp_path / "t.gif"), "--shadow", "0.5,0.05", "--not-shadow", "0.5,0.2",
+                 "--not-shadow", "0.9,0.95,0.02"]) == 0
+    err = capsys.readouterr().err
+    assert "note: --shadow 0.5,0.05 changed nothing (the sky" in err
+    assert "note: --not-shadow 0.9,0.95,0.02 changed nothing (no found shadow within R" in err
+    assert "note: --not-shadow 0.5,0.2 " not in err
+    assert f"wrote 2 frames to {tmp_path / 't.gif'} (1 shadow correction)" in err
