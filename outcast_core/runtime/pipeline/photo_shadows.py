@@ -366,16 +366,21 @@ def _shade_statistics(img: np.ndarray, p: np.ndarray, sky: np.ndarray) -> dict |
             "mu_shd": mu_shd}
 
 
-#: :func:`deshadow_log_gain`: a lifted pixel ends at most this much (natural log, per channel)
-#: above the mean log colour of the lit surface around it: room for the surface's own texture,
-#: while a bright fleck inside a shadow (a sun fleck a "Mark shadow" fill took in, a
+#: :func:`deshadow_log_gain`: a lifted pixel's log luminance ends at most this much (natural
+#: log) above the mean log colour of the lit surface around it: room for the surface's own
+#: texture, while a bright fleck inside a shadow (a sun fleck a "Mark shadow" fill took in, a
 #: reflection) or a lit surface wrongly found is not lifted into glare. Measured with
 #: :func:`warm_lift` on (balanced preset, each dev photo at its best sun; the 7 twin pairs'
 #: de-shadow error inside / outside the mask, as ``outcast eval real`` scores it, and on all 47
 #: photos the Lab ``a*b*`` / ``L*`` gap between the de-shadowed inside of each human-marked
-#: shadow and a lit ring round it): no bound 0.4841 / +0.143, 15.08 / 24.63; 1.0: -; 0.6
-#: (default) 0.4845 / +0.083, 15.01 / 24.53; without :func:`warm_lift`, no bound / 1.0 / 0.6
-#: / 0.3: 0.4993 / +0.117, 0.4993 / +0.086, 0.4998 / +0.061, 0.5007 / +0.030.
+#: shadow and a lit ring round it): no bound 0.4841 / +0.143, 15.08 / 24.63; 1.0: 0.4840 /
+#: +0.116, 15.09 / 24.63; 0.6 (default) 0.4842 / +0.094, 15.05 / 24.54; 0.3: 0.4837 / +0.060,
+#: 14.99 / 24.33 (0.6 leaves bright texture more room than 0.3: the numbers cannot see that).
+#: Not in the relighting's lift base (:func:`deshadow`'s ``above_lit``): there the bound
+#: flattens bright texture that :func:`~outcast_core.runtime.pipeline.relight.restore_detail`
+#: puts back where the new sun lights the surface (``relit_detail``, fast preset, 47 photos:
+#: 0.921 -> 0.910); the bound read on the log luminance blurred at :data:`TEXTURE_RADIUS`
+#: kept the detail (0.921) but lost most of the gain (pairs outside +0.140).
 LIFT_ABOVE_LIT = 0.6
 
 
@@ -403,7 +408,8 @@ def warm_lift(log_gain: np.ndarray) -> np.ndarray:
 
 
 def deshadow_log_gain(
-    image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray
+    image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
+    above_lit: float | None = LIFT_ABOVE_LIT,
 ) -> np.ndarray:
     """Per-pixel, per-channel log gain that lifts the photo's shadows (``H x W x 3``).
 
@@ -412,7 +418,7 @@ def deshadow_log_gain(
     ``[0, MAX_LIFT_LOG]``, made no cooler than neutral (:func:`warm_lift`), times the pixel's
     shadow probability. Where no lit surface is near, the whole photo's lit/shadow ratio stands
     in. A lifted pixel ends no brighter than that lit surface's mean log colour plus
-    :data:`LIFT_ABOVE_LIT`.
+    ``above_lit`` (:data:`LIFT_ABOVE_LIT`; None: unbounded).
     """
     img, p, sky = _check_probability(image_srgb, probability, sky)
     st = _shade_statistics(img, p, sky)
@@ -429,9 +435,11 @@ def deshadow_log_gain(
     gain = warm_lift(gain)
     keep = _not_darker_than_shade(st["log_c"], st["mu_lit"], glob)
     gain = gain * (p * keep)[..., None]
-    # No brighter than the lit surface around it, but for its texture (LIFT_ABOVE_LIT): the
-    # excess comes off every channel alike, so the lift's colour stays.
-    excess = (st["log_c"] + gain - st["mu_lit"]) @ LUMA_709 - LIFT_ABOVE_LIT
+    if above_lit is None:
+        return gain.astype(np.float32)
+    # No brighter than the lit surface around it, but for its texture: the excess comes off
+    # every channel alike, so the lift's colour stays.
+    excess = (st["log_c"] + gain - st["mu_lit"]) @ LUMA_709 - above_lit
     return np.maximum(gain - np.maximum(excess, 0.0)[..., None], 0.0).astype(np.float32)
 
 
@@ -527,14 +535,15 @@ def without_texture(probability: np.ndarray) -> np.ndarray:
 
 
 def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
-             shift: tuple[float, float] = SHADE_SHIFT, marked: np.ndarray | None = None
-             ) -> np.ndarray:
+             shift: tuple[float, float] = SHADE_SHIFT, marked: np.ndarray | None = None,
+             above_lit: float | None = LIFT_ABOVE_LIT) -> np.ndarray:
     """The photo with its shadows lifted (``H x W x 3`` sRGB float32, same size); the surface's
     fine texture is not lifted (:func:`without_texture`). ``shift``: the shade's expected
     chromaticity shift (:func:`same_material`). ``marked`` (``H x W`` bool, or None): what the
     user marked as shadow ("Mark shadow"), taken at their word: neither opened as texture nor
     weakened as another material than the lit surface round it (grey paving marked beside a
-    cyan pool was lifted to a quarter of its probability).
+    cyan pool was lifted to a quarter of its probability). ``above_lit``:
+    :func:`deshadow_log_gain`'s.
 
     Example:
         >>> img = np.full((32, 32, 3), 0.8, np.float32); img[16:, 16:] *= 0.5
@@ -552,7 +561,7 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
         if marked.shape != p.shape:
             raise ValueError(f"expected a marked mask of shape {p.shape}, got {marked.shape}")
         p = np.where(marked, np.clip(np.asarray(probability, np.float32), 0.0, 1.0), p)
-    gain = deshadow_log_gain(img, p, sky)
+    gain = deshadow_log_gain(img, p, sky, above_lit)
     lin = srgb_to_linear(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
     return linear_to_srgb((lin + _LOG_EPS) * np.exp(gain) - _LOG_EPS)
 

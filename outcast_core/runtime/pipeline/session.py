@@ -1067,8 +1067,10 @@ class RelightSession:
         if "base" not in guards:
             assert self.original_sun is not None and self.normals is not None
             assert self.shadow_probability is not None
+            # Unbounded: its fine band is the relit photo's texture where the new sun
+            # lights the surface (photo_shadows.LIFT_ABOVE_LIT says what the bound cost there).
             base = deshadow(self.image_srgb, self.shadow_probability, self._lift_excluded,
-                            LIFT_SHADE_SHIFT, marked=self._marked(self.sky))
+                            LIFT_SHADE_SHIFT, marked=self._marked(self.sky), above_lit=None)
             lit_old = np.maximum(cosine_term(self.normals, self.original_sun), LIT_FLOOR)
             lit_old = np.where(self.sky, 0.0, lit_old)
             guards["colour"] = lit_surface_colour(self.image_srgb, self.shadow_probability,

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from outcast_core.runtime.pipeline.photo_shadows import (
+    LIFT_ABOVE_LIT,
     MAX_BRUSH_RADIUS,
     MAX_SHADOW_EDITS,
     NOT_SHADOW_LEVEL,
@@ -284,11 +285,13 @@ def test_every_de_shadow_takes_the_marked_shadow_at_its_own_size(
     from outcast_core.runtime.pipeline import session as session_module
 
     seen: list[tuple[tuple[int, int], np.ndarray | None]] = []
+    bounds: list[float | None] = []
     real = session_module.deshadow
 
-    def spy(img, p, sky, shift=SHADE_SHIFT, marked=None):
+    def spy(img, p, sky, shift=SHADE_SHIFT, marked=None, above_lit=LIFT_ABOVE_LIT):
         seen.append((p.shape, marked))
-        return real(img, p, sky, shift, marked)
+        bounds.append(above_lit)
+        return real(img, p, sky, shift, marked, above_lit)
 
     monkeypatch.setattr(session_module, "deshadow", spy)
     monkeypatch.setattr(session_module, "DETAIL_SIDE", 4 * max(H, W))
@@ -314,6 +317,8 @@ def test_every_de_shadow_takes_the_marked_shadow_at_its_own_size(
         assert not (marked & ~cv2.dilate(truth.astype(np.uint8), np.ones((5, 5)))).any()
         sizes.add(shape)
     assert len(sizes) == 2  # the working size and the detail size
+    # The exports' lifts are bounded (sun flecks), the relighting's base is not (its texture).
+    assert bounds[-1] is None and set(bounds[:-1]) == {LIFT_ABOVE_LIT}
 
 
 def test_a_shadow_click_on_lit_ground_is_refused() -> None:
