@@ -438,7 +438,7 @@ def deshadow_log_gain(
     if above_lit is None:
         return gain.astype(np.float32)
     # No brighter than the lit surface around it, but for its texture: the excess comes off
-    # every channel alike, so the lift's colour stays.
+    # every channel alike, so the lift's colour stays (until a channel's gain reaches 0).
     excess = (st["log_c"] + gain - st["mu_lit"]) @ LUMA_709 - above_lit
     return np.maximum(gain - np.maximum(excess, 0.0)[..., None], 0.0).astype(np.float32)
 

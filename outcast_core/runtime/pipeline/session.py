@@ -728,9 +728,10 @@ class RelightSession:
     def _marked(self, sky: np.ndarray) -> np.ndarray | None:
         """What the user marked as shadow ("Mark shadow") at the size of ``sky``, off it; None
         without such a mark."""
-        if self._edit_masks is None or not self._edit_masks[0].any():
+        masks = self._edit_masks  # once: another thread's _apply_found may reset it
+        if masks is None or not masks[0].any():
             return None
-        added = self._edit_masks[0]
+        added = masks[0]
         if added.shape != sky.shape:  # as apply_edit_masks brings it to a size
             added = resize(added.astype(np.float32), sky.shape) > 0.5
         return added & ~sky
@@ -1103,8 +1104,9 @@ class RelightSession:
                                     self._lift_excluded, LIFT_SHADE_SHIFT)
                      * near_predicted_shadow(self._original_geometry, self.sky,
                                              LIFT_PRIOR_RADIUS))
-            if self._edit_masks is not None:  # the user's word: a shadow, not a material
-                guard = np.where(self._edit_masks[0], 1.0, guard).astype(np.float32)
+            masks = self._edit_masks  # once: another thread's _apply_found may reset it
+            if masks is not None:  # the user's word: a shadow, not a material
+                guard = np.where(masks[0], 1.0, guard).astype(np.float32)
             guards["working"] = guard
         key = tuple(shape)
         if key not in guards:
