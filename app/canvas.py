@@ -19,6 +19,8 @@ follows the cursor over the image.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from PySide6.QtCore import QEvent, QLineF, QPointF, QRectF, QSize, Qt, Signal
 from PySide6.QtGui import (
@@ -58,15 +60,18 @@ class ImageCanvas(QWidget):
         split_dragged(fraction): the user dragged the before/after line.
         image_clicked(x, y): with a click tool on, a click on the image, as fractions (0-1) of
             its width and height.
-        stroke_painted(points): with a click tool on, a drag painted on the image: the brush
-            dabs' centres, ``[(x, y), ...]`` fractions as for ``image_clicked``, at most half
-            the brush's radius apart (those off the image left out).
+        stroke_painted(points, radius): with a click tool on, a drag painted on the image:
+            the brush dabs' centres, ``[(x, y), ...]`` fractions as for ``image_clicked``, at
+            most half the brush's radius apart (a dab whose centre is off the image but whose
+            disc reaches it is moved onto the image's edge; those that miss it are left out),
+            and the brush's radius when the stroke began (the whole stroke is painted with
+            it, whatever ``[`` and ``]`` do meanwhile).
     """
 
     zoom_changed = Signal(float)
     split_dragged = Signal(float)
     image_clicked = Signal(float, float)
-    stroke_painted = Signal(object)
+    stroke_painted = Signal(object, float)
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -89,8 +94,10 @@ class ImageCanvas(QWidget):
         self._brush = 0.02
         self._brush_colour = QColor(255, 255, 255)
         #: A stroke being painted: the dabs' centres and the mouse's path (image pixels), the
-        #: last mouse point and how far the path went since the last dab.
+        #: last mouse point, how far the path went since the last dab, and the brush's radius
+        #: when it began (the stroke's, to its end).
         self._stroke: list[QPointF] | None = None
+        self._stroke_brush = 0.0
         self._stroke_path = QPainterPath()
         self._stroke_last = QPointF()
         self._stroke_carry = 0.0
@@ -184,11 +191,13 @@ class ImageCanvas(QWidget):
     def brush(self) -> float:
         return self._brush
 
-    def brush_pixels(self) -> float:
-        """The brush's radius in image pixels (0 without an image)."""
+    def brush_pixels(self, radius: float | None = None) -> float:
+        """The brush's radius (or ``radius``, a fraction of the longer side) in image pixels
+        (0 without an image)."""
         if self._before is None or self._before.isNull():
             return 0.0
-        return self._brush * max(self._before.width(), self._before.height())
+        radius = self._brush if radius is None else radius
+        return radius * max(self._before.width(), self._before.height())
 
     def painting(self) -> bool:
         """Whether a stroke is being painted (the left button held after a drag)."""
@@ -363,7 +372,8 @@ class ImageCanvas(QWidget):
             p.scale(self._zoom, self._zoom)
             colour = QColor(self._brush_colour)
             colour.setAlpha(110)
-            pen = QPen(colour, 2.0 * radius, Qt.PenStyle.SolidLine, Qt.PenCapStyle.RoundCap,
+            pen = QPen(colour, 2.0 * self.brush_pixels(self._stroke_brush),
+                       Qt.PenStyle.SolidLine, Qt.PenCapStyle.RoundCap,
                        Qt.PenJoinStyle.RoundJoin)
             p.setPen(pen)
             p.setBrush(Qt.BrushStyle.NoBrush)
@@ -412,6 +422,11 @@ class ImageCanvas(QWidget):
         return rect.left() + rect.width() * self._split
 
     def mousePressEvent(self, event: QMouseEvent) -> None:
+        if self._press is not None:
+            if event.button() != Qt.MouseButton.LeftButton:
+                event.accept()  # another button while the left one paints or clicks: ignored
+                return
+            self._lost_release()  # a left press again: the last one's release never came
         x = self._split_x()
         near_split = x is not None and abs(event.position().x() - x) <= 6.0
         self._press = None
@@ -445,6 +460,10 @@ class ImageCanvas(QWidget):
             self.update()
             event.accept()
         elif self._press is not None:  # a click tool's press: a stroke once it moves
+            if not event.buttons() & Qt.MouseButton.LeftButton:
+                self._lost_release()  # (a modal box took it)
+                self._update_cursor(event.position())
+                return
             if self._stroke is None:
                 moved = (event.position() - self._press[0]).manhattanLength()
                 if moved < QApplication.startDragDistance():
@@ -457,16 +476,15 @@ class ImageCanvas(QWidget):
             self._update_cursor(event.position())
 
     def mouseReleaseEvent(self, event: QMouseEvent) -> None:
+        if self._press is not None and event.button() != Qt.MouseButton.LeftButton:
+            event.accept()  # (its press was ignored: the left button paints on)
+            return
         press, self._press = self._press, None
         self._pan_from = None
         self._dragging_split = False
         self.unsetCursor()
         if self._stroke is not None and event.button() == Qt.MouseButton.LeftButton:
-            self._extend_stroke(self.widget_to_image(event.position()), last=True)
-            points = self._stroke_points()
-            self._end_stroke()
-            if points:
-                self.stroke_painted.emit(points)
+            self._finish_stroke(self.widget_to_image(event.position()))
         elif press is not None and event.button() == Qt.MouseButton.LeftButton:
             moved = (event.position() - press[0]).manhattanLength()
             if moved < QApplication.startDragDistance() and self._before is not None:
@@ -482,19 +500,41 @@ class ImageCanvas(QWidget):
         self._move_hover(None)
         super().leaveEvent(event)
 
+    def _lost_release(self) -> None:
+        """The left button is up but its release never came (a modal box opened during the
+        drag took it): a stroke ends where the mouse was last seen with it down and is added,
+        as painted (what the band showed is what is added, one undo away; dropped, the
+        painting would vanish unsaid); a press not yet a stroke is no click (where it ended
+        is not known)."""
+        self._press = None
+        self._finish_stroke()
+
     # ------------------------------------------------------------------ brush strokes
     def _begin_stroke(self, start: QPointF) -> None:
         self._stroke = [QPointF(start)]
         self._stroke_path = QPainterPath(start)
         self._stroke_last = QPointF(start)
         self._stroke_carry = 0.0
+        self._stroke_brush = self._brush  # the stroke's radius, to its end
+
+    def _finish_stroke(self, point: QPointF | None = None) -> None:
+        """End the stroke being painted at ``point`` (image pixels; None: its last point) and
+        emit :attr:`stroke_painted` (unless no dab reaches the image)."""
+        if self._stroke is None:
+            return
+        self._extend_stroke(self._stroke_last if point is None else point, last=True)
+        points, radius = self._stroke_points(), self._stroke_brush
+        self._end_stroke()
+        if points:
+            self.stroke_painted.emit(points, radius)
 
     def _extend_stroke(self, point: QPointF, last: bool = False) -> None:
         """Carry the stroke on to ``point`` (image pixels): a dab every half radius along the
         way, whatever the distance between mouse events (a fast drag leaves no gap); ``last``:
         one more at ``point`` itself, where the stroke ends."""
         assert self._stroke is not None
-        spacing = max(0.5, 0.5 * self.brush_pixels())
+        radius = self.brush_pixels(self._stroke_brush)
+        spacing = max(0.5, 0.5 * radius)
         start = self._stroke_last
         length = QLineF(start, point).length()
         if length > 0:
@@ -507,7 +547,7 @@ class ImageCanvas(QWidget):
             self._stroke_path.lineTo(point)
             self._stroke_last = QPointF(point)
             # Repaint only round the new piece of the path (the mouse moves often).
-            pad = self.brush_pixels() * self._zoom + 3.0
+            pad = radius * self._zoom + 3.0
             a, b = self._offset + start * self._zoom, self._offset + point * self._zoom
             self.update(QRectF(a, b).normalized().adjusted(-pad, -pad, pad, pad).toAlignedRect())
         if last and self._stroke_carry > 0:
@@ -515,12 +555,24 @@ class ImageCanvas(QWidget):
             self._stroke_carry = 0.0
 
     def _stroke_points(self) -> list[tuple[float, float]]:
-        """The stroke's dabs as fractions of the image's width and height (on the image)."""
+        """The stroke's dabs as fractions of the image's width and height: those whose disc
+        reaches the image (as the band drawn along the path does), a centre off the image
+        moved onto its edge (such dabs were left out: a drag just outside the edge painted
+        nothing along it, though the band covered it); one moved onto the dab before it is
+        left out."""
         if self._stroke is None or self._before is None or self._before.isNull():
             return []
         w, h = self._before.width(), self._before.height()
-        points = ((pt.x() / w, pt.y() / h) for pt in self._stroke)
-        return [(x, y) for x, y in points if 0.0 <= x < 1.0 and 0.0 <= y < 1.0]
+        reach = self.brush_pixels(self._stroke_brush)
+        out: list[tuple[float, float]] = []
+        for pt in self._stroke:
+            x, y = min(max(pt.x(), 0.0), w), min(max(pt.y(), 0.0), h)
+            if math.hypot(pt.x() - x, pt.y() - y) > reach:
+                continue  # its disc misses the image
+            point = (x / w, y / h)
+            if not out or out[-1] != point:
+                out.append(point)
+        return out
 
     def _end_stroke(self) -> None:
         if self._stroke is not None:

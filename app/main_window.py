@@ -112,8 +112,8 @@ from outcast_core.runtime.io.imageio import same_file
 from outcast_core.runtime.io.models import ModelError
 from outcast_core.runtime.pipeline.auto_sun import SOURCE_EXIF, SOURCE_SUN_IN_FRAME
 from outcast_core.runtime.pipeline.photo_shadows import (
-    MAX_SHADOW_EDITS,
     ShadowEdit,
+    shadow_edit_limit,
     shadow_edit_strokes,
 )
 from outcast_core.runtime.pipeline.session import elongation_note
@@ -1554,11 +1554,11 @@ class MainWindow(QMainWindow):
         if tool and self.shadow_tools_available():
             self.add_shadow_edit(x, y, shadow=tool == "shadow")
 
-    @Slot(object)
-    def _on_canvas_stroke(self, points: list[tuple[float, float]]) -> None:
+    @Slot(object, float)
+    def _on_canvas_stroke(self, points: list[tuple[float, float]], radius: float) -> None:
         tool = self.relight_panel.shadow_tool()
-        if tool and self.shadow_tools_available():
-            self.add_shadow_stroke(points, shadow=tool == "shadow")
+        if tool and self.shadow_tools_available():  # (the radius the canvas spaced them for)
+            self.add_shadow_stroke(points, shadow=tool == "shadow", radius=radius)
 
     def add_shadow_edit(self, x: float, y: float, shadow: bool) -> bool:
         """Correct the found shadows at the photo's point ``(x, y)`` (fractions of its width and
@@ -1567,7 +1567,8 @@ class MainWindow(QMainWindow):
 
         Returns:
             Whether the correction was made (not outside the photo, not past
-            :data:`~outcast_core.runtime.pipeline.photo_shadows.MAX_SHADOW_EDITS`).
+            :func:`~outcast_core.runtime.pipeline.photo_shadows.shadow_edit_limit`'s limits:
+            the status bar says which).
         """
         if not (0.0 <= x <= 1.0 and 0.0 <= y <= 1.0):
             return False
@@ -1579,23 +1580,25 @@ class MainWindow(QMainWindow):
         the photo's width and height; those outside it left out) of ``radius`` (a fraction of
         the longer side; default: the panel's brush). "Not a shadow" drops all the brush
         covers where it holds a found shadow; "a shadow" adds the shadow under the stroke (its
-        darker pixels; nothing on lit ground). One undo step, however many dabs.
+        darker pixels; nothing on lit ground). One undo step, however many dabs; its first dab
+        is marked as a stroke's start (so a stroke begun where the last ended is another).
 
         Returns:
             Whether the stroke was made (see :meth:`add_shadow_edit`).
         """
         radius = self.relight_panel.brush() if radius is None else float(radius)
-        dabs = tuple(ShadowEdit(float(x), float(y), shadow, radius) for x, y in points
-                     if 0.0 <= x <= 1.0 and 0.0 <= y <= 1.0)
+        inside = [(float(x), float(y)) for x, y in points if 0.0 <= x <= 1.0 and 0.0 <= y <= 1.0]
+        dabs = tuple(ShadowEdit(x, y, shadow, radius, start=i == 0)
+                     for i, (x, y) in enumerate(inside))
         return self._add_shadow_edits(dabs)
 
     def _add_shadow_edits(self, new: tuple[ShadowEdit, ...]) -> bool:
         """Add a click's edit or a stroke's dabs to the corrections, as one undo step."""
         if not self.shadow_tools_available() or not new:
             return False
-        if len(self.shadow_edits) + len(new) > MAX_SHADOW_EDITS:
-            self.stage_label.setText(f"At most {MAX_SHADOW_EDITS} clicks and brush dabs: clear "
-                                     "the corrections or undo some first")
+        if limit := shadow_edit_limit((*self.shadow_edits, *new)):
+            self.stage_label.setText(f"{limit[:1].upper()}{limit[1:]}: clear the corrections "
+                                     "or undo some first")
             return False
         self._edit_just_added = len(new)  # (read by the found-shadows job this submits)
         try:

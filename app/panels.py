@@ -37,8 +37,9 @@ VIEW_CHOICES = (
 SHADOW_TOOLS = (
     ("not_shadow", "Not a shadow",
      "Click an area marked as shadow that is not one (a dark object, foliage, a black car): "
-     "it is no longer lifted. Or drag to paint over what is not a shadow: only the marked "
-     "area under the brush is dropped (many small pieces, a shadow joined to a dark object). "
+     "it is no longer lifted. Or drag to paint over what is not a shadow: all the brush "
+     "covers where it touches a marked area is dropped, and nothing beyond (many small "
+     "pieces, a shadow joined to a dark object). "
      "Undo (Ctrl+Z) takes the click or the stroke back; [ and ] size the brush; Esc ends the "
      "tool.",
      "Click a marked area that is not a shadow (a dark object, foliage), or drag to paint "

@@ -4,7 +4,7 @@ step-2 drag preview, a 120-frame 1080p time-lapse: ``benchmarks/speed.py``).
 
 Run: ``python benchmarks/bench_runtime.py`` (several minutes on 2 cores), or
 ``python benchmarks/bench_runtime.py --quick`` (about two minutes), or one part:
-``--only speed``.
+``--only speed`` (or ``brush``: the shadow corrections' brush dabs against a click).
 
 Everything is measured in this run and printed as ratios against a baseline measured in the same
 run, so the figures compare across machines. Accuracy is measured against an exact ray cast of an
@@ -225,7 +225,28 @@ def find_sun_speed(repeats: int) -> None:
           f"  stages of the last run (s): {stages}")
 
 
-SECTIONS = ("direct", "session", "find_sun", "speed")
+def brush_cost(repeats: int) -> None:
+    """Shadow corrections: ``shadow_edit_masks`` with 2000 brush dabs (ten strokes of 200,
+    "not a shadow" and "Mark shadow" by turns) at 1024 x 768, against the same call with one
+    "not a shadow" click, measured in the same run (the baseline). Each stroke is drawn into
+    one window of the photo, never one photo-sized mask a dab (that took over a second)."""
+    from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit, shadow_edit_masks
+
+    rng = np.random.default_rng(0)
+    h, w = 768, 1024
+    p = (rng.random((h, w)) > 0.6).astype(np.float32)
+    img = np.clip(0.5 + 0.1 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    sky = np.zeros((h, w), bool)
+    dabs = [ShadowEdit(0.05 + 0.9 * (i % 200) / 200, 0.1 + 0.08 * (i // 200), i // 200 % 2 == 0,
+                       radius=0.02, start=i % 200 == 0) for i in range(2000)]
+    click = [ShadowEdit(0.5, 0.5, shadow=False)]
+    t_dabs, _ = best_of(lambda: shadow_edit_masks(p, img, sky, dabs), repeats)
+    t_click, _ = best_of(lambda: shadow_edit_masks(p, img, sky, click), repeats)
+    print(f"\nShadow corrections at {w}x{h}: 2000 brush dabs (10 strokes) {t_dabs:.3f} s, one "
+          f"click {t_click:.4f} s (x{t_dabs / t_click:.1f})")
+
+
+SECTIONS = ("direct", "session", "find_sun", "brush", "speed")
 
 
 def main() -> None:
@@ -258,6 +279,8 @@ def main() -> None:
             session_reuse(rep)
         if "find_sun" in only:
             find_sun_speed(rep)
+        if "brush" in only:
+            brush_cost(rep)
         if "speed" in only:
             from benchmarks.speed import run
 

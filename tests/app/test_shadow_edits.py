@@ -15,7 +15,11 @@ from PySide6.QtGui import QImage, QMouseEvent
 from PySide6.QtWidgets import QApplication
 
 from app.state import ProjectState, Step, load_project
-from outcast_core.runtime.pipeline.photo_shadows import MAX_SHADOW_EDITS, ShadowEdit
+from outcast_core.runtime.pipeline.photo_shadows import (
+    MAX_SHADOW_CLICKS,
+    MAX_SHADOW_EDITS,
+    ShadowEdit,
+)
 from tests.app.conftest import make_photo
 from tests.app.test_main_window import _confirm, _load, _timelapse
 
@@ -270,7 +274,9 @@ def test_an_older_project_has_no_edits_and_a_bad_value_is_refused(window, photo,
                   [{"x": 10**400, "y": 0.5, "shadow": True}], ["a"],
                   [{"x": 0.5, "y": 0.5, "shadow": 1}],
                   [{"x": 0.5, "y": 0.5, "shadow": True, "r": 0.9}],
-                  [{"x": 0.1, "y": 0.1, "shadow": True}] * (MAX_SHADOW_EDITS + 1))
+                  [{"x": 0.1, "y": 0.1, "shadow": True}] * (MAX_SHADOW_EDITS + 1),
+                  [{"x": 0.1, "y": 0.1, "shadow": True}] * (MAX_SHADOW_CLICKS + 1),
+                  [{"x": 0.5, "y": 0.5, "shadow": True, "start": True}])
     for bad in bad_values:
         with pytest.raises(ValueError, match="^shadow_edits: ") as info:
             ProjectState.from_dict({**base, "shadow_edits": bad})
@@ -740,11 +746,9 @@ def test_the_brush_and_the_command_line_share_one_largest_radius(window, photo, 
                                                                   tmp_path):
     """The app's brush topped out at 15 % while the command line took 0.25: one limit now; a
     project with a larger dab is refused, saying so."""
-    from app.panels import BRUSH_RANGE
     from outcast_core.runtime.cli.main import build_parser, parse_shadow_edit
     from outcast_core.runtime.pipeline.photo_shadows import MAX_BRUSH_RADIUS
 
-    assert BRUSH_RANGE[1] == pytest.approx(100 * MAX_BRUSH_RADIUS)
     assert window.relight_panel.brush_box.maximum() == pytest.approx(100 * MAX_BRUSH_RADIUS)
     assert parse_shadow_edit(f"0.5,0.5,{MAX_BRUSH_RADIUS}", shadow=True).radius == (
         MAX_BRUSH_RADIUS)
@@ -775,3 +779,155 @@ def test_opening_shadows_found_reports_no_timing_for_work_not_done(qtbot, window
     window.relight_panel.set_view("shadows_removed")  # the de-shadowed photo made: timed
     settle()
     assert "removing shadows took" in window.stage_label.text()
+
+
+def test_each_stroke_is_marked_and_a_retraced_one_is_another(qtbot, window, photo, settle):
+    """Each stroke's first dab is marked as its start: a stroke painted on from where the last
+    one of its kind and size ended counted with it (the panel said "1 correction" for two undo
+    steps; a retraced one that changed nothing was never taken back: the runtime's tests)."""
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    window.relight_panel.set_brush(0.03)
+    _drag(window, [(0.27, 0.7), (0.40, 0.7)])
+    settle()
+    first = window.shadow_edits
+    assert first[0].start and not any(d.start for d in first[1:])
+    count = window.undo_stack.count()
+    _drag(window, [(first[-1].x, 0.7), (0.5, 0.7)])  # on, over the rest of the band
+    settle()
+    second = window.shadow_edits[len(first):]
+    assert second[0].start and not any(d.start for d in second[1:])
+    assert window.undo_stack.count() == count + 1
+    assert window.relight_panel.shadow_edits_label.text() == "2 corrections"
+
+
+def test_a_stroke_keeps_the_brush_size_it_began_with(qtbot, window, photo, settle):
+    """[ or ] in the middle of a stroke: its dabs were spaced for the old size and added with
+    the new one (gaps)."""
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    rp, canvas, left = window.relight_panel, window.canvas, Qt.MouseButton.LeftButton
+    rp.set_brush(0.03)
+    _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, 0.27, 0.7), left)
+    _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.33, 0.7), left)
+    rp.set_brush(0.06)
+    assert canvas.brush() == pytest.approx(0.06)  # the circle under the cursor: the new size
+    _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.45, 0.7), left)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, _widget_point(canvas, 0.45, 0.7),
+           Qt.MouseButton.NoButton)
+    settle()
+    dabs = window.shadow_edits
+    assert len(dabs) > 5 and all(d.radius == pytest.approx(0.03) for d in dabs)
+    gaps = [np.hypot((a.x - b.x) * 128, (a.y - b.y) * 96)
+            for a, b in zip(dabs, dabs[1:], strict=False)]
+    assert max(gaps) <= 0.5 * 0.03 * 128 + 1e-6
+
+
+def test_too_many_clicks_or_edits_are_refused_saying_which(qtbot, window, photo, settle):
+    """A click costs far more than a dab: at most MAX_SHADOW_CLICKS clicks, and
+    MAX_SHADOW_EDITS edits in all; the status bar says which limit was reached."""
+    _shadows_view(window, photo, settle)
+    count = window.undo_stack.count()
+    clicks = (ShadowEdit(0.9, 0.9, True),) * MAX_SHADOW_CLICKS
+    window._show_shadow_edits(clicks)  # (as if made: no job)
+    assert not window.add_shadow_edit(0.5, 0.5, shadow=False)
+    assert window.stage_label.text().startswith(f"At most {MAX_SHADOW_CLICKS} clicks (")
+    dabs = (ShadowEdit(0.9, 0.9, True, radius=0.02),) * (MAX_SHADOW_EDITS - 5)
+    window._show_shadow_edits(dabs)
+    assert not window.add_shadow_stroke([(0.5, 0.5 + 0.001 * k) for k in range(10)], True, 0.02)
+    assert window.stage_label.text().startswith(
+        f"At most {MAX_SHADOW_EDITS} clicks and brush dabs in all:")
+    assert window.undo_stack.count() == count and len(window.shadow_edits) == len(dabs)
+
+
+# ---------------------------------------------------------------- the canvas's strokes
+
+
+@pytest.fixture
+def painting(qtbot):
+    """A canvas (a 128 x 96 image fitted in 600 x 600: margins above and below it) with the
+    click tool on, a brush of 0.03, and the strokes it emits."""
+    from app.canvas import ImageCanvas
+
+    canvas = ImageCanvas()
+    qtbot.addWidget(canvas)
+    canvas.resize(600, 600)
+    canvas.show()
+    image = QImage(128, 96, QImage.Format.Format_RGB888)
+    image.fill(Qt.GlobalColor.gray)
+    canvas.set_image(image)
+    canvas.set_click_tool(True)
+    canvas.set_brush(0.03)
+    strokes: list = []
+    canvas.stroke_painted.connect(lambda points, radius: strokes.append((points, radius)))
+    clicks: list = []
+    canvas.image_clicked.connect(lambda x, y: clicks.append((x, y)))
+    return canvas, strokes, clicks
+
+
+def _max_gap(points) -> float:
+    return max(np.hypot((a[0] - b[0]) * 128, (a[1] - b[1]) * 96)
+               for a, b in zip(points, points[1:], strict=False))
+
+
+def test_a_stroke_just_outside_the_edge_paints_along_it(painting):
+    """Dabs whose centres were off the image were left out: a drag just below its edge
+    painted nothing along it, though the band drawn covered it. Their discs reach the image:
+    moved onto its edge; those whose discs miss it (far outside) are left out."""
+    canvas, strokes, _ = painting
+    left = Qt.MouseButton.LeftButton
+    path = [(0.2, 0.95), (0.3, 1.02), (0.7, 1.02), (0.75, 1.5), (0.8, 1.02), (0.85, 0.95)]
+    _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, *path[0]), left)
+    for x, y in path[1:]:
+        _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, x, y), left)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, _widget_point(canvas, *path[-1]),
+           Qt.MouseButton.NoButton)
+    ((points, radius),) = strokes
+    assert radius == pytest.approx(0.03)
+    assert all(0 <= x <= 1 and 0 <= y <= 1 for x, y in points)
+    along = [p for p in points if p[1] == 1.0 and 0.3 <= p[0] <= 0.7]
+    assert len(along) > 10 and _max_gap(along) <= 0.5 * 0.03 * 128 + 0.1
+    assert not any(0.74 < x < 0.76 for x, _ in points)  # far below: its discs miss the image
+
+
+def test_another_button_pressed_while_painting_is_ignored(painting):
+    """A middle (or right) press during a stroke ended its painting (and panned): the stroke
+    lost what was painted after it."""
+    canvas, strokes, _ = painting
+    left, mid = Qt.MouseButton.LeftButton, Qt.MouseButton.MiddleButton
+    both = left | mid
+    rect = canvas.image_rect()
+    _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, 0.2, 0.5), left)
+    _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.3, 0.5), left)
+    _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, 0.35, 0.5), both, mid)
+    _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.5, 0.8), both)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, _widget_point(canvas, 0.5, 0.8), left, mid)
+    assert canvas.painting()
+    _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.7, 0.5), left)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, _widget_point(canvas, 0.7, 0.5),
+           Qt.MouseButton.NoButton)
+    assert canvas.image_rect() == rect  # not panned
+    ((points, _),) = strokes
+    assert max(y for _, y in points) > 0.78 and points[-1][0] == pytest.approx(0.7, abs=0.01)
+    assert _max_gap(points) <= 0.5 * 0.03 * 128 + 1e-6
+
+
+def test_a_lost_release_ends_the_stroke(painting):
+    """A move without the left button (its release went to a modal box) kept painting on
+    hover: the stroke ends where it was last painted and is emitted, once."""
+    canvas, strokes, clicks = painting
+    left, none = Qt.MouseButton.LeftButton, Qt.MouseButton.NoButton
+    _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, 0.2, 0.5), left)
+    _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.4, 0.5), left)
+    _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.6, 0.7), none)
+    assert not canvas.painting()
+    ((points, _),) = strokes
+    assert points[-1][0] == pytest.approx(0.4, abs=0.01) and max(y for _, y in points) < 0.52
+    _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.8, 0.7), none)
+    assert len(strokes) == 1
+    # A press that never moved, its release lost: no click, and the next click works.
+    _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, 0.5, 0.5), left)
+    _mouse(canvas, QEvent.Type.MouseMove, _widget_point(canvas, 0.6, 0.6), none)
+    _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, 0.3, 0.3), left)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, _widget_point(canvas, 0.3, 0.3), none)
+    assert len(strokes) == 1 and clicks == [pytest.approx((0.3, 0.3), abs=0.01)]

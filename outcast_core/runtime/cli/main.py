@@ -163,13 +163,26 @@ def parse_shadow_edit(text: str, shadow: bool):
     Example:
         >>> parse_shadow_edit("0.3,0.6,0.02", shadow=False)
         ShadowEdit(x=0.3, y=0.6, shadow=False, radius=0.02)
+        >>> parse_shadow_edit("0.3", shadow=False)
+        Traceback (most recent call last):
+        ...
+        ValueError: expected X,Y (a click) or X,Y,R (a brush dab) with X,Y fractions 0-1 of \
+the photo's width and height from its top left (e.g. 0.3,0.6 or 0.3,0.6,0.02), got '0.3'
     """
     from outcast_core.runtime.pipeline.photo_shadows import MAX_BRUSH_RADIUS, ShadowEdit
 
     parts = text.split(",")
-    if len(parts) != 3:
+    if len(parts) not in (2, 3):
+        raise ValueError(f"expected X,Y (a click) or X,Y,R (a brush dab) with X,Y fractions "
+                         f"0-1 of the photo's width and height from its top left (e.g. "
+                         f"0.3,0.6 or 0.3,0.6,0.02), got {text!r}")
+    if len(parts) == 2:
         return ShadowEdit(*parse_point(text), shadow=shadow)
-    x, y = parse_point(",".join(parts[:2]))
+    try:
+        x, y = parse_point(",".join(parts[:2]))
+    except ValueError:
+        raise ValueError(f"expected X,Y,R with X,Y fractions 0-1 of the photo's width and "
+                         f"height from its top left (e.g. 0.3,0.6,0.02), got {text!r}") from None
     try:
         r = float(parts[2])
     except ValueError:
@@ -188,25 +201,37 @@ class _ShadowEditAction(argparse.Action):
     """``--shadow`` / ``--not-shadow X,Y[,R]``: one edit each, kept in command-line order."""
 
     def __call__(self, parser, namespace, values, option_string=None) -> None:
+        from outcast_core.runtime.pipeline.photo_shadows import shadow_edit_limit
+
         try:
             edit = parse_shadow_edit(str(values), shadow=self.const)
         except ValueError as exc:
             raise argparse.ArgumentError(self, str(exc)) from None
         edits = list(getattr(namespace, "shadow_edits", None) or [])
         edits.append(edit)
+        if limit := shadow_edit_limit(edits):  # --shadow and --not-shadow together
+            raise argparse.ArgumentError(self, f"expected {limit}, counting --shadow and "
+                                               f"--not-shadow together; got more")
         namespace.shadow_edits = edits
 
 
 def add_shadow_edit_options(p: argparse.ArgumentParser) -> None:
     """``--not-shadow`` / ``--shadow X,Y[,R]``: correct the photo's found shadows, as the
     app's "Not a shadow" and "Mark shadow" clicks and brush dabs do (applied in order)."""
+    from outcast_core.runtime.pipeline.photo_shadows import (
+        MAX_BRUSH_RADIUS,
+        MAX_SHADOW_CLICKS,
+        MAX_SHADOW_EDITS,
+    )
+
     p.set_defaults(shadow_edits=[])
     p.add_argument("--not-shadow", action=_ShadowEditAction, const=False, metavar="X,Y[,R]",
                    help="the found shadow at this point is not one (a dark object, foliage): "
                    "X,Y as fractions 0-1 of the photo's width and height from its top left; "
-                   "with R (a fraction of the longer side, above 0, at most 0.15: the "
-                   "app's largest brush), a brush dab: all within R of the point, where it "
-                   "holds a found shadow; repeatable")
+                   f"with R (a fraction of the longer side, above 0, at most "
+                   f"{MAX_BRUSH_RADIUS}: the app's largest brush), a brush dab: all within R "
+                   f"of the point, where it holds a found shadow; repeatable (at most "
+                   f"{MAX_SHADOW_CLICKS} clicks and {MAX_SHADOW_EDITS} in all, with --shadow)")
     p.add_argument("--shadow", action=_ShadowEditAction, const=True, metavar="X,Y[,R]",
                    help="a shadow the app did not find: the region of even brightness round "
                    "this point; with R, a brush dab: the shadow within R (a run of dabs, each "
@@ -215,21 +240,34 @@ def add_shadow_edit_options(p: argparse.ArgumentParser) -> None:
 
 
 def say_unused_shadow_edits(session, args: argparse.Namespace) -> str:
-    """After the original sun is set: a note for each ``--shadow`` / ``--not-shadow`` that
-    changed nothing, and the words for the "wrote" line (``""`` without corrections)."""
+    """After the original sun is set: a note for each click (``--shadow`` / ``--not-shadow``)
+    and each stroke (dabs ``X,Y,R`` as :func:`~outcast_core.runtime.pipeline.photo_shadows.
+    shadow_edit_strokes` groups them) that changed nothing, and the words for the "wrote" line
+    (``""`` without corrections): the clicks and strokes that changed something, counted as
+    the app counts them."""
+    from outcast_core.runtime.pipeline.photo_shadows import shadow_edit_strokes
+
     edits = getattr(args, "shadow_edits", None) or []
-    for edit, used in zip(edits, session.shadow_edits_used, strict=False):
-        if not used:
-            flag = "--shadow" if edit.shadow else "--not-shadow"
-            why = ("the sky, lit ground (not darker than round it) or a shadow already"
-                   if edit.shadow else "no found shadow there, or one already dropped")
-            if edit.radius > 0:
-                why = ("no shadow under the stroke: the sky, lit ground or painted already"
-                       if edit.shadow else "no found shadow within R, or dropped already")
-            point = f"{edit.x:g},{edit.y:g}" + (f",{edit.radius:g}" if edit.radius > 0 else "")
-            _say(args, f"note: {flag} {point} changed nothing ({why})")
-    n = sum(session.shadow_edits_used)
-    return f"{n} shadow correction{'s' if n != 1 else ''}; " if edits else ""
+    used = session.shadow_edits_used
+    if not edits or len(used) != len(edits):
+        return ""
+    n = 0
+    for start, stop in shadow_edit_strokes(edits, session.image_srgb.shape[:2]):
+        if any(used[start:stop]):
+            n += 1
+            continue
+        edit = edits[start]
+        flag = "--shadow" if edit.shadow else "--not-shadow"
+        why = ("the sky, lit ground (not darker than round it) or a shadow already"
+               if edit.shadow else "no found shadow there, or one already dropped")
+        if edit.radius > 0:
+            why = ("no shadow under the stroke: the sky, lit ground or painted already"
+                   if edit.shadow else "no found shadow within R, or dropped already")
+        point = f"{edit.x:g},{edit.y:g}" + (f",{edit.radius:g}" if edit.radius > 0 else "")
+        if stop - start > 1:
+            point += f" and the {stop - start - 1} dabs after it (a stroke)"
+        _say(args, f"note: {flag} {point} changed nothing ({why})")
+    return f"{n} shadow correction{'s' if n != 1 else ''}; "
 
 
 def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:

@@ -633,12 +633,15 @@ class ShadowEdit:
             foliage, a black car; a dab: its whole disc, when that holds a found shadow).
         radius: 0, a click; else a brush dab's radius, as a fraction of the photo's longer
             side (at most :data:`MAX_BRUSH_RADIUS`).
+        start: a dab that begins a stroke (the app marks the first dab of each;
+            :func:`shadow_edit_strokes`); never a click.
     """
 
     x: float
     y: float
     shadow: bool
     radius: float = 0.0
+    start: bool = False
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.x) and math.isfinite(self.y)
@@ -648,9 +651,13 @@ class ShadowEdit:
         if not (math.isfinite(self.radius) and 0.0 <= self.radius <= MAX_BRUSH_RADIUS):
             raise ValueError(f"expected a brush radius 0-{MAX_BRUSH_RADIUS} of the photo's "
                              f"longer side (0: a click), got {self.radius}")
+        if not isinstance(self.start, bool) or (self.start and not self.radius):
+            raise ValueError(f"expected start true or false, and false for a click (radius "
+                             f"0), got {self.start!r}")
 
     def __repr__(self) -> str:  # a click reads as before brushes existed
         brush = f", radius={self.radius!r}" if self.radius else ""
+        brush += ", start=True" if self.start else ""
         return f"ShadowEdit(x={self.x!r}, y={self.y!r}, shadow={self.shadow!r}{brush})"
 
     def pixel(self, shape: tuple[int, int]) -> tuple[int, int]:
@@ -660,23 +667,48 @@ class ShadowEdit:
 
 
 #: The most edits a project or a command line may hold (a sane bound on a file's content: a
-#: brush stroke is one edit per dab, a dab every half radius, so a few hundred a stroke).
+#: brush stroke is one edit per dab, a dab every half radius, so a few hundred a stroke), and
+#: the most of them that may be clicks: a click costs far more than a dab (a flood fill or a
+#: connected-component pass over the photo; 20000 clicks took 30-47 s, made again at every
+#: later edit), and a user makes tens, not thousands.
 MAX_SHADOW_EDITS = 20000
+MAX_SHADOW_CLICKS = 500
+
+
+def shadow_edit_limit(edits: Sequence[ShadowEdit]) -> str:
+    """The limit ``edits`` pass, in words (for a message), or ``""`` when they keep to both:
+    at most :data:`MAX_SHADOW_CLICKS` clicks and :data:`MAX_SHADOW_EDITS` edits in all.
+
+    Example:
+        >>> shadow_edit_limit([ShadowEdit(0.5, 0.5, True)] * 3)
+        ''
+        >>> shadow_edit_limit([ShadowEdit(0.5, 0.5, True)] * (MAX_SHADOW_CLICKS + 1))
+        'at most 500 clicks (brush dabs aside)'
+    """
+    if len(edits) > MAX_SHADOW_EDITS:
+        return f"at most {MAX_SHADOW_EDITS} clicks and brush dabs in all"
+    if sum(1 for e in edits if not e.radius) > MAX_SHADOW_CLICKS:
+        return f"at most {MAX_SHADOW_CLICKS} clicks (brush dabs aside)"
+    return ""
 
 
 def shadow_edits_to_json(edits: Sequence[ShadowEdit]) -> list[dict[str, Any]]:
     """Edits as a project file stores them: ``[{"x": .., "y": .., "shadow": ..}, ...]``, with
-    ``"r"`` (the radius) for a brush dab only, so files without brushes read as before.
+    ``"r"`` (the radius) for a brush dab only and ``"start": true`` for the first dab of a
+    stroke only, so files without brushes read as before.
 
     Example:
-        >>> shadow_edits_to_json([ShadowEdit(0.25, 0.5, False, radius=0.02)])
-        [{'x': 0.25, 'y': 0.5, 'shadow': False, 'r': 0.02}]
+        >>> shadow_edits_to_json([ShadowEdit(0.25, 0.5, False, radius=0.02, start=True),
+        ...                       ShadowEdit(0.26, 0.5, False, radius=0.02)])[0]
+        {'x': 0.25, 'y': 0.5, 'shadow': False, 'r': 0.02, 'start': True}
     """
     out = []
     for e in edits:
         item: dict[str, Any] = {"x": round(e.x, 5), "y": round(e.y, 5), "shadow": bool(e.shadow)}
         if e.radius > 0:  # five significant digits: never rounded to 0 (a click)
             item["r"] = float(f"{e.radius:.5g}")
+        if e.start:
+            item["start"] = True
         out.append(item)
     return out
 
@@ -686,8 +718,9 @@ def shadow_edits_from_json(value: Any) -> tuple[ShadowEdit, ...]:
 
     Raises:
         ValueError: not a list of ``{"x", "y", "shadow"}`` (and an optional ``"r"``, a brush
-            dab's radius) with the point inside the photo and the radius 0 to
-            :data:`MAX_BRUSH_RADIUS`, or more than :data:`MAX_SHADOW_EDITS` of them.
+            dab's radius, and ``"start"``, true or false, true only for a dab) with the point
+            inside the photo and the radius 0 to :data:`MAX_BRUSH_RADIUS`, or more of them
+            than :func:`shadow_edit_limit` allows.
 
     Example:
         >>> shadow_edits_from_json([{"x": 0.25, "y": 0.5, "shadow": False}])
@@ -699,26 +732,31 @@ def shadow_edits_from_json(value: Any) -> tuple[ShadowEdit, ...]:
         return ()
     if not isinstance(value, list):
         raise ValueError(f"expected a list of shadow edits, got {type(value).__name__}")
-    if len(value) > MAX_SHADOW_EDITS:
-        raise ValueError(f"expected at most {MAX_SHADOW_EDITS} shadow edits, got {len(value)}")
+    if len(value) > MAX_SHADOW_EDITS:  # (before reading them all)
+        raise ValueError(f"expected at most {MAX_SHADOW_EDITS} shadow edits (clicks and brush "
+                         f"dabs in all), got {len(value)}")
     out = []
     for item in value:
         try:
             x, y, shadow = item["x"], item["y"], item["shadow"]
         except (KeyError, TypeError):
             raise ValueError(f"expected a shadow edit {{x, y, shadow}}, got {item!r}") from None
-        r = item.get("r", 0.0)
-        if (not isinstance(shadow, bool) or any(
+        r, start = item.get("r", 0.0), item.get("start", False)
+        if (not isinstance(shadow, bool) or not isinstance(start, bool) or any(
                 isinstance(v, bool) or not isinstance(v, (int, float)) for v in (x, y, r))):
-            raise ValueError(f"expected numbers x, y (and r) and true/false shadow, got "
-                             f"{item!r}"[:200])
+            raise ValueError(f"expected numbers x, y (and r) and true/false shadow (and "
+                             f"start), got {item!r}"[:200])
         try:
             x, y, r = float(x), float(y), float(r)
         except OverflowError:  # an integer too large for a float
             raise ValueError(f"expected a point inside the photo (x, y in 0-1) and a brush "
                              f"radius 0-{MAX_BRUSH_RADIUS}, got a number too large for a "
                              f"float in {item!r}"[:200]) from None
-        out.append(ShadowEdit(x, y, shadow, r))
+        out.append(ShadowEdit(x, y, shadow, r, start))
+    if limit := shadow_edit_limit(out):
+        clicks = sum(1 for e in out if not e.radius)
+        raise ValueError(f"expected {limit}, got {clicks} clicks and {len(out) - clicks} "
+                         f"brush dabs")
     return tuple(out)
 
 
@@ -728,24 +766,33 @@ def shadow_edit_strokes(edits: Sequence[ShadowEdit], shape: tuple[int, int]
     edit) and of each brush stroke (its dabs) in ``edits``, for an ``H x W`` photo (``shape``,
     any size of it: only its aspect counts).
 
-    A stroke is a run of dabs of one kind and radius, each within a radius of the one before
-    (the app lays them at most half a radius apart); a stroke begun where the one before of
-    the same kind and size ended counts with it (the edits do not record where a stroke
-    ends).
+    A dab marked :attr:`ShadowEdit.start` begins a stroke (the app marks the first dab of
+    each), which holds the unmarked dabs of its kind and radius after it, wherever they lie (a
+    stroke may leave the photo and come back). Unmarked (the command line's dabs, files from
+    before the mark) a stroke is a run of dabs of one kind and radius, each within a radius of
+    the one before (the app lays them at most half a radius apart), so a stroke begun where
+    the one before of the same kind and size ended counts with it.
 
     Example:
         >>> dabs = [ShadowEdit(0.1 + 0.01 * i, 0.5, False, radius=0.02) for i in range(5)]
         >>> shadow_edit_strokes([ShadowEdit(0.9, 0.9, True), *dabs, *dabs], (100, 100))
         [(0, 1), (1, 6), (6, 11)]
+        >>> back = dabs[::-1]  # a stroke back from where the first ended: one with it
+        >>> shadow_edit_strokes([*dabs, *back], (100, 100))
+        [(0, 10)]
+        >>> back[0] = ShadowEdit(back[0].x, 0.5, False, radius=0.02, start=True)  # unless marked
+        >>> shadow_edit_strokes([*dabs, *back], (100, 100))
+        [(0, 5), (5, 10)]
     """
     h, w = shape
     side = max(h, w, 1)
     out: list[tuple[int, int]] = []
     for i, e in enumerate(edits):
-        if out and e.radius > 0 and i > 0:
+        if out and e.radius > 0 and not e.start:
             p = edits[i - 1]
-            if (p.radius == e.radius and p.shadow == e.shadow
-                    and math.hypot((e.x - p.x) * w, (e.y - p.y) * h) <= e.radius * side * 1.01):
+            if p.radius == e.radius and p.shadow == e.shadow and (
+                    edits[out[-1][0]].start
+                    or math.hypot((e.x - p.x) * w, (e.y - p.y) * h) <= e.radius * side * 1.01):
                 out[-1] = (out[-1][0], i + 1)
                 continue
         out.append((i, i + 1))
@@ -775,24 +822,19 @@ def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.
     would cover more than :data:`ADD_MAX_SHARE` of the surface (a leak into the lit surface),
     and when it is not darker than the surface round it (:data:`ADD_DARKER`: lit ground).
     ``log_y``: :func:`edit_luminance` of the image, when the caller has it (several edits).
-    A brush dab (``edit.radius > 0``), a stroke of one dab: "a shadow", the shadow under its
-    disc (:func:`stroke_shadow`); "not a shadow", its whole disc off the sky when the disc
-    holds a found shadow probability above :data:`NOT_SHADOW_LEVEL` (the region it lies in
-    is not taken whole).
+
+    Raises:
+        ValueError: a brush dab (``edit.radius > 0``): what a dab changes depends on the dabs
+            of its stroke and those before it (:func:`shadow_edit_masks`).
     """
+    if edit.radius > 0:
+        raise ValueError(f"expected a click (radius 0), got a brush dab of radius "
+                         f"{edit.radius}: shadow_edit_masks paints the dabs")
     p = np.asarray(probability, np.float32)
     sky = np.asarray(sky, bool)
     h, w = p.shape
     side = max(h, w)
     row, col = edit.pixel((h, w))
-    if edit.radius > 0:
-        disc = np.zeros((h, w), np.uint8)
-        _draw_dab(disc, edit, (0, 0), (h, w))
-        disc = (disc > 0) & ~sky
-        if edit.shadow:
-            return stroke_shadow(edit_luminance(image_srgb) if log_y is None else log_y, sky,
-                                 disc)
-        return disc if (p[disc] > NOT_SHADOW_LEVEL).any() else np.zeros((h, w), bool)
     if not edit.shadow:
         found = ((p > 0.5) & ~sky).astype(np.uint8)
         if not found.any():
@@ -935,18 +977,26 @@ def _dab_box(edit: ShadowEdit, shape: tuple[int, int]) -> tuple[int, int, int, i
             min(h, math.ceil(cy + r) + 1), min(w, math.ceil(cx + r) + 1))
 
 
-def _paint_dabs(dabs: Sequence[ShadowEdit], shape: tuple[int, int]
-                ) -> tuple[tuple[slice, slice], np.ndarray, list[tuple[int, ...]]]:
-    """One run of brush dabs: the window of the ``H x W`` image they cover, their discs in it
-    (``uint8``, drawn at once), and each dab's box (:func:`_dab_box`) in the window."""
+def _dabs_window(dabs: Sequence[ShadowEdit], shape: tuple[int, int]
+                 ) -> tuple[tuple[slice, slice], list[tuple[int, ...]]]:
+    """One run of brush dabs: the window of the ``H x W`` image they cover, and each dab's box
+    (:func:`_dab_box`) in the window."""
     boxes = [_dab_box(e, shape) for e in dabs]
     top, left = min(b[0] for b in boxes), min(b[1] for b in boxes)
     bottom, right = max(b[2] for b in boxes), max(b[3] for b in boxes)
-    paint = np.zeros((bottom - top, right - left), np.uint8)
+    window = (slice(top, bottom), slice(left, right))
+    return window, [(t - top, le - left, b - top, r - left) for t, le, b, r in boxes]
+
+
+def _paint_dabs(dabs: Sequence[ShadowEdit], shape: tuple[int, int],
+                window: tuple[slice, slice]) -> np.ndarray:
+    """The discs of a run of brush dabs (``uint8``, drawn at once) in its window of the
+    ``H x W`` image (:func:`_dabs_window`)."""
+    top, left = window[0].start, window[1].start
+    paint = np.zeros((window[0].stop - top, window[1].stop - left), np.uint8)
     for e in dabs:
         _draw_dab(paint, e, (top, left), shape)
-    window = (slice(top, bottom), slice(left, right))
-    return window, paint, [(t - top, le - left, b - top, r - left) for t, le, b, r in boxes]
+    return paint
 
 
 def _rub_out(dabs: Sequence[ShadowEdit], shape: tuple[int, int], boxes: list[tuple[int, ...]],
@@ -982,14 +1032,15 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
     shadow" click takes back a region the user added when the click lands in it (a clicked
     region, or the painted area there, 8-connected), else drops the found shadow there
     (found before any edit: a shadow the user added next to a dark pole is not dropped with
-    the pole). Brush strokes paint into the masks, in order (a stroke: the dabs of one kind
-    and size each within a radius of the one before, :func:`shadow_edit_strokes`): "a
-    shadow" adds the shadow under the stroke (:func:`stroke_shadow`, decided for the stroke
-    as a whole: only the darker pixels of one across a shadow's edge; nothing on lit ground)
-    and takes back what was dropped there; a "not a shadow" dab whose disc holds something to
-    drop (a found shadow probability above :data:`NOT_SHADOW_LEVEL`, or what the user added)
-    drops its whole disc (the probability there becomes 0: weaker probability left a tint
-    and some lift) and takes back what was added in it. The masks are made once, at the size
+    the pole). Brush strokes paint into the masks, in order (a stroke: from a dab marked
+    :attr:`ShadowEdit.start`, or the dabs of one kind and size each within a radius of the
+    one before, :func:`shadow_edit_strokes`): "a shadow" adds the shadow under the stroke
+    (:func:`stroke_shadow`, decided for the stroke as a whole: only the darker pixels of one
+    across a shadow's edge; nothing on lit ground) and takes back what was dropped there; a
+    "not a shadow" dab whose disc holds something to drop (a found shadow probability above
+    :data:`NOT_SHADOW_LEVEL`, or what the user added) drops its whole disc (the probability
+    there becomes 0: weaker probability left a tint and some lift) and takes back what was
+    added in it. The masks are made once, at the size
     the user sees the found shadows (the session's working size), and brought to other sizes
     by :func:`apply_edit_masks`, so what an export lifts is what the user marked (found again
     at another size, one click could pick another region: a dark object joined to the shadow
@@ -1000,10 +1051,13 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
             click on the sky, on lit ground or on what is already dropped does not; nor does
             a "not a shadow" dab whose disc holds nothing to drop, after the dabs before it,
             nor every dab of an "a shadow" stroke that adds nothing new: the sky, lit
-            ground, what is painted already). Leaving out the edits that changed nothing
-            gives the same masks (unless that makes two strokes one: an "a shadow" stroke
-            begun where another ended, with an edit that changed nothing between them; the
-            app only takes back the last correction).
+            ground, what the user added already). Leaving out the edits that changed nothing
+            gives the same masks (the dabs of an "a shadow" stroke are all kept or all left
+            out, its start with them; a "not a shadow" dab is decided alone whichever stroke
+            it counts with). Only where strokes' starts are not marked (the command line's
+            dabs, files from before the mark) may leaving one out make two "a shadow"
+            strokes one: one begun where another ended, with an edit that changed nothing
+            between them.
 
     Returns:
         ``(added, dropped)``; ``dropped`` is also what the lift must not take for lit
@@ -1032,18 +1086,24 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
         edit = edits[start]
         if edit.radius > 0:  # a stroke: its dabs drawn at once into a window of the photo
             run = edits[start:stop]
-            window, paint, boxes = _paint_dabs(run, shape)
+            window, boxes = _dabs_window(run, shape)
             off_sky = ~sky[window]
             if edit.shadow:  # the shadow under the stroke, decided for the stroke as a whole
                 if log_y is None:
                     log_y = edit_luminance(image_srgb)
                 under = np.zeros(shape, bool)
-                under[window] = paint > 0
+                under[window] = _paint_dabs(run, shape, window) > 0
                 region = stroke_shadow(log_y, sky, under)[window]
-                flags.extend([bool((region & (~painted[window] | dropped[window])).any())]
-                             * len(run))
-                painted[window] |= region
-                dropped[window] &= ~region
+                have = painted[window].copy()  # what the user added there already
+                for clicked in added:
+                    have |= clicked[window]
+                new = bool((region & (~have | dropped[window])).any())
+                flags.extend([new] * len(run))
+                # One that adds nothing new is left out whole, so a later "not a shadow" click
+                # on a painted area takes back the same with it as without it.
+                if new:
+                    painted[window] |= region
+                    dropped[window] &= ~region
                 continue
             changes = painted[window] | ((found[window] > NOT_SHADOW_LEVEL) & ~dropped[window])
             for region in added:
@@ -1139,6 +1199,7 @@ def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray
 
 __all__ = [
     "MAX_BRUSH_RADIUS",
+    "MAX_SHADOW_CLICKS",
     "MAX_SHADOW_EDITS",
     "NOT_SHADOW_LEVEL",
     "ShadowEdit",
@@ -1147,6 +1208,7 @@ __all__ = [
     "shadow_edit_masks",
     "shadow_edits_from_json",
     "shadow_edits_to_json",
+    "shadow_edit_limit",
     "shadow_edit_region",
     "shadow_edit_strokes",
     "stroke_shadow",
