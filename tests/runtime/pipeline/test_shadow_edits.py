@@ -52,6 +52,34 @@ def _slope(seed: int = 0) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     return img, parts
 
 
+def _slope_depth(parts: dict[str, np.ndarray]) -> np.ndarray:
+    depth = np.full((H, W), 10.0, np.float32)
+    depth[parts["sky"]] = np.inf
+    return depth
+
+
+def _slope_session(image: np.ndarray | None = None
+                   ) -> tuple[RelightSession, dict[str, np.ndarray]]:
+    """A classic-mode session on the slope (or on ``image``, the slope at another size) with
+    its sun confirmed, and the slope's parts."""
+    img, parts = _slope()
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(img if image is None else image, depth=_slope_depth(parts))
+    s.set_original_sun((0.3, -0.5, 0.8))
+    return s, parts
+
+
+def _slope_files(tmp_path: Path) -> tuple[Path, Path, dict[str, np.ndarray]]:
+    """The slope and its depth map written for the command line, and its parts."""
+    from outcast_core.runtime.io import imageio
+
+    img, parts = _slope()
+    photo, dpath = tmp_path / "slope.png", tmp_path / "d.npy"
+    imageio.write_image(photo, img)
+    imageio.write_depth(dpath, _slope_depth(parts))
+    return photo, dpath, parts
+
+
 def apply_shadow_edits(p, img, sky, edits):
     """The edits' regions made and applied at one size (as the session does at its own)."""
     return apply_edit_masks(p, sky, *shadow_edit_masks(p, img, sky, edits))
@@ -203,12 +231,7 @@ def test_cli_takes_the_corrections_in_their_order(tmp_path: Path,
     from outcast_core.runtime.cli.main import main
     from outcast_core.runtime.io import imageio
 
-    img, parts = _slope()
-    depth = np.full((H, W), 10.0, np.float32)
-    depth[parts["sky"]] = np.inf
-    photo, dpath = tmp_path / "slope.png", tmp_path / "d.npy"
-    imageio.write_image(photo, img)
-    imageio.write_depth(dpath, depth)
+    photo, dpath, parts = _slope_files(tmp_path)
     x, y = _centre(parts["shadow"])
     base = ["deshadow", str(photo), "--from", "20,30", "--depth", str(dpath), "-q", "--force"]
     assert main([*base, "-o", str(tmp_path / "a.png"), "--mask", str(tmp_path / "a_m.png")]) == 0
@@ -218,7 +241,7 @@ def test_cli_takes_the_corrections_in_their_order(tmp_path: Path,
     assert plain[parts["pines"]].mean() > 0.9 and fixed[parts["pines"]].mean() < 0.1
     assert plain[parts["shadow"]].mean() < 0.1 and fixed[parts["shadow"]].mean() > 0.9
     lifted = imageio.read_image(tmp_path / "b.png").image_srgb
-    assert lifted[parts["shadow"]].mean() > 1.6 * img[parts["shadow"]].mean()
+    assert lifted[parts["shadow"]].mean() > 1.6 * _slope()[0][parts["shadow"]].mean()
     # Order matters: "not a shadow" clicked in the added shadow takes it back.
     assert main([*base, "-o", str(tmp_path / "c.png"), "--mask", str(tmp_path / "c_m.png"),
                  "--shadow", f"{x},{y}", "--not-shadow", f"{x},{y}"]) == 0
@@ -260,15 +283,10 @@ def test_a_marked_shadow_may_be_lifted_wherever_it_is(monkeypatch: pytest.Monkey
     like shade, not material; a shadow the user marked is one, wherever it is."""
     from outcast_core.runtime.pipeline import session as session_module
 
-    img, parts = _slope()
-    depth = np.full((H, W), 10.0, np.float32)
-    depth[parts["sky"]] = np.inf
     # A geometry that predicts no shadow anywhere near.
     monkeypatch.setattr(session_module, "near_predicted_shadow",
                         lambda prior, sky, radius: np.zeros(np.shape(sky), np.float32))
-    s = RelightSession(mode="classic", preset="fast")
-    s.set_image(img, depth=depth)
-    s.set_original_sun((0.3, -0.5, 0.8))
+    s, parts = _slope_session()
     shape = s.image_srgb.shape[:2]
     work = cv2.resize(parts["shadow"].astype(np.uint8), shape[::-1],
                       interpolation=cv2.INTER_NEAREST) > 0
@@ -297,13 +315,8 @@ def test_every_de_shadow_takes_the_marked_shadow_at_its_own_size(
 
     monkeypatch.setattr(session_module, "deshadow", spy)
     monkeypatch.setattr(session_module, "DETAIL_SIDE", 4 * max(H, W))
-    img, parts = _slope()
-    big = cv2.resize(img, (4 * W, 4 * H), interpolation=cv2.INTER_NEAREST)
-    depth = np.full((H, W), 10.0, np.float32)
-    depth[parts["sky"]] = np.inf
-    s = RelightSession(mode="classic", preset="fast")
-    s.set_image(big, depth=depth)
-    s.set_original_sun((0.3, -0.5, 0.8))
+    s, parts = _slope_session(cv2.resize(_slope()[0], (4 * W, 4 * H),
+                                         interpolation=cv2.INTER_NEAREST))
     s.deshadow()
     assert seen[-1][1] is None  # nothing marked
     s.set_shadow_edits([ShadowEdit(*_centre(parts["shadow"]), shadow=True)])
@@ -338,12 +351,7 @@ def test_a_shadow_click_on_lit_ground_is_refused() -> None:
 
 
 def test_dropping_edits_that_changed_nothing_redoes_nothing() -> None:
-    img, parts = _slope()
-    depth = np.full((H, W), 10.0, np.float32)
-    depth[parts["sky"]] = np.inf
-    s = RelightSession(mode="classic", preset="fast")
-    s.set_image(img, depth=depth)
-    s.set_original_sun((0.3, -0.5, 0.8))
+    s, parts = _slope_session()
     useful = (ShadowEdit(*_centre(parts["shadow"]), shadow=True),)
     s.set_shadow_edits((*useful, ShadowEdit(0.5, 0.05, shadow=True)))  # the second: the sky
     assert s.shadow_edits_used == (True, False)
@@ -718,12 +726,7 @@ def test_a_project_holds_at_most_so_many_clicks_and_edits() -> None:
 
 
 def test_session_takes_strokes_and_drops_one_that_changed_nothing_without_redoing() -> None:
-    img, parts = _slope()
-    depth = np.full((H, W), 10.0, np.float32)
-    depth[parts["sky"]] = np.inf
-    s = RelightSession(mode="classic", preset="fast")
-    s.set_image(img, depth=depth)
-    s.set_original_sun((0.3, -0.5, 0.8))
+    s, parts = _slope_session()
     found = s.shadow_probability.copy()
     h, w = found.shape
     stroke = tuple(ShadowEdit(0.3 + 0.01 * i, 26 / H, False, radius=0.03) for i in range(20))
@@ -747,12 +750,7 @@ def test_cli_takes_a_brush_dab_as_x_y_r(tmp_path: Path, capsys: pytest.CaptureFi
 
     assert parse_shadow_edit("0.5,0.2,0.05", shadow=False) == ShadowEdit(0.5, 0.2, False, 0.05)
     assert parse_shadow_edit("0.5,0.2", shadow=True) == ShadowEdit(0.5, 0.2, True)
-    img, parts = _slope()
-    depth = np.full((H, W), 10.0, np.float32)
-    depth[parts["sky"]] = np.inf
-    photo, dpath = tmp_path / "slope.png", tmp_path / "d.npy"
-    imageio.write_image(photo, img)
-    imageio.write_depth(dpath, depth)
+    photo, dpath, parts = _slope_files(tmp_path)
     base = ["deshadow", str(photo), "--from", "20,30", "--depth", str(dpath), "-q", "--force"]
     assert main([*base, "-o", str(tmp_path / "b.png"), "--mask", str(tmp_path / "b_m.png"),
                  "--not-shadow", f"0.5,{26 / H},0.05"]) == 0
@@ -801,14 +799,8 @@ def test_timelapse_says_which_corrections_changed_nothing_and_counts_the_rest(
         tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     """As ``relight`` and ``deshadow`` do."""
     from outcast_core.runtime.cli.main import main
-    from outcast_core.runtime.io import imageio
 
-    img, parts = _slope()
-    depth = np.full((H, W), 10.0, np.float32)
-    depth[parts["sky"]] = np.inf
-    photo, dpath = tmp_path / "slope.png", tmp_path / "d.npy"
-    imageio.write_image(photo, img)
-    imageio.write_depth(dpath, depth)
+    photo, dpath, parts = _slope_files(tmp_path)
     capsys.readouterr()
     assert main(["timelapse", str(photo), "--from", "20,30", "--depth", str(dpath), "--sweep",
                  "10,20:40,50", "--frames", "2", "--size", "working", "-o",
