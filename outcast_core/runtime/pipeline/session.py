@@ -232,6 +232,19 @@ class _LRU(OrderedDict):
         return value
 
 
+def _same_masks(a: tuple[np.ndarray, np.ndarray] | None,
+                b: tuple[np.ndarray, np.ndarray] | None) -> bool:
+    """Whether two :func:`~outcast_core.runtime.pipeline.photo_shadows.shadow_edit_masks`
+    results (None: no edits) change the found shadows alike."""
+    def parts(m: tuple[np.ndarray, np.ndarray] | None) -> tuple[np.ndarray, np.ndarray] | None:
+        return None if m is None or not (m[0].any() or m[1].any()) else m
+
+    a, b = parts(a), parts(b)
+    if a is None or b is None:
+        return a is b
+    return all(x.shape == y.shape and np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+
+
 class RelightSession:
     """Set once, query many.
 
@@ -670,19 +683,26 @@ class RelightSession:
             self.shadow_edits = edits
             self.shadow_edits_used = ()
             if self._found is not None and self.original_sun is not None:
-                self._apply_found()
+                self._apply_found(same_found=True)
 
-    def _apply_found(self) -> None:
+    def _apply_found(self, same_found: bool = False) -> None:
         """``S_o`` and the shadow probability from the found ones and :attr:`shadow_edits`;
-        everything made from them is dropped."""
+        everything made from them is dropped. ``same_found``: only the edits changed since
+        the last call; when their masks are the same as before (an edit that changed
+        nothing), everything is kept (the full-resolution de-shadow was made again for a
+        stroke on lit ground)."""
         assert self._found is not None and self.original_sun is not None
         s, prob = self._found
-        self._lift_excluded, self._edit_masks = self.sky, None
         used: list[bool] = []
-        if self.shadow_edits:
-            self._edit_masks = shadow_edit_masks(prob, self.image_srgb, self.sky,
-                                                 self.shadow_edits, used)
-            edited, not_shadow = apply_edit_masks(prob, self.sky, *self._edit_masks)
+        masks = (shadow_edit_masks(prob, self.image_srgb, self.sky, self.shadow_edits, used)
+                 if self.shadow_edits else None)
+        if same_found and self.original_shadow is not None and _same_masks(masks,
+                                                                           self._edit_masks):
+            self.shadow_edits_used = tuple(used)
+            return
+        self._lift_excluded, self._edit_masks = self.sky, masks
+        if masks is not None:
+            edited, not_shadow = apply_edit_masks(prob, self.sky, *masks)
             changed = np.abs(edited - prob) > 1e-4
             redone = original_shadow_from_photo(
                 edited, cosine_term(self.normals, self.original_sun), self.sky)

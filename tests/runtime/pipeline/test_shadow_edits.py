@@ -736,9 +736,12 @@ def test_session_takes_strokes_and_drops_one_that_changed_nothing_without_redoin
     assert s.shadow_probability[row, round(0.4 * w)] < 0.01  # under the stroke: dropped
     assert s.shadow_probability[row, round(0.9 * w)] > 0.9  # the tree line beyond it: kept
     idle = tuple(ShadowEdit(0.2 + 0.01 * i, 0.04, True, radius=0.02) for i in range(10))  # sky
+    kept, detail = s.deshadow(), s.found_shadows_detail()
     s.set_shadow_edits((*stroke, *idle))
     assert s.shadow_edits_used == (True,) * 20 + (False,) * 10
-    kept = s.deshadow()
+    # A stroke that changed nothing redoes nothing either (in "Shadows removed" the
+    # full-resolution de-shadow was made again for it).
+    assert s.deshadow() is kept and s.found_shadows_detail() is detail
     s.set_shadow_edits(stroke)  # the app takes the idle stroke back: nothing to redo
     assert s.shadow_edits == stroke and s.shadow_edits_used == (True,) * 20
     assert s.deshadow() is kept
