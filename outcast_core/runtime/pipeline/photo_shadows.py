@@ -1153,13 +1153,34 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
     return union & ~sky, dropped & ~sky
 
 
+def edit_masks_at(added: np.ndarray, dropped: np.ndarray, shape: tuple[int, int]
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`shadow_edit_masks`' ``(added, dropped)`` at another ``H x W`` size: bilinear
+    for the added regions, nearest for the dropped ones (which then take the found shadow's
+    fringe with them, :func:`apply_edit_masks`).
+
+    Example:
+        >>> added = np.zeros((4, 4), bool); added[:2] = True
+        >>> a, d = edit_masks_at(added, np.zeros((4, 4), bool), (8, 8))
+        >>> int(a.sum()), int(d.sum())
+        (32, 0)
+    """
+    shape = tuple(shape)
+    if added.shape != shape:
+        added = cv2.resize(added.astype(np.float32), shape[::-1],
+                           interpolation=cv2.INTER_LINEAR) > 0.5
+    if dropped.shape != shape:
+        dropped = cv2.resize(dropped.astype(np.uint8), shape[::-1],
+                             interpolation=cv2.INTER_NEAREST) > 0
+    return added, dropped
+
+
 def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray,
                      dropped: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The shadow probability with :func:`shadow_edit_masks`' regions applied: added ones
     set to 1, dropped ones (with the soft fringe of probability round them) to 0, edges soft
-    (:data:`EDIT_SOFT`). Masks of another size are resized to the probability's (nearest
-    for the dropped regions, which then take the found shadow's fringe with them; bilinear
-    for the added ones).
+    (:data:`EDIT_SOFT`). Masks of another size are brought to the probability's
+    (:func:`edit_masks_at`).
 
     Returns:
         ``(probability, not_shadow)``: ``H x W`` float32, and ``H x W`` bool, the dropped
@@ -1178,12 +1199,7 @@ def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray
     p = np.clip(np.asarray(probability, np.float32), 0.0, 1.0)
     sky = np.asarray(sky, bool)
     shape = p.shape
-    if added.shape != shape:
-        added = cv2.resize(added.astype(np.float32), shape[::-1],
-                           interpolation=cv2.INTER_LINEAR) > 0.5
-    if dropped.shape != shape:
-        dropped = cv2.resize(dropped.astype(np.uint8), shape[::-1],
-                             interpolation=cv2.INTER_NEAREST) > 0
+    added, dropped = edit_masks_at(added, dropped, shape)
     sigma = max(0.5, EDIT_SOFT * max(shape))
     if dropped.any():  # the region and the soft fringe of probability round it
         k = max(1, round(2 * sigma))
@@ -1205,6 +1221,7 @@ __all__ = [
     "ShadowEdit",
     "apply_edit_masks",
     "edit_luminance",
+    "edit_masks_at",
     "shadow_edit_masks",
     "shadow_edits_from_json",
     "shadow_edits_to_json",

@@ -50,6 +50,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     ShadowEdit,
     apply_edit_masks,
     deshadow,
+    edit_masks_at,
     lit_surface_colour,
     material_guard,
     near_predicted_shadow,
@@ -751,10 +752,7 @@ class RelightSession:
         masks = self._edit_masks  # once: another thread's _apply_found may reset it
         if masks is None or not masks[0].any():
             return None
-        added = masks[0]
-        if added.shape != sky.shape:  # as apply_edit_masks brings it to a size
-            added = resize(added.astype(np.float32), sky.shape) > 0.5
-        return added & ~sky
+        return edit_masks_at(*masks, sky.shape)[0] & ~sky
 
     def found_shadows_detail(self) -> dict[str, np.ndarray]:
         """The photo's own shadows found at up to :data:`DETAIL_SIDE` pixels (the photo's
