@@ -580,7 +580,9 @@ def test_a_drag_paints_one_stroke_that_undo_takes_back_whole(qtbot, window, phot
     _drag(window, [(0.33, 0.55), (0.33, 0.7)])  # from lit ground into the band
     settle()
     assert _undo_texts(window)[-1] == "Paint shadow"
-    assert window.session.shadow_probability[64:70, 41:44].min() > 0.9  # the band's
+    prob = window.session.shadow_probability
+    assert prob[64:67, 41:44].min() > 0.9  # the band's, fading out where the stroke ends:
+    assert 0.5 < prob[67:70, 41:44].min() < 0.9  # a soft brush
     assert window.session.shadow_probability[50:59, 41:44].max() < 0.05  # not the lit ground
     _tool(window, "not_shadow")
     _click(qtbot, window, 0.48, 0.7)

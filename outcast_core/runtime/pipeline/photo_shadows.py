@@ -539,10 +539,11 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
              above_lit: float | None = LIFT_ABOVE_LIT) -> np.ndarray:
     """The photo with its shadows lifted (``H x W x 3`` sRGB float32, same size); the surface's
     fine texture is not lifted (:func:`without_texture`). ``shift``: the shade's expected
-    chromaticity shift (:func:`same_material`). ``marked`` (``H x W`` bool, or None): what the
-    user marked as shadow ("Mark shadow"), taken at their word: neither opened as texture nor
-    weakened as another material than the lit surface round it (grey paving marked beside a
-    cyan pool was lifted to a quarter of its probability). ``above_lit``:
+    chromaticity shift (:func:`same_material`). ``marked`` (``H x W`` in [0, 1], bool or
+    float: :func:`shadow_edit_masks`' added cover; or None): what the user marked as shadow
+    ("Mark shadow"), taken at their word, as far as it covers a pixel: neither opened as
+    texture nor weakened as another material than the lit surface round it (grey paving
+    marked beside a cyan pool was lifted to a quarter of its probability). ``above_lit``:
     :func:`deshadow_log_gain`'s.
 
     Example:
@@ -557,10 +558,10 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
     if CHROMA_TOL > 0:
         p = p * same_material(img, p, ~np.asarray(sky, bool), shift)
     if marked is not None:
-        marked = np.asarray(marked, bool)
-        if marked.shape != p.shape:
-            raise ValueError(f"expected a marked mask of shape {p.shape}, got {marked.shape}")
-        p = np.where(marked, np.clip(np.asarray(probability, np.float32), 0.0, 1.0), p)
+        m = np.clip(np.asarray(marked, np.float32), 0.0, 1.0)
+        if m.shape != p.shape:
+            raise ValueError(f"expected a marked mask of shape {p.shape}, got {m.shape}")
+        p = p + m * (np.clip(np.asarray(probability, np.float32), 0.0, 1.0) - p)
     gain = deshadow_log_gain(img, p, sky, above_lit)
     lin = srgb_to_linear(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
     return linear_to_srgb((lin + _LOG_EPS) * np.exp(gain) - _LOG_EPS)
@@ -608,6 +609,18 @@ MAX_BRUSH_RADIUS = 0.15
 #: median against a ring round it), as a split of a surface's texture reaches that.
 STROKE_SPLIT = 0.5
 STROKE_MIN_SHARE = 0.05
+#: A "Mark shadow" stroke is a soft brush: what it adds fades out toward the edge of its
+#: footprint (smoothstep of the distance inward from that edge, over this fraction of the
+#: brush radius), so a stroke over part of a wider shadow that the app missed ends in a soft
+#: transition, not the hard edge of its discs (a user trial on the ski slope: a stroke along
+#: the big tree shadow on the snow lifted a band with sharp sides). The probability it sets
+#: reaches 1 halfway through the fade (:func:`apply_edit_masks` doubles the soft mask), so
+#: the lift fades over the outer half of the radius. Where the shadow itself ends under the
+#: stroke (the dark class of :func:`stroke_shadow`), the edge stays the shadow's own.
+STROKE_FEATHER = 1.0
+#: A "Mark shadow" stroke changes something (is used) where it covers a pixel of the shadow
+#: under it by more than this above what the user's earlier corrections cover there.
+STROKE_NEW = 0.1
 #: A "not a shadow" dab changes something (is used) when its disc holds a found shadow
 #: probability above this (or something the user added): then its whole disc is dropped.
 #: Below it the overlay's tint is under 6 % (alpha ``p`` times the default opacity 0.6) and
@@ -999,6 +1012,22 @@ def _paint_dabs(dabs: Sequence[ShadowEdit], shape: tuple[int, int],
     return paint
 
 
+def _feathered(paint: np.ndarray, radius: float) -> np.ndarray:
+    """How much a stroke's footprint (``paint``, nonzero inside, a window of the photo that
+    holds the whole footprint with a margin, except where the photo's edge cuts it) covers
+    each pixel (float32 in [0, 1]): :data:`STROKE_FEATHER` of the brush radius (``radius``,
+    pixels) of soft edge inside the footprint's edge; the photo's edge is no edge of the
+    stroke."""
+    inside = (paint > 0).astype(np.uint8)
+    if not inside.any():
+        return np.zeros(paint.shape, np.float32)
+    if inside.all():  # the footprint fills the window: no edge inside the photo
+        return np.ones(paint.shape, np.float32)
+    dist = cv2.distanceTransform(inside, cv2.DIST_L2, 5)
+    t = np.clip((dist - 0.5) / max(STROKE_FEATHER * radius, 1e-6), 0.0, 1.0)
+    return np.where(inside > 0, t * t * (3.0 - 2.0 * t), 0.0).astype(np.float32)
+
+
 def _rub_out(dabs: Sequence[ShadowEdit], shape: tuple[int, int], boxes: list[tuple[int, ...]],
              window: tuple[slice, slice], changes: np.ndarray) -> tuple[list[bool], np.ndarray]:
     """A run of "not a shadow" dabs, one after another: per dab whether its disc holds any of
@@ -1026,7 +1055,8 @@ def _rub_out(dabs: Sequence[ShadowEdit], shape: tuple[int, int], boxes: list[tup
 def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.ndarray,
                       edits: Sequence[ShadowEdit], used: list[bool] | None = None
                       ) -> tuple[np.ndarray, np.ndarray]:
-    """Where a user's corrections add shadow and where they drop it (``H x W`` bool each).
+    """Where a user's corrections add shadow and where they drop it (``H x W`` each: how much
+    is added, float32 in [0, 1], and what is dropped, bool).
 
     In order: an "a shadow" click adds its region (:func:`shadow_edit_region`); a "not a
     shadow" click takes back a region the user added when the click lands in it (a clicked
@@ -1036,12 +1066,13 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
     :attr:`ShadowEdit.start`, or the dabs of one kind and size each within a radius of the
     one before, :func:`shadow_edit_strokes`): "a shadow" adds the shadow under the stroke
     (:func:`stroke_shadow`, decided for the stroke as a whole: only the darker pixels of one
-    across a shadow's edge; nothing on lit ground) and takes back what was dropped there; a
-    "not a shadow" dab whose disc holds something to drop (a found shadow probability above
-    :data:`NOT_SHADOW_LEVEL`, or what the user added) drops its whole disc (the probability
-    there becomes 0: weaker probability left a tint and some lift) and takes back what was
-    added in it. The masks are made once, at the size
-    the user sees the found shadows (the session's working size), and brought to other sizes
+    across a shadow's edge; nothing on lit ground), fading out toward the edge of the
+    stroke's footprint (:data:`STROKE_FEATHER`; clicks' regions are added whole), and takes
+    back what was dropped there; a "not a shadow" dab whose disc holds something to drop (a
+    found shadow probability above :data:`NOT_SHADOW_LEVEL`, or what the user added) drops
+    its whole disc (the probability there becomes 0: weaker probability left a tint and some
+    lift) and takes back what was added in it. The masks are made once, at the size the user
+    sees the found shadows (the session's working size), and brought to other sizes
     by :func:`apply_edit_masks`, so what an export lifts is what the user marked (found again
     at another size, one click could pick another region: a dark object joined to the shadow
     beside it).
@@ -1060,8 +1091,9 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
             between them.
 
     Returns:
-        ``(added, dropped)``; ``dropped`` is also what the lift must not take for lit
-        surface (dark materials).
+        ``(added, dropped)``: ``added`` float32 (1 in a clicked region, a stroke's soft
+        cover where it painted, the most of them where they overlap); ``dropped`` bool, also
+        what the lift must not take for lit surface (dark materials).
 
     Example:
         >>> p = np.zeros((40, 40), np.float32); p[10:30, 5:35] = 1.0  # one found shadow
@@ -1077,7 +1109,7 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
     shape = found.shape
     reach = max(1.0, PICK_RADIUS * max(shape))
     added: list[np.ndarray] = []  # the "a shadow" clicks' regions
-    painted = np.zeros(shape, bool)  # what "a shadow" strokes added
+    painted = np.zeros(shape, np.float32)  # what "a shadow" strokes added, soft-edged
     dropped = np.zeros(shape, bool)
     log_y = None
     flags: list[bool] = []
@@ -1091,27 +1123,30 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
             if edit.shadow:  # the shadow under the stroke, decided for the stroke as a whole
                 if log_y is None:
                     log_y = edit_luminance(image_srgb)
+                paint = _paint_dabs(run, shape, window)
                 under = np.zeros(shape, bool)
-                under[window] = _paint_dabs(run, shape, window) > 0
+                under[window] = paint > 0
                 region = stroke_shadow(log_y, sky, under)[window]
+                cover = np.where(region, _feathered(paint, edit.radius * max(shape)), 0.0)
                 have = painted[window].copy()  # what the user added there already
                 for clicked in added:
-                    have |= clicked[window]
-                new = bool((region & (~have | dropped[window])).any())
+                    have[clicked[window]] = 1.0
+                new = bool(((cover > have + STROKE_NEW) | (region & dropped[window])).any())
                 flags.extend([new] * len(run))
                 # One that adds nothing new is left out whole, so a later "not a shadow" click
                 # on a painted area takes back the same with it as without it.
                 if new:
-                    painted[window] |= region
+                    painted[window] = np.maximum(painted[window], cover)
                     dropped[window] &= ~region
                 continue
-            changes = painted[window] | ((found[window] > NOT_SHADOW_LEVEL) & ~dropped[window])
+            changes = (painted[window] > 0) | ((found[window] > NOT_SHADOW_LEVEL)
+                                               & ~dropped[window])
             for region in added:
                 changes |= region[window]
             dab_flags, rubbed = _rub_out(run, shape, boxes, window, changes & off_sky)
             flags.extend(dab_flags)
             rubbed &= off_sky
-            painted[window] &= ~rubbed
+            painted[window][rubbed] = 0.0
             for region in added:
                 region[window] &= ~rubbed
             dropped[window] |= rubbed
@@ -1126,11 +1161,12 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
                 added.append(region)
             continue
         hit = [k for k, region in enumerate(added) if region[row, col]]
-        if hit or painted[row, col]:  # a click on what the user added takes that back
+        if hit or painted[row, col] > 0:  # a click on what the user added takes that back
             added = [region for k, region in enumerate(added) if k not in hit]
-            if painted[row, col]:
-                _, labels = cv2.connectedComponents(painted.astype(np.uint8), connectivity=8)
-                painted &= labels != labels[row, col]
+            if painted[row, col] > 0:
+                _, labels = cv2.connectedComponents((painted > 0).astype(np.uint8),
+                                                    connectivity=8)
+                painted[labels == labels[row, col]] = 0.0
             flags.append(True)
             continue
         left = found * ~dropped
@@ -1149,26 +1185,29 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
         used.extend(flags)
     union = painted
     for region in added:
-        union = union | region
-    return union & ~sky, dropped & ~sky
+        union = np.where(region, 1.0, union)
+    return np.where(sky, 0.0, union).astype(np.float32), dropped & ~sky
 
 
 def edit_masks_at(added: np.ndarray, dropped: np.ndarray, shape: tuple[int, int]
                   ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`shadow_edit_masks`' ``(added, dropped)`` at another ``H x W`` size: bilinear
-    for the added regions, nearest for the dropped ones (which then take the found shadow's
-    fringe with them, :func:`apply_edit_masks`).
+    for the added cover (float32 in [0, 1]: a stroke's soft edge stays soft, a region's edge
+    smooth rather than in blocks of the working size's pixels), nearest for the dropped
+    regions (bool; they then take the found shadow's fringe with them,
+    :func:`apply_edit_masks`).
 
     Example:
-        >>> added = np.zeros((4, 4), bool); added[:2] = True
+        >>> added = np.zeros((4, 4), np.float32); added[:2] = 1.0
         >>> a, d = edit_masks_at(added, np.zeros((4, 4), bool), (8, 8))
-        >>> int(a.sum()), int(d.sum())
-        (32, 0)
+        >>> a[:, 0].round(2).tolist(), int(d.sum())
+        ([1.0, 1.0, 1.0, 0.75, 0.25, 0.0, 0.0, 0.0], 0)
     """
     shape = tuple(shape)
+    added = np.clip(np.asarray(added, np.float32), 0.0, 1.0)
     if added.shape != shape:
-        added = cv2.resize(added.astype(np.float32), shape[::-1],
-                           interpolation=cv2.INTER_LINEAR) > 0.5
+        added = np.clip(cv2.resize(added, shape[::-1], interpolation=cv2.INTER_LINEAR),
+                        0.0, 1.0)
     if dropped.shape != shape:
         dropped = cv2.resize(dropped.astype(np.uint8), shape[::-1],
                              interpolation=cv2.INTER_NEAREST) > 0
@@ -1178,7 +1217,8 @@ def edit_masks_at(added: np.ndarray, dropped: np.ndarray, shape: tuple[int, int]
 def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray,
                      dropped: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The shadow probability with :func:`shadow_edit_masks`' regions applied: added ones
-    set to 1, dropped ones (with the soft fringe of probability round them) to 0, edges soft
+    set to 1 (raised to twice a stroke's soft cover: full strength halfway through its fade),
+    dropped ones (with the soft fringe of probability round them) to 0, edges soft
     (:data:`EDIT_SOFT`). Masks of another size are brought to the probability's
     (:func:`edit_masks_at`).
 
@@ -1208,7 +1248,7 @@ def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray
         soft = cv2.GaussianBlur(grown.astype(np.float32), (0, 0), sigma)
         p = p * (1.0 - np.clip(2.0 * soft, 0.0, 1.0))
     if added.any():
-        soft = cv2.GaussianBlur(added.astype(np.float32), (0, 0), sigma)
+        soft = cv2.GaussianBlur(added, (0, 0), sigma)
         p = np.maximum(p, np.clip(2.0 * soft, 0.0, 1.0))
     return np.where(sky, 0.0, p).astype(np.float32), dropped & ~sky
 

@@ -747,12 +747,12 @@ class RelightSession:
             return self._deshadowed
 
     def _marked(self, sky: np.ndarray) -> np.ndarray | None:
-        """What the user marked as shadow ("Mark shadow") at the size of ``sky``, off it; None
-        without such a mark."""
+        """How much of each pixel the user marked as shadow ("Mark shadow": float32 in [0, 1],
+        a stroke's edge soft) at the size of ``sky``, off it; None without such a mark."""
         masks = self._edit_masks  # once: another thread's _apply_found may reset it
         if masks is None or not masks[0].any():
             return None
-        return edit_masks_at(*masks, sky.shape)[0] & ~sky
+        return np.where(sky, 0.0, edit_masks_at(*masks, sky.shape)[0]).astype(np.float32)
 
     def found_shadows_detail(self) -> dict[str, np.ndarray]:
         """The photo's own shadows found at up to :data:`DETAIL_SIDE` pixels (the photo's
@@ -769,7 +769,8 @@ class RelightSession:
             ``{"image", "sky", "probability", "original_shadow", "excluded", "marked"}`` at
             that size (``h x w x 3`` sRGB float32, ``h x w`` bool, ``h x w`` float32, ``h x w``
             float32, ``h x w`` bool: the sky and what the user marked "not a shadow", which the
-            lift leaves out; ``h x w`` bool or None: what the user marked as shadow).
+            lift leaves out; ``h x w`` float32 in [0, 1] or None: how much the user marked as
+            shadow).
         """
         with self._lock:
             self._require_image()
@@ -1124,7 +1125,7 @@ class RelightSession:
                                              LIFT_PRIOR_RADIUS))
             masks = self._edit_masks  # once: another thread's _apply_found may reset it
             if masks is not None:  # the user's word: a shadow, not a material
-                guard = np.where(masks[0], 1.0, guard).astype(np.float32)
+                guard = (guard + masks[0] * (1.0 - guard)).astype(np.float32)
             guards["working"] = guard
         key = tuple(shape)
         if key not in guards:
