@@ -93,6 +93,7 @@ class ImageCanvas(QWidget):
         #: The brush: radius (fraction of the image's longer side) and the colour of a stroke.
         self._brush = 0.02
         self._brush_colour = QColor(255, 255, 255)
+        self._brush_soft = 0.0
         #: A stroke being painted: the dabs' centres and the mouse's path (image pixels), the
         #: last mouse point, how far the path went since the last dab, and the brush's radius
         #: when it began (the stroke's, to its end).
@@ -180,13 +181,23 @@ class ImageCanvas(QWidget):
     def click_tool(self) -> bool:
         return self._click_tool
 
-    def set_brush(self, radius: float, colour: QColor | None = None) -> None:
+    def set_brush(self, radius: float, colour: QColor | None = None,
+                  soft: float | None = None) -> None:
         """The brush: its radius as a fraction of the image's longer side (its circle follows
-        the cursor), and the colour a stroke is drawn in while painted."""
+        the cursor), the colour a stroke is drawn in while painted, and ``soft``: the share of
+        the radius, inward from its edge, over which what the brush does fades in (0: a hard
+        brush; its circle then has a dashed inner circle where it works at full strength).
+        None keeps the colour and softness as they are."""
         self._brush = max(0.0, float(radius))
         if colour is not None:
             self._brush_colour = QColor(colour)
+        if soft is not None:
+            self._brush_soft = min(1.0, max(0.0, float(soft)))
         self.update()
+
+    def brush_soft(self) -> float:
+        """The share of the brush's radius over which it fades in (:meth:`set_brush`)."""
+        return self._brush_soft
 
     def brush(self) -> float:
         return self._brush
@@ -385,6 +396,12 @@ class ImageCanvas(QWidget):
             for colour, width in ((QColor(0, 0, 0, 160), 3.0), (QColor(255, 255, 255), 1.0)):
                 p.setPen(QPen(colour, width))
                 p.drawEllipse(self._hover, r, r)
+            inner = r * (1.0 - self._brush_soft)
+            if self._brush_soft > 0 and inner >= 3.0:  # a soft brush: full strength within
+                for colour, width in ((QColor(0, 0, 0, 120), 2.0),
+                                      (QColor(255, 255, 255, 200), 1.0)):
+                    p.setPen(QPen(colour, width, Qt.PenStyle.DashLine))
+                    p.drawEllipse(self._hover, inner, inner)
         p.restore()
 
     def paint_split_labels(self, p: QPainter, x: float, top: float) -> None:

@@ -112,6 +112,7 @@ from outcast_core.runtime.io.imageio import same_file
 from outcast_core.runtime.io.models import ModelError
 from outcast_core.runtime.pipeline.auto_sun import SOURCE_EXIF, SOURCE_SUN_IN_FRAME
 from outcast_core.runtime.pipeline.photo_shadows import (
+    STROKE_FEATHER,
     ShadowEdit,
     shadow_edit_limit,
     shadow_edit_strokes,
@@ -137,6 +138,9 @@ EXPORT_CHANNELS = (*IMAGE_EXPORT_CHANNELS, "tl_export")
 #: Step-2 views of the photo's own shadows (independent of the new sun), and those with a split.
 DESHADOW_VIEWS = ("shadows_removed", "shadows_found")
 SPLIT_VIEWS = ("output", "shadows_removed")
+#: How far left of a correction (fraction of the photo's width) the before | after line moves
+#: when the correction was made on the original's side of it.
+SPLIT_MARGIN = 0.03
 DEFAULT_SUN = (135.0, 45.0)  # behind-right of the camera, half-way up: where a new photo starts
 LEVEL_TILT = (0.0, 0.0, "level")  # the camera's (pitch, roll, source) before a photo is loaded
 ICON_PATH = Path(__file__).resolve().parent / "resources" / "outcast.svg"
@@ -150,6 +154,11 @@ SHADOW_TOOL_HINTS = {key: f"{hint} ([ ] brush size, Esc ends the tool)"
 #: A brush stroke's colour while it is painted, per tool: the found shadows' magenta for "Mark
 #: shadow", a pale cyan (what stays of the photo) for "Not a shadow".
 BRUSH_COLOURS = {"shadow": QColor(255, 60, 200), "not_shadow": QColor(150, 235, 255)}
+#: The share of the brush's radius, inward from its circle, over which a tool fades in (the
+#: canvas draws a dashed circle where it works at full strength): "Mark shadow" is a soft
+#: brush (:data:`~outcast_core.runtime.pipeline.photo_shadows.STROKE_FEATHER`, full strength
+#: halfway through the fade), "Not a shadow" a hard one (a faint tint was left under it).
+BRUSH_SOFTNESS = {"shadow": 0.5 * STROKE_FEATHER, "not_shadow": 0.0}
 
 
 def _timings(session: Any) -> dict[str, float]:
@@ -1534,7 +1543,8 @@ class MainWindow(QMainWindow):
         self.canvas.set_click_tool(on)
         self.act_end_shadow_tool.setEnabled(on)
         if on:
-            self.canvas.set_brush(self.relight_panel.brush(), BRUSH_COLOURS[tool])
+            self.canvas.set_brush(self.relight_panel.brush(), BRUSH_COLOURS[tool],
+                                  BRUSH_SOFTNESS[tool])
             self.stage_label.setText(SHADOW_TOOL_HINTS[tool])
             self.canvas.setFocus()  # Esc reaches the window's action from here
         elif not self.runner.busy():
@@ -1606,7 +1616,22 @@ class MainWindow(QMainWindow):
         finally:
             self._edit_just_added = 0
         self._record(text=shadow_edit_text(self.shadow_edits))
+        self._show_correction_side(new)
         return True
+
+    def _show_correction_side(self, new: tuple[ShadowEdit, ...]) -> None:
+        """In "Shadows removed", a correction made wholly on the original's side of the
+        before | after line would show no change (a user trial painted there and saw nothing
+        happen): the line moves to just left of it."""
+        rp = self.relight_panel
+        rect = self.canvas.image_rect()
+        if rp.view() != "shadows_removed" or rect.width() <= 0:
+            return
+        reach = max(rect.width(), rect.height()) / rect.width()  # radius -> width fraction
+        split = rp.split_slider.value() / 100.0
+        if max(e.x + e.radius * reach for e in new) < split:
+            left = min(e.x - e.radius * reach for e in new) - SPLIT_MARGIN
+            rp.split_slider.setValue(max(rp.split_slider.minimum(), math.floor(100.0 * left)))
 
     def _drop_idle_edit(self, idle: tuple[ShadowEdit, ...]) -> None:
         """Take back the click or the stroke that changed nothing (the last corrections, still

@@ -4,6 +4,7 @@ undoable, saved in the project, applied by every job that depends on the found s
 from __future__ import annotations
 
 import json
+import math
 import threading
 
 import cv2
@@ -673,6 +674,64 @@ def test_the_brackets_size_the_brush_and_it_is_remembered(qtbot, window, photo, 
     settle()
     qtbot.keyClick(window.canvas, Qt.Key.Key_BracketRight)
     assert rp.brush_box.value() == size
+
+
+def test_the_mark_shadow_brush_is_soft_and_its_circle_says_so(window, photo, settle):
+    """"Mark shadow" fades in over the outer part of its radius (the runtime's
+    STROKE_FEATHER): the brush's circle has a dashed inner circle where it works at full
+    strength. "Not a shadow" is a hard brush: one circle."""
+    from app.main_window import BRUSH_SOFTNESS
+    from outcast_core.runtime.pipeline.photo_shadows import STROKE_FEATHER
+
+    assert BRUSH_SOFTNESS == {"shadow": 0.5 * STROKE_FEATHER, "not_shadow": 0.0}
+    _shadows_view(window, photo, settle)
+    canvas = window.canvas
+    window.relight_panel.set_brush(0.12)
+    at = _widget_point(canvas, 0.5, 0.5)
+    inner = canvas.brush_pixels() * canvas._zoom * (1.0 - BRUSH_SOFTNESS["shadow"])
+    turns = np.linspace(0.0, 2.0 * np.pi, 180, endpoint=False)
+    ring = (np.round(at.y() + inner * np.sin(turns)).astype(int),
+            np.round(at.x() + inner * np.cos(turns)).astype(int))
+    seen = {}
+    for tool in ("not_shadow", "shadow"):
+        _tool(window, tool)
+        _mouse(canvas, QEvent.Type.MouseMove, at, Qt.MouseButton.NoButton)
+        seen[tool] = _rgb(canvas.grab().toImage())[ring].astype(int)
+    assert canvas.brush_soft() == BRUSH_SOFTNESS["shadow"]
+    changed = np.abs(seen["shadow"] - seen["not_shadow"]).max(axis=-1) > 40
+    assert 0.2 < changed.mean() < 0.9  # dashes
+    _tool(window, "not_shadow")
+    assert canvas.brush_soft() == 0.0
+
+
+def test_a_correction_on_the_originals_side_moves_the_split_to_show_it(qtbot, window, photo,
+                                                                       settle):
+    """In "Shadows removed", a correction made wholly left of the before | after line (on the
+    original) would show no change: the line moves to just left of it. One that reaches the
+    de-shadowed side leaves the line where the user put it."""
+    from app.main_window import SPLIT_MARGIN
+
+    _shadows_view(window, photo, settle, view="shadows_removed")
+    rp = window.relight_panel
+    assert rp.split_slider.value() == 50
+    _tool(window, "not_shadow")
+    rp.set_brush(0.03)
+    reach = 0.03 * max(window.session.image_srgb.shape[:2]) / window.session.image_srgb.shape[1]
+    _drag(window, [(0.27, 0.7), (0.33, 0.7)])  # the band's left part
+    settle()
+    moved = rp.split_slider.value()  # (the first dab lies where the mouse's pixel put it)
+    assert abs(moved - math.floor(100 * (0.27 - reach - SPLIT_MARGIN))) <= 1
+    assert window.canvas.split() == pytest.approx(moved / 100)
+    rp.split_slider.setValue(30)
+    _drag(window, [(0.25, 0.72), (0.4, 0.72)])  # across the line: stays
+    settle()
+    assert rp.split_slider.value() == 30
+    # In "Shadows found" (no split) nothing moves.
+    rp.set_view("shadows_found")
+    settle()
+    _click(qtbot, window, 0.1, 0.7)
+    settle()
+    assert rp.split_slider.value() == 30
 
 
 def test_a_stroke_that_changed_nothing_is_taken_back(qtbot, window, photo, settle):
