@@ -141,6 +141,8 @@ SPLIT_VIEWS = ("output", "shadows_removed")
 #: How far left of a correction (fraction of the photo's width) the before | after line moves
 #: when the correction was made on the original's side of it.
 SPLIT_MARGIN = 0.03
+#: ... and no closer to the photo's left edge than this (the original stays in view).
+SPLIT_LEAST = 0.05
 DEFAULT_SUN = (135.0, 45.0)  # behind-right of the camera, half-way up: where a new photo starts
 LEVEL_TILT = (0.0, 0.0, "level")  # the camera's (pitch, roll, source) before a photo is loaded
 ICON_PATH = Path(__file__).resolve().parent / "resources" / "outcast.svg"
@@ -314,6 +316,9 @@ class MainWindow(QMainWindow):
         #: found-shadows job says if they changed nothing.
         self._edit_just_added = 0
         self._edit_note = ""  # said after "Ready" when the last correction changed nothing
+        #: The correction just made in "Shadows removed", to bring into view once it is shown
+        #: and changed something (:meth:`_show_correction_side`).
+        self._edit_to_show: tuple[ShadowEdit, ...] = ()
         # The deshadow views' images: (load, original sun, preset, shadow corrections) ->
         # (de-shadowed photo or None, found-shadows overlay); the shown ones and a few more.
         self._loads = 0  # counts loaded sessions
@@ -1616,22 +1621,29 @@ class MainWindow(QMainWindow):
         finally:
             self._edit_just_added = 0
         self._record(text=shadow_edit_text(self.shadow_edits))
-        self._show_correction_side(new)
+        # Brought into view once the worker has made it, if it changed anything.
+        self._edit_to_show = new if self.relight_panel.view() == "shadows_removed" else ()
         return True
 
-    def _show_correction_side(self, new: tuple[ShadowEdit, ...]) -> None:
+    def _show_correction_side(self, new: tuple[ShadowEdit, ...]) -> bool:
         """In "Shadows removed", a correction made wholly on the original's side of the
         before | after line would show no change (a user trial painted there and saw nothing
-        happen): the line moves to just left of it."""
+        happen): the line moves to just left of it, never closer to the photo's left edge
+        than :data:`SPLIT_LEAST` (the original stays in view). Returns whether it moved."""
         rp = self.relight_panel
         rect = self.canvas.image_rect()
-        if rp.view() != "shadows_removed" or rect.width() <= 0:
-            return
+        if not new or rp.view() != "shadows_removed" or rect.width() <= 0:
+            return False
         reach = max(rect.width(), rect.height()) / rect.width()  # radius -> width fraction
         split = rp.split_slider.value() / 100.0
-        if max(e.x + e.radius * reach for e in new) < split:
-            left = min(e.x - e.radius * reach for e in new) - SPLIT_MARGIN
-            rp.split_slider.setValue(max(rp.split_slider.minimum(), math.floor(100.0 * left)))
+        if max(e.x + e.radius * reach for e in new) >= split:
+            return False
+        left = min(e.x - e.radius * reach for e in new) - SPLIT_MARGIN
+        value = max(round(100.0 * SPLIT_LEAST), math.floor(100.0 * left))
+        if value >= rp.split_slider.value():
+            return False
+        rp.split_slider.setValue(value)
+        return True
 
     def _drop_idle_edit(self, idle: tuple[ShadowEdit, ...]) -> None:
         """Take back the click or the stroke that changed nothing (the last corrections, still
@@ -1877,8 +1889,12 @@ class MainWindow(QMainWindow):
             idle = result.get("idle_edits")
             self._edit_note = "" if not idle else self._idle_note(idle[-1])
             self._show_deshadow(view)
+            shown, self._edit_to_show = self._edit_to_show, ()
             if idle is not None:
                 self._drop_idle_edit(idle)
+            elif shown and self.shadow_edits[-len(shown):] == shown and (
+                    self._show_correction_side(shown)):
+                self._edit_note = "the before | after line moved left to show the correction"
             return
         if view == "output":
             self._exposure_hint = "" if result.get("preview") else exposure_hint(

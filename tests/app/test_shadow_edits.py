@@ -707,28 +707,44 @@ def test_the_mark_shadow_brush_is_soft_and_its_circle_says_so(window, photo, set
 def test_a_correction_on_the_originals_side_moves_the_split_to_show_it(qtbot, window, photo,
                                                                        settle):
     """In "Shadows removed", a correction made wholly left of the before | after line (on the
-    original) would show no change: the line moves to just left of it. One that reaches the
-    de-shadowed side leaves the line where the user put it."""
-    from app.main_window import SPLIT_MARGIN
+    original) would show no change: once shown, the line moves to just left of it (never to
+    the photo's edge), and the status bar says so. One that reaches the de-shadowed side, or
+    one that changed nothing, leaves the line where the user put it (a user trial)."""
+    from app.main_window import SPLIT_LEAST, SPLIT_MARGIN
 
     _shadows_view(window, photo, settle, view="shadows_removed")
     rp = window.relight_panel
     assert rp.split_slider.value() == 50
     _tool(window, "not_shadow")
     rp.set_brush(0.03)
+    _click(qtbot, window, 0.2, 0.3)  # lit ground: changes nothing, taken back
+    settle()
+    assert window.shadow_edits == () and rp.split_slider.value() == 50
     reach = 0.03 * max(window.session.image_srgb.shape[:2]) / window.session.image_srgb.shape[1]
     _drag(window, [(0.27, 0.7), (0.33, 0.7)])  # the band's left part
     settle()
     moved = rp.split_slider.value()  # (the first dab lies where the mouse's pixel put it)
     assert abs(moved - math.floor(100 * (0.27 - reach - SPLIT_MARGIN))) <= 1
     assert window.canvas.split() == pytest.approx(moved / 100)
+    assert "line moved left" in window.stage_label.text()
     rp.split_slider.setValue(30)
     _drag(window, [(0.25, 0.72), (0.4, 0.72)])  # across the line: stays
     settle()
     assert rp.split_slider.value() == 30
+    # Reaching the photo's left edge (the band's dropped part painted back with a wide brush):
+    # the line stops short of it.
+    rp.split_slider.setValue(45)
+    _tool(window, "shadow")
+    rp.set_brush(0.15)
+    _drag(window, [(0.2, 0.7), (0.22, 0.7)])
+    settle()
+    assert window.shadow_edits[-1].shadow
+    assert rp.split_slider.value() == round(100 * SPLIT_LEAST)
+    rp.split_slider.setValue(30)
     # In "Shadows found" (no split) nothing moves.
     rp.set_view("shadows_found")
     settle()
+    _tool(window, "not_shadow")
     _click(qtbot, window, 0.1, 0.7)
     settle()
     assert rp.split_slider.value() == 30
