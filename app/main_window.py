@@ -987,7 +987,7 @@ class MainWindow(QMainWindow):
             self.align_panel.sun_panel.dial.set_heat_map(None)
         self._update_exif_controls()
         self._set_step(Step.ALIGN)
-        exif_sun = seen_sun = seen_heading = None
+        exif_sun = seen_sun = seen_heading = ring_sun = None
         if restore is None:  # another photo: nothing of the previous one stays on screen
             self.timings = StageTimings()
             self.timings_label.setText("")
@@ -1007,7 +1007,10 @@ class MainWindow(QMainWindow):
             if fresh:
                 if seen_sun is None:
                     exif_sun = self.exif_sun()
-                self.align_panel.sun_panel.set_sun(*(seen_sun or exif_sun or DEFAULT_SUN))
+                if seen_sun is None and exif_sun is None:
+                    ring_sun = self._sun_on_exif_ring(*DEFAULT_SUN)
+                self.align_panel.sun_panel.set_sun(
+                    *(seen_sun or exif_sun or ring_sun or DEFAULT_SUN))
             else:
                 seen_sun = None  # not where the dial starts: not said
             if project is None:
@@ -1039,6 +1042,11 @@ class MainWindow(QMainWindow):
                 f" · sun from its EXIF: azimuth {exif_sun[0]:.1f}°, elevation {exif_sun[1]:.1f}°"
                 f"{f' for a {tilt}' if tilt else ''} (check it against the shadows)"
             )
+        elif ring_sun is not None:  # the EXIF's elevation without a compass heading
+            tilt = self.tilt_note()
+            opened += (f" · sun elevation {ring_sun[1]:.1f}° from its time and place"
+                       f"{f' for a {tilt}' if tilt else ''}; no compass heading: turn the sun "
+                       "around the ring until the shadows fit")
         self.stage_label.setText(opened)
         self._held_message = opened if self.runner.busy() else ""
         if restore is not None:  # the same photo again: keep the history
@@ -1074,6 +1082,17 @@ class MainWindow(QMainWindow):
                        tilt=self.camera_tilt[:2])
         # A camera pitched well up can have the sun under its own horizon: the dial's lowest.
         return None if sun is None else (sun[0], dm.clamp_elevation(sun[1]))
+
+    def _sun_on_exif_ring(self, azimuth: float, elevation: float) -> tuple[float, float] | None:
+        """The dial's sun moved onto the elevation ring of the photo's EXIF (GPS and time, no
+        compass heading), its azimuth about the true horizon kept; None without that ring."""
+        from outcast_core.runtime.pipeline.auto_sun import at_true_elevation
+
+        prior = self.exif_prior()
+        if prior is None:
+            return None
+        az, el = at_true_elevation(azimuth, elevation, prior.elevation, self.camera_tilt[:2])
+        return az, dm.clamp_elevation(el)
 
     def tilt_note(self) -> str:
         """The camera's tilt in words when it is not level ("camera pitched 21.0° down (ground

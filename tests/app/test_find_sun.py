@@ -428,3 +428,25 @@ def test_a_night_photo_says_how_far_below_the_horizon_and_when(window, photo, se
     note = window.exif_note()
     assert note.startswith("The sun was 15.0° below the horizon at the photo's time and place")
     assert "(2026-06-01 23:30 +02:00)" in note and "clock and time zone" in note
+
+
+def test_the_dial_starts_at_the_exif_elevation_without_an_undo_step(window, settle):
+    """The field path's EXIF gives the elevation (GPS and time) but no azimuth: the dial's sun
+    starts on that elevation's ring (about 39° above the true horizon), not at the default
+    45°, its azimuth about the horizon kept; opening the photo is no undo step."""
+    from app.main_window import DEFAULT_SUN
+    from outcast_core.runtime.geometry.camera import sun_angles
+
+    _load(window, os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg"), settle)
+    prior = window.exif_prior()
+    assert prior is not None and prior.azimuth is None and 30.0 < prior.elevation < 45.0
+    dial = window.align_panel.sun_panel.dial
+    assert dial.prior_elevation() == pytest.approx(prior.elevation)  # the ring drawn
+    pitch, roll = window.camera_tilt[:2]
+    horizon_az, horizon_el = sun_angles(sun_vector(*dial.sun()), pitch, roll)
+    assert horizon_el == pytest.approx(prior.elevation, abs=0.01)  # on the ring
+    assert horizon_az == pytest.approx(sun_angles(sun_vector(*DEFAULT_SUN), pitch, roll)[0],
+                                       abs=0.01)
+    assert f"sun elevation {dial.elevation():.1f}°" in window.stage_label.text()
+    assert window.undo_stack.count() == 0 and window.undo_stack.isClean()
+    assert not window.has_unsaved_changes()
