@@ -966,10 +966,11 @@ class MainWindow(QMainWindow):
         note = str(result.get("depth_note", ""))  # a depth source that could not be used
         if note:
             notice = f"{note[:1].upper()}{note[1:]}. " + notice
-        loaded = result.get("loaded")
-        long_note = elongation_note(*loaded.original_size) if loaded is not None else ""
-        if long_note:  # a panorama strip: the depth sees a few rows of it
-            notice = f"{long_note[:1].upper()}{long_note[1:]}. " + notice
+        # What the command line says of the file as it reads it (a user trial opened a PNG
+        # with transparency and was not told it was filled with white).
+        file_notes = photo_file_notes(result.get("loaded"))
+        if file_notes:
+            notice = " ".join(file_notes) + " " + notice
         saved = project_path_for(self.image_path)
         if project is None and restore is None and saved.exists():  # the photo on its own
             notice = (f"This photo has a saved project, {saved.name}: open it (File \u25b8 "
@@ -1047,6 +1048,9 @@ class MainWindow(QMainWindow):
             opened += (f" · sun elevation {ring_sun[1]:.1f}° from its time and place"
                        f"{f' for a {tilt}' if tilt else ''}; no compass heading: turn the sun "
                        "around the ring until the shadows fit")
+        if restore is None:  # said once, as the photo is opened (the notice keeps it)
+            opened += "".join(f" · {note[:1].lower()}{note[1:].rstrip('.')}"
+                              for note in file_notes)
         self.stage_label.setText(opened)
         self._held_message = opened if self.runner.busy() else ""
         if restore is not None:  # the same photo again: keep the history
@@ -2501,6 +2505,22 @@ STOP_WAIT_S = 10.0
 #: :func:`exposure_hint`: a relit photo this many times darker or brighter than the photo (at
 #: the photo's exposure) gets the hint to meter the new light.
 EXPOSURE_HINT_FACTOR = 2.0
+
+
+def photo_file_notes(loaded: Any) -> list[str]:
+    """What the command line says of a photo file as it reads it, as sentences: the
+    transparency filled with white, a panorama strip's shape (:func:`elongation_note`); empty
+    for an ordinary photo or ``None``."""
+    if loaded is None:
+        return []
+    notes = []
+    if getattr(loaded, "has_alpha", False):  # composited on white as it was read
+        notes.append("The photo has transparency; it is filled with white, and the relit photo "
+                     "and the exports have none.")
+    long_note = elongation_note(*loaded.original_size)
+    if long_note:  # a panorama strip: the depth sees a few rows of it
+        notes.append(f"{long_note[:1].upper()}{long_note[1:]}.")
+    return notes
 
 
 def exposure_hint(level: float | None) -> str:

@@ -709,3 +709,34 @@ def test_save_as_over_another_photos_project_names_that_photo(qtbot, window, pho
     assert window.save_project(mine) == mine
     leave_answers.asked.clear()
     assert window.save_project(mine) == mine and not leave_answers.asked  # its own: no question
+
+
+def test_transparency_and_a_strip_shape_are_said_as_the_cli_says(window, settle, tmp_path):
+    """The CLI notes a photo with transparency (filled with white) and a strip-shaped one (its
+    depth sees a few pixels across); the app said nothing of the first (a user trial): both
+    are said once, in the notice above the photo and in the status bar as it opens, without
+    a modal box."""
+    from PySide6.QtWidgets import QApplication
+
+    from outcast_core.runtime.pipeline.session import elongation_note
+
+    rgba = np.zeros((96, 128, 4), np.uint8)
+    rgba[..., :3] = (90, 140, 70)
+    rgba[..., 3] = 255
+    rgba[:30, :, 3] = 0  # a cut-out sky
+    clear = tmp_path / "cutout.png"
+    Image.fromarray(rgba, "RGBA").save(clear)
+    strip = tmp_path / "strip.png"
+    Image.fromarray(np.full((4000, 1, 3), 120, np.uint8)).save(strip)
+    said = "has transparency; it is filled with white"
+    long_note = elongation_note(1, 4000)
+    notice = window.align_panel.notice
+    for path, note, not_said in ((clear, said, long_note), (strip, long_note, said)):
+        window.open_path(str(path))
+        settle()
+        assert window.step is Step.ALIGN
+        assert notice.isVisibleTo(window) and notice.text().lower().count(note) == 1
+        assert not_said not in notice.text().lower()
+        status = window.stage_label.text()
+        assert status.startswith(f"Opened {path.name}") and status.count(note) == 1
+        assert QApplication.activeModalWidget() is None
