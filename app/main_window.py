@@ -299,7 +299,7 @@ class MainWindow(QMainWindow):
         # Shown instead of "Ready · ..." once the pending overlay is drawn (a found sun's, or
         # the photo just opened: what was found in it must not flash by).
         self._held_message = ""
-        self._load_notice = ""  # the warning above the dial after loading (depth source)
+        self._load_notice = ""  # the warning above the photo after loading (file, depth)
         self.timings = StageTimings()
         self.recent = RecentFiles([str(p) for p in (self.settings.value("recent", []) or [])])
         self.last_error: str = ""
@@ -381,8 +381,15 @@ class MainWindow(QMainWindow):
         side_layout.setSpacing(0)
         side_layout.addWidget(scroll, 1)
         side_layout.addWidget(self.footers)
+        # Step 1's notice sits above the photo, as wide as the canvas (the panel is narrow).
+        view = QWidget(self)
+        view_layout = QVBoxLayout(view)
+        view_layout.setContentsMargins(0, 0, 0, 0)
+        view_layout.setSpacing(0)
+        view_layout.addWidget(self.align_panel.notice)
+        view_layout.addWidget(self.canvas, 1)
         splitter = QSplitter(Qt.Orientation.Horizontal, self)
-        splitter.addWidget(self.canvas)
+        splitter.addWidget(view)
         splitter.addWidget(side)
         splitter.setStretchFactor(0, 1)
         splitter.setStretchFactor(1, 0)
@@ -1331,7 +1338,7 @@ class MainWindow(QMainWindow):
                          else "the EXIF compass heading")
                 notice = (f"The photo's shadows put the sun {off:.0f}° away from where {whose} "
                           "puts it: the heading may be wrong (\"Sun from photo's EXIF\" puts "
-                          "the sun there; correct the camera heading below).")
+                          "the sun there; correct the Camera heading box).")
         # The load's warning (the depth source) stays under what the search says.
         self.align_panel.show_notice("\n\n".join(t for t in (notice, self._load_notice) if t))
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtGui import QColor
+from PySide6.QtGui import QColor, QHideEvent, QShowEvent
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -117,11 +117,15 @@ class AlignPanel(QWidget):
             "photo, then confirm.",
             self,
         )
+        # This step's warnings (the file, the depth source, what Find sun says): the window
+        # places ``notice`` above the photo, across the canvas, and it shows while this step's
+        # panel does. In the narrow panel, above the dial, a long one (Find sun's on the field
+        # path) pushed the camera heading box it speaks of below the fold (a user trial).
         self.notice = QLabel(self)
         self.notice.setWordWrap(True)
         self.notice.setStyleSheet(
             "background: #fff4d6; color: #5a4300; border: 1px solid #e0c070; "
-            "border-radius: 4px; padding: 6px;"
+            "border-radius: 4px; padding: 6px 8px;"
         )
         self.notice.hide()
         self.sun_panel = SunDialPanel("Original sun", QColor(255, 200, 40), self)
@@ -133,7 +137,9 @@ class AlignPanel(QWidget):
         self.exif_button.clicked.connect(self.exif_clicked)
         self.exif_note = QLabel(self)
         self.exif_note.setWordWrap(True)
-        self.exif_note.setStyleSheet("color: palette(mid); font-size: 9pt;")
+        # The text's own colour: in palette(mid) it read as greyed out, hard to read (a user
+        # trial); the button above is what is disabled.
+        self.exif_note.setStyleSheet("font-size: 9pt;")
         self.exif_note.hide()
         self.heading_box = SteppedSpinBox(self)
         self.heading_box.setRange(-1.0, 359.9)
@@ -179,7 +185,6 @@ class AlignPanel(QWidget):
         layout = QVBoxLayout(self)
         layout.addWidget(title)
         layout.addWidget(body)
-        layout.addWidget(self.notice)
         layout.addWidget(self.sun_panel)
         layout.addWidget(self.find_button)
         layout.addWidget(self.exif_button)
@@ -230,9 +235,20 @@ class AlignPanel(QWidget):
             self.exif_button.setToolTip(text)
 
     def show_notice(self, text: str) -> None:
-        """A warning above the dial (hidden when empty)."""
+        """A warning above the photo (hidden when empty, and while another step is shown)."""
         self.notice.setText(text)
-        self.notice.setVisible(bool(text))
+        self._show_notice_if_any()
+
+    def _show_notice_if_any(self) -> None:
+        self.notice.setVisible(bool(self.notice.text()) and not self.isHidden())
+
+    def showEvent(self, event: QShowEvent) -> None:  # noqa: N802 (Qt's name)
+        super().showEvent(event)
+        self._show_notice_if_any()
+
+    def hideEvent(self, event: QHideEvent) -> None:  # noqa: N802 (Qt's name)
+        super().hideEvent(event)
+        self._show_notice_if_any()
 
 
 class RelightPanel(QWidget):

@@ -450,3 +450,47 @@ def test_the_dial_starts_at_the_exif_elevation_without_an_undo_step(window, sett
     assert f"sun elevation {dial.elevation():.1f}°" in window.stage_label.text()
     assert window.undo_stack.count() == 0 and window.undo_stack.isClean()
     assert not window.has_unsaved_changes()
+
+
+def _contrast(label) -> float:
+    """The WCAG contrast ratio of a label's text as drawn: its darkest pixel against its
+    background (the corner)."""
+    img = label.grab().toImage()
+
+    def luminance(colour) -> float:
+        def lin(c: float) -> float:
+            return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
+
+        return (0.2126 * lin(colour.redF()) + 0.7152 * lin(colour.greenF())
+                + 0.0722 * lin(colour.blueF()))
+
+    background = luminance(img.pixelColor(0, 0))
+    text = min(luminance(img.pixelColor(x, y))
+               for y in range(img.height()) for x in range(img.width()))
+    return (max(background, text) + 0.05) / (min(background, text) + 0.05)
+
+
+def test_step_1_fits_the_window_after_find_sun_on_the_field_path(window, settle, monkeypatch):
+    """A user trial at 1400 x 900: after Find sun on the field path (GPS and time, no compass
+    heading) the long notice pushed the camera heading box it speaks of, and the overlay
+    slider, below the fold. All of step 1 fits, and the note under the greyed EXIF button is
+    drawn in readable text (not greyed out like the button)."""
+    from PySide6.QtWidgets import QApplication
+
+    window.resize(1400, 900)
+    _load(window, os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg"), settle)
+    fit = dataclasses.replace(_fit(10.0, 60.0, found=False), unfound="no-fit")
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)  # as on the trial
+    window.find_sun()
+    settle()
+    QApplication.processEvents()  # the layout follows the notice
+    ap = window.align_panel
+    assert ap.notice.isVisibleTo(window) and "around the ring" in ap.notice.text()
+    assert "small network" in ap.notice.text()  # the load's note is kept under it
+    viewport = window.side_scroll.viewport()
+    assert window.side_scroll.verticalScrollBar().maximum() == 0
+    for widget in (ap.heading_box, ap.opacity_slider, ap.exif_note):
+        top_left = widget.mapTo(viewport, widget.rect().topLeft())
+        assert viewport.rect().contains(widget.rect().translated(top_left)), widget
+    assert not ap.exif_button.isEnabled() and ap.exif_note.isVisibleTo(window)
+    assert _contrast(ap.exif_note) >= 4.5  # WCAG AA for body text

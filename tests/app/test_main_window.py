@@ -740,3 +740,21 @@ def test_transparency_and_a_strip_shape_are_said_as_the_cli_says(window, settle,
         status = window.stage_label.text()
         assert status.startswith(f"Opened {path.name}") and status.count(note) == 1
         assert QApplication.activeModalWidget() is None
+
+
+def test_step_1s_notice_shows_above_the_photo_in_step_1_only(window, photo, settle):
+    """The notice sits above the photo (as wide as the canvas, not in the narrow panel) and
+    goes with step 1's panel."""
+    notice = window.align_panel.notice
+    assert not notice.isVisibleTo(window)  # no photo, nothing to say
+    _load(window, photo, settle)
+    window.align_panel.show_notice("A note")
+    assert notice.isVisibleTo(window) and not window.side_scroll.isAncestorOf(notice)
+    assert notice.width() >= window.canvas.width()
+    _confirm(window, settle)
+    assert not notice.isVisibleTo(window)
+    window.back_to_align()
+    settle()
+    assert notice.isVisibleTo(window)
+    window.align_panel.show_notice("")
+    assert not notice.isVisibleTo(window)
