@@ -398,7 +398,8 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
                f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
          + ")")
     if args.mask:
-        _say(args, f"wrote {args.mask} (where the shadows were found, 255 = shadow)")
+        _say(args, f"wrote {args.mask} (where the shadows were found: a 16-bit grey PNG, "
+                   "65535 = shadow)")
     return 0
 
 

@@ -1191,27 +1191,27 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
 
 def edit_masks_at(added: np.ndarray, dropped: np.ndarray, shape: tuple[int, int]
                   ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`shadow_edit_masks`' ``(added, dropped)`` at another ``H x W`` size: bilinear
-    for the added cover (float32 in [0, 1]: a stroke's soft edge stays soft, a region's edge
-    smooth rather than in blocks of the working size's pixels), nearest for the dropped
-    regions (bool; they then take the found shadow's fringe with them,
-    :func:`apply_edit_masks`).
+    """:func:`shadow_edit_masks`' ``(added, dropped)`` at another ``H x W`` size, both as
+    float32 covers in [0, 1], bilinear: a stroke's soft edge stays soft, and a region's edge
+    is smooth at a larger size rather than in blocks of the working size's pixels (the
+    exported shadow mask stepped along a dropped pine's outline; a user trial).
+    :func:`apply_edit_masks` applies them.
 
     Example:
         >>> added = np.zeros((4, 4), np.float32); added[:2] = 1.0
         >>> a, d = edit_masks_at(added, np.zeros((4, 4), bool), (8, 8))
-        >>> a[:, 0].round(2).tolist(), int(d.sum())
-        ([1.0, 1.0, 1.0, 0.75, 0.25, 0.0, 0.0, 0.0], 0)
+        >>> a[:, 0].round(2).tolist(), float(d.sum())
+        ([1.0, 1.0, 1.0, 0.75, 0.25, 0.0, 0.0, 0.0], 0.0)
     """
     shape = tuple(shape)
-    added = np.clip(np.asarray(added, np.float32), 0.0, 1.0)
-    if added.shape != shape:
-        added = np.clip(cv2.resize(added, shape[::-1], interpolation=cv2.INTER_LINEAR),
-                        0.0, 1.0)
-    if dropped.shape != shape:
-        dropped = cv2.resize(dropped.astype(np.uint8), shape[::-1],
-                             interpolation=cv2.INTER_NEAREST) > 0
-    return added, dropped
+
+    def cover(m: np.ndarray) -> np.ndarray:
+        m = np.clip(np.asarray(m, np.float32), 0.0, 1.0)
+        if m.shape == shape:
+            return m
+        return np.clip(cv2.resize(m, shape[::-1], interpolation=cv2.INTER_LINEAR), 0.0, 1.0)
+
+    return cover(added), cover(dropped)
 
 
 def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray,
@@ -1243,14 +1243,14 @@ def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray
     sigma = max(0.5, EDIT_SOFT * max(shape))
     if dropped.any():  # the region and the soft fringe of probability round it
         k = max(1, round(2 * sigma))
-        grown = cv2.dilate(dropped.astype(np.uint8),
-                           cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2))
-        soft = cv2.GaussianBlur(grown.astype(np.float32), (0, 0), sigma)
+        grown = cv2.dilate(dropped, cv2.getStructuringElement(cv2.MORPH_ELLIPSE,
+                                                              (2 * k + 1,) * 2))
+        soft = cv2.GaussianBlur(grown, (0, 0), sigma)
         p = p * (1.0 - np.clip(2.0 * soft, 0.0, 1.0))
     if added.any():
         soft = cv2.GaussianBlur(added, (0, 0), sigma)
         p = np.maximum(p, np.clip(2.0 * soft, 0.0, 1.0))
-    return np.where(sky, 0.0, p).astype(np.float32), dropped & ~sky
+    return np.where(sky, 0.0, p).astype(np.float32), (dropped > 0.5) & ~sky
 
 
 __all__ = [
