@@ -220,6 +220,40 @@ def test_refine_sky_edge_reaches_the_objects_against_the_sky() -> None:
         refine_sky_edge(sky[:, :10], img)
 
 
+def test_refine_sky_edge_fills_the_sky_seen_through_a_frame_beyond_the_band(monkeypatch) -> None:
+    """Sky seen through a frame (a pylon's head) farther than a band from the sky the coarse
+    mask holds is filled by the second pass (one pass left it a surface, which the relighting
+    darkened into grey rectangles in the ski-slope sample's sky: a user trial); a pale ground
+    reaching the bottom edge still loses only the first pass's band."""
+    h, w = 100, 200  # the band: 6 px
+    band = round(sky_mod.SKY_EDGE_BAND * w)
+    img = np.empty((h, w, 3), np.float32)
+    img[:] = (0.55, 0.62, 0.78)  # an even grey-blue sky
+    img[70:] = (0.25, 0.35, 0.15)  # ground
+    img[40:42, 40:120] = 0.05  # the frame: a top bar, ...
+    img[40:60, 40:42] = img[40:60, 118:120] = img[58:60, 40:120] = 0.05  # sides and bottom
+    truth = np.ones((h, w), bool)
+    truth[70:] = False
+    truth[40:60, 40:120] &= np.zeros((20, 80), bool) | (img[40:60, 40:120, 0] > 0.1)
+    coarse = np.zeros((h, w), bool)
+    coarse[:36] = True  # stops 4 px above the frame: its inside is 6 to 20 px away
+    inside = np.zeros((h, w), bool)
+    inside[42:58, 42:118] = True
+    monkeypatch.setattr(sky_mod, "SKY_EDGE_PASSES", 1)
+    once = refine_sky_edge(coarse, img)
+    assert not once[inside].all()  # beyond the band
+    monkeypatch.setattr(sky_mod, "SKY_EDGE_PASSES", 2)
+    out = refine_sky_edge(coarse, img)
+    # The first pass grows the sky to the bar (row 39), the second a band past it.
+    assert out[42:40 + band, 42:118].all() and not (out & ~truth).any()
+    assert out[inside].mean() > once[inside].mean()
+    snow = np.full((h, w, 3), 0.9, np.float32)
+    sky = np.zeros((h, w), bool)
+    sky[:40] = True
+    grown = refine_sky_edge(sky, snow)
+    assert grown[:40 + band].all() and not grown[40 + band + 1:].any()
+
+
 def test_top_connected() -> None:
     m = np.zeros((10, 10), bool)
     m[0:3, 0:3] = True
