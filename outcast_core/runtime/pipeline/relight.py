@@ -825,6 +825,7 @@ def guard_learned_relight(
     lift_colour: np.ndarray | None = None,
     keep_old: float = 0.0,
     detail_cache: dict | None = None,
+    physics_at: np.ndarray | None = None,
 ) -> np.ndarray:
     """A learned relighting with the real-photo guards the session turns on: first, with
     ``detail``, the photo's fine texture where no shadow changes (:func:`restore_detail`, from
@@ -857,7 +858,11 @@ def guard_learned_relight(
     with the colour guard). ``keep_old``: the share of the photo's own ``S_o`` in ``shadow_new``
     near the original sun (:func:`shadow_toward_original`); that part is not smoothed, so that
     at the original sun the guards see ``S_n = S_o`` and change nothing. ``detail_cache``:
-    :func:`restore_detail`'s ``cache``.
+    :func:`restore_detail`'s ``cache``. ``physics_at`` (``H x W`` in [0, 1], or None): where
+    the relighting is physics' (blended by the weight, before the colour guard): the session
+    passes what the user marked "not a shadow". ``L`` bleached the ski-slope sample's backlit
+    pines whatever ``S_o`` said of them, so the user's correction reached the de-shadowed
+    photo and physics but not the default relighting (a user trial).
 
     Example:
         >>> img = np.full((8, 8, 3), 0.5, np.float32); ones = np.ones((8, 8), np.float32)
@@ -872,13 +877,22 @@ def guard_learned_relight(
         lifted = None if lift_base is None else lift_base[0]
         out = restore_detail(image_srgb, out, shadow_old, shadow_new, sky, lifted,
                              cache=detail_cache)
-    s_new = smooth_new_shadow(shadow_new) if floor or anchor else shadow_new
-    if (floor or anchor) and keep_old > 0.0:  # the photo's own shadows stay sharp
+    held = None
+    if physics_at is not None:
+        held = np.clip(np.asarray(physics_at, np.float32), 0.0, 1.0)
+        if held.shape != out.shape[:2]:
+            raise ValueError(f"expected physics_at of shape {out.shape[:2]}, got {held.shape}")
+        held = held if held.any() else None
+    use_physics = floor or anchor or held is not None
+    s_new = smooth_new_shadow(shadow_new) if use_physics else shadow_new
+    if use_physics and keep_old > 0.0:  # the photo's own shadows stay sharp
         s_old = np.asarray(shadow_old, np.float32)
         s_new = np.clip(s_new + np.float32(keep_old) * (s_old - smooth_new_shadow(s_old)),
                         0.0, 1.0)
-    if floor or anchor:
+    physics = None
+    if use_physics:
         physics = physics_relight(image_srgb, shadow_old, s_new, sky, light=light, snap=False)
+    if floor or anchor:
         if floor:
             cap = None
             if lift and lift_base is not None:  # the de-shadowed photo relit by physics
@@ -888,6 +902,9 @@ def guard_learned_relight(
                                         lift_guard=lift_guard, lift_cap_srgb=cap)
         if anchor:
             out = anchor_exposure(image_srgb, out, physics, shadow_old, s_new, sky)
+    if held is not None and physics is not None:
+        k = held[..., None]
+        out = linear_to_srgb((1.0 - k) * srgb_to_linear(out) + k * srgb_to_linear(physics))
     if colour:
         out = keep_photo_colour(image_srgb, out, shadow_old, shadow_new, sky, keep_sky=keep_sky)
         if floor and lift and lift_guard is not None and lift_colour is not None:

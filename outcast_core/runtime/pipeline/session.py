@@ -1071,7 +1071,26 @@ class RelightSession:
         return guard_learned_relight(image, relit, s_o, s_new, sky, light, keep_sky=keep_sky,
                                      colour=self.colour_guard, floor=self.contrast_floor,
                                      anchor=self.exposure_anchor, detail=self.keep_detail,
-                                     lift=lift, keep_old=keep_old, detail_cache=cache, **inputs)
+                                     lift=lift, keep_old=keep_old, detail_cache=cache,
+                                     physics_at=self._user_materials(s_o.shape), **inputs)
+
+    def _user_materials(self, shape: tuple[int, int]) -> np.ndarray | None:
+        """What the user marked "not a shadow" (dark materials), softened by a working pixel,
+        at ``shape`` (float32 in [0, 1]), where the learned relighting takes physics'
+        (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`'s
+        ``physics_at``); None without such a mark. Made once per ``S_o`` and size."""
+        guards = self._lift_guards
+        masks = self._edit_masks  # once: another thread's _apply_found may reset it
+        if (guards.get("of") is not self.original_shadow or masks is None
+                or not masks[1].any()):
+            return None
+        key = ("materials", tuple(shape))
+        if key not in guards:
+            held = cv2.GaussianBlur(masks[1].astype(np.float32), (0, 0), 1.0)
+            if held.shape != key[1]:
+                held = np.clip(resize(held, key[1]), 0.0, 1.0)
+            guards[key] = held.astype(np.float32)
+        return guards[key]
 
     def _lift_inputs(self, shape: tuple[int, int]) -> dict[str, Any]:
         """:func:`guard_learned_relight`'s ``lift_guard``, ``lift_base`` and ``lift_colour`` at

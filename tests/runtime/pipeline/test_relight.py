@@ -225,6 +225,35 @@ def test_guarded_relight_keeps_the_photos_colour_where_both_suns_light_it() -> N
     assert np.abs(lab_o[newly][..., 1:] - lab_i[newly][..., 1:]).mean() > 1.0
 
 
+def test_guarded_relight_is_physics_where_the_user_marked_a_material() -> None:
+    """``physics_at``: where the user said "not a shadow" (a dark material), the learned
+    relighting gives way to physics', which follows the correction (``L`` bleached the
+    ski-slope sample's backlit pines whatever ``S_o`` said of them: a user trial); elsewhere
+    nothing changes, and a mask of another size is refused."""
+    from outcast_core.runtime.pipeline.relight import guard_learned_relight, physics_relight
+
+    h, w = 16, 24
+    image = np.full((h, w, 3), 0.12, np.float32)  # a dark material, lit under both suns
+    bleached = np.full((h, w, 3), 0.7, np.float32)  # what L made of it
+    lit = np.ones((h, w), np.float32)
+    sky = np.zeros((h, w), bool)
+    light = estimate_light(srgb_to_linear(image), lit)
+    held = np.zeros((h, w), np.float32)
+    held[:, :8] = 1.0
+    kw = {"keep_sky": True, "colour": False, "floor": False, "anchor": False, "detail": False}
+    out = guard_learned_relight(image, bleached, lit, lit, sky, light, physics_at=held, **kw)
+    physics = physics_relight(image, lit, lit, sky, light=light, snap=False)
+    np.testing.assert_allclose(out[:, :8], physics[:, :8], atol=1e-4)
+    assert np.abs(out[:, :8] - image[:, :8]).max() < 0.01  # lit under both: the photo's
+    np.testing.assert_allclose(out[:, 8:], bleached[:, 8:], atol=1e-6)
+    none = guard_learned_relight(image, bleached, lit, lit, sky, light,
+                                 physics_at=np.zeros((h, w), np.float32), **kw)
+    np.testing.assert_allclose(none, bleached, atol=1e-6)
+    with pytest.raises(ValueError, match="physics_at"):
+        guard_learned_relight(image, bleached, lit, lit, sky, light,
+                              physics_at=np.ones((4, 4), np.float32), **kw)
+
+
 def _textured(h: int = 128, w: int = 192, seed: int = 3) -> np.ndarray:
     """A smooth ramp with fine sRGB texture on it."""
     rng = np.random.default_rng(seed)

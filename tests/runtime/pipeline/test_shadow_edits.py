@@ -821,3 +821,39 @@ def test_timelapse_says_which_corrections_changed_nothing_and_counts_the_rest(
     assert "note: --not-shadow 0.9,0.95,0.02 changed nothing (no found shadow within R" in err
     assert "note: --not-shadow 0.5,0.2 " not in err
     assert f"wrote 2 frames to {tmp_path / 't.gif'} (1 shadow correction)" in err
+
+
+def test_the_learned_relighting_is_physics_where_the_user_marked_a_material(monkeypatch) -> None:
+    """"Not a shadow" on the tree line (a dark material): the learned relighting takes
+    physics' there (``guard_learned_relight``'s ``physics_at``), which follows the correction;
+    ``L`` alone bleached the ski-slope sample's pines whatever the correction said (a user
+    trial). Without the correction nothing is held."""
+    import outcast_core.runtime.pipeline.session as session_module
+
+    img, parts = _slope()
+    s = RelightSession(preset="fast")
+    s.set_image(img, depth=_slope_depth(parts))
+    s.set_original_sun((0.3, -0.5, 0.8))
+    assert s.relight_mode == "learned"
+    seen = []
+    real = session_module.guard_learned_relight
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs.get("physics_at"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(session_module, "guard_learned_relight", spy)
+    w_new = (-0.5, -0.4, 0.75)
+    s.relight(w_new)
+    assert seen and seen[-1] is None
+    s.set_shadow_edits([ShadowEdit(0.5, 20 / H, shadow=False)])
+    s.relight(w_new)
+    held = seen[-1]
+    assert held is not None and held.shape == s.image_srgb.shape[:2]
+    inner = cv2.erode(parts["pines"].astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    size = held.shape[::-1]
+    inner = cv2.resize(inner.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
+    shadow = cv2.resize(parts["shadow"].astype(np.uint8), size,
+                        interpolation=cv2.INTER_NEAREST) > 0
+    assert held[inner & (np.arange(held.shape[1]) > 30)[None, :]].min() > 0.9
+    assert held[shadow].max() < 0.05
