@@ -92,7 +92,7 @@ def found_shadow_overlay_rgba(
     """Tinted overlay of the shadows found in the photo (what de-shadowing lifts).
 
     Args:
-        probability: ``H x W`` float in [0, 1], the session's ``shadow_probability``.
+        probability: ``H x W`` float in [0, 1], the session's ``lifted_shadows()``.
         sky: ``H x W`` bool, never tinted.
         colour: tint RGB.
 

@@ -1814,7 +1814,9 @@ class MainWindow(QMainWindow):
             used = session.shadow_edits_used
             idle_edits = (edits[-just_added:] if just_added and len(used) == len(edits)
                           and not any(used[-just_added:]) else None)
-            overlay = display.found_shadow_overlay_rgba(after, session.sky)
+            # What the de-shadow lifts (the probability alone tinted a thin trunk's shadow
+            # that the lift left dark: a user trial).
+            overlay = display.found_shadow_overlay_rgba(session.lifted_shadows(), session.sky)
             image = None
             if with_image:
                 ctx.progress("removing shadows", 0.1)

@@ -1008,3 +1008,16 @@ def test_a_lost_release_ends_the_stroke(painting):
     _mouse(canvas, QEvent.Type.MouseButtonPress, _widget_point(canvas, 0.3, 0.3), left)
     _mouse(canvas, QEvent.Type.MouseButtonRelease, _widget_point(canvas, 0.3, 0.3), none)
     assert len(strokes) == 1 and clicks == [pytest.approx((0.3, 0.3), abs=0.01)]
+
+
+def test_shadows_found_shows_what_the_de_shadow_lifts(window, photo, settle) -> None:
+    """The "Shadows found" tint is the session's ``lifted_shadows`` (what "Shadows removed"
+    lifts), not the bare probability: a thin shadow the lift leaves as texture was tinted and
+    then left dark (a user trial)."""
+    _shadows_view(window, photo, settle)
+    lifted = window.session.lifted_shadows()
+    alpha = _alpha(window.canvas.overlay()).astype(int)
+    assert alpha.shape == lifted.shape
+    expected = np.round(255 * np.where(window.session.sky, 0.0, lifted)).astype(int)
+    assert np.abs(alpha - expected).max() <= 1
+    assert np.abs(alpha - np.round(255 * window.session.shadow_probability)).max() > 10

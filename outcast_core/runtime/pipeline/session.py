@@ -51,6 +51,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     apply_edit_masks,
     deshadow,
     edit_masks_at,
+    lift_probability,
     lit_surface_colour,
     material_guard,
     near_predicted_shadow,
@@ -402,6 +403,7 @@ class RelightSession:
         self._relight_cache = _LRU()
         self._light: LightEstimate | None = None
         self._deshadowed: np.ndarray | None = None
+        self._lifted: np.ndarray | None = None
         #: Where the photo's own shadows are (``H x W`` in [0, 1]), set by set_original_sun().
         self.shadow_probability: np.ndarray | None = None
         #: The lift's material guard (:meth:`_lift_guard`), per size, for one ``S_o``.
@@ -716,6 +718,7 @@ class RelightSession:
         self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self._lift_excluded)
         self._relight_cache.clear()
         self._deshadowed = None
+        self._lifted = None
         self._lift_guards = {"of": self.original_shadow}
         self._detail = None
 
@@ -745,6 +748,24 @@ class RelightSession:
                              marked=self._marked(self.sky)))
                 self._time("deshadow", t0)
             return self._deshadowed
+
+    def lifted_shadows(self) -> np.ndarray:
+        """How much :meth:`deshadow` lifts each working-size pixel as shadow (``H x W``
+        float32 in [0, 1]: :func:`~outcast_core.runtime.pipeline.photo_shadows.
+        lift_probability` of :attr:`shadow_probability`), what the app shows as the photo's
+        found shadows.
+
+        Needs :meth:`set_original_sun`.
+        """
+        with self._lock:
+            self._require_image()
+            if self.shadow_probability is None:
+                raise RuntimeError("set_original_sun() must be called before lifted_shadows()")
+            if self._lifted is None:
+                self._lifted = lift_probability(self.image_srgb, self.shadow_probability,
+                                                self._lift_excluded,
+                                                marked=self._marked(self.sky))
+            return self._lifted
 
     def _marked(self, sky: np.ndarray) -> np.ndarray | None:
         """How much of each pixel the user marked as shadow ("Mark shadow": float32 in [0, 1],

@@ -857,3 +857,34 @@ def test_the_learned_relighting_is_physics_where_the_user_marked_a_material(monk
                         interpolation=cv2.INTER_NEAREST) > 0
     assert held[inner & (np.arange(held.shape[1]) > 30)[None, :]].min() > 0.9
     assert held[shadow].max() < 0.05
+
+
+def test_the_found_shadows_shown_are_what_the_de_shadow_lifts() -> None:
+    """``lift_probability``: a thin dark stripe (a trunk's shadow the photometric stage finds
+    at 0.4-0.5) is texture to the lift and is not lifted, so it is not shown as found either
+    (the app tinted it and the lift left it dark: a user trial); a wide shadow is both; marked
+    by the user, the stripe is both. The session's ``lifted_shadows`` is that of its own
+    probability, and follows the corrections."""
+    from outcast_core.runtime.pipeline.photo_shadows import lift_probability
+
+    img, parts = _slope()
+    sky = parts["sky"]
+    img[70:90, 110:112] *= np.array([0.42, 0.45, 0.52], np.float32)  # a 2 px trunk's shadow
+    p = photo_shadow_probability(img, sky)
+    stripe = np.zeros((H, W), bool)
+    stripe[72:88, 110:112] = True
+    p[parts["shadow"] | stripe] = 0.9  # as if found (the pines set the threshold)
+    lifted = lift_probability(img, p, sky)
+    assert lifted[stripe].max() < 0.2
+    inner = cv2.erode(parts["shadow"].astype(np.uint8), np.ones((9, 9), np.uint8)) > 0
+    assert lifted[inner].min() > 0.5
+    marked = np.zeros((H, W), np.float32)
+    marked[70:90, 108:114] = 1.0
+    assert lift_probability(img, p, sky, marked=marked)[stripe].min() > 0.5
+    s, parts = _slope_session()
+    before = s.lifted_shadows()
+    np.testing.assert_array_equal(
+        before, lift_probability(s.image_srgb, s.shadow_probability, s.sky))
+    s.set_shadow_edits([ShadowEdit(*_centre(parts["shadow"]), shadow=True)])
+    after = s.lifted_shadows()
+    assert after[inner].mean() > before[inner].mean() + 0.3
