@@ -272,13 +272,22 @@ def combine_sky(model_sky: np.ndarray, image_srgb: np.ndarray,
 SKY_EDGE_BAND = 0.03
 SKY_EDGE_TOL = 0.08
 #: :func:`refine_sky_edge`: how many times the sky grows by the band, each time from the sky
-#: grown so far and its colour there; after the first pass only into sky-coloured regions cut
-#: off from the bottom edge (sky seen through a frame), not into a pale ground. One pass left
+#: grown so far (its colour always that of the sky it was given); after the first pass only
+#: into sky-coloured regions cut off from the bottom edge, not into a pale ground. One pass left
 #: the sky inside the ski-slope sample's pylon head and chair frames (more than a band from
 #: the sky ``Z`` saw) a surface, and the relighting darkened it into grey rectangles in the
 #: sky (a user trial). A third pass began to take the snow below the tree line there (unless
 #: restricted, and even then a snow patch boxed in by the right-hand pylon and chairs).
 SKY_EDGE_PASSES = 2
+#: :func:`refine_sky_edge`'s later passes take a boxed-in region of sky colour only when at
+#: least this share of it is as close to the sky's colour as the first pass asks, and it is
+#: at least half a band squared: the sky seen through a frame is sky as a whole (the ski-slope
+#: pylon head's, 67 %); a pale object against the sky (an aircraft's grey fuselage on a dev
+#: photo) matches the sky in spots.
+SKY_FRAMED_ALIKE = 0.6
+#: ... and only when the pixels round it (off the sky) are darker than it by this factor (a
+#: median): a frame of bars, not asphalt specks under a wrongly found "sky" (a dev photo).
+SKY_FRAME_DARKER = 0.7
 
 
 def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray,
@@ -293,10 +302,10 @@ def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray,
     seen through a closed frame counts: a chair's bars, a pylon's triangle) whose colour is a
     sky's (:func:`sky_colour`) and within :data:`SKY_EDGE_TOL` of the sky's around it (a
     Gaussian average of the sky pixels, sigma the band) is sky, in :data:`SKY_EDGE_PASSES`
-    passes (each from the sky grown so far; after the first, only into sky-coloured regions
-    that do not reach the bottom edge: the sky seen through a frame, not a pale ground): a dark
-    pole, a tree or a roof does not pass; a pale wall or snowfield next to a white sky can
-    lose at most the band.
+    passes (each from the sky grown so far, with the given sky's colour; after the first, only
+    into sky-coloured regions that do not reach the bottom edge, not a pale ground, and are
+    sky-like as a whole, :data:`SKY_FRAMED_ALIKE`): a dark pole, a tree or a roof does not
+    pass; a pale wall or snowfield next to a white sky can lose at most the band.
     Meant for the working size, as :func:`postprocess_z` runs it: its blur grows with the side
     (13 ms at 384 px, 0.3 s at 1024, seconds beyond).
 
@@ -315,34 +324,56 @@ def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray,
         raise ValueError(f"expected a sky mask of the image's size {img.shape[:2]}, got "
                          f"{sky.shape}")
     colour = sky_colour(img, greyscale)
+    weight, local = _local_sky(sky, img)
+    grown = sky
     for k in range(SKY_EDGE_PASSES):
-        grown = _grow_sky(sky, img, colour, framed=k > 0)
-        if grown is sky:
+        more = _grow_sky(grown, img, colour, weight, local, framed=k > 0)
+        if more is grown:
             break
-        sky = grown
-    return sky
+        grown = more
+    return grown
 
 
-def _grow_sky(sky: np.ndarray, img: np.ndarray, colour: np.ndarray, framed: bool
-              ) -> np.ndarray:
-    """One pass of :func:`refine_sky_edge` (``colour``: :func:`sky_colour` of ``img``;
-    ``framed``: only into sky-coloured regions off the sky that do not reach the bottom
-    edge); the same array when nothing grows."""
-    band = round(SKY_EDGE_BAND * max(sky.shape))
-    if band < 1 or not sky.any() or sky.all():
-        return sky
-    sigma = float(band)
+def _local_sky(sky: np.ndarray, img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The sky's presence round each pixel and its mean colour there (a Gaussian of the sky's
+    pixels, sigma :data:`SKY_EDGE_BAND` of the longer side); every pass of
+    :func:`refine_sky_edge` compares with the sky it was given, not with the sky grown so far
+    (whose colour drifted toward a pale object it took: an aircraft's grey fuselage, grown
+    into from its tail fin on a dev photo)."""
+    sigma = float(max(1, round(SKY_EDGE_BAND * max(sky.shape))))
     weight = cv2.GaussianBlur(sky.astype(np.float32), (0, 0), sigma)
     local = cv2.GaussianBlur(img * sky[..., None], (0, 0), sigma) / np.maximum(weight, 1e-6)[
         ..., None]
+    return weight, local
+
+
+def _grow_sky(sky: np.ndarray, img: np.ndarray, colour: np.ndarray, weight: np.ndarray,
+              local: np.ndarray, framed: bool) -> np.ndarray:
+    """One pass of :func:`refine_sky_edge` (``colour``: :func:`sky_colour` of ``img``;
+    ``weight``, ``local``: :func:`_local_sky`; ``framed``: only into sky-coloured regions off
+    the sky that do not reach the bottom edge and are :data:`SKY_FRAMED_ALIKE` sky-like); the
+    same array when nothing grows."""
+    band = round(SKY_EDGE_BAND * max(sky.shape))
+    if band < 1 or not sky.any() or sky.all():
+        return sky
     close = (np.abs(img - local).max(axis=2) < SKY_EDGE_TOL) & (weight > 1e-3)
     candidate = close & colour & ~sky
-    if framed and candidate.any():  # not a pale ground: regions that reach the bottom edge
-        n, labels = cv2.connectedComponents((colour & ~sky).astype(np.uint8), connectivity=8)
-        ground = np.zeros(n, bool)
-        ground[labels[-1]] = True
-        ground[0] = True
-        candidate &= ~ground[labels]
+    if framed and candidate.any():  # whole regions of sky colour, boxed in, sky as a whole
+        off = colour & ~sky
+        n, labels = cv2.connectedComponents(off.astype(np.uint8), connectivity=8)
+        area = np.bincount(labels[off], minlength=n)
+        alike = np.bincount(labels[off & close], minlength=n)
+        seen = (alike >= SKY_FRAMED_ALIKE * np.maximum(area, 1)) & (area >= 0.5 * band * band)
+        seen[labels[-1]] = False  # reaches the bottom edge: a pale ground
+        seen[0] = False
+        luma = img.mean(axis=2)
+        ring_kernel = np.ones((3, 3), np.uint8)
+        for k in np.nonzero(seen)[0]:  # framed by darker structure, not by more of the same
+            region = labels == k
+            ring = (cv2.dilate(region.astype(np.uint8), ring_kernel) > 0) & ~region & ~sky
+            if ring.any() and np.median(luma[ring]) > SKY_FRAME_DARKER * np.median(luma[region]):
+                seen[k] = False
+        candidate &= seen[labels]
     if not candidate.any():
         return sky
     near = cv2.distanceTransform((~sky).astype(np.uint8), cv2.DIST_L2, 3) <= band

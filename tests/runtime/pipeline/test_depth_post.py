@@ -247,6 +247,11 @@ def test_refine_sky_edge_fills_the_sky_seen_through_a_frame_beyond_the_band(monk
     # The first pass grows the sky to the bar (row 39), the second a band past it.
     assert out[42:40 + band, 42:118].all() and not (out & ~truth).any()
     assert out[inside].mean() > once[inside].mean()
+    # Boxed in by a pale beige "frame" as bright as it, not by darker bars: not sky seen
+    # through a frame (asphalt specks under a wrongly found sky, a pale fuselage).
+    pale = img.copy()
+    pale[(img[..., 0] < 0.1)] = (0.75, 0.62, 0.45)
+    assert not (refine_sky_edge(coarse, pale) & inside & ~once).any()
     snow = np.full((h, w, 3), 0.9, np.float32)
     sky = np.zeros((h, w), bool)
     sky[:40] = True
