@@ -360,18 +360,23 @@ def _grow_sky(sky: np.ndarray, img: np.ndarray, colour: np.ndarray, weight: np.n
     candidate = close & colour & ~sky
     if framed and candidate.any():  # whole regions of sky colour, boxed in, sky as a whole
         off = colour & ~sky
-        n, labels = cv2.connectedComponents(off.astype(np.uint8), connectivity=8)
-        area = np.bincount(labels[off], minlength=n)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(off.astype(np.uint8),
+                                                               connectivity=8)
+        area = stats[:, cv2.CC_STAT_AREA]
         alike = np.bincount(labels[off & close], minlength=n)
         seen = (alike >= SKY_FRAMED_ALIKE * np.maximum(area, 1)) & (area >= 0.5 * band * band)
         seen[labels[-1]] = False  # reaches the bottom edge: a pale ground
         seen[0] = False
         luma = img.mean(axis=2)
-        ring_kernel = np.ones((3, 3), np.uint8)
+        h, w = sky.shape
         for k in np.nonzero(seen)[0]:  # framed by darker structure, not by more of the same
-            region = labels == k
-            ring = (cv2.dilate(region.astype(np.uint8), ring_kernel) > 0) & ~region & ~sky
-            if ring.any() and np.median(luma[ring]) > SKY_FRAME_DARKER * np.median(luma[region]):
+            x, y, bw, bh = stats[k, :4]  # (each in its box and a pixel round it: bounded work)
+            box = np.s_[max(0, y - 1):min(h, y + bh + 1), max(0, x - 1):min(w, x + bw + 1)]
+            region = labels[box] == k
+            ring = (cv2.dilate(region.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0)
+            ring &= ~region & ~sky[box]
+            lum = luma[box]
+            if ring.any() and np.median(lum[ring]) > SKY_FRAME_DARKER * np.median(lum[region]):
                 seen[k] = False
         candidate &= seen[labels]
     if not candidate.any():
