@@ -234,7 +234,7 @@ def test_refine_sky_edge_fills_the_sky_seen_through_a_frame_beyond_the_band(monk
     img[40:60, 40:42] = img[40:60, 118:120] = img[58:60, 40:120] = 0.05  # sides and bottom
     truth = np.ones((h, w), bool)
     truth[70:] = False
-    truth[40:60, 40:120] &= np.zeros((20, 80), bool) | (img[40:60, 40:120, 0] > 0.1)
+    truth[40:60, 40:120] &= img[40:60, 40:120, 0] > 0.1
     coarse = np.zeros((h, w), bool)
     coarse[:36] = True  # stops 4 px above the frame: its inside is 6 to 20 px away
     inside = np.zeros((h, w), bool)
@@ -252,6 +252,26 @@ def test_refine_sky_edge_fills_the_sky_seen_through_a_frame_beyond_the_band(monk
     pale = img.copy()
     pale[(img[..., 0] < 0.1)] = (0.75, 0.62, 0.45)
     assert not (refine_sky_edge(coarse, pale) & inside & ~once).any()
+    # A pale object that matches the sky in spots only (a grey fuselage): not sky as a whole.
+    spotted = img.copy()
+    spotted[42:58, 42:118] = (0.42, 0.52, 0.92)  # a sky's colour, not this sky's ...
+    spotted[42:46, 42:60] = (0.55, 0.62, 0.78)  # ... but for a patch of it
+    assert not (refine_sky_edge(coarse, spotted) & inside & ~once).any()
+    # A white wall under a white sky, beside darker ground (not reaching the bottom edge): the
+    # first pass takes a band of it, the second no more (it meets the sky along its top).
+    wall_img = np.full((h, w, 3), 0.92, np.float32)
+    wall_img[70:] = (0.35, 0.3, 0.25)
+    wall_img[40:70, 60:140] = 0.9
+    wall_img[40:70, 57:60] = wall_img[40:70, 140:143] = 0.3
+    wall_sky = np.zeros((h, w), bool)
+    wall_sky[:40] = True
+    wall_sky[40:70, :57] = wall_sky[40:70, 143:] = True
+    monkeypatch.setattr(sky_mod, "SKY_EDGE_PASSES", 1)
+    first = refine_sky_edge(wall_sky, wall_img)
+    monkeypatch.setattr(sky_mod, "SKY_EDGE_PASSES", 2)
+    mid = np.s_[40 + band + 1:70, 60 + band + 1:140 - band - 1]  # beyond a band of the sky
+    assert first[40:40 + band, 60:140].all() and not first[mid].any()
+    assert (refine_sky_edge(wall_sky, wall_img) == first).all()
     snow = np.full((h, w, 3), 0.9, np.float32)
     sky = np.zeros((h, w), bool)
     sky[:40] = True
