@@ -186,8 +186,8 @@ class ImageCanvas(QWidget):
         """The brush: its radius as a fraction of the image's longer side (its circle follows
         the cursor), the colour a stroke is drawn in while painted, and ``soft``: the share of
         the radius, inward from its edge, over which what the brush does fades in (0: a hard
-        brush; its circle then has a dashed inner circle where it works at full strength).
-        None keeps the colour and softness as they are."""
+        brush, one circle; above 0, a dashed inner circle shows where it works at full
+        strength). None keeps the colour and softness as they are."""
         self._brush = max(0.0, float(radius))
         if colour is not None:
             self._brush_colour = QColor(colour)

@@ -1646,13 +1646,14 @@ class MainWindow(QMainWindow):
                                      "or undo some first")
             return False
         self._edit_just_added = len(new)  # (read by the found-shadows job this submits)
+        # Brought into view once the worker has made it, if it changed anything (set before
+        # the job is submitted: its result must find it).
+        self._edit_to_show = new if self.relight_panel.view() == "shadows_removed" else ()
         try:
             self.set_shadow_edits((*self.shadow_edits, *new))
         finally:
             self._edit_just_added = 0
         self._record(text=shadow_edit_text(self.shadow_edits))
-        # Brought into view once the worker has made it, if it changed anything.
-        self._edit_to_show = new if self.relight_panel.view() == "shadows_removed" else ()
         return True
 
     def _show_correction_side(self, new: tuple[ShadowEdit, ...]) -> bool:
@@ -1670,8 +1671,9 @@ class MainWindow(QMainWindow):
             return False
         left = min(e.x - e.radius * reach for e in new) - SPLIT_MARGIN
         value = max(round(100.0 * SPLIT_LEAST), math.floor(100.0 * left))
-        if value >= rp.split_slider.value():
-            return False
+        right = max(e.x + e.radius * reach for e in new)
+        if value >= rp.split_slider.value() or right <= value / 100.0:
+            return False  # (wholly left of SPLIT_LEAST: moving would not show it either)
         rp.split_slider.setValue(value)
         return True
 

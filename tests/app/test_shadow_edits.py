@@ -741,6 +741,9 @@ def test_a_correction_on_the_originals_side_moves_the_split_to_show_it(qtbot, wi
     assert window.shadow_edits[-1].shadow
     assert rp.split_slider.value() == round(100 * SPLIT_LEAST)
     rp.split_slider.setValue(30)
+    # Wholly left of SPLIT_LEAST, moving the line would not show it either: it stays.
+    assert not window._show_correction_side((ShadowEdit(0.01, 0.7, True, 0.005),))
+    assert rp.split_slider.value() == 30
     # In "Shadows found" (no split) nothing moves.
     rp.set_view("shadows_found")
     settle()

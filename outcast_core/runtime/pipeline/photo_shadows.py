@@ -1143,16 +1143,21 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
                 under[window] = paint > 0
                 region = stroke_shadow(log_y, sky, under)[window]
                 cover = np.where(region, _feathered(paint, edit.radius * max(shape)), 0.0)
+                # Where it works at full strength (apply_edit_masks doubles the cover) it takes
+                # back what was dropped; under its faint rim the drop stays, and the cover
+                # fades in over it (a review: the rim restored the found shadow at full
+                # strength out to the footprint's edge).
+                full = cover >= 0.5
                 have = painted[window].copy()  # what the user added there already
                 for clicked in added:
                     have[clicked[window]] = 1.0
-                new = bool(((cover > have + STROKE_NEW) | (region & dropped[window])).any())
+                new = bool(((cover > have + STROKE_NEW) | (full & dropped[window])).any())
                 flags.extend([new] * len(run))
                 # One that adds nothing new is left out whole, so a later "not a shadow" click
                 # on a painted area takes back the same with it as without it.
                 if new:
                     painted[window] = np.maximum(painted[window], cover)
-                    dropped[window] &= ~region
+                    dropped[window] &= ~full
                 continue
             changes = (painted[window] > 0) | ((found[window] > NOT_SHADOW_LEVEL)
                                                & ~dropped[window])
@@ -1202,6 +1207,15 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
     for region in added:
         union = np.where(region, 1.0, union)
     return np.where(sky, 0.0, union).astype(np.float32), dropped & ~sky
+
+
+def marked_weight(added: np.ndarray) -> np.ndarray:
+    """How much the user's "Mark shadow" counts at each pixel (float32 in [0, 1]) from
+    :func:`shadow_edit_masks`' added cover: twice the cover, at most 1, as
+    :func:`apply_edit_masks` sets the probability, so a stroke's mark is whole where it works
+    at full strength (within the brush's dashed ring) and fades with it (a review: the raw
+    cover weighed the mark at half there)."""
+    return np.clip(2.0 * np.asarray(added, np.float32), 0.0, 1.0)
 
 
 def edit_masks_at(added: np.ndarray, dropped: np.ndarray, shape: tuple[int, int]
@@ -1278,6 +1292,7 @@ __all__ = [
     "edit_luminance",
     "edit_masks_at",
     "lift_probability",
+    "marked_weight",
     "shadow_edit_masks",
     "shadow_edits_from_json",
     "shadow_edits_to_json",

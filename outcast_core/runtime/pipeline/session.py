@@ -53,6 +53,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     edit_masks_at,
     lift_probability,
     lit_surface_colour,
+    marked_weight,
     material_guard,
     near_predicted_shadow,
     original_shadow_from_photo,
@@ -768,12 +769,14 @@ class RelightSession:
             return self._lifted
 
     def _marked(self, sky: np.ndarray) -> np.ndarray | None:
-        """How much of each pixel the user marked as shadow ("Mark shadow": float32 in [0, 1],
-        a stroke's edge soft) at the size of ``sky``, off it; None without such a mark."""
+        """How much the user's "Mark shadow" counts at each pixel (float32 in [0, 1],
+        :func:`~outcast_core.runtime.pipeline.photo_shadows.marked_weight`: a stroke's edge
+        soft) at the size of ``sky``, off it; None without such a mark."""
         masks = self._edit_masks  # once: another thread's _apply_found may reset it
         if masks is None or not masks[0].any():
             return None
-        return np.where(sky, 0.0, edit_masks_at(*masks, sky.shape)[0]).astype(np.float32)
+        added = marked_weight(edit_masks_at(*masks, sky.shape)[0])
+        return np.where(sky, 0.0, added).astype(np.float32)
 
     def found_shadows_detail(self) -> dict[str, np.ndarray]:
         """The photo's own shadows found at up to :data:`DETAIL_SIDE` pixels (the photo's
@@ -1099,19 +1102,21 @@ class RelightSession:
         """What the user marked "not a shadow" (dark materials), softened by a working pixel,
         at ``shape`` (float32 in [0, 1]), where the learned relighting takes physics'
         (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`'s
-        ``physics_at``); None without such a mark. Made once per ``S_o`` and size."""
-        guards = self._lift_guards
+        ``physics_at``); None without such a mark. Made once per set of corrections and
+        size, and kept with the masks it was made from (another thread's ``_apply_found`` may
+        publish new masks before the caches it resets)."""
         masks = self._edit_masks  # once: another thread's _apply_found may reset it
-        if (guards.get("of") is not self.original_shadow or masks is None
-                or not masks[1].any()):
+        if masks is None or not masks[1].any():
             return None
         key = ("materials", tuple(shape))
-        if key not in guards:
+        kept = self._lift_guards.get(key)
+        if kept is None or kept[0] is not masks:
             held = cv2.GaussianBlur(masks[1].astype(np.float32), (0, 0), 1.0)
             if held.shape != key[1]:
                 held = np.clip(resize(held, key[1]), 0.0, 1.0)
-            guards[key] = held.astype(np.float32)
-        return guards[key]
+            kept = (masks, held.astype(np.float32))
+            self._lift_guards[key] = kept
+        return kept[1]
 
     def _lift_inputs(self, shape: tuple[int, int]) -> dict[str, Any]:
         """:func:`guard_learned_relight`'s ``lift_guard``, ``lift_base`` and ``lift_colour`` at
@@ -1165,7 +1170,8 @@ class RelightSession:
                                              LIFT_PRIOR_RADIUS))
             masks = self._edit_masks  # once: another thread's _apply_found may reset it
             if masks is not None:  # the user's word: a shadow, not a material
-                guard = (guard + masks[0] * (1.0 - guard)).astype(np.float32)
+                marked = marked_weight(masks[0])
+                guard = (guard + marked * (1.0 - guard)).astype(np.float32)
             guards["working"] = guard
         key = tuple(shape)
         if key not in guards:

@@ -532,7 +532,14 @@ def test_dabs_paint_into_the_masks_in_order() -> None:
     back = ShadowEdit(0.3, 26 / H, shadow=True, radius=0.03)
     inner = _disc((H, W), 0.3, 26 / H, 0.03 - 1 / W)
     added, dropped = shadow_edit_masks(p, img, sky, [pine, back])
-    assert added[inner].all() and not dropped[inner].any()
+    core = _disc((H, W), 0.3, 26 / H, 0.4 * 0.03)  # where the soft dab works at full strength
+    assert added[inner].all() and not dropped[core].any()
+    # Under its faint rim the drop stays and the cover fades in over it: no hard edge at full
+    # strength out to the footprint's edge (a review).
+    rim = inner & ~_disc((H, W), 0.3, 26 / H, 0.7 * 0.03)
+    assert dropped[rim].all() and added[rim].max() < 0.5
+    out, _ = apply_edit_masks(p, sky, added, dropped)
+    assert out[core].min() > 0.99 and out[rim].min() < 0.9
     assert dropped[_disc((H, W), 0.3, 26 / H, 0.05 - 1 / W) & ~_disc((H, W), 0.3, 26 / H, 0.04)
                    ].all()
     # Two strokes painted in the shadow; a "not a shadow" click on one takes that one back.
@@ -888,3 +895,23 @@ def test_the_found_shadows_shown_are_what_the_de_shadow_lifts() -> None:
     s.set_shadow_edits([ShadowEdit(*_centre(parts["shadow"]), shadow=True)])
     after = s.lifted_shadows()
     assert after[inner].mean() > before[inner].mean() + 0.3
+
+
+def test_a_mark_counts_whole_where_the_soft_brush_works_at_full_strength() -> None:
+    """The user's mark (what the de-shadow, the "Shadows found" tint and the lift's guard take
+    at the user's word) counts as the probability does: whole within about half the brush's
+    radius of the stroke's line (the dashed ring), fading beyond; the raw cover weighed it at
+    half there (a review)."""
+    s, parts = _slope_session()
+    stroke = _line(55 / W, 85 / W, 72 / H, True, 0.04)
+    s.set_shadow_edits(stroke)
+    marked = s._marked(s.sky)
+    core = np.zeros((H, W), bool)
+    for dab in stroke:
+        core |= _disc((H, W), dab.x, dab.y, 0.4 * dab.radius)
+    cover = s._edit_masks[0]
+    assert cover[core].min() < 0.99  # the raw cover is not whole there ...
+    assert marked is not None and marked[core].min() > 0.99  # ... the mark is
+    rim = (cover > 0) & (cover < 0.25)
+    assert rim.any() and marked[rim].max() < 0.5  # and fades with the brush
+    np.testing.assert_allclose(marked, np.clip(2 * cover, 0, 1), atol=1e-6)
