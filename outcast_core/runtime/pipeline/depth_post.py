@@ -288,15 +288,15 @@ SKY_FRAMED_ALIKE = 0.6
 #: ... and only when the pixels round it (off the sky) are darker than it by this factor (a
 #: median): a frame of bars, not asphalt specks under a wrongly found "sky" (a dev photo).
 SKY_FRAME_DARKER = 0.7
-#: ... and only when at most this share of the pixels round it are sky already: a frame's
-#: inside meets the sky through gaps between its bars and where the first pass stopped, a
-#: pale wall along its whole top (a review: a white wall 30 or 50 px tall under a white sky,
-#: beside darker ground, lost a second band; its share is 0.5-0.6). At 0.4 the ski slope's
-#: second pass keeps 665 of its 821 working pixels (balanced). At the fast preset its pylon
-#: head's inside is joined to the chairs' pale parts and shares more with the sky, so there
-#: the grey rectangles stay (0.5 would take them; the walls too). A pale object boxed in by
-#: darker structure on every side (a white wall under dark eaves) still passes.
-SKY_FRAME_OPEN = 0.4
+#: ... and only when it is at most this many bands squared: a frame's inside is small (the
+#: ski slope's pylon head 1.8-2.0 at the balanced and accurate presets, its chairs' 3.4-4.3);
+#: a pale wall under a white sky, boxed in by darker ground and edges, is larger (a review: a
+#: white wall 20-50 px tall lost a second band). A rule by how much of the region's rim meets
+#: the sky could not tell the two apart (the pylon head's 0.5-0.6, the walls' too). A pale
+#: object boxed in by darker structure and smaller than this can still be taken. At the fast
+#: preset the pylon head's inside is joined to the chairs' pale parts, only 53 % sky-like
+#: against the given sky, and keeps its grey rectangles.
+SKY_FRAMED_MAX = 5.0
 
 
 def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray,
@@ -312,12 +312,11 @@ def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray,
     sky's (:func:`sky_colour`) and within :data:`SKY_EDGE_TOL` of the sky's around it (a
     Gaussian average of the sky pixels, sigma the band) is sky, in :data:`SKY_EDGE_PASSES`
     passes (each from the sky grown so far, with the given sky's colour; after the first, only
-    into the sky seen through a frame: regions of sky colour that do not reach the bottom
-    edge, are sky-like as a whole, framed by darker structure and met by the sky only through
-    gaps, :data:`SKY_FRAMED_ALIKE` to :data:`SKY_FRAME_OPEN`): a dark pole, a tree or a roof
-    does not pass; a pale wall or snowfield next to a white sky can lose at most the band (a
-    pale object boxed in by darker structure on every side, within two bands of a sky of its
-    colour, two).
+    into the sky seen through a frame: small regions of sky colour that do not reach the
+    bottom edge, are sky-like as a whole and framed by darker structure,
+    :data:`SKY_FRAMED_ALIKE` to :data:`SKY_FRAMED_MAX`): a dark pole, a tree or a roof does
+    not pass; a pale wall or snowfield next to a white sky can lose at most the band (a small
+    pale object boxed in by darker structure, within two bands of a sky of its colour, two).
     Meant for the working size, as :func:`postprocess_z` runs it: its blur grows with the side
     (13 ms at 384 px, 0.3 s at 1024, seconds beyond).
 
@@ -378,7 +377,8 @@ def _grow_sky(sky: np.ndarray, img: np.ndarray, colour: np.ndarray, weight: np.n
                                                                connectivity=8)
         area = stats[:, cv2.CC_STAT_AREA]
         alike = np.bincount(labels[off & close], minlength=n)
-        seen = (alike >= SKY_FRAMED_ALIKE * np.maximum(area, 1)) & (area >= 0.5 * band * band)
+        seen = ((alike >= SKY_FRAMED_ALIKE * np.maximum(area, 1))
+                & (area >= 0.5 * band * band) & (area <= SKY_FRAMED_MAX * band * band))
         seen[labels[-1]] = False  # reaches the bottom edge: a pale ground
         seen[0] = False
         luma = img.mean(axis=2)
@@ -388,11 +388,7 @@ def _grow_sky(sky: np.ndarray, img: np.ndarray, colour: np.ndarray, weight: np.n
             box = np.s_[max(0, y - 1):min(h, y + bh + 1), max(0, x - 1):min(w, x + bw + 1)]
             region = labels[box] == k
             ring = (cv2.dilate(region.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0)
-            ring &= ~region
-            if sky[box][ring].mean() > SKY_FRAME_OPEN:  # joined to the sky: a pale wall
-                seen[k] = False
-                continue
-            ring &= ~sky[box]
+            ring &= ~region & ~sky[box]
             lum = luma[box]
             if ring.any() and np.median(lum[ring]) > SKY_FRAME_DARKER * np.median(lum[region]):
                 seen[k] = False

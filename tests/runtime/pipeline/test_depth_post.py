@@ -230,22 +230,22 @@ def test_refine_sky_edge_fills_the_sky_seen_through_a_frame_beyond_the_band(monk
     img = np.empty((h, w, 3), np.float32)
     img[:] = (0.55, 0.62, 0.78)  # an even grey-blue sky
     img[70:] = (0.25, 0.35, 0.15)  # ground
-    img[40:42, 40:120] = 0.05  # the frame: a top bar, ...
-    img[40:60, 40:42] = img[40:60, 118:120] = img[58:60, 40:120] = 0.05  # sides and bottom
+    img[40:42, 40:58] = 0.05  # the frame: a top bar, ...
+    img[40:54, 40:42] = img[40:54, 56:58] = img[52:54, 40:58] = 0.05  # sides and bottom
     truth = np.ones((h, w), bool)
     truth[70:] = False
-    truth[40:60, 40:120] &= img[40:60, 40:120, 0] > 0.1
+    truth[40:54, 40:58] &= img[40:54, 40:58, 0] > 0.1
     coarse = np.zeros((h, w), bool)
-    coarse[:36] = True  # stops 4 px above the frame: its inside is 6 to 20 px away
+    coarse[:36] = True  # stops 4 px above the frame: its inside is 6 to 14 px away
     inside = np.zeros((h, w), bool)
-    inside[42:58, 42:118] = True
+    inside[42:52, 42:56] = True  # 140 px: about 4 bands squared
     monkeypatch.setattr(sky_mod, "SKY_EDGE_PASSES", 1)
     once = refine_sky_edge(coarse, img)
     assert not once[inside].all()  # beyond the band
     monkeypatch.setattr(sky_mod, "SKY_EDGE_PASSES", 2)
     out = refine_sky_edge(coarse, img)
     # The first pass grows the sky to the bar (row 39), the second a band past it.
-    assert out[42:40 + band, 42:118].all() and not (out & ~truth).any()
+    assert out[42:40 + band, 42:56].all() and not (out & ~truth).any()
     assert out[inside].mean() > once[inside].mean()
     # Boxed in by a pale beige "frame" as bright as it, not by darker bars: not sky seen
     # through a frame (asphalt specks under a wrongly found sky, a pale fuselage).
@@ -254,11 +254,11 @@ def test_refine_sky_edge_fills_the_sky_seen_through_a_frame_beyond_the_band(monk
     assert not (refine_sky_edge(coarse, pale) & inside & ~once).any()
     # A pale object that matches the sky in spots only (a grey fuselage): not sky as a whole.
     spotted = img.copy()
-    spotted[42:58, 42:118] = (0.42, 0.52, 0.92)  # a sky's colour, not this sky's ...
-    spotted[42:46, 42:60] = (0.55, 0.62, 0.78)  # ... but for a patch of it
+    spotted[42:52, 42:56] = (0.42, 0.52, 0.92)  # a sky's colour, not this sky's ...
+    spotted[42:46, 42:48] = (0.55, 0.62, 0.78)  # ... but for a patch of it
     assert not (refine_sky_edge(coarse, spotted) & inside & ~once).any()
     # A white wall under a white sky, beside darker ground (not reaching the bottom edge): the
-    # first pass takes a band of it, the second no more (it meets the sky along its top).
+    # first pass takes a band of it, the second no more (larger than a frame's inside).
     wall_img = np.full((h, w, 3), 0.92, np.float32)
     wall_img[70:] = (0.35, 0.3, 0.25)
     wall_img[40:70, 60:140] = 0.9
