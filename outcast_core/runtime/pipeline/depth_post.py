@@ -293,9 +293,7 @@ SKY_FRAME_DARKER = 0.7
 #: a pale wall under a white sky, boxed in by darker ground and edges, is larger (a review: a
 #: white wall 20-50 px tall lost a second band). A rule by how much of the region's rim meets
 #: the sky could not tell the two apart (the pylon head's 0.5-0.6, the walls' too). A pale
-#: object boxed in by darker structure and smaller than this can still be taken. At the fast
-#: preset the pylon head's inside is joined to the chairs' pale parts, only 53 % sky-like
-#: against the given sky, and keeps its grey rectangles.
+#: object boxed in by darker structure and smaller than this can still be taken.
 SKY_FRAMED_MAX = 5.0
 
 
