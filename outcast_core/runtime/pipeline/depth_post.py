@@ -332,26 +332,27 @@ def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray,
     if img.shape[:2] != sky.shape:
         raise ValueError(f"expected a sky mask of the image's size {img.shape[:2]}, got "
                          f"{sky.shape}")
-    if round(SKY_EDGE_BAND * max(sky.shape)) < 1 or not sky.any() or sky.all():
+    band = round(SKY_EDGE_BAND * max(sky.shape))
+    if band < 1 or not sky.any() or sky.all():
         return sky
     colour = sky_colour(img, greyscale)
-    weight, local = _local_sky(sky, img)
+    weight, local = _local_sky(sky, img, band)
     grown = sky
     for k in range(SKY_EDGE_PASSES):
-        more = _grow_sky(grown, img, colour, weight, local, framed=k > 0)
+        more = _grow_sky(grown, img, colour, weight, local, band, framed=k > 0)
         if more is grown:
             break
         grown = more
     return grown
 
 
-def _local_sky(sky: np.ndarray, img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _local_sky(sky: np.ndarray, img: np.ndarray, band: int) -> tuple[np.ndarray, np.ndarray]:
     """The sky's presence round each pixel and its mean colour there (a Gaussian of the sky's
-    pixels, sigma :data:`SKY_EDGE_BAND` of the longer side); every pass of
+    pixels, sigma the band, in pixels); every pass of
     :func:`refine_sky_edge` compares with the sky it was given, not with the sky grown so far
     (whose colour drifted toward a pale object it took: an aircraft's grey fuselage, grown
     into from its tail fin on a dev photo)."""
-    sigma = float(max(1, round(SKY_EDGE_BAND * max(sky.shape))))
+    sigma = float(band)
     weight = cv2.GaussianBlur(sky.astype(np.float32), (0, 0), sigma)
     local = cv2.GaussianBlur(img * sky[..., None], (0, 0), sigma) / np.maximum(weight, 1e-6)[
         ..., None]
@@ -359,14 +360,11 @@ def _local_sky(sky: np.ndarray, img: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def _grow_sky(sky: np.ndarray, img: np.ndarray, colour: np.ndarray, weight: np.ndarray,
-              local: np.ndarray, framed: bool) -> np.ndarray:
+              local: np.ndarray, band: int, framed: bool) -> np.ndarray:
     """One pass of :func:`refine_sky_edge` (``colour``: :func:`sky_colour` of ``img``;
     ``weight``, ``local``: :func:`_local_sky`; ``framed``: only into sky-coloured regions off
     the sky that do not reach the bottom edge and are :data:`SKY_FRAMED_ALIKE` sky-like); the
     same array when nothing grows."""
-    band = round(SKY_EDGE_BAND * max(sky.shape))
-    if band < 1 or not sky.any() or sky.all():
-        return sky
     close = (np.abs(img - local).max(axis=2) < SKY_EDGE_TOL) & (weight > 1e-3)
     candidate = close & colour & ~sky
     if framed and candidate.any():  # whole regions of sky colour, boxed in, sky as a whole

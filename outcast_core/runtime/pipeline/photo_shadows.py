@@ -1147,7 +1147,7 @@ def shadow_edit_masks(probability: np.ndarray, image_srgb: np.ndarray, sky: np.n
                 # back what was dropped; under its faint rim the drop stays, and the cover
                 # fades in over it (a review: the rim restored the found shadow at full
                 # strength out to the footprint's edge).
-                full = cover >= 0.5
+                full = marked_weight(cover) >= 1.0
                 have = painted[window].copy()  # what the user added there already
                 for clicked in added:
                     have[clicked[window]] = 1.0
@@ -1277,8 +1277,7 @@ def apply_edit_masks(probability: np.ndarray, sky: np.ndarray, added: np.ndarray
         soft = cv2.GaussianBlur(grown, (0, 0), sigma)
         p = p * (1.0 - np.clip(2.0 * soft, 0.0, 1.0))
     if added.any():
-        soft = cv2.GaussianBlur(added, (0, 0), sigma)
-        p = np.maximum(p, np.clip(2.0 * soft, 0.0, 1.0))
+        p = np.maximum(p, marked_weight(cv2.GaussianBlur(added, (0, 0), sigma)))
     return np.where(sky, 0.0, p).astype(np.float32), (dropped > 0.5) & ~sky
 
 
