@@ -1666,14 +1666,13 @@ class MainWindow(QMainWindow):
         if not new or rp.view() != "shadows_removed" or rect.width() <= 0:
             return False
         reach = max(rect.width(), rect.height()) / rect.width()  # radius -> width fraction
-        split = rp.split_slider.value() / 100.0
-        if max(e.x + e.radius * reach for e in new) >= split:
-            return False
+        right = max(e.x + e.radius * reach for e in new)
         left = min(e.x - e.radius * reach for e in new) - SPLIT_MARGIN
         value = max(round(100.0 * SPLIT_LEAST), math.floor(100.0 * left))
-        right = max(e.x + e.radius * reach for e in new)
-        if value >= rp.split_slider.value() or right <= value / 100.0:
-            return False  # (wholly left of SPLIT_LEAST: moving would not show it either)
+        # Not when it reaches the de-shadowed side, nor when it lies wholly left of
+        # SPLIT_LEAST (moving would not show it either).
+        if right >= rp.split_slider.value() / 100.0 or right <= value / 100.0:
+            return False
         rp.split_slider.setValue(value)
         return True
 
