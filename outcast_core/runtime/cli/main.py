@@ -20,11 +20,14 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 import numpy as np
 
 from outcast_core.runtime.geometry.camera import normalize_sun, sun_vector
+
+if TYPE_CHECKING:  # the runtime commands import the session only when they run
+    from outcast_core.runtime.pipeline.session import RelightSession
 
 #: Optional command groups: (module, function adding sub-commands). Missing ones are skipped.
 OPTIONAL_COMMANDS: list[tuple[str, str]] = [
@@ -366,11 +369,39 @@ def cmd_relight(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_deshadow(args: argparse.Namespace) -> int:
-    import numpy as np
+def lifted_shadows_full(session: RelightSession) -> np.ndarray:
+    """How much :meth:`~outcast_core.runtime.pipeline.session.RelightSession.deshadow_full`
+    lifts each pixel as shadow, at the photo's full size (``H x W`` float32 in [0, 1]): what
+    ``deshadow --mask`` writes, and the quantity the app's "Shadows found" view tints
+    (:meth:`~outcast_core.runtime.pipeline.session.RelightSession.lifted_shadows`).
 
-    from outcast_core.runtime.io.imageio import output_bit_depth, write_image, write_shadow_png
+    It is :func:`~outcast_core.runtime.pipeline.photo_shadows.lift_probability` at
+    :meth:`~outcast_core.runtime.pipeline.session.RelightSession.found_shadows_detail`'s
+    size, where ``deshadow_full`` lifts the shadows (the session's own ``lifted_shadows`` for a
+    photo found at the working size), upsampled bilinearly to the photo's size, as the lift's
+    gain is. The bare found probability it replaces also held what the lift leaves alone (fine
+    dark texture, dark materials of another colour).
+
+    Needs ``set_original_sun``.
+    """
+    from outcast_core.runtime.pipeline.photo_shadows import lift_probability
     from outcast_core.runtime.pipeline.session import resize
+
+    d = session.found_shadows_detail()
+    if d["image"] is session.image_srgb:  # found at the working size: lifted there already
+        lifted = session.lifted_shadows()
+    else:
+        lifted = lift_probability(d["image"], d["probability"], d["excluded"],
+                                  marked=d["marked"])
+    full = session.full_image_srgb
+    assert full is not None
+    if lifted.shape != full.shape[:2]:
+        lifted = resize(lifted, full.shape[:2])
+    return np.clip(lifted, 0.0, 1.0).astype(np.float32)
+
+
+def cmd_deshadow(args: argparse.Namespace) -> int:
+    from outcast_core.runtime.io.imageio import output_bit_depth, write_image, write_shadow_png
 
     w_from = parse_azel(args.from_sun)
     if args.mask:  # the main output is checked before the work by _check_output
@@ -386,19 +417,15 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     write_image(args.output, out, bit_depth=bit_depth, force=args.force,
                 exif=loaded.exif_bytes)
-    if args.mask:  # where the shadows were found, at the photo's size
-        prob = session.found_shadows_detail()["probability"]
-        full_hw = session.full_image_srgb.shape[:2]
-        if prob.shape != full_hw:
-            prob = np.clip(resize(prob, full_hw), 0.0, 1.0)
-        write_shadow_png(args.mask, prob, force=args.force)
+    if args.mask:  # what the de-shadow lifted, at the photo's size
+        write_shadow_png(args.mask, lifted_shadows_full(session), force=args.force)
     t = session.timings
     _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; {corrections}shadows "
                f"found at the photo's sun with {session.shadow_mode} S as the prior, depth: "
                f"{session.depth_source}; " + ", ".join(f"{k} {v:.2f}s" for k, v in t.items())
          + ")")
     if args.mask:
-        _say(args, f"wrote {args.mask} (where the shadows were found: a 16-bit grey PNG, "
+        _say(args, f"wrote {args.mask} (the shadows lifted: a 16-bit grey PNG, "
                    "65535 = shadow)")
     return 0
 
@@ -509,8 +536,9 @@ def build_parser(
     p.add_argument("image")
     p.add_argument("--from", dest="from_sun", required=True, metavar="AZ,EL",
                    help="the photo's sun (the shadows are found where it can cast them)")
-    p.add_argument("--mask", default="",
-                   help="also write the found shadows as a 16-bit grey PNG (white = shadow)")
+    p.add_argument("--mask", default="", metavar="MASK.png",
+                   help="also write the shadows it lifted (as the app's \"Shadows found\" "
+                        "shows them) as a 16-bit grey PNG at the photo's size (white = shadow)")
     add_shadow_edit_options(p)
     _add_common(p)
     p.set_defaults(func=cmd_deshadow)

@@ -199,7 +199,60 @@ def test_cli_deshadow(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     assert "exists" in capsys.readouterr().err
     assert main([a for a in args if a != "-q"] + ["--force"]) == 0
     said = capsys.readouterr().err
-    assert f"wrote {out} (" in said and f"wrote {mask} (where the shadows were found" in said
+    assert f"wrote {out} (" in said and f"wrote {mask} (the shadows lifted" in said
+
+
+def _furrows(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An ``n x n`` photo of warm ground with thin dark furrows (texture, which the lift leaves
+    alone though the photometric stage finds them as shadow) and a wide cast shadow; the
+    furrows' and the shadow's masks."""
+    img = np.full((n, n, 3), 0.6, np.float32) * np.array([1.0, 0.95, 0.85], np.float32)
+    furrows, wide = np.zeros((n, n), bool), np.zeros((n, n), bool)
+    for x0 in range(0, 2 * n // 5, 10):
+        furrows[: n // 2, x0:x0 + 2] = True
+    wide[3 * n // 5:, 3 * n // 5:] = True
+    img[furrows | wide] *= 0.35
+    return img, furrows, wide
+
+
+@pytest.mark.parametrize("n, detail_side", [(200, 1024), (400, 1024), (400, 200)])
+def test_cli_deshadow_mask_is_what_the_de_shadow_lifts(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, n: int, detail_side: int
+) -> None:
+    """``deshadow --mask`` writes what the de-shadow lifts (``lift_probability``: the app's
+    "Shadows found" tint), not the bare found probability, which also holds the furrows the
+    lift leaves dark: the session's own ``lifted_shadows`` for a photo found at the working
+    size (200 px, fast), ``lift_probability`` at ``found_shadows_detail``'s size otherwise,
+    upsampled bilinearly to the photo's size (``DETAIL_SIDE`` 200 for a 400 px photo)."""
+    from outcast_core.runtime.cli.main import parse_azel
+    from outcast_core.runtime.pipeline import session as session_module
+
+    monkeypatch.setattr(session_module, "DETAIL_SIDE", detail_side)
+    img, furrows, wide = _furrows(n)
+    depth = np.full((n, n), 10.0, np.float32)
+    photo, dpath, out, mask = (tmp_path / k for k in ("p.png", "d.npy", "o.png", "m.png"))
+    write_image(photo, img)
+    write_depth(dpath, depth)
+    assert main(["deshadow", str(photo), "--from", "45,35", "--depth", str(dpath), "--preset",
+                 "fast", "-o", str(out), "--mask", str(mask), "-q"]) == 0
+    written = read_shadow_png(mask)
+    assert written.shape == (n, n)
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(read_image(photo).image_srgb, depth=depth)
+    s.set_original_sun(parse_azel("45,35"))
+    d = s.found_shadows_detail()
+    if n == 200:  # found and lifted at the working size: exactly what the app tints
+        assert d["image"] is s.image_srgb
+        expected = s.lifted_shadows()
+    else:
+        assert d["image"].shape[:2] == (detail_side * n // max(n, detail_side),) * 2
+        expected = ps.lift_probability(d["image"], d["probability"], d["excluded"],
+                                       marked=d["marked"])
+        expected = cv2.resize(expected, (n, n), interpolation=cv2.INTER_LINEAR)
+    np.testing.assert_allclose(written, expected, atol=1e-4)  # 16-bit quantisation
+    found = cv2.resize(d["probability"], (n, n), interpolation=cv2.INTER_LINEAR)
+    assert written[furrows].mean() < 0.75 * found[furrows].mean()  # the furrows: not lifted
+    assert written[wide].mean() > 0.9  # the wide shadow: lifted
 
 
 def test_deshadow_keeps_black_things_in_the_shade_black() -> None:
