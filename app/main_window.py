@@ -26,6 +26,7 @@ channels dropped.
 from __future__ import annotations
 
 import functools
+import html
 import math
 import os
 import time
@@ -36,7 +37,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from PySide6.QtCore import QEvent, QEventLoop, QObject, QSettings, Qt, Slot
+from PySide6.QtCore import QEvent, QEventLoop, QObject, QPoint, QSettings, Qt, Slot
 from PySide6.QtGui import (
     QAction,
     QCloseEvent,
@@ -65,6 +66,9 @@ from PySide6.QtWidgets import (
     QSizePolicy,
     QSplitter,
     QStackedWidget,
+    QStyle,
+    QToolButton,
+    QToolTip,
     QVBoxLayout,
     QWidget,
 )
@@ -300,6 +304,9 @@ class MainWindow(QMainWindow):
         # the photo just opened: what was found in it must not flash by).
         self._held_message = ""
         self._load_notice = ""  # the warning above the photo after loading (file, depth)
+        #: What the command line says of the photo's file (photo_file_notes), kept for the
+        #: status bar's "Photo notes" in every step.
+        self._file_notes: list[str] = []
         self.timings = StageTimings()
         self.recent = RecentFiles([str(p) for p in (self.settings.value("recent", []) or [])])
         self.last_error: str = ""
@@ -562,10 +569,24 @@ class MainWindow(QMainWindow):
         self.mode_label = QLabel("", self)
         self.zoom_label = QLabel("", self)
         self.zoom_label.setToolTip("Zoom (Ctrl+0 fits, Ctrl+1 shows actual pixels)")
+        # What the photo's file and EXIF say (transparency filled, a strip's shape, what the
+        # EXIF gives of the sun): step 1's notice says it above the photo, but a project opens
+        # straight into step 2, where it was in the status bar for a moment only. Kept here,
+        # small, in every step; hovering or clicking shows the notes.
+        self.photo_notes_button = QToolButton(self)
+        self.photo_notes_button.setText("Photo notes")
+        self.photo_notes_button.setIcon(
+            self.style().standardIcon(QStyle.StandardPixmap.SP_MessageBoxInformation))
+        self.photo_notes_button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
+        self.photo_notes_button.setAutoRaise(True)
+        self.photo_notes_button.setAccessibleName("Photo notes")
+        self.photo_notes_button.clicked.connect(self.show_photo_notes)
+        self.photo_notes_button.hide()
         self.canvas.zoom_changed.connect(lambda z: self.zoom_label.setText(f"{z * 100:.0f} %"))
         sb = self.statusBar()
         sb.addWidget(self.stage_label, 1)
         sb.addWidget(self.progress_bar)
+        sb.addPermanentWidget(self.photo_notes_button)
         sb.addPermanentWidget(self.timings_label)
         sb.addPermanentWidget(self.mode_label)
         sb.addPermanentWidget(self.zoom_label)
@@ -661,6 +682,7 @@ class MainWindow(QMainWindow):
         self.act_confirm.setEnabled(step is Step.ALIGN)
         self.act_find_sun.setEnabled(step is Step.ALIGN)
         self._update_shadow_tools()
+        self._update_photo_notes()
         if step is Step.RELIGHT:
             self.canvas.set_overlay(None)
             self._on_split_changed(self.relight_panel.split_slider.value())
@@ -975,7 +997,7 @@ class MainWindow(QMainWindow):
             notice = f"{note[:1].upper()}{note[1:]}. " + notice
         # What the command line says of the file as it reads it (a user trial opened a PNG
         # with transparency and was not told it was filled with white).
-        file_notes = photo_file_notes(result.get("loaded"))
+        file_notes = self._file_notes = photo_file_notes(result.get("loaded"))
         if file_notes:
             notice = " ".join(file_notes) + " " + notice
         saved = project_path_for(self.image_path)
@@ -1055,7 +1077,8 @@ class MainWindow(QMainWindow):
             opened += (f" · sun elevation {ring_sun[1]:.1f}° from its time and place"
                        f"{f' for a {tilt}' if tilt else ''}; no compass heading: turn the sun "
                        "around the ring until the shadows fit")
-        if restore is None:  # said once, as the photo is opened (the notice keeps it)
+        if restore is None:  # said once, as the photo is opened (the notice and the status
+            # bar's "Photo notes" keep it)
             opened += "".join(f" · {note[:1].lower()}{note[1:].rstrip('.')}"
                               for note in file_notes)
         self.stage_label.setText(opened)
@@ -1129,8 +1152,10 @@ class MainWindow(QMainWindow):
         exif = getattr(self.loaded, "exif", None)
         return exif_sun_prior(exif, heading=self.user_heading) if exif is not None else None
 
-    def exif_note(self) -> str:
-        """Why the EXIF button is greyed out, or what the EXIF gives without a heading."""
+    def exif_note(self, heading_box: str = "below") -> str:
+        """Why the EXIF button is greyed out, or what the EXIF gives without a heading;
+        ``heading_box``: where the camera heading box is, as the note says it (under the
+        button: "below")."""
         from outcast_core.runtime.pipeline import timelapse as tl
 
         exif = getattr(self.loaded, "exif", None)
@@ -1151,7 +1176,7 @@ class MainWindow(QMainWindow):
             above = " above the true horizon" if self.tilt_note() else ""
             return (f"No compass heading in the photo's EXIF: Find sun uses the elevation "
                     f"{el:.0f}°{above} from the photo's time and place. Type the camera heading "
-                    "below for the full sun.")
+                    f"{heading_box} for the full sun.")
         seen, typed = self.seen_heading, self.user_heading
         if seen is not None and typed is not None and abs(seen - typed) < 0.05:
             recorded = self._exif_heading()
@@ -1166,12 +1191,48 @@ class MainWindow(QMainWindow):
         self.align_panel.sun_panel.dial.set_prior_elevation(
             None if prior is None else prior.elevation)
         self.align_panel.set_exif_note(self.exif_note())
-        exif = getattr(self.loaded, "exif", None)
-        has_place = exif is not None and getattr(exif, "has_gps", False) and getattr(
-            exif, "capture_time", None) is not None
         # A heading only helps with a time and a place. One recorded in the EXIF is shown and
         # may be corrected (phone compasses are often tens of degrees off).
-        self.align_panel.heading_box.setEnabled(bool(has_place))
+        self.align_panel.heading_box.setEnabled(self._exif_has_place())
+        self._update_photo_notes()
+
+    def _exif_has_place(self) -> bool:
+        """Whether the photo's EXIF records its GPS position and capture time."""
+        exif = getattr(self.loaded, "exif", None)
+        return bool(exif is not None and getattr(exif, "has_gps", False)
+                    and getattr(exif, "capture_time", None) is not None)
+
+    def photo_notes(self) -> list[str]:
+        """What the photo's file and EXIF say, as sentences, for the status bar's "Photo notes"
+        (every step; empty without a photo): :func:`photo_file_notes`, then :meth:`exif_note`
+        (also under step 1's EXIF button) for an EXIF with a time and place: what it gives
+        of the sun (no compass heading, a capture time at night, the heading from the sun in
+        the frame). Without them the note only says why step 1's EXIF button is grey, true
+        of most photos: "Photo notes" would never go away."""
+        if self.step is Step.EMPTY:
+            return []
+        exif = self.exif_note(heading_box="in step 1") if self._exif_has_place() else ""
+        return [*self._file_notes, *([exif] if exif else [])]
+
+    def _update_photo_notes(self) -> None:
+        """The status bar's "Photo notes": shown with any, which its tooltip holds; a warning
+        sign for what the file's reading changed (transparency, a strip's shape), else an
+        information sign."""
+        notes = self.photo_notes()
+        button = self.photo_notes_button
+        button.setToolTip(photo_notes_html(notes))
+        sign = (QStyle.StandardPixmap.SP_MessageBoxWarning if self._file_notes
+                else QStyle.StandardPixmap.SP_MessageBoxInformation)
+        button.setIcon(self.style().standardIcon(sign))
+        button.setAccessibleDescription(" ".join(notes))
+        button.setVisible(bool(notes))
+
+    def show_photo_notes(self) -> None:
+        """Show the photo's notes by the status bar's "Photo notes" (its click: the tooltip,
+        without hovering)."""
+        button = self.photo_notes_button
+        if button.toolTip():
+            QToolTip.showText(button.mapToGlobal(QPoint(0, 0)), button.toolTip(), button)
 
     def _heading_from_seen_sun(self, azimuth: float, elevation: float) -> float | None:
         """The compass heading the sun in the frame implies with the photo's GPS and time, put
@@ -2531,6 +2592,20 @@ def photo_file_notes(loaded: Any) -> list[str]:
     if long_note:  # a panorama strip: the depth sees a few rows of it
         notes.append(f"{long_note[:1].upper()}{long_note[1:]}.")
     return notes
+
+
+def photo_notes_html(notes: list[str]) -> str:
+    """The status bar's "Photo notes" tooltip: a title and one paragraph a note (rich text, so
+    Qt wraps the long ones); "" without notes.
+
+    Example:
+        >>> photo_notes_html(["A < B."])
+        '<p><b>About this photo</b></p><p>A &lt; B.</p>'
+    """
+    if not notes:
+        return ""
+    return "<p><b>About this photo</b></p>" + "".join(f"<p>{html.escape(n, quote=False)}</p>"
+                                                   for n in notes)
 
 
 def exposure_hint(level: float | None) -> str:

@@ -742,6 +742,68 @@ def test_transparency_and_a_strip_shape_are_said_as_the_cli_says(window, settle,
         assert QApplication.activeModalWidget() is None
 
 
+def _project_in_step_2(image: Path) -> str:
+    """A project of ``image`` with its sun confirmed: it opens straight into step 2."""
+    from app.state import ProjectState, save_project
+
+    state = ProjectState(image_path=str(image), preset="fast", original_sun=Sun(135.0, 40.0),
+                         target_sun=Sun(220.0, 30.0))
+    return str(save_project(state, project_path_for(str(image))))
+
+
+def test_a_project_opened_in_step_2_keeps_the_photos_notes_at_hand(window, settle, tmp_path,
+                                                                    qtbot):
+    """A project opens straight into step 2, which hides step 1's notice: what the photo's file
+    and EXIF say (transparency filled with white, no compass heading) was in the status bar for
+    a moment only. The status bar's "Photo notes" keeps it, in its tooltip, in every step;
+    a click shows it without hovering; a photo with nothing to say has none."""
+    from PySide6.QtWidgets import QApplication, QToolTip
+
+    rgba = np.zeros((96, 128, 4), np.uint8)
+    rgba[..., :3] = (90, 140, 70)
+    rgba[..., 3] = 255
+    rgba[:30, :, 3] = 0  # a cut-out sky
+    cutout = tmp_path / "cutout.png"
+    Image.fromarray(rgba, "RGBA").save(cutout)
+    said = "The photo has transparency; it is filled with white"
+    notes = window.photo_notes_button
+    assert not notes.isVisibleTo(window)  # no photo
+    window.open_path(_project_in_step_2(cutout))
+    settle()
+    assert window.step is Step.RELIGHT
+    assert not window.align_panel.notice.isVisibleTo(window)  # step 1's, hidden
+    assert notes.isVisibleTo(window) and not notes.visibleRegion().isEmpty()
+    assert said in notes.toolTip() and said in notes.accessibleDescription()
+    assert window.photo_notes() == window._file_notes  # no time and place in the PNG
+    notes.click()
+    qtbot.waitUntil(QToolTip.isVisible, timeout=5000)
+    assert said in QToolTip.text()
+    QToolTip.hideText()
+    window.back_to_align()  # in step 1 too, beside the notice
+    settle()
+    assert notes.isVisibleTo(window) and said in notes.toolTip()
+    assert QApplication.activeModalWidget() is None
+
+    # The EXIF's note (under step 1's EXIF button) too, saying where the heading box is.
+    field = Path(__file__).resolve().parents[2] / "samples" / "exif_001_cz_fieldpath.jpg"
+    photo = tmp_path / field.name
+    photo.write_bytes(field.read_bytes())
+    window.open_path(_project_in_step_2(photo))
+    settle()
+    assert window.step is Step.RELIGHT
+    tip = notes.toolTip()
+    assert notes.isVisibleTo(window) and said not in tip  # the last photo's are gone
+    assert "No compass heading in the photo" in tip and "camera heading in step 1" in tip
+    assert "below" not in tip and len(window.photo_notes()) == 1
+    assert "heading below" in window.align_panel.exif_note.text()  # step 1's, under the button
+
+    plain = tmp_path / "plain.png"  # nothing to say: no "Photo notes" (not even the EXIF's
+    Image.fromarray(rgba[..., :3]).save(plain)  # "no GPS position", true of most photos)
+    window.open_path(_project_in_step_2(plain))
+    settle()
+    assert window.step is Step.RELIGHT and not notes.isVisibleTo(window)
+
+
 def test_step_1s_notice_shows_above_the_photo_in_step_1_only(window, photo, settle):
     """The notice sits above the photo (as wide as the canvas, not in the narrow panel) and
     goes with step 1's panel."""
