@@ -7,7 +7,9 @@ Layers, painted in order (each a small overridable step):
 3. ``after``: step 2's relit image, drawn right of the split line (or everywhere without split).
 
 All layers are drawn into the same rectangle, whatever their own resolution, so a working-size
-relit image lines up with the full-size photo. Wheel zooms about the cursor, dragging pans,
+relit image lines up with the full-size photo; a side of it shown thinner than
+``MIN_SHOWN_PX`` is stretched to that, so a strip-shaped photo stays visible (the zoom is
+otherwise the same across and down). Wheel zooms about the cursor, dragging pans,
 double-click fits the image to the window. With a click tool on (:meth:`ImageCanvas.set_click_tool`,
 step 2's shadow corrections) a click on the image (press and release without dragging) emits
 :attr:`ImageCanvas.image_clicked`, and a drag that starts on the image paints a brush stroke
@@ -40,6 +42,25 @@ from PySide6.QtWidgets import QApplication, QSizePolicy, QWidget
 
 MIN_ZOOM = 0.02
 MAX_ZOOM = 16.0
+#: The fewest widget pixels an image is shown across either side: a thinner one is stretched
+#: across its short side to this (a 1 x 4000 photo fitted at 19 % was a fifth of a pixel wide,
+#: invisible); any image at least this wide and high at the zoom keeps its aspect.
+MIN_SHOWN_PX = 8.0
+
+
+def shown_scale(zoom: float, width: int, height: int) -> tuple[float, float]:
+    """Widget pixels per image pixel across and down for an image of ``width x height`` at
+    ``zoom``: the zoom on both, except on a side shown thinner than :data:`MIN_SHOWN_PX`, which
+    is stretched to it.
+
+    Example:
+        >>> shown_scale(0.19, 4000, 3000)
+        (0.19, 0.19)
+        >>> shown_scale(0.19, 1, 4000)
+        (8.0, 0.19)
+    """
+    return (max(zoom, min(MIN_SHOWN_PX / max(width, 1), MAX_ZOOM)),
+            max(zoom, min(MIN_SHOWN_PX / max(height, 1), MAX_ZOOM)))
 
 
 def qimage_from_array(array: np.ndarray) -> QImage:
@@ -241,7 +262,7 @@ class ImageCanvas(QWidget):
 
     def _brush_rect(self, centre: QPointF) -> QRectF:
         """The widget area the brush's circle at ``centre`` covers."""
-        r = self.brush_pixels() * self._zoom + 3.0
+        r = self.brush_pixels() * max(self.scale()) + 3.0
         return QRectF(centre.x() - r, centre.y() - r, 2 * r, 2 * r)
 
     def _move_hover(self, pos: QPointF | None) -> None:
@@ -257,6 +278,13 @@ class ImageCanvas(QWidget):
     def zoom(self) -> float:
         return self._zoom
 
+    def scale(self) -> tuple[float, float]:
+        """Widget pixels per image pixel across and down (:func:`shown_scale`): the zoom, but
+        for a side of the image shown thinner than :data:`MIN_SHOWN_PX`."""
+        if self._before is None or self._before.isNull():
+            return self._zoom, self._zoom
+        return shown_scale(self._zoom, self._before.width(), self._before.height())
+
     def fit(self) -> None:
         """Fit the whole image in the widget."""
         self._fit = True
@@ -266,9 +294,8 @@ class ImageCanvas(QWidget):
         margin = 8.0
         z = min((self.width() - 2 * margin) / iw, (self.height() - 2 * margin) / ih)
         self._zoom = float(min(MAX_ZOOM, max(MIN_ZOOM, z)))
-        self._offset = QPointF(
-            (self.width() - iw * self._zoom) / 2, (self.height() - ih * self._zoom) / 2
-        )
+        sx, sy = self.scale()
+        self._offset = QPointF((self.width() - iw * sx) / 2, (self.height() - ih * sy) / 2)
         self.zoom_changed.emit(self._zoom)
         self.update()
 
@@ -279,9 +306,10 @@ class ImageCanvas(QWidget):
         zoom = float(min(MAX_ZOOM, max(MIN_ZOOM, zoom)))
         if anchor is None:
             anchor = QPointF(self.width() / 2.0, self.height() / 2.0)
-        img_pt = (anchor - self._offset) / self._zoom
+        img_pt = self.widget_to_image(anchor)
         self._zoom = zoom
-        self._offset = anchor - img_pt * zoom
+        sx, sy = self.scale()
+        self._offset = anchor - QPointF(img_pt.x() * sx, img_pt.y() * sy)
         self._fit = False
         self.zoom_changed.emit(self._zoom)
         self.update()
@@ -290,15 +318,22 @@ class ImageCanvas(QWidget):
         """Where the image lies in widget coordinates."""
         if self._before is None:
             return QRectF()
+        sx, sy = self.scale()
         return QRectF(
             self._offset.x(),
             self._offset.y(),
-            self._before.width() * self._zoom,
-            self._before.height() * self._zoom,
+            self._before.width() * sx,
+            self._before.height() * sy,
         )
 
     def widget_to_image(self, pos: QPointF) -> QPointF:
-        return (pos - self._offset) / self._zoom
+        sx, sy = self.scale()
+        d = pos - self._offset
+        return QPointF(d.x() / sx, d.y() / sy)
+
+    def image_to_widget(self, pt: QPointF) -> QPointF:
+        sx, sy = self.scale()
+        return self._offset + QPointF(pt.x() * sx, pt.y() * sy)
 
     # ------------------------------------------------------------------ painting
     def paintEvent(self, event: QPaintEvent) -> None:
@@ -380,7 +415,7 @@ class ImageCanvas(QWidget):
         if self._stroke is not None:
             p.save()
             p.translate(self._offset)
-            p.scale(self._zoom, self._zoom)
+            p.scale(*self.scale())
             colour = QColor(self._brush_colour)
             colour.setAlpha(110)
             pen = QPen(colour, 2.0 * self.brush_pixels(self._stroke_brush),
@@ -564,8 +599,8 @@ class ImageCanvas(QWidget):
             self._stroke_path.lineTo(point)
             self._stroke_last = QPointF(point)
             # Repaint only round the new piece of the path (the mouse moves often).
-            pad = radius * self._zoom + 3.0
-            a, b = self._offset + start * self._zoom, self._offset + point * self._zoom
+            pad = radius * max(self.scale()) + 3.0
+            a, b = self.image_to_widget(start), self.image_to_widget(point)
             self.update(QRectF(a, b).normalized().adjusted(-pad, -pad, pad, pad).toAlignedRect())
         if last and self._stroke_carry > 0:
             self._stroke.append(QPointF(point))
