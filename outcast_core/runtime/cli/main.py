@@ -20,14 +20,11 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, NoReturn
+from typing import NoReturn
 
 import numpy as np
 
 from outcast_core.runtime.geometry.camera import normalize_sun, sun_vector
-
-if TYPE_CHECKING:  # the runtime commands import the session only when they run
-    from outcast_core.runtime.pipeline.session import RelightSession
 
 #: Optional command groups: (module, function adding sub-commands). Missing ones are skipped.
 OPTIONAL_COMMANDS: list[tuple[str, str]] = [
@@ -369,37 +366,6 @@ def cmd_relight(args: argparse.Namespace) -> int:
     return 0
 
 
-def lifted_shadows_full(session: RelightSession) -> np.ndarray:
-    """How much :meth:`~outcast_core.runtime.pipeline.session.RelightSession.deshadow_full`
-    lifts each pixel as shadow, at the photo's full size (``H x W`` float32 in [0, 1]): what
-    ``deshadow --mask`` writes, and the quantity the app's "Shadows found" view tints
-    (:meth:`~outcast_core.runtime.pipeline.session.RelightSession.lifted_shadows`).
-
-    It is :func:`~outcast_core.runtime.pipeline.photo_shadows.lift_probability` at
-    :meth:`~outcast_core.runtime.pipeline.session.RelightSession.found_shadows_detail`'s
-    size, where ``deshadow_full`` lifts the shadows (the session's own ``lifted_shadows`` for a
-    photo found at the working size), upsampled bilinearly to the photo's size, as the lift's
-    gain is. The bare found probability it replaces also held what the lift leaves alone (fine
-    dark texture, dark materials of another colour).
-
-    Needs ``set_original_sun``.
-    """
-    from outcast_core.runtime.pipeline.photo_shadows import lift_probability
-    from outcast_core.runtime.pipeline.session import resize
-
-    d = session.found_shadows_detail()
-    if d["image"] is session.image_srgb:  # found at the working size: lifted there already
-        lifted = session.lifted_shadows()
-    else:
-        lifted = lift_probability(d["image"], d["probability"], d["excluded"],
-                                  marked=d["marked"])
-    full = session.full_image_srgb
-    assert full is not None
-    if lifted.shape != full.shape[:2]:
-        lifted = resize(lifted, full.shape[:2])
-    return np.clip(lifted, 0.0, 1.0).astype(np.float32)
-
-
 def cmd_deshadow(args: argparse.Namespace) -> int:
     from outcast_core.runtime.io.imageio import output_bit_depth, write_image, write_shadow_png
 
@@ -418,7 +384,7 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     write_image(args.output, out, bit_depth=bit_depth, force=args.force,
                 exif=loaded.exif_bytes)
     if args.mask:  # what the de-shadow lifted, at the photo's size
-        write_shadow_png(args.mask, lifted_shadows_full(session), force=args.force)
+        write_shadow_png(args.mask, session.lifted_shadows_full(), force=args.force)
     t = session.timings
     _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; {corrections}shadows "
                f"found at the photo's sun with {session.shadow_mode} S as the prior, depth: "

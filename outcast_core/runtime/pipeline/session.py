@@ -768,6 +768,28 @@ class RelightSession:
                                                 marked=self._marked(self.sky))
             return self._lifted
 
+    def lifted_shadows_full(self) -> np.ndarray:
+        """How much :meth:`deshadow_full` lifts each pixel as shadow, at the photo's full size
+        (``H x W`` float32 in [0, 1]): what ``outcast deshadow --mask`` writes, the quantity
+        :meth:`lifted_shadows` gives at working size (what the app's "Shadows found" tints).
+
+        :func:`~outcast_core.runtime.pipeline.photo_shadows.lift_probability` at
+        :meth:`found_shadows_detail`'s size, where ``deshadow_full`` lifts the shadows
+        (:meth:`lifted_shadows` for a photo found at the working size), upsampled bilinearly
+        to the photo's size, as the lift's gain is. Needs :meth:`set_original_sun`.
+        """
+        d = self.found_shadows_detail()
+        if d["image"] is self.image_srgb:  # found at the working size: lifted there already
+            lifted = self.lifted_shadows()
+        else:
+            lifted = lift_probability(d["image"], d["probability"], d["excluded"],
+                                      marked=d["marked"])
+        full = self.full_image_srgb
+        assert full is not None
+        if lifted.shape != full.shape[:2]:
+            lifted = resize(lifted, full.shape[:2])
+        return np.clip(lifted, 0.0, 1.0).astype(np.float32)
+
     def _marked(self, sky: np.ndarray) -> np.ndarray | None:
         """How much the user's "Mark shadow" counts at each pixel (float32 in [0, 1],
         :func:`~outcast_core.runtime.pipeline.photo_shadows.marked_weight`: a stroke's edge

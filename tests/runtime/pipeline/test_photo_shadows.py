@@ -219,11 +219,12 @@ def _furrows(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def test_cli_deshadow_mask_is_what_the_de_shadow_lifts(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, n: int, detail_side: int
 ) -> None:
-    """``deshadow --mask`` writes what the de-shadow lifts (``lift_probability``: the app's
-    "Shadows found" tint), not the bare found probability, which also holds the furrows the
-    lift leaves dark: the session's own ``lifted_shadows`` for a photo found at the working
-    size (200 px, fast), ``lift_probability`` at ``found_shadows_detail``'s size otherwise,
-    upsampled bilinearly to the photo's size (``DETAIL_SIDE`` 200 for a 400 px photo)."""
+    """``deshadow --mask`` writes what the de-shadow lifts (the session's
+    ``lifted_shadows_full``: ``lift_probability``, the app's "Shadows found" tint), not the bare
+    found probability, which also holds the furrows the lift leaves dark: the session's own
+    ``lifted_shadows`` for a photo found at the working size (200 px, fast),
+    ``lift_probability`` at ``found_shadows_detail``'s size otherwise, upsampled bilinearly to
+    the photo's size (``DETAIL_SIDE`` 200 for a 400 px photo)."""
     from outcast_core.runtime.cli.main import parse_azel
     from outcast_core.runtime.pipeline import session as session_module
 
@@ -250,6 +251,7 @@ def test_cli_deshadow_mask_is_what_the_de_shadow_lifts(
                                        marked=d["marked"])
         expected = cv2.resize(expected, (n, n), interpolation=cv2.INTER_LINEAR)
     np.testing.assert_allclose(written, expected, atol=1e-4)  # 16-bit quantisation
+    np.testing.assert_allclose(s.lifted_shadows_full(), expected, atol=1e-5)
     found = cv2.resize(d["probability"], (n, n), interpolation=cv2.INTER_LINEAR)
     assert written[furrows].mean() < 0.75 * found[furrows].mean()  # the furrows: not lifted
     assert written[wide].mean() > 0.9  # the wide shadow: lifted
