@@ -65,7 +65,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
         "failure is reported and the others are done (exit status 2).",
     )
     p.add_argument("folder", metavar="IN_DIR", help="folder of photos")
-    p.add_argument("-o", "--output", required=True, metavar="OUT_DIR", help="output folder")
+    p.add_argument("-o", "--output", required=True, metavar="OUT_DIR",
+                   help="output folder (made when missing, in a folder that exists)")
     what = p.add_mutually_exclusive_group()
     what.add_argument("--deshadow", action="store_true",
                       help="write each photo with its own shadows removed")
@@ -132,7 +133,9 @@ def _options(args: argparse.Namespace) -> BatchOptions:
 
 
 def check_batch_output(args: argparse.Namespace) -> None:
-    """Before any work: IN_DIR is a folder, OUT_DIR is not it and can be made or written."""
+    """Before any work: IN_DIR is a folder, OUT_DIR is not it and can be written, or made in
+    an existing folder (the batch makes OUT_DIR, not the folders above it: a typo in their
+    names is refused, as for every output), and ``--report`` can be written."""
     from outcast_core.runtime.cli.main import CliError, check_folder_writable, check_output_path
 
     folder, out = Path(args.folder).expanduser(), Path(args.output).expanduser()
@@ -143,7 +146,9 @@ def check_batch_output(args: argparse.Namespace) -> None:
     if out.exists() and out.resolve() == folder.resolve():
         raise CliError("expected an output folder other than the input folder (the outputs "
                        "have the photos' names)")
-    check_folder_writable(out, f"cannot write into '{args.output}'")  # before any photo
+    # before any photo: OUT_DIR itself, or the folder it is made in
+    check_folder_writable(out if out.exists() else out.parent,
+                          f"cannot write into '{args.output}'")
     if args.report:
         check_output_path(args.report, extensions=(".json",), force=args.force)
 
@@ -181,7 +186,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
     if options.kind == "relight" and options.to_sun is None and targets is None and jobs:
         print("outcast batch: note: no --to or --targets: each photo's project gives the new "
               "sun", file=sys.stderr)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir.mkdir(exist_ok=True)  # in a folder that exists (check_batch_output)
     count = 0
     t0 = time.perf_counter()
 
@@ -224,7 +229,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
         data = {"options": dict(vars(options)),
                 "counts": counts, "seconds": round(seconds, 2),
                 "results": [vars(r) for r in results]}
-        with atomic_output(args.report, force=args.force, make_parents=True) as tmp:
+        with atomic_output(args.report, force=args.force) as tmp:
             tmp.write_text(json.dumps(data, indent=2, default=list) + "\n", encoding="utf-8")
     if not args.quiet or counts["failed"] or counts["stale"]:
         stale = f"{counts['stale']} kept from other settings, " if counts["stale"] else ""

@@ -9,7 +9,6 @@ Errors exit with status 2 and one readable line on stderr, never a traceback.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import importlib
 import math
 import re
@@ -602,17 +601,18 @@ def check_output_path(
     """Check, before any work, that ``output`` can be written; return it as a ``Path``.
 
     Args:
-        output: the output file as the user typed it (missing folders are allowed: the
-            caller creates them).
+        output: the output file as the user typed it. Its folder must exist: a missing one is
+            refused, not made (a typo in its name would go unseen), as the app refuses it.
         extensions: accepted lower-case extensions, or None to accept any.
         force: whether an existing file may be replaced.
         inputs: input files; the output may never be one of them, even with ``force``.
-        folder_ok: the output is a folder (PNG frames): an existing folder is like a file.
+        folder_ok: the output is a folder (PNG frames): an existing folder is like a file, and
+            a new one is made by the command (in an existing folder).
         outputs: the command's other outputs; ``output`` may not be one of them.
 
     Raises:
-        CliError: wrong extension, a folder, an input file, a parent that is a file, or a
-            folder that cannot be written.
+        CliError: wrong extension, a folder, an input file, a missing folder, a parent that is
+            a file, or a folder that cannot be written.
         FileExistsError: the file exists and ``force`` is False.
     """
     path = Path(output).expanduser()
@@ -640,15 +640,23 @@ def check_output_path(
 
 
 def check_folder_writable(folder: Path, what: str) -> None:
-    """Check that files can be made in ``folder`` (or in its nearest existing ancestor, where
-    the missing folders will be made); ``what`` starts the error message.
+    """Check that files can be made in ``folder``, which must exist; ``what`` starts the error
+    message.
+
+    No command makes the folders above its output (``-o typo/sub/x.mp4`` made the whole tree,
+    where the app refuses a missing folder; a user trial): a missing one is named.
 
     Raises:
-        CliError: the nearest existing ancestor is a file, or it is not writable.
+        CliError: ``folder`` does not exist, is a file, or is not writable.
     """
     folder = Path(folder).expanduser()
-    while not folder.exists() and folder != folder.parent:
-        folder = folder.parent
+    above = folder
+    while not above.exists() and above != above.parent:
+        above = above.parent
+    if above.exists() and not above.is_dir():  # "afile/deeper/s.png": say what is wrong
+        raise CliError(f"{what}: '{above}' is a file, not a folder")
+    if not folder.exists():
+        raise CliError(f"{what}: folder '{folder}' does not exist")
     if not folder.is_dir():
         raise CliError(f"{what}: '{folder}' is a file, not a folder")
     try:
@@ -735,17 +743,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         argv = ["eval-real", *argv[2:]]
     args = parser.parse_args(join_negative_values(argv))
     previous_sigterm = _catch_sigterm()
-    made: list[Path] = []  # output folders this run created, outermost first
-    done = False
     try:
         _check_output(args)  # before the work: extension, existing file, folder, input
-        _make_output_folder(args, made)
-        rc = int(args.func(args) or 0)
-        done = rc == 0
-        if made and done and not getattr(args, "quiet", False):
-            # Said, so that a typo in a folder name does not go unseen.
-            print(f"outcast {args.command}: created the folder '{made[-1]}'", file=sys.stderr)
-        return rc
+        return int(args.func(args) or 0)
     except (ValueError, ModelError, FileExistsError, FileNotFoundError, CliError) as exc:
         print(f"outcast {args.command}: error: {exc}", file=sys.stderr)
         return 2
@@ -765,30 +765,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"outcast {args.command}: interrupted", file=sys.stderr)
         return 130
     finally:
-        if not done:  # a failed run leaves no empty folders behind
-            for folder in reversed(made):
-                with contextlib.suppress(OSError):
-                    folder.rmdir()  # only if empty
         if previous_sigterm is not None:
             signal.signal(signal.SIGTERM, previous_sigterm)
-
-
-def _make_output_folder(args: argparse.Namespace, made: list[Path]) -> None:
-    """Create the missing folders of ``-o OUT`` (users name one that may not exist yet:
-    out/relit.jpg), appending each to ``made`` as it is made (outermost first), so a failure
-    half-way still leaves the list of what to remove. ``outcast batch -o OUT_DIR`` makes its
-    own folder."""
-    output = getattr(args, "output", None)
-    if not isinstance(output, str) or not output or args.command == "batch":
-        return
-    folder = Path(output).expanduser().parent
-    missing = []
-    while not folder.exists() and folder != folder.parent:
-        missing.append(folder)
-        folder = folder.parent
-    for m in reversed(missing):
-        m.mkdir()
-        made.append(m)
 
 
 if __name__ == "__main__":

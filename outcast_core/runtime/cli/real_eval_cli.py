@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from outcast_core.runtime.cli.main import add_exposure_option, names_in
+from outcast_core.runtime.cli.main import CliError, add_exposure_option, names_in
 from outcast_core.runtime.pipeline.session import PRESETS
 
 
@@ -74,9 +74,31 @@ def _session(args: argparse.Namespace, preset: str) -> Any:
     return session
 
 
-def _check_out(path: str, force: bool) -> None:
-    if path and Path(path).exists() and not force:
-        raise FileExistsError(f"{path} exists; add --force to overwrite it")
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Before the measurement (minutes): ``--json`` and ``--sheet`` (each sheet of several
+    presets) can be written and do not exist without ``--force``, and ``--report``'s folder
+    exists (the file itself is updated in place, or made). No missing folder is made: a typo
+    in its name would go unseen, as for every output of ``outcast``."""
+    from outcast_core.runtime.cli.main import check_folder_writable, check_output_path
+
+    sheets = [_sheet_path(args, preset) for preset in args.preset] if args.sheet else []
+    for path in [args.json_out, *map(str, sheets)]:
+        if path:
+            check_output_path(path, extensions=None, force=args.force,
+                              outputs=[args.json_out] if path != args.json_out else [])
+    if args.report:
+        report = Path(args.report).expanduser()
+        if report.is_dir():
+            raise CliError(f"cannot write '{args.report}': it is a folder")
+        check_folder_writable(report.parent, f"cannot write '{args.report}'")
+
+
+def _sheet_path(args: argparse.Namespace, preset: str) -> Path:
+    """``--sheet``'s file for ``preset`` (one per preset when several are measured)."""
+    sheet = Path(args.sheet).expanduser()
+    if len(args.preset) > 1:
+        sheet = sheet.with_name(f"{sheet.stem}_{preset}{sheet.suffix}")
+    return sheet
 
 
 def run_command(args: argparse.Namespace) -> int:
@@ -92,19 +114,14 @@ def run_command(args: argparse.Namespace) -> int:
     if args.limit < 0:
         raise ValueError(f"expected --limit >= 0, got {args.limit}")
     find_items(args.folder)  # a clear error before any model loads
-    _check_out(args.json_out, args.force)
-    _check_out(args.sheet, args.force)
+    _check_outputs(args)
     reports: dict[str, Any] = {}
     for preset in args.preset:
         def progress(name: str, frac: float, preset: str = preset) -> None:
             if not args.quiet:
                 print(f"[{preset}] {frac * 100:5.1f}% {name}", file=sys.stderr, flush=True)
 
-        sheet = None
-        if args.sheet:
-            sheet = Path(args.sheet)
-            if len(args.preset) > 1:
-                sheet = sheet.with_name(f"{sheet.stem}_{preset}{sheet.suffix}")
+        sheet = _sheet_path(args, preset) if args.sheet else None
         t0 = time.perf_counter()
         report = evaluate_real(
             args.folder, limit=args.limit, progress=progress, sheet=sheet,

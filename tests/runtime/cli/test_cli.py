@@ -132,29 +132,6 @@ def test_console_script_runs_in_a_fresh_process(photo: Path, tmp_path: Path) -> 
     json.dumps(r.stdout)  # plain text
 
 
-def test_output_folder_is_created_and_named(photo: Path, tmp_path: Path,
-                                           capsys: pytest.CaptureFixture) -> None:
-    out = tmp_path / "new" / "deeper" / "relit.png"
-    assert main(["relight", str(photo), "--from", "120,40", "--to", "250,30", "-o", str(out),
-                 "-q"]) == 0
-    assert out.is_file()
-    assert "created the folder" not in capsys.readouterr().err  # -q: nothing on success
-    again = tmp_path / "other" / "relit.png"
-    assert main(["relight", str(photo), "--from", "120,40", "--to", "250,30", "-o",
-                 str(again)]) == 0
-    assert f"created the folder '{again.parent}'" in capsys.readouterr().err
-    assert main(["relight", str(photo), "--from", "120,40", "--to", "250,30", "-o",
-                 str(again.with_name("second.png"))]) == 0
-    assert "created the folder" not in capsys.readouterr().err  # the folder exists now
-    # A run that fails leaves no empty folders behind, and does not claim to have made them.
-    failed = tmp_path / "never" / "deep" / "x.png"
-    (tmp_path / "broken.jpg").write_text("not an image")
-    assert main(["relight", str(tmp_path / "broken.jpg"), "--from", "120,40", "--to",
-                 "250,30", "-o", str(failed)]) == 2
-    assert "created the folder" not in capsys.readouterr().err
-    assert not (tmp_path / "never").exists()
-
-
 @pytest.mark.parametrize(
     ("argv", "message"),
     [

@@ -216,6 +216,57 @@ def test_png_frames_never_empty_a_folder_of_other_files(photo, tmp_path, capsys,
     assert [p.name for p in folder.iterdir()] == ["note.txt"]
 
 
+MISSING_FOLDER_COMMANDS = {
+    "relight": ["relight", "{photo}", "--from", "90,30", "--to", "200,40", "-o",
+                "{missing}/r.jpg"],
+    "shadow": ["shadow", "{photo}", "--sun", "90,30", "-o", "{missing}/s.png"],
+    "deshadow": ["deshadow", "{photo}", "--from", "90,30", "-o", "{missing}/d.jpg"],
+    "deshadow-mask": ["deshadow", "{photo}", "--from", "90,30", "-o", "{tmp}/d.jpg", "--mask",
+                      "{missing}/m.png"],
+    "depth": ["depth", "{photo}", "-o", "{missing}/d.npy"],
+    "timelapse-video": ["timelapse", "{photo}", "--from", "90,30", "--sweep", "1,20:3,20",
+                        "--frames", "2", "-o", "{missing}/t.mp4"],
+    # a PNG folder is made, but not in a missing folder
+    "timelapse-frames": ["timelapse", "{photo}", "--from", "90,30", "--sweep", "1,20:3,20",
+                         "--frames", "2", "-o", "{missing}/frames"],
+    "batch-out": ["batch", "{photos}", "-o", "{missing}/out", "--to", "1,2"],
+    "batch-report": ["batch", "{photos}", "-o", "{tmp}/out", "--to", "1,2", "--report",
+                     "{missing}/r.json"],
+    "eval-json": ["eval", "real", "{data}", "--json", "{missing}/r.json"],
+    "eval-sheet": ["eval", "real", "{data}", "--sheet", "{missing}/s.png"],
+    "eval-report": ["eval", "real", "{data}", "--report", "{missing}/EVAL.md"],
+}
+
+
+@pytest.mark.parametrize("argv", MISSING_FOLDER_COMMANDS.values(),
+                         ids=MISSING_FOLDER_COMMANDS.keys())
+def test_a_missing_output_folder_is_refused_not_made(argv, photo, tmp_path, capsys,
+                                                     no_work) -> None:
+    """``-o typo/sub/x.mp4`` made the whole tree (a user trial), where the app refuses a
+    missing folder: every file a command writes is refused before the work, naming the
+    folder, and nothing is made."""
+    photos, data = tmp_path / "in", tmp_path / "data"
+    photos.mkdir()
+    data.mkdir()
+    (photos / "p.png").write_bytes(photo.read_bytes())
+    (data / "a_image.png").write_bytes(photo.read_bytes())
+    write_image(data / "a_mask.png", np.zeros((60, 80, 3), np.float32))
+    missing = tmp_path / "typo" / "sub"
+    subs = {"photo": str(photo), "photos": str(photos), "data": str(data), "tmp": str(tmp_path),
+            "missing": str(missing)}
+    assert main([a.format(**subs) for a in argv]) == 2
+    _one_line_error(capsys, f"folder '{missing}' does not exist")
+    assert not (tmp_path / "typo").exists() and not (tmp_path / "out").exists()
+
+
+def test_a_command_whose_output_is_a_folder_makes_it(photo, tmp_path) -> None:
+    """A time-lapse's PNG folder is made when missing (in a folder that exists)."""
+    frames = tmp_path / "frames"
+    assert main(["timelapse", str(photo), "--from", "90,30", "--sweep", "1,20:3,20", "--frames",
+                 "2", "--size", "working", "-o", str(frames), "--preset", "fast", "-q"]) == 0
+    assert sorted(p.name for p in frames.iterdir()) == ["frame_0001.png", "frame_0002.png"]
+
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
 def test_read_only_folder_is_refused_before_the_work(photo, tmp_path, capsys, no_work) -> None:
     folder = tmp_path / "ro"
