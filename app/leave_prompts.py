@@ -18,6 +18,8 @@ KEEP, CANCEL = "keep", "cancel"
 REPLACE = "replace"
 #: The one answer to a notice.
 OK = "ok"
+#: A project's photo is missing: find it (a file dialog follows).
+LOCATE = "locate"
 
 
 @dataclass(frozen=True)
@@ -177,3 +179,32 @@ def replace_project_question(project_name: str, saved: str,
         default=CANCEL,
         escape=CANCEL,
     )
+
+
+def locate_photo_question(project_name: str, photo_path: str) -> Question:
+    """Asked when a project's photo is not where the project says (moved, renamed or
+    deleted): "Locate photo…" picks it where it is now and opens the project with it, its suns
+    and shadow corrections kept (a user trial's only way on was opening the photo on its own,
+    a fresh session).
+
+    Example:
+        >>> q = locate_photo_question("pool.outcast.json", "/photos/pool.jpg")
+        >>> [c.label for c in q.choices], q.default
+        (['Locate photo…', 'Cancel'], 'locate')
+    """
+    name, folder = os.path.basename(photo_path), os.path.dirname(photo_path)
+    return Question(
+        title="The project's photo is missing",
+        text=(f"{project_name} holds the work on {name}, which is no longer in "
+              f"{folder or 'its folder'}."),
+        detail=("If it was moved or renamed, locate it to continue the project's work with it "
+                "(suns, shadow corrections and settings); saving the project then records "
+                "where it is now."),
+        choices=(
+            Choice(LOCATE, "Locate photo\u2026", "accept"),
+            Choice(CANCEL, "Cancel", "reject"),
+        ),
+        default=LOCATE,
+        escape=CANCEL,
+    )
+

@@ -79,6 +79,7 @@ from app.canvas import ImageCanvas, qimage_from_array
 from app.errors import DepthMapError, OwnFileError, depth_file_problem, message_for
 from app.history import EditCommand, EditState, shadow_edit_text
 from app.leave_prompts import (
+    LOCATE,
     REPLACE,
     SAVE,
     STOP,
@@ -86,6 +87,7 @@ from app.leave_prompts import (
     RunningExport,
     finished_before_stop_notice,
     leave_questions,
+    locate_photo_question,
     replace_project_question,
 )
 from app.panels import (
@@ -264,6 +266,9 @@ class MainWindow(QMainWindow):
         self.session: Any = None
         self.loaded: Any = None  # LoadedImage of the current photo
         self.image_path = ""
+        #: Where the open project said its photo was, when it was located elsewhere ("" : not
+        #: moved): saving over that project is saving this photo's project.
+        self._photo_moved_from = ""
         self.session_mode = session_mode
         self.depth_mode = "auto"
         self.depth_path = ""
@@ -866,11 +871,31 @@ class MainWindow(QMainWindow):
                 return
             self.recent.add(path)
             self._save_recent()
+            photo = state.image_path
+            if photo and not os.path.exists(photo):  # moved, renamed or deleted
+                photo = self.locate_photo(path, state)
+                if not photo:
+                    return
             self._opening_project_file = os.path.abspath(path)
-            self.open_image(state.image_path, project=state)
+            self.open_image(photo, project=state)
         else:
             self._opening_project_file = ""
             self.open_image(path)
+
+    def locate_photo(self, project_path: str, project: ProjectState) -> str:
+        """Ask where a project's missing photo is now ("Locate photo…", then a file dialog in
+        the project's folder); the photo chosen, or "" when the user cancels."""
+        name = os.path.basename(project_path)
+        answer = self.ask(locate_photo_question(name, project.image_path))
+        path = ""
+        if answer == LOCATE:
+            patterns = " ".join(f"*{s}" for s in IMAGE_SUFFIXES)
+            path, _ = QFileDialog.getOpenFileName(
+                self, f"Locate {os.path.basename(project.image_path)}",
+                os.path.dirname(os.path.abspath(project_path)), f"Photos ({patterns})")
+        if not path:
+            self.stage_label.setText(f"Not opened: the photo of {name} is missing")
+        return path
 
     def open_image(
         self,
@@ -941,10 +966,16 @@ class MainWindow(QMainWindow):
         self._last_load = (path, project, restore, record_from)
         self.runner.submit("load", job, f"Opening {os.path.basename(path)}")
 
-    def _on_loaded(self, result: dict[str, Any]) -> None:
+    def _on_loaded(self, result: dict[str, Any]) -> bool:
+        """Show a loaded photo (with its project's work, or the state to restore); True."""
         project, self._pending_project = self._pending_project, None
         restore, self._pending_restore = self._pending_restore, None
         record_from, self._pending_record_from = self._pending_record_from, None
+        # A project opened now whose photo moved (located elsewhere): modified once open.
+        moved_from = ""
+        if (project is not None and restore is None
+                and os.path.abspath(project.image_path) != os.path.abspath(result["path"])):
+            moved_from = os.path.abspath(project.image_path)
         self.session = result["session"]
         if restore is None:  # another photo: the photo's own exposure (a project's: below)
             self.relight_panel.set_exposure("photo")
@@ -1011,6 +1042,7 @@ class MainWindow(QMainWindow):
             opened = self._opening_project_file if project is not None else ""
             self._project_files = {opened} if opened else set()
             self._project_file = opened
+            self._photo_moved_from = moved_from
             self.side_scroll.verticalScrollBar().setValue(0)  # another photo: from the top
             self.align_panel.set_heading(self._exif_heading(), recorded=True)
             self.sun_fit = None
@@ -1081,12 +1113,15 @@ class MainWindow(QMainWindow):
             # bar's "Photo notes" keep it)
             opened += "".join(f" · {note[:1].lower()}{note[1:].rstrip('.')}"
                               for note in file_notes)
+        if moved_from:
+            opened += (f" · the project's photo was {moved_from}: save the project to keep "
+                       "where it is now")
         self.stage_label.setText(opened)
         self._held_message = opened if self.runner.busy() else ""
         if restore is not None:  # the same photo again: keep the history
             self._edit_state = record_from
             self._record(restore)
-            return
+            return True
         baseline = self.edit_state()
         if (baseline is not None and project is not None and project.original_sun is not None
                 and not project.realigning):
@@ -1094,6 +1129,9 @@ class MainWindow(QMainWindow):
                 baseline, step="relight", original_sun=project.original_sun.as_tuple()
             )
         self._reset_history(baseline)
+        if moved_from:  # the project file says another place: unsaved until saved
+            self.undo_stack.resetClean()
+        return True
 
     def _mode_text(self) -> str:
         s = self.session
@@ -2329,8 +2367,9 @@ class MainWindow(QMainWindow):
         except (OSError, ValueError):
             return None
         if not photo or same_file(photo, self.image_path) or (
-                os.path.abspath(photo) == os.path.abspath(self.image_path)):
-            return None
+                os.path.abspath(photo) in (os.path.abspath(self.image_path),
+                                           self._photo_moved_from)):
+            return None  # (the place of this photo that the project said, before it moved)
         return os.path.basename(photo)
 
     def save_project_dialog(self) -> None:
@@ -2380,7 +2419,8 @@ class MainWindow(QMainWindow):
             return
         self._shown[channel] = job_id
         if channel == "load":
-            self._on_loaded(result)
+            if not self._on_loaded(result):
+                return  # declined: what the window said stays
         elif channel == "shadow":
             self._on_shadow(result)
         elif channel == "find_sun":
@@ -2409,7 +2449,8 @@ class MainWindow(QMainWindow):
                 text = f"Ready · {words.lower()} took {seconds:.2f} s"
                 if isinstance(result, dict) and result.get("computed") is False:
                     text = "Ready"  # the shadows found at confirming, shown: no work to time
-                if channel == "shadow" and self._held_message:
+                # (a project opens into step 2: what its opening said outlasts the relit view)
+                if channel in ("shadow", "relight") and self._held_message:
                     text, self._held_message = self._held_message, ""
                 if channel == "relight" and self._exposure_hint:
                     text += f" · {self._exposure_hint}"
