@@ -110,8 +110,13 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int_in(1, 256, "worker count"), default=1,
                    help="worker processes (default 1); the cores are shared among them")
     p.add_argument("--report", metavar="REPORT.json", default="",
-                   help="also write every photo's result (sun, source, time, error) as JSON")
-    p.add_argument("--force", action="store_true", help="redo photos whose output exists")
+                   help="also write every photo's result (sun, source, time, error) as JSON; "
+                        "a report of this batch (the same IN_DIR and OUT_DIR) is replaced by "
+                        "each run, so a rerun resumes and rewrites it; any other file is kept "
+                        "(--force replaces it)")
+    p.add_argument("--force", action="store_true",
+                   help="redo photos whose output exists (and replace a --report file that is "
+                        "not this batch's)")
     p.add_argument("-q", "--quiet", action="store_true", help="print only failures")
     p.set_defaults(func=run_batch_command, check_output=check_batch_output)
     return p
@@ -150,7 +155,58 @@ def check_batch_output(args: argparse.Namespace) -> None:
     check_folder_writable(out if out.exists() else out.parent,
                           f"cannot write into '{args.output}'")
     if args.report:
-        check_output_path(args.report, extensions=(".json",), force=args.force)
+        report = Path(args.report).expanduser()
+        ours = _our_report(args.report, folder, out)
+        if report.is_file() and not (ours or args.force):
+            raise FileExistsError(
+                f"'{args.report}' already exists and is not a report of this batch "
+                f"('{args.folder}' into '{args.output}'); choose another name, or use --force "
+                "to replace it (--force also redoes every photo)")
+        check_output_path(args.report, extensions=(".json",), force=args.force or ours,
+                          inputs=[args.targets])
+
+
+#: The report's marker (:func:`_our_report`): a file without it is not a batch's report.
+REPORT_MARKER = "outcast_batch_report"
+
+
+def _our_report(report: str, folder: Path, out: Path) -> bool:
+    """Whether ``report`` is a report ``outcast batch`` wrote for this batch (the same input
+    and output folders): then a run replaces it without ``--force``. A rerun is how a batch is
+    resumed, and its report was refused as an existing file, while ``--force`` would redo
+    every photo (a user trial). A report of another batch, or any other file, is kept.
+
+    Reports written before the marker are known by their shape: options, counts and results,
+    every result's photo in ``folder`` and its output in ``out``."""
+    path = Path(report).expanduser()
+    if not path.is_file() or path.stat().st_size > 100_000_000:
+        return False
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    if not isinstance(data, dict):
+        return False
+
+    def same(value: Any, where: Path) -> bool:
+        return isinstance(value, str) and bool(value) and _same_folder(Path(value), where)
+
+    if REPORT_MARKER in data:
+        return (data[REPORT_MARKER] == 1 and same(data.get("input_folder"), folder)
+                and same(data.get("output_folder"), out))
+    results = data.get("results")
+    if not ({"options", "counts", "results"} <= set(data) and isinstance(results, list)
+            and results and all(isinstance(r, dict) for r in results)):
+        return False
+    return all(same(str(Path(str(r.get("image", ""))).parent), folder)
+               and same(str(Path(str(r.get("output", ""))).parent), out) for r in results)
+
+
+def _same_folder(a: Path, b: Path) -> bool:
+    try:
+        return a.expanduser().resolve() == b.expanduser().resolve()
+    except (OSError, RuntimeError):
+        return False
 
 
 def _suns(r: JobResult) -> str:
@@ -226,10 +282,13 @@ def run_batch_command(args: argparse.Namespace) -> int:
     if args.report:
         from outcast_core.runtime.io.imageio import atomic_output
 
-        data = {"options": dict(vars(options)),
+        data = {REPORT_MARKER: 1, "input_folder": str(Path(args.folder).expanduser().resolve()),
+                "output_folder": str(out_dir.resolve()), "options": dict(vars(options)),
                 "counts": counts, "seconds": round(seconds, 2),
                 "results": [vars(r) for r in results]}
-        with atomic_output(args.report, force=args.force) as tmp:
+        # (checked again: a file that appeared meanwhile is not replaced)
+        force = args.force or _our_report(args.report, Path(args.folder), out_dir)
+        with atomic_output(Path(args.report).expanduser(), force=force) as tmp:
             tmp.write_text(json.dumps(data, indent=2, default=list) + "\n", encoding="utf-8")
     if not args.quiet or counts["failed"] or counts["stale"]:
         stale = f"{counts['stale']} kept from other settings, " if counts["stale"] else ""

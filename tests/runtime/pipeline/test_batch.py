@@ -589,3 +589,40 @@ def test_planned_suns_stop_where_the_photo_would_have_to_be_read(tmp_path: Path)
     assert planned_suns(row, given) == ((7.0, 8.0), "csv", (5.0, 6.0))
     assert planned_suns(job, BatchOptions(kind="deshadow", sources=("given",),
                                           from_sun=(1.0, 2.0))) == ((1.0, 2.0), "given", None)
+
+
+def test_a_rerun_with_a_report_resumes_and_replaces_its_report(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The same command with ``--report R.json`` failed on a rerun ("already exists"), and
+    ``--force`` redid every finished photo (a user trial): this batch's report is replaced by
+    each run without ``--force``; another batch's report or any other file is kept."""
+    d, out = tmp_path / "in", tmp_path / "out"
+    d.mkdir()
+    _photo(d / "a.png", 0)
+    report = tmp_path / "r.json"
+    args = ["batch", str(d), "-o", str(out), "--from", "200,40", "--to", "90,30", "--preset",
+            "fast", "--mode", "classic", "-q", "--report", str(report)]
+    assert main(args) == 0
+    first = json.loads(report.read_text())
+    assert first["counts"]["done"] == 1
+    assert (first["input_folder"], first["output_folder"]) == (str(d.resolve()),
+                                                               str(out.resolve()))
+    made = (out / "a.jpg").stat().st_mtime_ns
+    assert main(args) == 0, capsys.readouterr().err  # resumed: the photo is skipped
+    again = json.loads(report.read_text())
+    assert again["counts"] == {"done": 0, "skipped": 1, "stale": 0, "failed": 0}
+    assert (out / "a.jpg").stat().st_mtime_ns == made
+    # A report written before the marker, of this batch: known by its photos and outputs.
+    del again["outcast_batch_report"], again["input_folder"], again["output_folder"]
+    report.write_text(json.dumps(again))
+    assert main(args) == 0
+    assert json.loads(report.read_text())["outcast_batch_report"] == 1
+    # Another batch's report, or any other JSON file, is kept; --force would replace it.
+    other = [*args[:3], str(tmp_path / "out2"), *args[4:]]
+    for text in (report.read_text(), '{"notes": "mine"}'):
+        report.write_text(text)
+        assert main(other) == 2
+        err = capsys.readouterr().err.strip()
+        assert "is not a report of this batch" in err and len(err.splitlines()) == 1
+        assert report.read_text() == text and not (tmp_path / "out2").exists()
