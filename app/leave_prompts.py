@@ -20,6 +20,8 @@ REPLACE = "replace"
 OK = "ok"
 #: A project's photo is missing: find it (a file dialog follows).
 LOCATE = "locate"
+#: A project's photo is not the one it was saved with: use the project's work with it anyway.
+CONTINUE = "continue"
 
 
 @dataclass(frozen=True)
@@ -208,3 +210,29 @@ def locate_photo_question(project_name: str, photo_path: str) -> Question:
         escape=CANCEL,
     )
 
+
+def other_photo_question(project_name: str, photo_name: str, why: str) -> Question:
+    """Asked when the photo a project opens does not match the one it was saved with
+    (:meth:`~app.state.PhotoIdentity.mismatch`: another pixel size or content, say a file
+    replaced under the same name): its suns and shadow corrections would be laid over another
+    picture (a user trial's ski-slope corrections over the pool).
+
+    Example:
+        >>> q = other_photo_question("a.outcast.json", "a.jpg", "it is 10 × 10 pixels")
+        >>> [c.key for c in q.choices], q.default
+        (['continue', 'cancel'], 'cancel')
+    """
+    return Question(
+        title="Another photo than the project's?",
+        text=(f"{photo_name} does not look like the photo {project_name} was saved with: "
+              f"{why}."),
+        detail=("The project's suns and shadow corrections were made on that photo and may not "
+                "fit this one. Continue to use them with this photo anyway (saving the project "
+                "then records it), or cancel to leave your current work as it is."),
+        choices=(
+            Choice(CONTINUE, "Continue with this photo", "destructive"),
+            Choice(CANCEL, "Cancel", "reject"),
+        ),
+        default=CANCEL,
+        escape=CANCEL,
+    )

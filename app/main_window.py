@@ -79,6 +79,7 @@ from app.canvas import ImageCanvas, qimage_from_array
 from app.errors import DepthMapError, OwnFileError, depth_file_problem, message_for
 from app.history import EditCommand, EditState, shadow_edit_text
 from app.leave_prompts import (
+    CONTINUE,
     LOCATE,
     REPLACE,
     SAVE,
@@ -88,6 +89,7 @@ from app.leave_prompts import (
     finished_before_stop_notice,
     leave_questions,
     locate_photo_question,
+    other_photo_question,
     replace_project_question,
 )
 from app.panels import (
@@ -101,6 +103,7 @@ from app.panels import (
 from app.state import (
     IMAGE_SUFFIXES,
     PRESET_NAMES,
+    PhotoIdentity,
     ProjectState,
     RecentFiles,
     StageTimings,
@@ -266,6 +269,8 @@ class MainWindow(QMainWindow):
         self.session: Any = None
         self.loaded: Any = None  # LoadedImage of the current photo
         self.image_path = ""
+        #: The open photo's pixel size and fingerprint, recorded in its project (None: no photo).
+        self.photo_identity: PhotoIdentity | None = None
         #: Where the open project said its photo was, when it was located elsewhere ("" : not
         #: moved): saving over that project is saving this photo's project.
         self._photo_moved_from = ""
@@ -958,7 +963,8 @@ class MainWindow(QMainWindow):
             tilt = photo_camera_tilt(session, path)
             photo = display.to_uint8_rgb(loaded.image_srgb)
             return {"path": path, "loaded": loaded, "session": session, "photo": photo,
-                    "depth_path": depth_path, "depth_note": note, "tilt": tilt}
+                    "depth_path": depth_path, "depth_note": note, "tilt": tilt,
+                    "identity": PhotoIdentity.of(loaded.image_srgb)}
 
         self._pending_project = project
         self._pending_restore = restore
@@ -967,15 +973,29 @@ class MainWindow(QMainWindow):
         self.runner.submit("load", job, f"Opening {os.path.basename(path)}")
 
     def _on_loaded(self, result: dict[str, Any]) -> bool:
-        """Show a loaded photo (with its project's work, or the state to restore); True."""
+        """Show a loaded photo (with its project's work, or the state to restore); False when
+        the user declined a project's photo that is not the one it was saved with (nothing
+        changed)."""
         project, self._pending_project = self._pending_project, None
         restore, self._pending_restore = self._pending_restore, None
         record_from, self._pending_record_from = self._pending_record_from, None
-        # A project opened now whose photo moved (located elsewhere): modified once open.
-        moved_from = ""
-        if (project is not None and restore is None
-                and os.path.abspath(project.image_path) != os.path.abspath(result["path"])):
-            moved_from = os.path.abspath(project.image_path)
+        identity = result.get("identity")
+        # A project opened now: its photo moved (located elsewhere), or not the photo it was
+        # saved with (a file replaced under its name): either way it is modified once open.
+        moved_from = mismatch = ""
+        if project is not None and restore is None:
+            if os.path.abspath(project.image_path) != os.path.abspath(result["path"]):
+                moved_from = os.path.abspath(project.image_path)
+            if project.photo is not None and identity is not None:
+                mismatch = project.photo.mismatch(identity)
+            if mismatch and self.ask(other_photo_question(
+                    os.path.basename(self._opening_project_file) or "The project",
+                    os.path.basename(result["path"]), mismatch)) != CONTINUE:
+                self.stage_label.setText(
+                    f"Not opened: {os.path.basename(result['path'])} is not the project's photo "
+                    f"({mismatch})")
+                return False
+        self.photo_identity = identity
         self.session = result["session"]
         if restore is None:  # another photo: the photo's own exposure (a project's: below)
             self.relight_panel.set_exposure("photo")
@@ -1116,6 +1136,8 @@ class MainWindow(QMainWindow):
         if moved_from:
             opened += (f" · the project's photo was {moved_from}: save the project to keep "
                        "where it is now")
+        elif mismatch:
+            opened += " · not the project's photo: save the project to keep it for this one"
         self.stage_label.setText(opened)
         self._held_message = opened if self.runner.busy() else ""
         if restore is not None:  # the same photo again: keep the history
@@ -1129,7 +1151,7 @@ class MainWindow(QMainWindow):
                 baseline, step="relight", original_sun=project.original_sun.as_tuple()
             )
         self._reset_history(baseline)
-        if moved_from:  # the project file says another place: unsaved until saved
+        if moved_from or mismatch:  # the project file says another photo: unsaved until saved
             self.undo_stack.resetClean()
         return True
 
@@ -2279,6 +2301,7 @@ class MainWindow(QMainWindow):
             self.timelapse_settings = self._timelapse_dialog.settings()
         return ProjectState(
             image_path=self.image_path,
+            photo=self.photo_identity,
             preset=self.preset,
             depth_source=str(getattr(self.session, "depth_source", "")),
             depth_path=self.depth_path,

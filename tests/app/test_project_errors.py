@@ -88,7 +88,7 @@ _JSON = st.recursive(
                                                                 max_size=3),
     max_leaves=10,
 )
-_TOP = ["image", "image_absolute", "preset", "depth_source", "depth_path", "original_sun",
+_TOP = ["image", "image_absolute", "photo", "preset", "depth_source", "depth_path", "original_sun",
         "target_sun", "overlay_opacity", "split", "buffer_view", "timelapse", "shadow_edits"]
 _TL = ["kind", "sweep_from", "sweep_to", "way", "frames", "easing", "date", "latitude",
        "longitude", "heading", "start", "end", "utc_offset", "fps", "format", "full_resolution"]

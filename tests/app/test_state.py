@@ -7,6 +7,7 @@ import json
 import pytest
 
 from app.state import (
+    PhotoIdentity,
     ProjectState,
     RecentFiles,
     StageTimings,
@@ -225,3 +226,38 @@ def test_exposure_names_match_the_runtime_and_bad_ones_do_not_load(tmp_path):
     assert ProjectState.from_dict(d).exposure == "photo"
     with pytest.raises(ValueError, match="exposure"):
         ProjectState.from_dict({**d, "exposure": "auto"})
+
+
+def test_a_project_records_its_photo_s_size_and_fingerprint(tmp_path):
+    """What tells a project's photo from another file under its name (a user trial's project
+    laid its suns over another photo); older projects, without it, still load."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    rng = np.random.default_rng(1)
+    photo = (rng.random((48, 64, 3)) * 60 + np.linspace(0, 180, 64)[None, :, None]).astype(
+        np.uint8)
+    ident = PhotoIdentity.of(photo)
+    assert (ident.width, ident.height) == (64, 48) and len(ident.fingerprint) == 128
+    buf = io.BytesIO()
+    Image.fromarray(photo).save(buf, "JPEG", quality=75)  # the same photo, saved again
+    again = PhotoIdentity.of(np.asarray(Image.open(buf)))
+    assert ident.mismatch(again) == ""
+    assert ident.mismatch(PhotoIdentity.of(photo[:, ::-1])) == (
+        "its picture is not the one the project was saved with")
+    assert ident.mismatch(PhotoIdentity.of(photo.astype(np.float32) / 255.0)) == ""
+    assert "48 × 64 pixels" in ident.mismatch(PhotoIdentity(48, 64, ident.fingerprint))
+    assert ident.mismatch(PhotoIdentity(64, 48)) == ""  # no fingerprint: the size only
+    state = ProjectState(image_path=str(tmp_path / "a.jpg"), photo=ident)
+    path = save_project(state, tmp_path / "a.outcast.json")
+    assert load_project(path).photo == ident
+    data = json.loads(path.read_text())
+    del data["photo"]
+    assert ProjectState.from_dict(data).photo is None  # an older project
+    for bad in ({"width": 64}, {"width": 0, "height": 48}, {"width": 64, "height": "48"},
+                {"width": 64, "height": 48, "fingerprint": "zz"},
+                {"width": 64, "height": 48, "fingerprint": " " * 128}, [64, 48]):
+        with pytest.raises(ValueError, match="^photo: "):
+            ProjectState.from_dict({**data, "photo": bad})
