@@ -314,6 +314,9 @@ class MainWindow(QMainWindow):
         # the photo just opened: what was found in it must not flash by).
         self._held_message = ""
         self._load_notice = ""  # the warning above the photo after loading (file, depth)
+        #: What the last Find sun said above the photo, over the load's notice, until the sun
+        #: or the heading it speaks of is set otherwise ("" : nothing).
+        self._search_notice = ""
         #: What the command line says of the photo's file (photo_file_notes), kept for the
         #: status bar's "Photo notes" in every step.
         self._file_notes: list[str] = []
@@ -1056,7 +1059,7 @@ class MainWindow(QMainWindow):
             notice = (f"This photo has a saved project, {saved.name}: open it (File \u25b8 "
                       "Open) to continue that work. ") + notice
         self._load_notice = notice.strip()
-        self.align_panel.show_notice(self._load_notice)
+        self._show_search_notice("")
         if restore is None:  # another photo: its own heading, no search result yet
             self.user_heading = self.seen_heading = None
             opened = self._opening_project_file if project is not None else ""
@@ -1340,6 +1343,10 @@ class MainWindow(QMainWindow):
         keys, the box's arrows): a burst of steps is one undo step."""
         self.set_user_heading(heading)
         self._record(text="Camera heading", step_of="heading" if stepped else "")
+        # What Find sun said of the heading, or of the ring to turn the sun around without
+        # one, no longer holds (a user trial typed a heading and placed the EXIF sun, and the
+        # notice still said to turn the sun around the ring).
+        self._show_search_notice("")
 
     def set_user_heading(self, heading: float | None) -> None:
         """The camera heading typed in step 1 (degrees from true north; None: unknown, or the
@@ -1460,7 +1467,12 @@ class MainWindow(QMainWindow):
                 notice = (f"The photo's shadows put the sun {off:.0f}° away from where {whose} "
                           "puts it: the heading may be wrong (\"Sun from photo's EXIF\" puts "
                           "the sun there; correct the Camera heading box).")
-        # The load's warning (the depth source) stays under what the search says.
+        self._show_search_notice(notice)
+
+    def _show_search_notice(self, notice: str) -> None:
+        """Step 1's notice above the photo: what Find sun said (``""``: nothing, or no longer
+        true), over the load's warning (the file, the depth source), which stays."""
+        self._search_notice = notice
         self.align_panel.show_notice("\n\n".join(t for t in (notice, self._load_notice) if t))
 
     def _prior_words(self, prior: Any) -> str:
@@ -1484,6 +1496,7 @@ class MainWindow(QMainWindow):
         self.align_panel.sun_panel.set_sun(*sun)
         self.request_shadow(*sun, preview=False)
         self._record(text="Sun from EXIF")
+        self._show_search_notice("")  # the search's sun (or its advice) is not on the dial now
         magnetic = self.user_heading is None and getattr(
             getattr(self.loaded, "exif", None), "heading_ref", None) == "M"  # the EXIF's
         note = "; the heading is magnetic, so allow for the local declination" if magnetic else ""

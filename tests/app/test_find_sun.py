@@ -494,3 +494,29 @@ def test_step_1_fits_the_window_after_find_sun_on_the_field_path(window, settle,
         assert viewport.rect().contains(widget.rect().translated(top_left)), widget
     assert not ap.exif_button.isEnabled() and ap.exif_note.isVisibleTo(window)
     assert _contrast(ap.exif_note) >= 4.5  # WCAG AA for body text
+
+
+def test_step_1_notice_drops_find_sun_advice_that_no_longer_holds(window, settle,
+                                                                  monkeypatch):
+    """A user trial: after Find sun on the field path said to turn the sun around the EXIF
+    ring, they typed the camera heading and placed the EXIF sun; the notice above the photo
+    still said to turn the sun around the ring (the status bar was right). The load's own
+    notice (the depth source) stays."""
+    _load(window, os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg"), settle)
+    loaded = window.align_panel.notice.text()
+    fit = dataclasses.replace(_fit(10.0, 60.0, found=False), unfound="no-fit")
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)
+    window.find_sun()
+    settle()
+    notice = window.align_panel.notice
+    assert "around the ring" in notice.text()
+    window.align_panel.heading_box.setValue(200.0)  # typed
+    assert "around the ring" not in notice.text() and notice.text() == loaded
+    window.find_sun()  # said again, then the EXIF sun placed with the typed heading
+    settle()
+    assert "No sun makes" in notice.text()
+    window.align_panel.exif_button.click()
+    settle()
+    assert "Sun from EXIF" in window.stage_label.text()
+    assert "No sun makes" not in notice.text() and notice.text() == loaded
+
