@@ -53,6 +53,8 @@ SHADOW_TOOLS = (
 )
 
 
+#: What step 1's "Sun from photo's EXIF" does (its tooltip when no note says more).
+EXIF_BUTTON_TIP = "Place the sun from the photo's GPS position, capture time and compass heading"
 #: The tools' hint while none is on.
 SHADOW_TOOL_IDLE = ("Turn a tool on, then click a region of the photo, or drag to paint; the "
                     "magenta areas are the shadows found.")
@@ -130,9 +132,7 @@ class AlignPanel(QWidget):
         self.notice.hide()
         self.sun_panel = SunDialPanel("Original sun", QColor(255, 200, 40), self)
         self.exif_button = QPushButton("Sun from photo's EXIF", self)
-        self.exif_button.setToolTip(
-            "Place the sun from the photo's GPS position, capture time and compass heading"
-        )
+        self.exif_button.setToolTip(EXIF_BUTTON_TIP)
         self.exif_button.setEnabled(False)
         self.exif_button.clicked.connect(self.exif_clicked)
         self.exif_note = QLabel(self)
@@ -228,11 +228,13 @@ class AlignPanel(QWidget):
         self.find_button.setText("Cancel finding the sun" if running else "Find sun from shadows")
 
     def set_exif_note(self, text: str) -> None:
-        """Why the EXIF button is greyed out, or what the EXIF gives (hidden when empty)."""
+        """Why the EXIF button is greyed out, or what the EXIF gives (hidden when empty), also
+        the button's tooltip; without a note the button's own tooltip (a note that no longer
+        holds stayed there: "No compass heading…" after a heading was typed, or for the next
+        photo, which had one)."""
         self.exif_note.setText(text)
         self.exif_note.setVisible(bool(text))
-        if text:
-            self.exif_button.setToolTip(text)
+        self.exif_button.setToolTip(text or EXIF_BUTTON_TIP)
 
     def show_notice(self, text: str) -> None:
         """A warning above the photo (hidden when empty, and while another step is shown)."""

@@ -520,3 +520,18 @@ def test_step_1_notice_drops_find_sun_advice_that_no_longer_holds(window, settle
     assert "Sun from EXIF" in window.stage_label.text()
     assert "No sun makes" not in notice.text() and notice.text() == loaded
 
+
+def test_the_exif_button_s_tooltip_follows_its_note(window, settle):
+    """A user trial: "No compass heading in the photo's EXIF…" stayed in the EXIF button's
+    tooltip after a heading was typed, and for the next photo, which records one."""
+    from app.panels import EXIF_BUTTON_TIP
+
+    button = window.align_panel.exif_button
+    _load(window, os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg"), settle)
+    assert button.toolTip().startswith("No compass heading in the photo's EXIF")
+    window.align_panel.heading_box.setValue(200.0)
+    assert button.isEnabled() and button.toolTip() == EXIF_BUTTON_TIP
+    window.align_panel.heading_box.setValue(-1.0)  # "unknown" again
+    assert button.toolTip().startswith("No compass heading in the photo's EXIF")
+    _load(window, os.path.join(ROOT, "samples", "exif_003_th_pool.jpg"), settle)
+    assert button.isEnabled() and button.toolTip() == EXIF_BUTTON_TIP
