@@ -1,9 +1,9 @@
 """``outcast batch IN_DIR -o OUT_DIR``: relight, de-shadow or time-lapse every photo of a folder.
 
 Registered by :data:`outcast_core.runtime.cli.main.OPTIONAL_COMMANDS`; the work is
-:mod:`outcast_core.runtime.pipeline.batch`. One line per photo as it finishes (``-q``: only
-failures), a
-summary at the end; exit status 0 when every photo is done or was already done with the same
+:mod:`outcast_core.runtime.pipeline.batch`. One line per photo as it finishes, with the
+warnings ``outcast relight`` would give for it (``-q``: only failures and warnings), a summary
+at the end; exit status 0 when every photo is done or was already done with the same
 settings, 2 when one failed (the rest are still done) or an output made with other settings was
 kept (``--force`` redoes it). Running the same command again resumes a batch.
 """
@@ -117,7 +117,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true",
                    help="redo photos whose output exists (and replace a --report file that is "
                         "not this batch's)")
-    p.add_argument("-q", "--quiet", action="store_true", help="print only failures")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   help="print only failures and warnings")
     p.set_defaults(func=run_batch_command, check_output=check_batch_output)
     return p
 
@@ -223,10 +224,18 @@ def _line(r: JobResult, index: int, total: int) -> str:
         return f"{head}: failed: {r.message}"
     if r.status == "skipped":
         suns = _suns(r)
-        return f"{head}: skipped{f' ({suns})' if suns else ''}: {r.message}"
+        return f"{head}: skipped{f' ({suns})' if suns else ''}: {r.message}{_warned(r)}"
     if r.status == "stale":
         return f"{head}: kept: {r.message}"
-    return f"{head} -> {Path(r.output).name} ({_suns(r)}; {r.seconds:.1f} s)"
+    return f"{head} -> {Path(r.output).name} ({_suns(r)}; {r.seconds:.1f} s){_warned(r)}"
+
+
+def _warned(r: JobResult) -> str:
+    """A done or skipped result's warnings, to end its line (``outcast relight`` says them for
+    one photo; a batch said nothing: a user trial), or ``""``."""
+    if not r.warnings:
+        return ""
+    return f"; warning{'s' if len(r.warnings) > 1 else ''}: " + "; ".join(r.warnings)
 
 
 def run_batch_command(args: argparse.Namespace) -> int:
@@ -268,7 +277,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
         if r.status == "done" and r.output in by_output:
             job = by_output[r.output]
             record([replace(job, settings=settings_for_source(job, options, r.sun_source))], (r,))
-        if r.status == "failed" or not args.quiet:
+        if r.status == "failed" or r.warnings or not args.quiet:  # (-q: failures, warnings)
             print(_line(r, count, total), file=sys.stderr, flush=True)
 
     for r in early:
@@ -279,32 +288,38 @@ def run_batch_command(args: argparse.Namespace) -> int:
     results = early + run_batch(jobs, options, workers=args.workers, on_result=show)
     counts = summarize(results)
     seconds = time.perf_counter() - t0
+    warned = [r for r in results if r.warnings and r.status in ("done", "skipped")]
     if args.report:
         from outcast_core.runtime.io.imageio import atomic_output
 
         data = {REPORT_MARKER: 1, "input_folder": str(Path(args.folder).expanduser().resolve()),
                 "output_folder": str(out_dir.resolve()), "options": dict(vars(options)),
-                "counts": counts, "seconds": round(seconds, 2),
+                "counts": counts, "with_warnings": len(warned), "seconds": round(seconds, 2),
                 "results": [vars(r) for r in results]}
         # (checked again: a file that appeared meanwhile is not replaced)
         force = args.force or _our_report(args.report, Path(args.folder), out_dir)
         with atomic_output(Path(args.report).expanduser(), force=force) as tmp:
             tmp.write_text(json.dumps(data, indent=2, default=list) + "\n", encoding="utf-8")
-    if not args.quiet or counts["failed"] or counts["stale"]:
+    if not args.quiet or counts["failed"] or counts["stale"] or warned:
         stale = f"{counts['stale']} kept from other settings, " if counts["stale"] else ""
-        print(f"{counts['done']} done, {counts['skipped']} skipped (already done), {stale}"
+        new = sum(r.status == "done" for r in warned)
+        print(f"{counts['done']} done{f' ({new} with warnings)' if new else ''}, "
+              f"{counts['skipped']} skipped (already done), {stale}"
               f"{counts['failed']} failed in {seconds:.1f} s", file=sys.stderr)
+    if warned:  # made, but maybe poor: said (the exit status stays 0)
+        print(f"outcast batch: warning: {len(warned)} of {total} outputs were made despite a "
+              f"warning (see their lines): {_names(warned)}", file=sys.stderr)
     if counts["stale"]:
-        kept = _names(results, "stale")
+        kept = _names([r for r in results if r.status == "stale"])
         print(f"outcast batch: error: {counts['stale']} of {total} outputs exist from other "
               f"settings and were kept, not redone: {kept} (use --force to redo them)",
               file=sys.stderr)
     if counts["failed"]:
         print(f"outcast batch: error: {counts['failed']} of {total} photos failed: "
-              f"{_names(results, 'failed')}", file=sys.stderr)
+              f"{_names([r for r in results if r.status == 'failed'])}", file=sys.stderr)
     return 2 if counts["failed"] or counts["stale"] else 0
 
 
-def _names(results: list[JobResult], status: str) -> str:
-    names = [Path(r.image).name for r in results if r.status == status]
+def _names(results: list[JobResult]) -> str:
+    names = [Path(r.image).name for r in results]
     return ", ".join(names[:10]) + (" ..." if len(names) > 10 else "")

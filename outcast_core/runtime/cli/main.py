@@ -296,11 +296,12 @@ def _set_image(session, loaded, args: argparse.Namespace, progress=None) -> None
     focal35 = None if args.fov is not None else loaded.exif.focal_35mm
     session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth,
                       progress=progress)
+    from outcast_core.runtime.pipeline.batch import small_photo_note
     from outcast_core.runtime.pipeline.session import elongation_note
 
-    note = elongation_note(*loaded.original_size)
-    if note:
-        print(f"outcast: warning: {note}", file=sys.stderr)
+    for note in (elongation_note(*loaded.original_size), small_photo_note(*loaded.original_size)):
+        if note:  # said even with -q: the output is made, and may be meaningless
+            print(f"outcast: warning: {note}", file=sys.stderr)
     if session.depth_source.startswith("ground-plane prior"):  # said even with -q
         folder = session.registry.directory_for("depth")
         print(f"outcast: warning: no depth model in '{folder}': the depth is a flat ground "

@@ -56,6 +56,15 @@ MAX_PROJECT_BYTES = 1_000_000
 #: one made otherwise (another sun, preset, format...) or not by a batch is kept and reported
 #: as ``stale`` until ``force`` redoes it.
 RECORD_NAME = ".outcast-batch.json"
+#: Shorter side (pixels) under which a photo is too small to relight meaningfully
+#: (:func:`small_photo_note`; a user trial's 8 x 8 photo was relit and reported as done with
+#: no word). Its shadows are found and cast at its own size (the working size never enlarges a
+#: photo), and under this many pixels there are too few for them: the automatic sun's
+#: legibility is 0 there (``auto_sun.LEGIBLE_LOW``, the same number: a test keeps them equal),
+#: and the learned networks, trained on 128-pixel views and halving the image four times,
+#: see under two pixels across at their coarsest. A warning, not a refusal: the output is
+#: written.
+MIN_PHOTO_SIDE = 24
 
 Sun = tuple[float, float]
 
@@ -157,6 +166,9 @@ class JobResult:
         to_sun: the new sun (relighting).
         seconds: wall time of the job.
         details: the session's modes and timings.
+        warnings: what ``outcast relight`` warns of for this photo (:func:`photo_warnings`:
+            transparency filled with white, a strip's shape, too small, no depth model); the
+            output is made all the same.
     """
 
     image: str
@@ -168,6 +180,7 @@ class JobResult:
     to_sun: Sun | None = None
     seconds: float = 0.0
     details: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
 
 
 # -------------------------------------------------------------------------------- planning
@@ -311,7 +324,8 @@ def plan_batch(
                     else planned_suns(job, options))
                 results.append(JobResult(str(image), str(output), "skipped",
                                          "done with these settings (use --force to redo it)",
-                                         from_sun=from_sun, sun_source=source, to_sun=to_sun))
+                                         from_sun=from_sun, sun_source=source, to_sun=to_sun,
+                                         warnings=list(entry.warnings)))
             else:
                 results.append(JobResult(
                     str(image), str(output), "stale",
@@ -447,16 +461,21 @@ class RecordEntry:
             (recorded before the work) and in records written before suns were kept.
         sun_source: where ``from_sun`` came from (:attr:`JobResult.sun_source`).
         to_sun: the new sun (relighting), or None.
+        warnings: the job's :attr:`JobResult.warnings`, so a skipped output still says them.
     """
 
     settings: str
     from_sun: Sun | None = None
     sun_source: str = ""
     to_sun: Sun | None = None
+    warnings: tuple[str, ...] = ()
 
     def as_json(self) -> dict[str, Any]:
-        return {"settings": self.settings, "from_sun": _plain_sun(self.from_sun),
+        data = {"settings": self.settings, "from_sun": _plain_sun(self.from_sun),
                 "sun_source": self.sun_source, "to_sun": _plain_sun(self.to_sun)}
+        if self.warnings:  # (absent without: records from before warnings read the same)
+            data["warnings"] = list(self.warnings)
+        return data
 
     @classmethod
     def from_json(cls, value: Any) -> RecordEntry | None:
@@ -467,8 +486,12 @@ class RecordEntry:
         if not (isinstance(value, dict) and isinstance(value.get("settings"), str)):
             return None
         source = value.get("sun_source")
+        warnings = value.get("warnings")
+        warnings = (tuple(w for w in warnings if isinstance(w, str))
+                    if isinstance(warnings, list) else ())
         return cls(value["settings"], _recorded_sun(value.get("from_sun")),
-                   source if isinstance(source, str) else "", _recorded_sun(value.get("to_sun")))
+                   source if isinstance(source, str) else "", _recorded_sun(value.get("to_sun")),
+                   warnings)
 
 
 def _plain_sun(sun: Sun | None) -> list[float] | None:
@@ -520,7 +543,7 @@ def record_done(out_dir: str | os.PathLike[str], jobs: Sequence[BatchJob],
     for job in jobs:
         r = done.get(job.output)
         record[Path(job.output).name] = RecordEntry(job.settings) if r is None else RecordEntry(
-            job.settings, r.from_sun, r.sun_source, r.to_sun)
+            job.settings, r.from_sun, r.sun_source, r.to_sun, tuple(r.warnings))
     data = {k: v.as_json() for k, v in record.items()}
     with atomic_output(Path(out_dir) / RECORD_NAME, force=True) as tmp:
         tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
@@ -802,6 +825,7 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
             loaded.path, (height, width), model_path=options.depth_model,
             use_phone=options.use_phone_depth, strict=False, photo_srgb=loaded.image_srgb)
     session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm, depth=depth)
+    result.warnings = photo_warnings(loaded, session)
     from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
 
     tilt = photo_camera_tilt(session, job.image)
@@ -826,6 +850,49 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
                           camera={"pitch": round(tilt[0], 2), "roll": round(tilt[1], 2),
                                   "source": tilt[2]},
                           timings={k: round(v, 3) for k, v in session.timings.items()})
+
+
+def small_photo_note(width: int, height: int) -> str:
+    """A warning for a photo too small to relight meaningfully (shorter side under
+    :data:`MIN_PHOTO_SIDE`), else "".
+
+    Example:
+        >>> small_photo_note(8, 8)[:48]
+        'the photo is only 8 x 8 pixels: too small to rel'
+        >>> small_photo_note(64, 48)
+        ''
+    """
+    if min(width, height) >= MIN_PHOTO_SIDE:
+        return ""
+    return (f"the photo is only {width} x {height} pixels: too small to relight meaningfully "
+            f"(its shadows are found and cast at that size, and under {MIN_PHOTO_SIDE} pixels "
+            "on the shorter side there are too few for them)")
+
+
+def photo_warnings(loaded: Any, session: Any) -> list[str]:
+    """What ``outcast relight`` warns of for a photo, for a batch to report with its result:
+    transparency filled with white, a strip's shape
+    (:func:`~outcast_core.runtime.pipeline.session.elongation_note`), a photo too small
+    (:func:`small_photo_note`) and depth from no model (a flat ground plane). The output is
+    made all the same; these say why it may be poor.
+
+    Args:
+        loaded: the photo (:class:`~outcast_core.runtime.io.imageio.LoadedImage`).
+        session: its session, after ``set_image``.
+    """
+    from outcast_core.runtime.pipeline.session import elongation_note
+
+    width, height = loaded.original_size
+    notes = []
+    if loaded.has_alpha:
+        notes.append("its transparency is filled with white (the output has none)")
+    notes += [note for note in (elongation_note(width, height), small_photo_note(width, height))
+              if note]
+    if str(session.depth_source).startswith("ground-plane prior"):
+        folder = session.registry.directory_for("depth")
+        notes.append(f"no depth model in '{folder}': the depth is a flat ground plane, so the "
+                     "predicted shadows will be poor (see 'outcast models')")
+    return notes
 
 
 def _auto_sun(session: Any, exif: Any, result: JobResult,

@@ -426,6 +426,24 @@ def test_sixteen_bit_png_stays_sixteen_bit_and_transparency_is_said(tmp_path, ca
     assert "transparency" not in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("size", "warned"), [((8, 8), True), ((23, 400), True),
+                                             ((24, 24), False), ((80, 60), False)])
+def test_a_photo_too_small_to_relight_is_warned_of(tmp_path, capsys, size, warned) -> None:
+    """An 8 x 8 photo was relit and reported as written with no word (a user trial): said
+    even with -q, and the output still written."""
+    rng = np.random.default_rng(6)
+    small = tmp_path / "small.png"
+    write_image(small, rng.random((size[1], size[0], 3)).astype(np.float32))
+    out = tmp_path / "o.png"
+    assert main(["relight", str(small), "--from", "90,30", "--to", "200,40", "-o", str(out),
+                 "--preset", "fast", "-q"]) == 0
+    assert out.is_file()
+    err = capsys.readouterr().err
+    w, h = size
+    assert (f"outcast: warning: the photo is only {w} x {h} pixels: too small to relight "
+            "meaningfully" in err) is warned, err
+
+
 def test_png_frames_go_into_a_folder_holding_only_a_file_managers_files(photo, tmp_path) -> None:
     folder = tmp_path / "frames"
     folder.mkdir()

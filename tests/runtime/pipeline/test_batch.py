@@ -626,3 +626,45 @@ def test_a_rerun_with_a_report_resumes_and_replaces_its_report(
         err = capsys.readouterr().err.strip()
         assert "is not a report of this batch" in err and len(err.splitlines()) == 1
         assert report.read_text() == text and not (tmp_path / "out2").exists()
+
+
+def test_relights_warnings_are_in_the_batchs_lines_summary_and_report(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A batch dropped what ``relight`` warns of (transparency filled with white, a strip's
+    shape) and an 8 x 8 photo was warned of nowhere: each is said on its photo's line (also
+    with -q, and again when a rerun skips it), counted in the summary and kept in the report;
+    the photos are still done (exit status 0)."""
+    from outcast_core.runtime.pipeline import auto_sun
+    from outcast_core.runtime.pipeline.batch import MIN_PHOTO_SIDE
+
+    assert MIN_PHOTO_SIDE == auto_sun.LEGIBLE_LOW
+    d, out, report = tmp_path / "in", tmp_path / "out", tmp_path / "r.json"
+    d.mkdir()
+    _photo(d / "plain.png", 0)
+    _photo(d / "tiny.png", 1, size=(8, 8))
+    rgba = np.full((48, 64, 4), 200, np.uint8)
+    rgba[:10, :10, 3] = 0
+    Image.fromarray(rgba).save(d / "clear.png")
+    args = ["batch", str(d), "-o", str(out), "--from", "200,40", "--to", "90,30", "--preset",
+            "fast", "--mode", "classic", "--report", str(report)]
+    assert main(args) == 0
+    lines = capsys.readouterr().err.splitlines()
+    line = {n: next(x for x in lines if f"] {n}" in x) for n in ("clear.png", "plain.png",
+                                                                  "tiny.png")}
+    assert line["clear.png"].endswith("; warning: its transparency is filled with white (the "
+                                      "output has none)")
+    assert "; warning: the photo is only 8 x 8 pixels: too small to relight" in line["tiny.png"]
+    assert "warning" not in line["plain.png"]
+    assert "3 done (2 with warnings), 0 skipped (already done), 0 failed" in "\n".join(lines)
+    assert lines[-1] == ("outcast batch: warning: 2 of 3 outputs were made despite a warning "
+                         "(see their lines): clear.png, tiny.png")
+    data = json.loads(report.read_text())
+    assert data["with_warnings"] == 2
+    by_name = {Path(r["image"]).name: r for r in data["results"]}
+    assert by_name["plain.png"]["warnings"] == [] and len(by_name["tiny.png"]["warnings"]) == 1
+    # -q: the warnings still; a rerun skips the photos and says their warnings again.
+    assert main([*args, "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "tiny.png: skipped" in err and "8 x 8 pixels" in err and "plain.png" not in err
+    assert json.loads(report.read_text())["with_warnings"] == 2
