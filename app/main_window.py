@@ -2203,11 +2203,16 @@ class MainWindow(QMainWindow):
     def refuse_own_file(self, path: str) -> bool:
         """Whether ``path`` is one of :meth:`own_file`'s files, said in an error dialog: an
         export may never replace it (as on the command line)."""
+        exc = self.own_file_error(path)
+        if exc is not None:
+            self.show_error(exc, "export")
+        return exc is not None
+
+    def own_file_error(self, path: str) -> OwnFileError | None:
+        """Why an export may not write ``path`` (:meth:`own_file`), or None."""
         own = self.own_file(path)
-        if own:
-            self.show_error(OwnFileError(f"'{os.path.basename(path)}' is {own}; choose another "
-                                         "name"), "export")
-        return bool(own)
+        return OwnFileError(f"'{os.path.basename(path)}' is {own}; choose another name") if (
+            own) else None
 
     def own_file(self, path: str) -> str:
         """What ``path`` is to the open work ("the photo you opened", its depth map, a project

@@ -39,6 +39,7 @@ from PySide6.QtWidgets import (
 
 from app import display
 from app.canvas import qimage_from_array
+from app.errors import message_for
 from app.state import Step, Sun, TimelapseSettings
 from app.workers import JobContext
 from outcast_core.runtime.pipeline import timelapse as tl
@@ -623,20 +624,18 @@ class TimelapseDialog(QDialog):
         try:
             samples = self.samples()
         except ValueError as exc:
-            self.main.show_error(exc, "export")
-            return None
+            return self._refuse(exc)
         fmt = str(self.format_combo.currentData())
         fps = self.fps_box.value()
         size = self.size()
-        if self.main.refuse_own_file(path):  # never, even confirmed (a WebP photo, say)
-            return None
+        own = self.main.own_file_error(path)
+        if own is not None:  # never, even confirmed (a WebP photo, say)
+            return self._refuse(own)
         if not force and os.path.exists(path):
-            self.main.show_error(FileExistsError(f"'{path}' already exists"), "export")
-            return None
+            return self._refuse(FileExistsError(f"'{path}' already exists"))
         problem = tl.frames_folder_problem(path) if fmt == "png" else None
         if problem:  # never empty a folder the user keeps other files in
-            self.main.show_error(IsADirectoryError(problem), "export")
-            return None
+            return self._refuse(IsADirectoryError(problem))
 
         exposure = self.main.relight_panel.exposure()  # as asked, whatever is ticked later
         edits = self.main.shadow_edits  # likewise the shadow corrections
@@ -655,6 +654,19 @@ class TimelapseDialog(QDialog):
         pixels = f" of {shape[1]} × {shape[0]}" if shape is not None else ""
         self.status.setText(f"Exporting {len(samples)} frames{pixels} to {os.path.basename(path)}…")
         return self.main.runner.submit("tl_export", job, f"Exporting {os.path.basename(path)}")
+
+    def _refuse(self, exc: BaseException) -> None:
+        """An export refused before it starts: the error dialog, and the status line says so
+        (it still said the last export's "Saved 24 frames to …": a user trial)."""
+        self.main.show_error(exc, "export")
+        self._say_failed(exc)
+
+    def _say_failed(self, exc: BaseException) -> None:
+        """The status line for an export that failed or was refused, in the error dialog's
+        words: a folder that cannot be written is named, never the hidden temporary file
+        (``.clip.p20hmmbi.part.mp4``, "[Errno 1] ...": a user trial)."""
+        msg = message_for(exc, "export")
+        self.status.setText(f"Export failed: {msg.what}. {msg.todo}")
 
     def cancel_export(self) -> None:
         if self._exporting:
@@ -692,7 +704,7 @@ class TimelapseDialog(QDialog):
         if channel == "tl_export":
             self._set_exporting(False)
             self.last_result = "failed"
-            self.status.setText(f"Export failed: {exc}")
+            self._say_failed(exc)
 
     def closeEvent(self, event: QCloseEvent) -> None:
         if self._ready:
