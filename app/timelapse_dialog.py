@@ -571,8 +571,9 @@ class TimelapseDialog(QDialog):
             f"elevation {s.elevation:.1f}°{frame}{below} · quick preview"
         )
         session = self.main.session
-        if session is None or session.original_sun is None:
-            return
+        if session is None or session.original_sun is None or not self.isVisible():
+            return  # (hidden: drawn when shown; a closed dialog's frame, redrawn after a
+            # change of quality, said "rendering time-lapse frame took …": a user trial)
         w = tl.sun_vectors([s])[0]
 
         exposure = self.main.relight_panel.exposure()  # as the user sees it now
@@ -599,6 +600,10 @@ class TimelapseDialog(QDialog):
     def resizeEvent(self, event: Any) -> None:
         super().resizeEvent(event)
         self._show_preview()
+
+    def showEvent(self, event: Any) -> None:  # noqa: N802 (Qt's name)
+        super().showEvent(event)
+        self._on_scrub(self.scrubber.value())  # the frame as the settings are now
 
     # ------------------------------------------------------------------ export
     def export_dialog(self) -> None:

@@ -63,3 +63,23 @@ def test_a_folder_that_cannot_be_written_is_named_not_the_temporary_file(
     assert ".part" not in text and "Errno" not in text
     assert "Choose a folder you can write to" in text
     assert errors and ".part" not in errors[-1][1]
+
+
+def test_a_closed_dialog_draws_no_frame(window, photo, settle):
+    """A user trial changed the quality with the time-lapse dialog closed: the status bar said
+    "rendering time-lapse frame took …" (the closed dialog's path was recomputed for the new
+    ground plane, and its frame drawn). Reopened, the frame is drawn."""
+    _relight(window, photo, settle)
+    dialog = _timelapse(window, 3)
+    settle()
+    assert dialog.preview.pixmap() is not None and not dialog.preview.pixmap().isNull()
+    dialog.close()
+    started = []
+    window.runner.started.connect(lambda i, channel, d: started.append(channel))
+    window.set_preset("balanced")
+    settle()
+    assert "preset" in started and "tl_preview" not in started
+    assert "time-lapse" not in window.stage_label.text()
+    window.open_timelapse()
+    settle()
+    assert started.count("tl_preview") == 1
