@@ -296,6 +296,7 @@ def _set_image(session, loaded, args: argparse.Namespace, progress=None) -> None
     focal35 = None if args.fov is not None else loaded.exif.focal_35mm
     session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth,
                       progress=progress)
+    getattr(progress, "end_line", lambda: None)()  # (the warnings below on their own lines)
     from outcast_core.runtime.pipeline.batch import small_photo_note
     from outcast_core.runtime.pipeline.session import elongation_note
 
@@ -307,6 +308,69 @@ def _set_image(session, loaded, args: argparse.Namespace, progress=None) -> None
         print(f"outcast: warning: no depth model in '{folder}': the depth is a flat ground "
               "plane, so the predicted shadows will be poor (see 'outcast models')",
               file=sys.stderr)
+
+
+class ProgressLine:
+    """A ``(stage, fraction)`` progress callback that prints to stderr (nothing when
+    ``quiet``).
+
+    On a terminal, one line rewritten in place with ``\r``. Anywhere else (a log file, a pipe)
+    ``\r`` runs every update into one line (a user trial's log), so each stage gets separate
+    lines: its first update, then one each time it passes another ``step`` (a tenth by
+    default), and its end: at most a dozen lines a stage.
+
+    Call :meth:`end_line` before printing anything else: it ends a line left open on a
+    terminal (and does nothing otherwise).
+
+    Example:
+        >>> import io
+        >>> log = io.StringIO()
+        >>> progress = ProgressLine(log)
+        >>> for i in range(1, 101):
+        ...     progress("frames", i / 100)
+        >>> log.getvalue().splitlines()[:3], len(log.getvalue().splitlines())
+        (['frames:   1 %', 'frames:  10 %', 'frames:  20 %'], 11)
+    """
+
+    def __init__(self, stream: object = None, *, quiet: bool = False, step: float = 0.1) -> None:
+        self.stream = stream
+        self.quiet = quiet
+        self.step = step
+        self._stage: str | None = None
+        self._mark = -1
+        self._width = 0  # of the line open on a terminal (0: none)
+
+    def _out(self):  # sys.stderr when called, as print's default (pytest swaps it)
+        return self.stream if self.stream is not None else sys.stderr
+
+    def _tty(self) -> bool:
+        isatty = getattr(self._out(), "isatty", None)
+        try:
+            return bool(isatty and isatty())
+        except (OSError, ValueError):
+            return False
+
+    def __call__(self, stage: str, fraction: float) -> None:
+        if self.quiet:
+            return
+        fraction = min(1.0, max(0.0, float(fraction)))
+        out = self._out()
+        if self._tty():
+            text = f"{stage}: {100.0 * fraction:5.1f} %"
+            print("\r" + text.ljust(self._width), end="", file=out, flush=True)
+            self._width = len(text)
+            return
+        mark = math.floor(fraction / self.step + 1e-9) if self.step > 0 else 0
+        if stage == self._stage and mark <= self._mark:
+            return
+        self._stage, self._mark = stage, mark
+        print(f"{stage}: {100.0 * fraction:3.0f} %", file=out, flush=True)
+
+    def end_line(self) -> None:
+        """End the terminal line the progress left open, if any."""
+        if self._width:
+            print(file=self._out(), flush=True)
+            self._width = 0
 
 
 def _say(args: argparse.Namespace, text: str) -> None:

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from outcast_core.runtime.cli.main import (
+    ProgressLine,
     add_exposure_option,
     add_input_options,
     add_shadow_edit_options,
@@ -288,7 +289,7 @@ def check_timelapse_output(args: argparse.Namespace) -> None:
 
 def run_timelapse_command(args: argparse.Namespace) -> int:
     """Handler of ``outcast timelapse``; returns the process exit code."""
-    from outcast_core.runtime.cli.main import _load, _set_image
+    from outcast_core.runtime.cli.main import _load
     from outcast_core.runtime.pipeline.session import RelightSession
 
     check_timelapse_output(args)  # before the slow part
@@ -298,11 +299,19 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     session = RelightSession(preset=args.preset)
     session.exposure = args.exposure
     quiet = getattr(args, "quiet", False)
+    # A line rewritten on a terminal; separate lines, a tenth of a stage apart, in a log.
+    report = ProgressLine(quiet=quiet)
+    try:
+        return _run_timelapse(args, loaded, exif, session, report)
+    finally:
+        report.end_line()  # an error is not printed on the end of a progress line
 
-    def report(stage: str, fraction: float) -> None:
-        if not quiet:
-            print(f"\r{stage}: {100.0 * fraction:5.1f} %", end="", file=sys.stderr, flush=True)
 
+def _run_timelapse(args: argparse.Namespace, loaded: Any, exif: Any, session: Any,
+                   report: ProgressLine) -> int:
+    from outcast_core.runtime.cli.main import _set_image
+
+    quiet = report.quiet
     _set_image(session, loaded, args, progress=report)
 
     def tilt() -> tuple[float, float, str]:
@@ -310,8 +319,6 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
 
         return photo_camera_tilt(session, args.image)
 
-    if not quiet:
-        print(file=sys.stderr)
     samples = _samples_from_args(args, exif, tilt)
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(sun_vector(*args.from_sun))
@@ -327,7 +334,7 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     padded = (f", written as {shape[1] + shape[1] % 2}x{shape[0] + shape[0] % 2} (H.264 needs "
               "even sides: the edge is repeated)" if odd else "")
     if not quiet:
-        print(f"\nrendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}){padded}, "
+        print(f"rendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}){padded}, "
               f"{describe_seconds(guess)}", file=sys.stderr)
     out = render_timelapse(
         session,
@@ -338,7 +345,8 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
         force=args.force,
         progress=report,
     )
+    report.end_line()
     if not quiet:
         counted = f" ({corrections.removesuffix('; ')})" if corrections else ""
-        print(f"\nwrote {len(samples)} frames to {out}{counted}", file=sys.stderr)
+        print(f"wrote {len(samples)} frames to {out}{counted}", file=sys.stderr)
     return 0

@@ -239,3 +239,42 @@ def test_timelapse_says_a_missing_sun_path_before_an_existing_output(
     assert main(["timelapse", "p.jpg", "--from", "90,30", "-o", str(out)]) == 2
     err = capsys.readouterr().err
     assert "exactly one of --sweep or --date" in err and "already exists" not in err
+
+
+def test_progress_is_rewritten_on_a_terminal_and_separate_lines_in_a_log() -> None:
+    """Progress went to stderr with ``\\r`` into logs too, where it ran into one line (a user
+    trial): only a terminal gets ``\\r``; a log gets a line a tenth of a stage apart."""
+    import io
+
+    from outcast_core.runtime.cli.main import ProgressLine
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    tty, log = Terminal(), io.StringIO()
+    for stream in (tty, log):
+        progress = ProgressLine(stream)
+        for stage, n in (("depth", 3), ("timelapse", 48)):
+            for i in range(1, n + 1):
+                progress(stage, i / n)
+        progress.end_line()
+    assert tty.getvalue().count("\r") == 51 and tty.getvalue().endswith("100.0 %\n")
+    lines = log.getvalue().splitlines()
+    assert "\r" not in log.getvalue() and lines[0] == "depth:  33 %"
+    assert [x for x in lines if x.startswith("timelapse")][-1] == "timelapse: 100 %"
+    assert len([x for x in lines if x.startswith("timelapse")]) == 11
+    quiet = io.StringIO()
+    ProgressLine(quiet, quiet=True)("depth", 0.5)
+    assert quiet.getvalue() == ""
+
+
+def test_timelapse_progress_in_a_log_is_lines(photo: Path, tmp_path: Path, capsys) -> None:
+    assert main(["timelapse", str(photo), "--from", "120,40", "--sweep", "1,20:90,20",
+                 "--frames", "20", "--size", "working", "--preset", "fast", "-o",
+                 str(tmp_path / "t.gif")]) == 0
+    err = capsys.readouterr().err
+    assert "\r" not in err and "\n\n" not in err
+    frames = [line for line in err.splitlines() if line.startswith("timelapse:")]
+    assert 2 <= len(frames) <= 11 and frames[-1] == "timelapse: 100 %"
+    assert err.splitlines()[-1].startswith("wrote 20 frames to ")
