@@ -69,6 +69,11 @@ def cmd_sun(args: argparse.Namespace) -> int:
         out["exif_elevation"] = None if prior is None else round(prior.elevation, 2)
         out["exif_azimuth"] = (None if prior is None or prior.azimuth is None
                                else round(prior.azimuth, 2))
+        # exif_azimuth / exif_elevation are against the horizon; the result is in the
+        # camera's frame: the EXIF sun in that frame too (equal for a level camera)
+        seen_as = _exif_sun_in_camera_frame(fit, prior)
+        out["exif_camera_azimuth"], out["exif_camera_elevation"] = (
+            (None, None) if seen_as is None else (round(seen_as[0], 2), round(seen_as[1], 2)))
         out["camera_heading"] = None if seen_heading is None else round(seen_heading, 2)
         print(json.dumps(out, indent=2, ensure_ascii=False))
         return 0 if sure else NO_SUN_STATUS
@@ -78,11 +83,53 @@ def cmd_sun(args: argparse.Namespace) -> int:
               f"confidence {fit.confidence:.2f}{heading}")
     else:
         print(f"outcast sun: {fit.note}", file=sys.stderr)  # said even with -q
-    said = fit.note if sure else (f"best guess: azimuth {fit.azimuth:.1f}, elevation "
-                                  f"{fit.elevation:.1f}")
+    said = note_for_the_cli(fit, prior) if sure else (
+        f"best guess: azimuth {fit.azimuth:.1f}, elevation {fit.elevation:.1f}")
     _say(args, f"{said} · source: {fit.source} · depth: {session.depth_source} · "
                f"{fit.evaluations} suns tried in {fit.seconds:.2f} s")
     return 0 if sure else NO_SUN_STATUS
+
+
+#: :attr:`SunFit.note`'s words for the app's dial (the heat map), which the command line does
+#: not show.
+_MAP_WORDS = ": the warm area of the map)"
+
+
+def _exif_sun_in_camera_frame(fit: Any, prior: Any) -> tuple[float, float] | None:
+    """The EXIF sun (``prior``: azimuth and elevation against the horizon) in the frame of
+    ``fit``'s tilted camera, where ``fit``'s own sun is given; None without a full EXIF sun."""
+    if prior is None or prior.azimuth is None:
+        return None
+    from outcast_core.runtime.geometry.camera import sun_angles, sun_vector
+
+    az, el = sun_angles(sun_vector(prior.azimuth, prior.elevation, fit.pitch, fit.roll))
+    return float(az) % 360.0, float(el)
+
+
+def note_for_the_cli(fit: Any, prior: Any) -> str:
+    """:attr:`~outcast_core.runtime.pipeline.auto_sun.SunFit.note` in the command line's words.
+
+    The note is written for the app: "the warm area of the map" is its dial's heat map, which
+    the command line does not show, so it is left out. For a tilted camera the printed sun is
+    in the camera's frame and the EXIF sun the note names is against the horizon (a user trial
+    read "120.2 41.0" and "azimuth 122°, elevation 39°" as two answers): the note says so, with
+    the EXIF sun in the camera's frame beside it.
+    """
+    from outcast_core.runtime.pipeline.auto_sun import describe_tilt, is_tilted
+
+    note = fit.note.replace(_MAP_WORDS, ")")
+    if prior is None or not prior.description or not is_tilted(fit.pitch, fit.roll):
+        return note
+    tilt = describe_tilt(fit.pitch, fit.roll, fit.pose_source or "assumed")
+    seen_as = _exif_sun_in_camera_frame(fit, prior)
+    if seen_as is None:  # the EXIF gives the true elevation only
+        words = (f"{prior.description}, against the horizon (the sun above is in the frame of "
+                 f"the {tilt})")
+    else:
+        words = (f"{prior.description}, against the horizon; in the frame of the {tilt}, "
+                 f"the frame of the sun above: azimuth {seen_as[0]:.0f}°, elevation "
+                 f"{seen_as[1]:.0f}°")
+    return note.replace(prior.description, words, 1)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -110,4 +157,4 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_sun)
 
 
-__all__ = ["cmd_sun", "register"]
+__all__ = ["cmd_sun", "note_for_the_cli", "register"]

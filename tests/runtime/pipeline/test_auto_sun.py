@@ -427,3 +427,35 @@ def test_a_thumbnail_or_a_strip_tells_no_sun(shape: tuple[int, int]) -> None:
     fit = find_sun(s)
     assert not fit.found and fit.confidence < 0.3
     assert "too small or too narrow" in fit.note and fit.unfound == "too-small"
+
+
+def test_cli_sun_says_which_sun_is_in_which_frame(capsys: pytest.CaptureFixture[str],
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    """``outcast sun`` spoke of "the warm area of the map" (the app's dial; the command line
+    shows none), and for a tilted camera printed its sun in the camera's frame beside the
+    EXIF sun against the horizon, without saying so (a user trial: "120.2, 41.0" and
+    "azimuth 122°, elevation 39°"). The pool sample's compass decides its sun; then with the
+    camera taken as pitched and rolled, the EXIF sun is given in both frames."""
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_003_th_pool.jpg"
+    assert main(["sun", str(sample), "--preset", "fast"]) == 0
+    said = capsys.readouterr()
+    assert "the shadows alone fit best near azimuth" in said.err  # the map's words, kept
+    assert "map" not in said.err and "against the horizon" not in said.err  # level camera
+    monkeypatch.setattr(auto_sun, "photo_camera_tilt",
+                        lambda session, path: (-12.0, 3.0, "ground plane"))
+    assert main(["sun", str(sample), "--preset", "fast"]) == 0
+    said = capsys.readouterr()
+    az, el = (float(v) for v in said.out.split()[1:4:2])
+    note = said.err.splitlines()[-1]
+    match = re.search(r"azimuth (\d+)°, elevation (\d+)° from the photo's time, place and "
+                      r"compass heading, against the horizon; in the frame of the camera "
+                      r"pitched 12\.0° down and rolled 3\.0° clockwise \(ground plane\), the "
+                      r"frame of the sun above: azimuth (\d+)°, elevation (\d+)°", note)
+    assert match, note
+    horizon, camera = [float(v) for v in match.groups()[:2]], [float(v) for v in match.groups()[2:]]
+    assert abs(horizon[1] - camera[1]) > 2.0  # two frames, two suns
+    assert _angle(sun_vector(az, el), sun_vector(*camera)) < 20.0  # the printed one's frame
+    assert main(["sun", str(sample), "--preset", "fast", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert [round(out["exif_camera_azimuth"]), round(out["exif_camera_elevation"])] == camera
+    assert round(out["exif_elevation"]) == horizon[1]
