@@ -763,9 +763,14 @@ def _registry(threads: int | None) -> Any:
 
 
 def one_line(exc: BaseException) -> str:
-    """An exception as one line (user errors as their message, others with their type)."""
+    """An exception as one line (user errors as their message, others with their type; a
+    photo that cannot be read in plain words, without the decoder's: :func:`run_job` keeps
+    those in the result's ``details["decoder"]``)."""
+    from outcast_core.runtime.io.imageio import ImageReadError
     from outcast_core.runtime.io.models import ModelError
 
+    if isinstance(exc, ImageReadError):
+        return " ".join(exc.message.split())
     text = " ".join(str(exc).split())
     if isinstance(exc, ValueError | ModelError | FileExistsError) and text:
         return text
@@ -791,6 +796,8 @@ def run_job(job: BatchJob, options: BatchOptions) -> JobResult:
         result.status = "done"
     except (Exception, MemoryError) as exc:  # noqa: BLE001 - one photo's failure is reported
         result.message = one_line(exc)
+        if getattr(exc, "detail", ""):  # an ImageReadError's decoder words: for the report
+            result.details["decoder"] = str(exc.detail)
     result.seconds = time.perf_counter() - t0
     return result
 

@@ -444,6 +444,33 @@ def test_a_photo_too_small_to_relight_is_warned_of(tmp_path, capsys, size, warne
             "meaningfully" in err) is warned, err
 
 
+def test_a_truncated_photo_is_said_in_plain_words(tmp_path, capsys) -> None:
+    """A cut-short JPEG's error ended in Python's words ("(OSError: image file is truncated
+    (5 bytes not processed))"; a user trial): the command line says it in plain words, as the
+    app does; a batch keeps the decoder's words in its report only."""
+    import json
+
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_003_th_pool.jpg"
+    photos = tmp_path / "in"
+    photos.mkdir()
+    cut = photos / "cut.jpg"
+    cut.write_bytes(sample.read_bytes()[:20000])
+    assert main(["relight", str(cut), "--from", "90,30", "--to", "200,40", "-o",
+                 str(tmp_path / "r.jpg")]) == 2
+    err = capsys.readouterr().err
+    assert err == (f"outcast relight: error: cannot read image '{cut}': the file is truncated "
+                   "or corrupt\n")
+    report = tmp_path / "r.json"
+    assert main(["batch", str(photos), "-o", str(tmp_path / "out"), "--from", "90,30", "--to",
+                 "200,40", "-q", "--report", str(report)]) == 2
+    err = capsys.readouterr().err
+    assert "cut.jpg: failed: cannot read image" in err
+    assert "Error" not in err and "not processed" not in err
+    result = json.loads(report.read_text())["results"][0]
+    assert result["message"].endswith("the file is truncated or corrupt")
+    assert result["details"]["decoder"].startswith("OSError: image file is truncated")
+
+
 def test_png_frames_go_into_a_folder_holding_only_a_file_managers_files(photo, tmp_path) -> None:
     folder = tmp_path / "frames"
     folder.mkdir()
