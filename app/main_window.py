@@ -6,7 +6,8 @@ this window, in the GUI thread. Channels (one pending job each, latest wins):
 
 ``load``, ``preset``, ``shadow`` (step-1 overlay), ``find_sun`` (step 1's automatic sun),
 ``confirm``, ``relight`` (step-2 view),
-``export_still``, ``export_shadows_removed``, ``tl_preview``, ``tl_export``.
+``export_still``, ``export_shadows_removed``, ``tl_preview``, ``tl_export``, ``tl_estimate``
+(a short time-lapse export, timed for the dialog's estimate).
 
 The step-2 views "Shadows removed" and "Shadows found" do not depend on the new sun: their
 images are computed once per photo, original sun, preset and shadow corrections (on the
@@ -140,6 +141,7 @@ STAGE_WORDS = {
     "export_shadows_removed": "Exporting shadows removed",
     "tl_preview": "Rendering time-lapse frame",
     "tl_export": "Exporting time-lapse",
+    "tl_estimate": "Timing a short time-lapse export",
 }
 #: Exports of one image at full resolution (same progress, cancel and safe writing).
 IMAGE_EXPORT_CHANNELS = ("export_still", "export_shadows_removed")
@@ -2475,7 +2477,8 @@ class MainWindow(QMainWindow):
             self._on_relit(result)
         elif channel in IMAGE_EXPORT_CHANNELS:
             self.last_export = result["path"]
-        elif channel in ("tl_preview", "tl_export") and self._timelapse_dialog is not None:
+        elif (channel in ("tl_preview", "tl_export", "tl_estimate")
+              and self._timelapse_dialog is not None):
             self._timelapse_dialog.on_job_finished(channel, result)
         if not self.runner.busy() and channel != "find_sun":
             if channel in IMAGE_EXPORT_CHANNELS:
@@ -2514,8 +2517,11 @@ class MainWindow(QMainWindow):
             if path and not os.path.exists(path):  # a recent file that has gone away
                 self.recent.remove(path)
                 self._save_recent()
-        if channel in ("tl_export", "tl_preview") and self._timelapse_dialog is not None:
+        if (channel in ("tl_export", "tl_preview", "tl_estimate")
+                and self._timelapse_dialog is not None):
             self._timelapse_dialog.on_job_failed(channel, exc)
+        if channel == "tl_estimate":  # the dialog says it; the export itself may work
+            return
         action = "export" if channel in EXPORT_CHANNELS else {"load": "open"}.get(channel, "")
         last = self._last_load
         restore = last[2] if channel == "load" and last is not None else None

@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import datetime as dt
 import os
+import tempfile
+import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -54,6 +57,10 @@ SIZE_CHOICES = (
     ("4k", "4K"),
     ("full", "Full resolution"),
 )
+#: Frames of the short export the estimate times (spread evenly along the path), one fewer
+#: above :data:`ESTIMATE_LARGE_MP` megapixels a frame.
+ESTIMATE_FRAMES = 4
+ESTIMATE_LARGE_MP = 8.0
 FORMAT_CHOICES = (
     ("mp4", "MP4 video (H.264)", "MP4 video (*.mp4)"),
     ("gif", "Animated GIF", "GIF animation (*.gif)"),
@@ -102,6 +109,91 @@ def samples_for(
         settings.utc_offset,
         tilt,
     )
+
+
+def size_entries(photo: tuple[int, int] | None,
+                 working: tuple[int, int] | None) -> list[tuple[str, str, str]]:
+    """The size menu for a photo of ``photo`` ``(H, W)`` at the working size ``working``:
+    ``(key, label, tooltip)`` with each size's pixels, one entry a frame size. A video size
+    as large as the photo is the photo's size: only "Full resolution" is listed then, its
+    tooltip says which sizes it stands for (the menu listed "4K · 2016 × 1512 (the photo's
+    size)" and "Full resolution · 2016 × 1512": a user trial). Without a photo: every size,
+    without pixels.
+
+    Example:
+        >>> size_entries((1512, 2016), (288, 384))[3]
+        ('full', 'Full resolution · 2016 × 1512', "The photo's size (4K would be larger)")
+    """
+    if photo is None or working is None:
+        return [(key, text, "") for key, text in SIZE_CHOICES]
+    shape_of = {key: tl.frame_shape(key, photo, working) for key, _ in SIZE_CHOICES}
+    kept: dict[tuple[int, int], str] = {}  # frame size -> the key listed for it
+    for key, _ in SIZE_CHOICES:
+        if shape_of[key] not in kept or key == "full":
+            kept[shape_of[key]] = key
+    names = dict(SIZE_CHOICES)
+    entries = []
+    for key, text in SIZE_CHOICES:
+        h, w = shape_of[key]
+        if kept[(h, w)] != key:
+            continue
+        label = f"{text} · {w} × {h}" + (" (fastest)" if key == "working" else "")
+        larger = [names[k] for k, _ in SIZE_CHOICES
+                  if k not in (key, "working") and shape_of[k] == (h, w)]
+        tip = "The photo's size" if key == "full" else ""
+        if larger:
+            tip += f" ({' and '.join(larger)} would be larger)"
+        entries.append((key, label, tip))
+    return entries
+
+
+def video_length(frames: int, fps: float) -> str:
+    """How long ``frames`` frames play at ``fps``: ``"4 s"``, ``"0.25 s"``, ``"2 min 5 s"``.
+
+    Example:
+        >>> video_length(48, 12), video_length(3, 12), video_length(500, 12)
+        ('4 s', '0.25 s', '41.7 s')
+        >>> video_length(1500, 12), video_length(720, 12)
+        ('2 min 5 s', '1 min')
+    """
+    seconds = frames / fps
+    if seconds >= 59.5:
+        minutes, rest = divmod(round(seconds), 60)
+        return f"{minutes} min {rest} s" if rest else f"{minutes} min"
+    return f"{seconds:.3g} s"
+
+
+@dataclass(frozen=True)
+class ExportTiming:
+    """How long an export of ``frames`` frames took (seconds), and what a frame more adds:
+    the one-off work (the encoder starting, the photo brought to the frame size, the file
+    finished) is in ``seconds`` once."""
+
+    frames: int
+    seconds: float
+    per_frame: float
+
+    @classmethod
+    def from_stamps(cls, stamps: list[float], total: float) -> ExportTiming:
+        """From a short export: the seconds until each of its frames was rendered, and until
+        it was written. A frame more costs what a frame in the middle took to render (the
+        next sun's shadow is computed beside it; the last frame's is not, and it is cheaper),
+        or to encode when the encoder is the slower (it runs beside the rendering, and the
+        time after the first frame is then its own).
+
+        Example:
+            >>> ExportTiming.from_stamps([1.0, 1.5, 2.0, 2.2], 2.3).seconds_for(10)
+            5.3
+        """
+        frames = len(stamps)
+        middle = stamps[:-1] if frames > 2 else stamps
+        rendering = ((middle[-1] - middle[0]) / (len(middle) - 1) if len(middle) > 1
+                     else stamps[0])
+        return cls(frames, total, max(rendering, (total - stamps[0]) / frames))
+
+    def seconds_for(self, frames: int) -> float:
+        """Estimated seconds for an export of ``frames`` frames."""
+        return max(0.0, self.seconds + (frames - self.frames) * self.per_frame)
 
 
 def _angle_box(lo: float, hi: float, value: float, wrap: bool = False) -> QDoubleSpinBox:
@@ -236,9 +328,9 @@ class TimelapseDialog(QDialog):
         )
         self.estimate_label = QLabel("", self)
         self.estimate_label.setWordWrap(True)
-        self.estimate_label.setToolTip(
-            "A rough estimate from this photo's last relighting times; a busy computer is slower"
-        )
+        #: Timed exports: (photo load, preset, size, format, exposure) -> ExportTiming.
+        self._timings: dict[tuple[Any, ...], ExportTiming] = {}
+        self._untimed: set[tuple[Any, ...]] = set()  # settings whose timing failed
         out_form = QFormLayout()
         out_form.addRow("Frames", self.frames_box)
         out_form.addRow("Frames per second", self.fps_box)
@@ -348,8 +440,8 @@ class TimelapseDialog(QDialog):
             self.frames_box.setValue(s.frames)
             self.fps_box.setValue(s.fps)
             self.format_combo.setCurrentIndex(max(0, self.format_combo.findData(s.format)))
-            self._label_sizes()
-            self.size_combo.setCurrentIndex(max(0, self.size_combo.findData(s.size)))
+            self._fill_sizes()
+            self._select_size(s.size)
             lat = s.latitude if s.latitude is not None else getattr(exif, "latitude", None)
             lon = s.longitude if s.longitude is not None else getattr(exif, "longitude", None)
             self.lat_box.setValue(lat or 0.0)
@@ -436,40 +528,105 @@ class TimelapseDialog(QDialog):
         shapes = self._shapes()
         return None if shapes is None else tl.frame_shape(self.size(), *shapes)
 
-    def _label_sizes(self) -> None:
-        """Each size with its pixels for this photo: "1080p · 1440 × 1080"."""
+    def _fill_sizes(self) -> None:
+        """The size menu for this photo (:func:`size_entries`), the chosen size kept."""
         shapes = self._shapes()
-        for i, (key, text) in enumerate(SIZE_CHOICES):
-            label = text
-            if shapes is not None:
-                h, w = tl.frame_shape(key, *shapes)
-                label = f"{text} · {w} × {h}"
-                if key != "full" and (h, w) == shapes[0]:
-                    label += " (the photo's size)"
-                elif key == "working":
-                    label += " (fastest)"
-            self.size_combo.setItemText(i, label)
+        chosen = self.size()
+        self.size_combo.clear()
+        for key, label, tip in size_entries(*(shapes or (None, None))):
+            self.size_combo.addItem(label, key)
+            self.size_combo.setItemData(self.size_combo.count() - 1, tip,
+                                        Qt.ItemDataRole.ToolTipRole)
+        self._select_size(chosen)
+
+    def _select_size(self, key: str) -> None:
+        """Choose ``key``'s entry, or the one of its frame size when the menu lists that
+        size under another name (a project's "4k" for a photo smaller than 4K: "full")."""
+        index = self.size_combo.findData(key)
+        shapes = self._shapes()
+        if index < 0 and shapes is not None and key in tl.FRAME_SIZES:
+            shape = tl.frame_shape(key, *shapes)
+            index = next((i for i in range(self.size_combo.count())
+                          if tl.frame_shape(str(self.size_combo.itemData(i)), *shapes) == shape),
+                         -1)
+        self.size_combo.setCurrentIndex(max(0, index))
+
+    def _estimate_key(self) -> tuple[Any, ...]:
+        """What an export's time depends on besides its number of frames: the photo as loaded
+        (and its depth), the preset, the frame size, the format, the exposure."""
+        return (self.main._loads, self.main.preset, self.frame_shape(),
+                str(self.format_combo.currentData()), self.main.relight_panel.exposure())
 
     def estimate(self) -> float | None:
-        """Estimated seconds to export the current path at the chosen size."""
-        shapes, shape = self._shapes(), self.frame_shape()
-        if shapes is None or shape is None or not self._samples:
+        """Estimated seconds to export the current path at the chosen size and format: from a
+        short export of it timed in the worker (:meth:`_time_export`), or the last export
+        at these settings; None until one was timed."""
+        timing = self._timings.get(self._estimate_key())
+        if timing is None or not self._samples:
             return None
-        timings = dict(getattr(self.main.session, "timings", {}) or {})
-        return tl.estimate_seconds(len(self._samples), shape, shapes[1], timings,
-                                   str(self.format_combo.currentData()))
+        return timing.seconds_for(len(self._samples))
 
     def _update_estimate(self, *_args: Any) -> None:
-        shape, seconds = self.frame_shape(), self.estimate()
-        if shape is None or seconds is None:
+        """The frames, their size, the video's length and the time to export them (timed
+        first when these settings were not)."""
+        shape = self.frame_shape()
+        if shape is None or not self._samples:
             self.estimate_label.setText("")
             return
-        self.estimate_label.setText(
-            f"{len(self._samples)} frames of {shape[1]} × {shape[0]}: "
-            f"{tl.describe_seconds(seconds)} to export"
-        )
+        n, fps = len(self._samples), self.fps_box.value()
+        seconds = self.estimate()
+        untimed = self._estimate_key() in self._untimed
+        if seconds is None and not untimed:
+            self._time_export()
+        how_long = (f"{tl.describe_seconds(seconds)} to export" if seconds is not None
+                    else "the export could not be timed" if untimed
+                    else "timing a short export…")
+        self.estimate_label.setText(f"{n} frames of {shape[1]} × {shape[0]}, "
+                                    f"{video_length(n, fps)} at {fps:g} fps: {how_long}")
+        timing = self._timings.get(self._estimate_key())
+        self.estimate_label.setToolTip(
+            "" if timing is None else
+            f"From an export of {timing.frames} frames of this path at this size and format, "
+            f"timed on this computer ({timing.seconds:.1f} s); a busy computer is slower")
         if self._ready:
             self.main.set_timelapse_settings(self.settings())
+
+    def _time_export(self) -> int | None:
+        """Time what an export does, for :meth:`estimate`: a few frames of this path (a
+        quarter, half and three quarters of the way) relit as an export relights them (the
+        next sun's shadow beside this one's relighting, a thread each), made at the chosen
+        size and written in the chosen format to a temporary file, in the worker. The
+        estimate from the last interactive relighting's stages timed another thing (the
+        networks on every core, one after the other, not the export's one thread each side
+        by side; and whatever ran last) and was 4x off at working size (a user trial: 3 s
+        estimated for 11.6 s). Not while hidden or exporting."""
+        session = self.main.session
+        if (session is None or session.original_sun is None or not self.isVisible()
+                or self._exporting or not self._samples):
+            return None
+        key = self._estimate_key()
+        shape = key[2]
+        n = len(self._samples)
+        k = min(n, 2 if shape[0] * shape[1] > ESTIMATE_LARGE_MP * 1e6 else ESTIMATE_FRAMES)
+        picks = [self._samples[round((i + 1) * (n - 1) / (k + 1))] for i in range(k)]
+        size, fmt, fps = self.size(), key[3], self.fps_box.value()
+        exposure, edits = key[4], self.main.shadow_edits
+
+        def job(ctx: JobContext) -> dict[str, Any]:
+            session.set_shadow_edits(edits)  # as the export does
+            stamps: list[float] = []
+            with tempfile.TemporaryDirectory(prefix="outcast-estimate-") as folder:
+                out = Path(folder) / ("frames" if fmt == "png" else f"estimate.{fmt}")
+                t0 = time.perf_counter()
+                tl.render_timelapse(
+                    session, picks, out, fps=fps, size=size, fmt=fmt,
+                    progress=lambda _stage, _f: stamps.append(time.perf_counter() - t0),
+                    cancel=ctx.cancel_event, exposure=exposure,
+                )  # fmt: skip
+                total = time.perf_counter() - t0
+            return {"key": key, "timing": ExportTiming.from_stamps(stamps, total)}
+
+        return self.main.runner.submit("tl_estimate", job, "Timing a short time-lapse export")
 
     def samples(self) -> list[tl.SunSample]:
         """The current sun path (ValueError when the settings are incomplete)."""
@@ -496,8 +653,10 @@ class TimelapseDialog(QDialog):
         self._settings_changed()
 
     def refresh_preview(self) -> None:
-        """Draw the shown frame again (the exposure or the shadow corrections have changed)."""
+        """Draw the shown frame again (the exposure or the shadow corrections have changed),
+        and say the export's time for them (timed again for another exposure)."""
         self._on_scrub(self.scrubber.value())
+        self._update_estimate()
 
     def _on_daylight_toggled(self, checked: bool) -> None:
         self.start_edit.setEnabled(not checked)
@@ -527,8 +686,8 @@ class TimelapseDialog(QDialog):
         self.scrubber.blockSignals(True)
         self.scrubber.setRange(0, len(self._samples) - 1)
         self.scrubber.blockSignals(False)
+        self._on_scrub(self.scrubber.value())  # (its frame first, then the export's timing)
         self._update_estimate()
-        self._on_scrub(self.scrubber.value())
 
     # ------------------------------------------------------------------ heading
     def _solved_heading(self) -> float | None:
@@ -603,7 +762,13 @@ class TimelapseDialog(QDialog):
 
     def showEvent(self, event: Any) -> None:  # noqa: N802 (Qt's name)
         super().showEvent(event)
-        self._on_scrub(self.scrubber.value())  # the frame as the settings are now
+        if self._ready:  # the frame and the estimate as the settings are now
+            self._on_scrub(self.scrubber.value())
+            self._update_estimate()
+
+    def hideEvent(self, event: Any) -> None:  # noqa: N802 (Qt's name)
+        super().hideEvent(event)
+        self.main.runner.cancel("tl_estimate")  # for nobody now
 
     # ------------------------------------------------------------------ export
     def export_dialog(self) -> None:
@@ -644,15 +809,21 @@ class TimelapseDialog(QDialog):
 
         exposure = self.main.relight_panel.exposure()  # as asked, whatever is ticked later
         edits = self.main.shadow_edits  # likewise the shadow corrections
+        key = self._estimate_key()
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)
+            t0 = time.perf_counter()
             out = tl.render_timelapse(
                 session, samples, path, fps=fps, size=size, fmt=fmt, force=force,
                 progress=ctx.progress, cancel=ctx.cancel_event, exposure=exposure,
             )  # fmt: skip
-            return {"path": str(out), "frames": len(samples), "timings": dict(session.timings)}
+            seconds = time.perf_counter() - t0
+            return {"path": str(out), "frames": len(samples), "timings": dict(session.timings),
+                    "key": key, "timing": ExportTiming(len(samples), seconds,
+                                                       seconds / len(samples))}
 
+        self.main.runner.cancel("tl_estimate")  # the worker is the export's now
         self._set_exporting(True)
         self.progress.setValue(0)
         shape = self.frame_shape()
@@ -693,23 +864,34 @@ class TimelapseDialog(QDialog):
                 self._preview_pixmap = QPixmap.fromImage(qimage_from_array(result["image"]))
                 self._show_preview()
             return
+        # A short export timed, or an export done: how long these settings take from now on.
+        self._timings[result["key"]] = result["timing"]
+        if channel == "tl_estimate":
+            self._update_estimate()
+            return
         self._set_exporting(False)
         self.progress.setValue(100)
         self.last_export = result["path"]
         self.last_result = "finished"
         self.status.setText(f"Saved {result['frames']} frames to {result['path']}")
+        self._update_estimate()
 
     def on_export_cancelled(self) -> None:
         self._set_exporting(False)
         self.progress.setValue(0)
         self.last_result = "cancelled"
         self.status.setText("Export cancelled; nothing was written.")
+        self._update_estimate()  # (its timing was cancelled for the export)
 
     def on_job_failed(self, channel: str, exc: BaseException) -> None:
         if channel == "tl_export":
             self._set_exporting(False)
             self.last_result = "failed"
             self._say_failed(exc)
+            self._update_estimate()
+        elif channel == "tl_estimate":  # said under the size, not in an error dialog
+            self._untimed.add(self._estimate_key())
+            self._update_estimate()
 
     def closeEvent(self, event: QCloseEvent) -> None:
         if self._ready:

@@ -83,3 +83,86 @@ def test_a_closed_dialog_draws_no_frame(window, photo, settle):
     window.open_timelapse()
     settle()
     assert started.count("tl_preview") == 1
+
+
+def test_the_size_menu_lists_each_frame_size_once():
+    """A user trial's menu for a 2016 x 1512 photo listed "4K · 2016 × 1512 (the photo's
+    size)" and "Full resolution · 2016 × 1512"."""
+    from app.timelapse_dialog import size_entries
+
+    assert size_entries((1512, 2016), (288, 384)) == [
+        ("working", "Working size · 384 × 288 (fastest)", ""),
+        ("720p", "720p · 960 × 720", ""),
+        ("1080p", "1080p · 1440 × 1080", ""),
+        ("full", "Full resolution · 2016 × 1512", "The photo's size (4K would be larger)"),
+    ]
+    assert [entry[1:] for entry in size_entries((759, 1012), (192, 256))] == [
+        ("Working size · 256 × 192 (fastest)", ""), ("720p · 960 × 720", ""),
+        ("Full resolution · 1012 × 759", "The photo's size (1080p and 4K would be larger)")]
+    assert [key for key, _, _ in size_entries((3000, 4000), (288, 384))] == [
+        "working", "720p", "1080p", "4k", "full"]
+    assert [key for key, _, _ in size_entries((96, 128), (96, 128))] == ["full"]  # tiny
+
+
+def test_a_project_s_size_the_menu_lists_under_another_name_is_chosen(window, photo, settle):
+    _relight(window, photo, settle)  # 128 x 96: every video size is the photo's
+    dialog = window.open_timelapse()
+    s = dialog.settings()
+    s.size = "4k"
+    dialog.load_settings(s)
+    assert dialog.size() == "full" and dialog.frame_shape() == (96, 128)
+
+
+def test_the_estimate_times_a_short_export_as_the_export_runs(window, photo, settle,
+                                                              monkeypatch):
+    """A user trial: 3 s estimated for an export of 11.6 s at working size, 11 s for one of
+    7.6 s at 720p. The estimate came from the last interactive relighting's stage times (its
+    networks on every core, one after the other), not from what an export does (one thread
+    each, side by side, then the frame made at its size and encoded). It now times a short
+    export of the path at the chosen size and format in the worker, and shows the video's
+    length."""
+    import os
+
+    _relight(window, photo, settle)
+    calls = []
+    real = tl.render_timelapse
+
+    def spy(session, samples, path, **kw):
+        calls.append((len(samples), os.path.dirname(path), kw["size"], kw["fmt"]))
+        return real(session, samples, path, **kw)
+
+    monkeypatch.setattr(tl, "render_timelapse", spy)
+    window.session.timings.update({"shadow": 1000.0, "relight": 1000.0})  # not what it reads
+    dialog = _timelapse(window, 48, "gif")
+    assert dialog.estimate() is None and "timing a short export…" in (
+        dialog.estimate_label.text())
+    settle()
+    assert calls == [(4, calls[0][1], "full", "gif")]  # (a tiny photo: working size is full)
+    assert not os.path.exists(calls[0][1])  # its temporary folder is gone
+    seconds = dialog.estimate()
+    assert seconds is not None and seconds < 1000.0
+    text = dialog.estimate_label.text()
+    assert text.startswith("48 frames of 128 × 96, 4 s at 12 fps: about ") and text.endswith(
+        " s to export")
+    dialog.frames_box.setValue(96)  # more frames of the same: no new timing
+    dialog.fps_box.setValue(24.0)
+    settle()
+    assert len(calls) == 1 and dialog.estimate() > seconds
+    assert dialog.estimate_label.text().startswith("96 frames of 128 × 96, 4 s at 24 fps")
+    dialog.format_combo.setCurrentIndex(dialog.format_combo.findData("mp4"))  # timed again
+    settle()
+    assert [c[3] for c in calls] == ["gif", "mp4"]
+
+
+def test_an_estimate_that_cannot_be_timed_is_said_without_an_error_dialog(
+        window, photo, settle, errors, monkeypatch):
+    _relight(window, photo, settle)
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("no encoder")
+
+    monkeypatch.setattr(tl, "render_timelapse", broken)
+    dialog = _timelapse(window, 5)
+    settle()
+    assert not errors and dialog.estimate() is None
+    assert dialog.estimate_label.text().endswith(": the export could not be timed")
