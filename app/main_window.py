@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from PySide6.QtCore import QEvent, QEventLoop, QObject, QPoint, QSettings, Qt, Slot
+from PySide6.QtCore import QEvent, QEventLoop, QObject, QPoint, QSettings, Qt, QTimer, Slot
 from PySide6.QtGui import (
     QAction,
     QCloseEvent,
@@ -99,6 +99,7 @@ from app.panels import (
     SHADOW_TOOLS,
     VIEW_CHOICES,
     AlignPanel,
+    PanelStack,
     RelightPanel,
 )
 from app.state import (
@@ -382,7 +383,7 @@ class MainWindow(QMainWindow):
         self.canvas = ImageCanvas(self)
         self.align_panel = AlignPanel(self)
         self.relight_panel = RelightPanel(self)
-        self.steps = QStackedWidget(self)
+        self.steps = PanelStack(self)
         self.steps.addWidget(self.align_panel)
         self.steps.addWidget(self.relight_panel)
         scroll = self.side_scroll = QScrollArea(self)
@@ -1685,6 +1686,10 @@ class MainWindow(QMainWindow):
     def _on_view_changed(self, _index: int) -> None:
         self.relight_panel.split_slider.setEnabled(self.relight_panel.view() in SPLIT_VIEWS)
         self._update_shadow_tools()
+        if self.shadow_tools_available():  # they appear below the dial: scrolled into view
+            # once laid out (on a small screen they were below the fold: a user trial)
+            QTimer.singleShot(0, lambda: self.side_scroll.ensureWidgetVisible(
+                self.relight_panel.shadow_tools, 0, 6))
         self.request_relight(preview=False)
 
     # ---- correcting the found shadows

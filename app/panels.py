@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import QSize, Qt, Signal
 from PySide6.QtGui import QColor, QHideEvent, QShowEvent
 from PySide6.QtWidgets import (
     QCheckBox,
@@ -12,8 +12,10 @@ from PySide6.QtWidgets import (
     QGroupBox,
     QHBoxLayout,
     QLabel,
+    QLayout,
     QPushButton,
     QSlider,
+    QStackedWidget,
     QToolButton,
     QVBoxLayout,
     QWidget,
@@ -53,11 +55,14 @@ SHADOW_TOOLS = (
 )
 
 
+#: How much more of a panel's height goes to its dial than below the panel's last row
+#: (the dial grows to its largest, 300 px, first; with less room it shrinks to 150 px).
+DIAL_STRETCH = 100
 #: What step 1's "Sun from photo's EXIF" does (its tooltip when no note says more).
 EXIF_BUTTON_TIP = "Place the sun from the photo's GPS position, capture time and compass heading"
 #: The tools' hint while none is on.
-SHADOW_TOOL_IDLE = ("Turn a tool on, then click a region of the photo, or drag to paint; the "
-                    "magenta areas are the shadows found.")
+SHADOW_TOOL_IDLE = ("Turn a tool on, then click or paint on the photo; magenta marks the "
+                    "shadows found.")
 #: The brush's size (radius, % of the photo's longer side): default, range (up to the
 #: runtime's :data:`~outcast_core.runtime.pipeline.photo_shadows.MAX_BRUSH_RADIUS`, which the
 #: CLI's ``X,Y,R`` and the project files keep to), and the factor ``[`` and ``]`` divide and
@@ -81,6 +86,38 @@ def _percent_slider(value: int, parent: QWidget) -> QSlider:
     s.setSingleStep(5)
     s.setPageStep(10)
     return s
+
+
+class PanelStack(QStackedWidget):
+    """The steps' panels in the side panel's scroll area, as tall as the shown one needs at
+    its least (:meth:`QLayout.minimumHeightForWidth`: the dial at its smallest, text
+    wrapped at the panel's width): the scroll area gives it the room there is, and scrolls
+    only when that is less. As a plain stack it asked for every panel's preferred height
+    (the dial as wide as tall, and the tallest page's), so a window 800 pixels high cut off
+    step 2's corrections and one 700 high hid its tools below the fold (a user trial)."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.currentChanged.connect(lambda _i: self.updateGeometry())
+
+    def _page_layout(self) -> QLayout | None:
+        page = self.currentWidget()
+        return None if page is None else page.layout()
+
+    def heightForWidth(self, width: int) -> int:  # noqa: N802 (Qt's name)
+        layout = self._page_layout()
+        if layout is None:
+            return super().heightForWidth(width)
+        least = layout.minimumHeightForWidth(width) if layout.hasHeightForWidth() else -1
+        return least if least > 0 else layout.minimumSize().height()
+
+    def minimumSizeHint(self) -> QSize:  # noqa: N802 (Qt's name)
+        layout = self._page_layout()
+        return super().minimumSizeHint() if layout is None else layout.minimumSize()
+
+    def sizeHint(self) -> QSize:  # noqa: N802 (Qt's name)
+        page = self.currentWidget()
+        return super().sizeHint() if page is None else page.sizeHint()
 
 
 class SteppedSpinBox(QDoubleSpinBox):
@@ -185,7 +222,7 @@ class AlignPanel(QWidget):
         layout = QVBoxLayout(self)
         layout.addWidget(title)
         layout.addWidget(body)
-        layout.addWidget(self.sun_panel)
+        layout.addWidget(self.sun_panel, DIAL_STRETCH)
         layout.addWidget(self.find_button)
         layout.addWidget(self.exif_button)
         layout.addWidget(self.exif_note)
@@ -270,8 +307,8 @@ class RelightPanel(QWidget):
         super().__init__(parent)
         title, body = _header(
             "Step 2 · Relight",
-            "Drag the new sun. The faint sun marks the photo's original sun. View \u25b8 "
-            "Shadows found shows the photo's own shadows, and lets you correct them.",
+            "Drag the new sun (the faint one is the photo's own). View \u25b8 Shadows found "
+            "shows the photo's shadows, to correct them.",
             self,
         )
         self.sun_panel = SunDialPanel("New sun", QColor(255, 140, 30), self)
@@ -366,7 +403,7 @@ class RelightPanel(QWidget):
         layout = QVBoxLayout(self)
         layout.addWidget(title)
         layout.addWidget(body)
-        layout.addWidget(self.sun_panel)
+        layout.addWidget(self.sun_panel, DIAL_STRETCH)
         layout.addLayout(form)
         layout.addWidget(self.shadow_tools)
         layout.addWidget(self.realign_button, 0, Qt.AlignmentFlag.AlignLeft)

@@ -75,9 +75,11 @@ class QtSunDial(QWidget):
         self._ring_cache: dict[tuple[float, ...], QPainterPath] = {}
         self.sun_colour = colour or QColor(255, 196, 40)
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
-        self.setMinimumSize(180, 180)
+        # As small as 150 px on a small screen (step 2's corrections need the room: a user
+        # trial at 1024 x 700); 260 px where there is room (sizeHint), never more than 300.
+        self.setMinimumSize(150, 150)
         self.setMaximumHeight(300)
-        self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Preferred)
+        self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
         self.setToolTip(
             "Drag the sun: around = azimuth, rim to centre = elevation.\n"
             "Arrow keys nudge 1°, Shift 10°, Ctrl 0.1°."
@@ -222,12 +224,6 @@ class QtSunDial(QWidget):
 
     def sizeHint(self) -> QSize:
         return QSize(260, 260)
-
-    def hasHeightForWidth(self) -> bool:
-        return True
-
-    def heightForWidth(self, width: int) -> int:
-        return width
 
     # ------------------------------------------------------------------ painting
     def paintEvent(self, event: QPaintEvent) -> None:

@@ -820,3 +820,39 @@ def test_step_1s_notice_shows_above_the_photo_in_step_1_only(window, photo, sett
     assert notice.isVisibleTo(window)
     window.align_panel.show_notice("")
     assert not notice.isVisibleTo(window)
+
+
+def _in_view(scroll, widget) -> bool:
+    viewport = scroll.viewport()
+    top_left = widget.mapTo(viewport, widget.rect().topLeft())
+    return widget.isVisibleTo(scroll) and viewport.rect().contains(
+        widget.rect().translated(top_left))
+
+
+@pytest.mark.parametrize("size", [(1024, 700), (1280, 800)])
+def test_step_2_corrections_are_in_view_on_a_small_screen(qtbot, window, photo, settle, size):
+    """A user trial: at 1280 x 800 step 2's panel cut off the count of corrections and "Clear
+    corrections"; at 1024 x 700 "Not a shadow" and "Mark shadow" were wholly below the fold.
+    The dial gives up room (down to 150 px) before the panel scrolls, and turning to a view
+    with the tools brings them into view."""
+    from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
+
+    window.resize(*size)
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    rp, scroll = window.relight_panel, window.side_scroll
+    window.set_shadow_edits((ShadowEdit(0.3, 0.7, False), ShadowEdit(0.6, 0.2, True)))
+    rp.set_view("shadows_found")
+    settle()
+    tools = [*rp.shadow_tool_buttons.values(), rp.brush_box, rp.shadow_edits_label,
+             rp.clear_shadow_edits_button]
+    qtbot.waitUntil(lambda: all(_in_view(scroll, w) for w in tools))
+    assert rp.shadow_edits_label.text() == "2 corrections"
+    assert rp.sun_panel.dial.height() >= 150
+    if size == (1280, 800):  # all of it fits, the dial as tall as there is room for
+        assert scroll.verticalScrollBar().maximum() == 0
+        assert _in_view(scroll, rp.realign_button) and _in_view(scroll, rp.view_combo)
+    rp.set_view("output")  # without the tools: the dial takes their room (at most 300 px)
+    settle()
+    qtbot.waitUntil(lambda: rp.sun_panel.dial.height() >= 280)
+    assert scroll.verticalScrollBar().maximum() == 0
