@@ -1118,6 +1118,12 @@ class MainWindow(QMainWindow):
         finally:
             self._applying_edit = False
         opened = f"Opened {os.path.basename(self.image_path)}"
+        if moved_from:  # first: a long message is cut at the status bar's end
+            opened += (f" for the project, whose photo was {moved_from}: save the project to "
+                       "keep where it is now")
+        elif mismatch:
+            opened += (" for the project, which was saved with another photo: save the project "
+                       "to keep it for this one")
         if seen_sun is not None:
             opened += (f" · the sun is in the frame: azimuth {seen_sun[0]:.1f}°, elevation "
                        f"{seen_sun[1]:.1f}°")
@@ -1139,11 +1145,6 @@ class MainWindow(QMainWindow):
             # bar's "Photo notes" keep it)
             opened += "".join(f" · {note[:1].lower()}{note[1:].rstrip('.')}"
                               for note in file_notes)
-        if moved_from:
-            opened += (f" · the project's photo was {moved_from}: save the project to keep "
-                       "where it is now")
-        elif mismatch:
-            opened += " · not the project's photo: save the project to keep it for this one"
         self.stage_label.setText(opened)
         self._held_message = opened if self.runner.busy() else ""
         if restore is not None:  # the same photo again: keep the history

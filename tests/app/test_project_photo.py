@@ -78,7 +78,8 @@ def test_a_moved_photo_is_located_and_the_project_keeps_its_work(
         (0.3, 0.7, False), (0.6, 0.2, True)]
     # The project now says another place: modified, so saving (or leaving) records it.
     assert window.has_unsaved_changes() and window.isWindowModified()
-    assert "save the project" in window.stage_label.text()
+    assert window.stage_label.text().startswith(  # first: a long message is cut at its end
+        f"Opened renamed.jpg for the project, whose photo was {photo}: save the project")
     window.undo_stack.undo()  # (nothing to undo: still modified)
     assert window.has_unsaved_changes()
     assert window.save_project() == project  # the opened project, not asked to replace it
@@ -134,6 +135,8 @@ def test_a_project_warns_when_its_photo_is_another_picture(
     settle()
     assert window.image_path == photo and window.step is Step.RELIGHT
     assert len(window.shadow_edits) == 2 and window.has_unsaved_changes()
+    assert window.stage_label.text().startswith(
+        "Opened scene.jpg for the project, which was saved with another photo: save")
     window.save_project()
     assert load_project(project).photo.to_dict() == _identity(photo)  # the picture now
     asked = len(leave_answers.asked)
