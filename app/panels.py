@@ -55,9 +55,6 @@ SHADOW_TOOLS = (
 )
 
 
-#: How much more of a panel's height goes to its dial than below the panel's last row
-#: (the dial grows to its largest, 300 px, first; with less room it shrinks to 150 px).
-DIAL_STRETCH = 100
 #: What step 1's "Sun from photo's EXIF" does (its tooltip when no note says more).
 EXIF_BUTTON_TIP = "Place the sun from the photo's GPS position, capture time and compass heading"
 #: The tools' hint while none is on.
@@ -222,7 +219,7 @@ class AlignPanel(QWidget):
         layout = QVBoxLayout(self)
         layout.addWidget(title)
         layout.addWidget(body)
-        layout.addWidget(self.sun_panel, DIAL_STRETCH)
+        layout.addWidget(self.sun_panel)
         layout.addWidget(self.find_button)
         layout.addWidget(self.exif_button)
         layout.addWidget(self.exif_note)
@@ -403,7 +400,7 @@ class RelightPanel(QWidget):
         layout = QVBoxLayout(self)
         layout.addWidget(title)
         layout.addWidget(body)
-        layout.addWidget(self.sun_panel, DIAL_STRETCH)
+        layout.addWidget(self.sun_panel)
         layout.addLayout(form)
         layout.addWidget(self.shadow_tools)
         layout.addWidget(self.realign_button, 0, Qt.AlignmentFlag.AlignLeft)

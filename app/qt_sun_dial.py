@@ -75,11 +75,11 @@ class QtSunDial(QWidget):
         self._ring_cache: dict[tuple[float, ...], QPainterPath] = {}
         self.sun_colour = colour or QColor(255, 196, 40)
         self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
-        # As small as 150 px on a small screen (step 2's corrections need the room: a user
-        # trial at 1024 x 700); 260 px where there is room (sizeHint), never more than 300.
+        # 300 px high where there is room, as small as 150 px on a small screen (step 2's
+        # corrections need the room: a user trial at 1024 x 700).
         self.setMinimumSize(150, 150)
         self.setMaximumHeight(300)
-        self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Expanding)
+        self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Preferred)
         self.setToolTip(
             "Drag the sun: around = azimuth, rim to centre = elevation.\n"
             "Arrow keys nudge 1°, Shift 10°, Ctrl 0.1°."
@@ -223,7 +223,7 @@ class QtSunDial(QWidget):
         return QPointF(*dm.sun_to_point(self._azimuth, self._elevation, cx, cy, r))
 
     def sizeHint(self) -> QSize:
-        return QSize(260, 260)
+        return QSize(300, 300)
 
     # ------------------------------------------------------------------ painting
     def paintEvent(self, event: QPaintEvent) -> None:
@@ -500,6 +500,9 @@ class SunDialPanel(QWidget):
         grid.addWidget(self.azimuth_box, 0, 1)
         grid.addWidget(QLabel("Elevation", self), 1, 0)
         grid.addWidget(self.elevation_box, 1, 1)
+        # No taller than its parts at their largest (the dial's 300 px): a panel's spare
+        # height goes below its last row, not between these rows.
+        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         layout.addWidget(self.title)

@@ -829,6 +829,16 @@ def _in_view(scroll, widget) -> bool:
         widget.rect().translated(top_left))
 
 
+def _no_gaps(panel) -> None:
+    """The sun's dial panel keeps its rows together: a panel's spare room goes below its last
+    row, not between the dial's title, the dial and its numbers."""
+    sun = panel.sun_panel
+    assert sun.dial.y() <= sun.title.sizeHint().height() + 12
+    label = sun.shadow_label
+    assert label.height() <= label.heightForWidth(label.width()) + 4
+    assert sun.height() <= sun.sizeHint().height() + 4
+
+
 @pytest.mark.parametrize("size", [(1024, 700), (1280, 800)])
 def test_step_2_corrections_are_in_view_on_a_small_screen(qtbot, window, photo, settle, size):
     """A user trial: at 1280 x 800 step 2's panel cut off the count of corrections and "Clear
@@ -839,6 +849,7 @@ def test_step_2_corrections_are_in_view_on_a_small_screen(qtbot, window, photo, 
 
     window.resize(*size)
     _load(window, photo, settle)
+    _no_gaps(window.align_panel)
     _confirm(window, settle)
     rp, scroll = window.relight_panel, window.side_scroll
     window.set_shadow_edits((ShadowEdit(0.3, 0.7, False), ShadowEdit(0.6, 0.2, True)))
@@ -856,3 +867,4 @@ def test_step_2_corrections_are_in_view_on_a_small_screen(qtbot, window, photo, 
     settle()
     qtbot.waitUntil(lambda: rp.sun_panel.dial.height() >= 280)
     assert scroll.verticalScrollBar().maximum() == 0
+    _no_gaps(rp)
