@@ -44,6 +44,9 @@ CONFIGS: list[tuple[str, dict]] = [
     ("learned L, S_o from R", {"refine": "learned"}),
     ("physics, S_o from the photo", {"relight_mode": "physics"}),
     ("physics, S_o from R", {"relight_mode": "physics", "refine": "learned"}),
+    ("the default without the new sun's daylight", {"daylight": False}),
+    ("physics, S_o from the photo, without the new sun's daylight",
+     {"relight_mode": "physics", "daylight": False}),
 ]
 #: Ground-truth shadow levels that make a pixel dark (in shadow) or lit.
 DARK, LIT = 0.05, 0.3
@@ -60,7 +63,9 @@ def _session(kwargs: dict) -> RelightSession:
     lift = kwargs.pop("lift_new_light", True)
     detail = kwargs.pop("keep_detail", True)
     anchor = kwargs.pop("exposure_anchor", True)
+    daylight = kwargs.pop("daylight", True)
     s = RelightSession(preset="fast", shadow_mode="learned", **kwargs)
+    s.daylight = daylight
     s.colour_guard, s.contrast_floor, s.lift_new_light = guard, floor, lift
     s.keep_detail, s.exposure_anchor = detail, anchor
     return s

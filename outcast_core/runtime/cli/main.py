@@ -119,6 +119,7 @@ def _make_session(args: argparse.Namespace, *, shadow_mode: str, relight_mode: s
         thickness=thickness, refine=getattr(args, "refine", "photo"),
     )
     session.exposure = getattr(args, "exposure", "photo")
+    session.daylight = not getattr(args, "keep_light", False)
     return session
 
 
@@ -133,6 +134,15 @@ def add_exposure_option(p: argparse.ArgumentParser, help_text: str = "",
     p.add_argument("--exposure", choices=EXPOSURE_CHOICES, default=default,
                    help=help_text or "keep the photo's exposure (default: a scene the new sun "
                    "puts in shade comes out dark), or meter the new light again as a camera would")
+
+
+def add_light_option(p: argparse.ArgumentParser) -> None:
+    """``--keep-light``: the photo's light kept instead of the new sun's daylight
+    (``RelightSession.daylight``)."""
+    p.add_argument("--keep-light", action="store_true",
+                   help="keep the photo's light, its strength and colour, whatever the new "
+                   "sun's height (default: the new sun's daylight: near the horizon the "
+                   "sunlight is weaker and redder and the sky dimmer)")
 
 
 def parse_point(text: str) -> tuple[float, float]:
@@ -558,6 +568,7 @@ def build_parser(
                    help="shadow method (default: learned when installed, else Direct)")
     p.add_argument("--thickness", default=math.inf, type=_thickness, help=argparse.SUPPRESS)
     add_exposure_option(p)
+    add_light_option(p)
     add_shadow_edit_options(p)
     _add_common(p)
     p.set_defaults(func=cmd_relight)

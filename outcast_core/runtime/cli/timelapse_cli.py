@@ -18,6 +18,7 @@ from outcast_core.runtime.cli.main import (
     ProgressLine,
     add_exposure_option,
     add_input_options,
+    add_light_option,
     add_shadow_edit_options,
     int_in,
     say_unused_shadow_edits,
@@ -203,6 +204,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     # the other commands take them (a time-lapse's frames match a relit still).
     add_input_options(p)
     add_exposure_option(p)
+    add_light_option(p)
     add_shadow_edit_options(p)
     p.set_defaults(func=run_timelapse_command, check_output=check_timelapse_output)
     return p
@@ -298,6 +300,7 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
     _check_sample_args(args, exif)  # before the slow part
     session = RelightSession(preset=args.preset)
     session.exposure = args.exposure
+    session.daylight = not args.keep_light
     quiet = getattr(args, "quiet", False)
     # A line rewritten on a terminal; separate lines, a tenth of a stage apart, in a log.
     report = ProgressLine(quiet=quiet)

@@ -35,6 +35,7 @@ from outcast_core.runtime.geometry.colour import (
     luminance,
     srgb_to_linear,
 )
+from outcast_core.runtime.pipeline.daylight import in_new_daylight
 from outcast_core.runtime.pipeline.photo_shadows import SKY_SHADE_SHIFT
 
 #: Clear-day sun/sky irradiance ratio per channel (R, G, B) when the photo cannot tell.
@@ -826,6 +827,7 @@ def guard_learned_relight(
     keep_old: float = 0.0,
     detail_cache: dict | None = None,
     physics_at: np.ndarray | None = None,
+    daylight: np.ndarray | None = None,
 ) -> np.ndarray:
     """A learned relighting with the real-photo guards the session turns on: first, with
     ``detail``, the photo's fine texture where no shadow changes (:func:`restore_detail`, from
@@ -862,7 +864,12 @@ def guard_learned_relight(
     the relighting is physics' (blended by the weight, before the colour guard): the session
     passes what the user marked "not a shadow". ``L`` bleached the ski-slope sample's backlit
     pines whatever ``S_o`` said of them, so the user's correction reached the de-shadowed
-    photo and physics but not the default relighting (a user trial).
+    photo and physics but not the default relighting (a user trial). ``daylight`` (``H x W x
+    3`` linear gain, :func:`~outcast_core.runtime.pipeline.daylight.daylight_gain`, or None):
+    the new sun's daylight; the physics image the floor and the anchor follow (and the lift's
+    ceiling) are carried to it, so the relit level is the new light's, and last its colour
+    (the gain over its luminance) is given where the colour guard kept the photo's colour (or
+    gave the lift's), and the whole gain to a sky kept as the photo's.
 
     Example:
         >>> img = np.full((8, 8, 3), 0.5, np.float32); ones = np.ones((8, 8), np.float32)
@@ -890,14 +897,21 @@ def guard_learned_relight(
         s_new = np.clip(s_new + np.float32(keep_old) * (s_old - smooth_new_shadow(s_old)),
                         0.0, 1.0)
     physics = None
+    gain = None if daylight is None else np.asarray(daylight, np.float32)
+    if gain is not None and gain.shape != out.shape:
+        raise ValueError(f"expected a daylight gain of shape {out.shape}, got {gain.shape}")
     if use_physics:
         physics = physics_relight(image_srgb, shadow_old, s_new, sky, light=light, snap=False)
+        if gain is not None:
+            physics = in_new_daylight(physics, gain)
     if floor or anchor:
         if floor:
             cap = None
             if lift and lift_base is not None:  # the de-shadowed photo relit by physics
                 base_srgb, lit_old = lift_base
                 cap = physics_relight(base_srgb, lit_old, s_new, sky, light=light, snap=False)
+                if gain is not None:
+                    cap = in_new_daylight(cap, gain)
             out = shadow_contrast_floor(image_srgb, out, physics, shadow_old, s_new, lift=lift,
                                         lift_guard=lift_guard, lift_cap_srgb=cap)
         if anchor:
@@ -905,10 +919,22 @@ def guard_learned_relight(
     if held is not None and physics is not None:
         k = held[..., None]
         out = linear_to_srgb((1.0 - k) * srgb_to_linear(out) + k * srgb_to_linear(physics))
+    kept = None  # how much of each pixel's colour is the photo's, not L's or physics'
     if colour:
         out = keep_photo_colour(image_srgb, out, shadow_old, shadow_new, sky, keep_sky=keep_sky)
+        kept = _lit(shadow_old) * _lit(shadow_new)
         if floor and lift and lift_guard is not None and lift_colour is not None:
-            out = lifted_colour(out, lift_weight(shadow_old, s_new, lift_guard), lift_colour)
+            up = lift_weight(shadow_old, s_new, lift_guard)
+            out = lifted_colour(out, up, lift_colour)
+            kept = np.clip(kept + up, 0.0, 1.0)
+    if gain is not None and kept is not None:
+        # The new light's colour where the colour is the photo's (L's and physics' have it);
+        # the whole gain on a sky kept as the photo's (the anchor left its level).
+        tint = gain / np.maximum(luminance(gain), 1e-6)[..., None]
+        tint = 1.0 + kept[..., None] * (tint - 1.0)
+        if keep_sky:
+            tint = np.where(np.asarray(sky, bool)[..., None], gain, tint)
+        out = in_new_daylight(out, tint)
     return out.astype(np.float32)
 
 

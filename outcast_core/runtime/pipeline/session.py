@@ -28,6 +28,7 @@ import numpy as np
 from outcast_core.runtime.geometry.camera import (
     DEFAULT_FOV_DEG,
     Camera,
+    camera_rotation,
     cosine_term,
     focal_from_35mm,
     network_depth,
@@ -42,7 +43,14 @@ from outcast_core.runtime.geometry.fullres import resize_to_working
 from outcast_core.runtime.geometry.raymarch import RaySampler
 from outcast_core.runtime.geometry.shadows import DirectStats, direct_shadow
 from outcast_core.runtime.io.models import ModelError, ModelRegistry
-from outcast_core.runtime.pipeline.auto_sun import SunInPhoto, sun_in_photo
+from outcast_core.runtime.pipeline.auto_sun import SunInPhoto, ground_plane_tilt, sun_in_photo
+from outcast_core.runtime.pipeline.daylight import (
+    daylight_change,
+    daylight_gain,
+    elevation_above,
+    in_new_daylight,
+    sky_change,
+)
 from outcast_core.runtime.pipeline.depth_post import postprocess_z, run_depth_model
 from outcast_core.runtime.pipeline.photo_shadows import (
     LIT_FLOOR,
@@ -309,6 +317,7 @@ class RelightSession:
         #: puts a shadow (:meth:`_lift_guard`), and no brighter than the de-shadowed photo
         #: relit by physics (:meth:`_lift_inputs`; measured in that docstring).
         self.lift_new_light = True
+        self._daylight = True
         self._exposure = "photo"
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
@@ -387,7 +396,53 @@ class RelightSession:
             raise ValueError(f"expected a preset in {sorted(PRESETS)}, got {name!r}")
         return PRESETS[name]
 
+    @property
+    def daylight(self) -> bool:
+        """Whether a relighting carries the photo's light to the new sun's elevation: the
+        sunlight weaker and redder and the sky dimmer near the horizon
+        (:func:`~outcast_core.runtime.pipeline.daylight.in_new_daylight`); on by default.
+        Two suns at one elevation are unchanged by it."""
+        return self._daylight
+
+    @daylight.setter
+    def daylight(self, on: bool) -> None:
+        with self._lock:
+            if bool(on) != self._daylight:
+                self._daylight = bool(on)
+                self._relight_cache = _LRU()
+
+    def horizon_up(self) -> np.ndarray:
+        """The horizon's upward direction in camera space (unit ``(3,)``), against which a
+        sun's elevation is taken for :attr:`daylight`: the fitted ground plane's normal
+        (:func:`~outcast_core.runtime.pipeline.auto_sun.ground_plane_tilt`; a level camera's
+        ``(0, -1, 0)`` without one). Made once per photo and preset; needs :meth:`set_image`."""
+        self._require_image()
+        if self._up is None:
+            pitch, roll, _ = ground_plane_tilt(self)
+            self._up = camera_rotation(pitch, roll) @ np.array([0.0, -1.0, 0.0])
+        return self._up
+
+    def _daylight_gain(self, s_new: np.ndarray, sky: np.ndarray, light: LightEstimate,
+                       w_old: np.ndarray, w_new: np.ndarray, up: np.ndarray, cam: Camera
+                       ) -> np.ndarray | None:
+        """The gain that carries a relighting (made with the photo's light, seen by ``cam``) to
+        the new sun's daylight (:func:`~outcast_core.runtime.pipeline.daylight.daylight_gain`,
+        the sky by :func:`~outcast_core.runtime.pipeline.daylight.sky_change`); None when
+        :attr:`daylight` is off or both suns stand at one elevation."""
+        if not self._daylight:
+            return None
+        change = daylight_change(elevation_above(w_old, up), elevation_above(w_new, up))
+        if change.is_identity:
+            return None
+        sky_gain = None
+        if sky.any():
+            sky_gain = np.ones(sky.shape + (3,), np.float32)
+            sky_gain[sky] = sky_change(view_directions(cam)[sky], up, change.elevation_old,
+                                       change.elevation_new)
+        return daylight_gain(s_new, sky, light.ratio, change, sky_gain)
+
     def _reset_working(self) -> None:
+        self._up: np.ndarray | None = None
         self.image_srgb: np.ndarray | None = None
         self.camera: Camera | None = None
         self.depth: np.ndarray | None = None
@@ -511,6 +566,7 @@ class RelightSession:
         t0 = time.perf_counter()
         depth, sky = self._estimate_depth()
         self.depth, self.sky = depth, sky
+        self._up = None  # the horizon of this depth's ground plane (_horizon_up)
         # The sun itself in the frame, if the photo shows it: relit to a sun outside the frame,
         # its disc and glare go (relight.remove_sun_glare).
         self.sun_seen = sun_in_photo(self.image_srgb, sky, self.camera)
@@ -994,6 +1050,8 @@ class RelightSession:
         t1 = time.perf_counter()
         self.timings["shadow_preview"] = t1 - t0
         image = st["image"]
+        gain = self._daylight_gain(s_new, st["sky"], self._light, self.original_sun, wv,
+                                   self.horizon_up(), st["camera"])
         if self.relight_mode == "learned":
             out = self.registry.load("relight", threads=PREVIEW_THREADS).run({
                 **st["feeds_l"], "shadow_new": s_new[None, None],
@@ -1001,10 +1059,13 @@ class RelightSession:
             })
             relit = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
             relit = self._guard(image, relit, st["shadow_old"], s_new, st["sky"], self._light,
-                                self.camera, self.original_sun, wv, keep_old=share)
+                                self.camera, self.original_sun, wv, keep_old=share,
+                                daylight=gain)
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=self._light, snap=False)
+            if gain is not None:
+                relit = in_new_daylight(relit, gain)
         relit = self._finish(image, relit, share, st["sky"], self.sun_seen, st["camera"], wv,
                              st["camera"].width / self.camera.width, exposure, self.greyscale)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
@@ -1032,6 +1093,7 @@ class RelightSession:
             "original_shadow": self.original_shadow, "light": self._light,
             "original_geometry": self._original_geometry, "preset": self.preset,
             "sun_seen": self.sun_seen, "greyscale": self.greyscale, "exposure": self._exposure,
+            "up": self.horizon_up(),
         }
 
     def _relight_from(
@@ -1045,6 +1107,8 @@ class RelightSession:
         if share >= 1.0:  # the photo's own sun: the photo, no network runs
             return np.array(image, np.float32)
         s_new = shadow_toward_original(s_new, s_o, inp["original_geometry"], share)
+        gain = self._daylight_gain(s_new, inp["sky"], inp["light"], w_o, wv, inp["up"],
+                                   inp["camera"])
         if self.relight_mode == "learned":
             model = self.registry.load("relight", threads=threads)
             out = model.run({
@@ -1060,9 +1124,11 @@ class RelightSession:
             })
             img = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
             img = self._guard(image, img, s_o, s_new, inp["sky"], inp["light"], inp["camera"],
-                              w_o, wv, keep_old=share)
+                              w_o, wv, keep_old=share, daylight=gain)
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
+            if gain is not None:
+                img = in_new_daylight(img, gain)
         img = self._finish(image, img, share, inp["sky"], inp["sun_seen"], inp["camera"], wv,
                            1.0, inp["exposure"], inp["greyscale"])
         return img.astype(np.float32)
@@ -1104,7 +1170,7 @@ class RelightSession:
     def _guard(
         self, image: np.ndarray, relit: np.ndarray, s_o: np.ndarray, s_new: np.ndarray,
         sky: np.ndarray, light: LightEstimate, cam: Camera, w_o: np.ndarray, w_n: np.ndarray,
-        keep_old: float = 0.0,
+        keep_old: float = 0.0, daylight: np.ndarray | None = None,
     ) -> np.ndarray:
         """The learned relighting with the guards this session turns on
         (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`)."""
@@ -1118,7 +1184,8 @@ class RelightSession:
                                      colour=self.colour_guard, floor=self.contrast_floor,
                                      anchor=self.exposure_anchor, detail=self.keep_detail,
                                      lift=lift, keep_old=keep_old, detail_cache=cache,
-                                     physics_at=self._user_materials(s_o.shape), **inputs)
+                                     physics_at=self._user_materials(s_o.shape),
+                                     daylight=daylight, **inputs)
 
     def _user_materials(self, shape: tuple[int, int]) -> np.ndarray | None:
         """What the user marked "not a shadow" (dark materials), softened by a working pixel,

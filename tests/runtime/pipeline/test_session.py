@@ -76,6 +76,9 @@ def test_relight_moves_the_shadow(scene, tmp_path) -> None:
     # The scene is seen from above (camera looking down), so the sun has a negative z.
     w_o, w_n = np.array([-0.5, -0.3, -0.8]), np.array([0.5, 0.3, -0.8])
     s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", preset="fast")
+    # Seen from above with no ground plane to say where the horizon is, the camera's own
+    # frame puts w_n below it: the shadows are what is tested, not the new sun's daylight.
+    s.daylight = False
     s.set_image(image, depth=depth, fov_deg=30.0)
     # Darken the photo where its original shadow is, as a real photo would be.
     s_o = s.shadow(w_o)
