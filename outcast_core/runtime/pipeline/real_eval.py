@@ -31,10 +31,10 @@ photo and on average (DESIGN.md, "Real photographs: how we measure"):
   de-shadowed photo's RMSE in CIE Lab against the twin inside the mask, as a ratio to the
   unchanged input's, and outside the mask the excess over the input's own RMSE;
 * ``relit_chroma`` / ``relit_sky``: relit to the sun :data:`RELIGHT_TURN` degrees of azimuth
-  away (same elevation), the mean change of chroma (Lab ``a*, b*`` distance) over the pixels
-  lit under both suns (``S_o`` and ``S_n`` both above :data:`LIT_BOTH`), and the mean Lab change
-  on the sky when neither sun is in the frame (brightness may follow the new shading, colour may
-  not; the sky stays as it is);
+  away at the same elevation above the horizon (:func:`relit_check_sun`), the mean change of
+  chroma (Lab ``a*, b*`` distance) over the pixels lit under both suns (``S_o`` and ``S_n``
+  both above :data:`LIT_BOTH`), and the mean Lab change on the sky when neither sun is in
+  the frame (brightness may follow the new shading, colour may not; the sky stays as it is);
 * ``new_shade``: how dark the relit photo makes the surface the new sun newly shadows
   (``S_o`` above 0.5, ``S_n`` below the overlay's threshold), as the median change of log
   luminance there over the photo's own shade (the median log luminance of its found shadows
@@ -314,7 +314,8 @@ def _relight_checks(session: Any, res: PhotoResult, az: float, el: float,
                     truth: np.ndarray) -> None:
     """``relit_chroma``, ``relit_sky``, ``new_shade``, ``old_shade`` and ``relit_detail`` of
     :class:`PhotoResult` (module docstring)."""
-    w_o, w_n = sun_vector(az, el), sun_vector((az + RELIGHT_TURN) % 360.0, el)
+    w_o = sun_vector(az, el)
+    w_n = relit_check_sun(session, az, el)
     relit = session.relight(w_n)
     image = session.image_srgb
     lab_a = cv2.cvtColor(np.clip(image, 0, 1).astype(np.float32), cv2.COLOR_RGB2Lab)
@@ -333,6 +334,20 @@ def _relight_checks(session: Any, res: PhotoResult, az: float, el: float,
     h, w = image.shape[:2]
     marked = cv2.resize(truth.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
     res.old_shade = old_shade_ratio(image, relit, marked, session.shadow(w_n), session.sky)
+
+
+def relit_check_sun(session: Any, az: float, el: float) -> np.ndarray:
+    """The relighting checks' new sun: the sun ``(az, el)`` (camera-relative) turned
+    :data:`RELIGHT_TURN` degrees about the horizon's up (the session's ``horizon_up``: the
+    fitted ground plane's normal, the camera's vertical without one), so both suns stand at one
+    elevation above the horizon and the light's strength and colour are the same
+    (``RelightSession.daylight``). Until 2026-12-01 (tenth session) the turn was about the
+    camera's vertical, which for a camera pitched down put the new sun at another elevation
+    (20-40 degrees apart for the dev photos looking down)."""
+    from outcast_core.runtime.pipeline.daylight import turned_about
+
+    up = session.horizon_up() if hasattr(session, "horizon_up") else (0.0, -1.0, 0.0)
+    return turned_about(sun_vector(az, el), up, RELIGHT_TURN)
 
 
 #: Least pixels of each kind :func:`new_shade_ratio` needs.

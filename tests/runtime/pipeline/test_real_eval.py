@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import cv2
@@ -283,3 +284,28 @@ def test_detail_ratio_measures_the_fine_texture_a_relighting_keeps() -> None:
     assert detail_ratio(img, img, np.zeros_like(where)) is None
     flat = np.full_like(img, 0.5)
     assert detail_ratio(flat, img, where) is None
+
+
+def test_the_relit_check_turns_the_sun_about_the_horizon() -> None:
+    """The relighting checks' new sun stands at the photo's sun's elevation above the horizon,
+    120 degrees round it, also for a camera pitched down (its vertical is not the horizon's)."""
+    from outcast_core.runtime.geometry.camera import camera_rotation
+    from outcast_core.runtime.pipeline.daylight import elevation_above
+    from outcast_core.runtime.pipeline.real_eval import RELIGHT_TURN, relit_check_sun
+
+    class Pitched:
+        def horizon_up(self) -> np.ndarray:
+            return camera_rotation(-25.0, 0.0) @ np.array([0.0, -1.0, 0.0])
+
+    up = Pitched().horizon_up()
+    w_o = sun_vector(30.0, 20.0)
+    w_n = relit_check_sun(Pitched(), 30.0, 20.0)
+    assert elevation_above(w_n, up) == pytest.approx(elevation_above(w_o, up), abs=1e-9)
+    flat = [w - (w @ up) * up for w in (w_o, w_n)]
+    cos_turn = flat[0] @ flat[1] / (np.linalg.norm(flat[0]) * np.linalg.norm(flat[1]))
+    assert math.degrees(math.acos(cos_turn)) == pytest.approx(RELIGHT_TURN, abs=1e-6)
+    # About the camera's vertical the elevation would differ by tens of degrees here.
+    w_cam = sun_vector(30.0 + RELIGHT_TURN, 20.0)
+    assert abs(elevation_above(w_cam, up) - elevation_above(w_o, up)) > 10.0
+    # Without a horizon (an object with no horizon_up): the camera's vertical.
+    np.testing.assert_allclose(relit_check_sun(object(), 30.0, 20.0), w_cam, atol=1e-9)
