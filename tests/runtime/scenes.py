@@ -61,3 +61,15 @@ def box_scene_visibility(
             t_far = np.minimum(t_far, np.maximum(ta, tb))
         lit &= ~(t_near <= t_far)
     return lit.reshape(points.shape[:2])
+
+
+def noisy_box_photo(seed: int, h: int = 60, w: int = 80) -> tuple[np.ndarray, np.ndarray]:
+    """A grey photo with a little noise and the depth of one box on the ground seen by a 30 deg
+    camera (the sessions' small test scene): ``(image, depth)``."""
+    import math
+
+    depth = box_scene_depth(h, w, w / (2 * math.tan(math.radians(15))), 60.0,
+                            [(-4.0, 0.0, -3.0, 1.0, 4.0)])
+    rng = np.random.default_rng(seed)
+    image = np.clip(0.5 + 0.05 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    return image, depth

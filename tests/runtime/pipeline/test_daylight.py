@@ -11,7 +11,7 @@ from outcast_core.runtime.geometry.camera import camera_rotation, sun_vector
 from outcast_core.runtime.io.models import ModelRegistry
 from outcast_core.runtime.pipeline import daylight as dl
 from outcast_core.runtime.pipeline.session import RelightSession
-from tests.runtime.scenes import box_scene_depth
+from tests.runtime.scenes import noisy_box_photo
 
 LEVEL_UP = np.array([0.0, -1.0, 0.0])
 
@@ -87,12 +87,7 @@ def test_a_missing_table_is_said(tmp_path, monkeypatch: pytest.MonkeyPatch) -> N
 
 @pytest.fixture
 def scene() -> tuple[np.ndarray, np.ndarray]:
-    h, w = 60, 80
-    depth = box_scene_depth(h, w, w / (2 * math.tan(math.radians(15))), 60.0,
-                            [(-4.0, 0.0, -3.0, 1.0, 4.0)])
-    rng = np.random.default_rng(2)
-    image = np.clip(0.5 + 0.05 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
-    return image, depth
+    return noisy_box_photo(2)
 
 
 @pytest.mark.parametrize("mode", ["classic", "learned"])

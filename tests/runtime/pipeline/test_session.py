@@ -2,24 +2,17 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from outcast_core.runtime.io.models import ModelError, ModelRegistry
 from outcast_core.runtime.pipeline.session import PRESETS, RelightSession, working_shape
-from tests.runtime.scenes import box_scene_depth
+from tests.runtime.scenes import noisy_box_photo
 
 
 @pytest.fixture
 def scene() -> tuple[np.ndarray, np.ndarray]:
-    h, w = 60, 80
-    depth = box_scene_depth(h, w, w / (2 * math.tan(math.radians(15))), 60.0,
-                            [(-4.0, 0.0, -3.0, 1.0, 4.0)])
-    rng = np.random.default_rng(1)
-    image = np.clip(0.5 + 0.05 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
-    return image, depth
+    return noisy_box_photo(1)
 
 
 def test_working_shape() -> None:
