@@ -967,6 +967,7 @@ class MainWindow(QMainWindow):
             # The camera's pitch and roll (its metadata's, else the ground plane's): the frame
             # in which the EXIF sun and the real sun path are given.
             tilt = photo_camera_tilt(session, path)
+            session.set_camera_tilt(*tilt[:2])  # the new sun's daylight: the same horizon
             photo = display.to_uint8_rgb(loaded.image_srgb)
             return {"path": path, "loaded": loaded, "session": session, "photo": photo,
                     "depth_path": depth_path, "depth_note": note, "tilt": tilt,
@@ -1580,8 +1581,9 @@ class MainWindow(QMainWindow):
 
             session.set_shadow_edits(edits)  # before the found shadows are redone at its size
             session.set_preset(name, progress=ctx.progress)
-            return {"timings": _timings(session), "tilt": photo_camera_tilt(session, path),
-                    "session": session}
+            tilt = photo_camera_tilt(session, path)
+            session.set_camera_tilt(*tilt[:2])  # the new sun's daylight: the same horizon
+            return {"timings": _timings(session), "tilt": tilt, "session": session}
 
         self.runner.submit("preset", job, f"Switching to {name}")
         self._refresh_view()

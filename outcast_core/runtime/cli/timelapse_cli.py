@@ -320,7 +320,9 @@ def _run_timelapse(args: argparse.Namespace, loaded: Any, exif: Any, session: An
     def tilt() -> tuple[float, float, str]:
         from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
 
-        return photo_camera_tilt(session, args.image)
+        found = photo_camera_tilt(session, args.image)
+        session.set_camera_tilt(*found[:2])  # the daylight's horizon: the samples' own
+        return found
 
     samples = _samples_from_args(args, exif, tilt)
     session.set_shadow_edits(args.shadow_edits)

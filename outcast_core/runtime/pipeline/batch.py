@@ -836,6 +836,7 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
     from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
 
     tilt = photo_camera_tilt(session, job.image)
+    session.set_camera_tilt(*tilt[:2])  # the new sun's daylight takes the same horizon
     seen = session.sun_seen  # the sun the photo shows, if it does
     sun, source = original_sun_for(job, options, loaded.exif, project_sun,
                                    _auto_sun(session, loaded.exif, result, tilt), tilt[:2],

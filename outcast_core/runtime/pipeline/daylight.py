@@ -37,9 +37,13 @@ TABLE = Path(__file__).with_name("daylight_sky.npz")
 #: The lowest sun elevation (degrees) the table holds; lower suns are taken at it (below about
 #: 2 degrees the model's sun stops changing).
 MIN_ELEVATION = 2.0
-#: Each light's ratio between two suns is kept within ``1 / RATIO_LIMIT`` and ``RATIO_LIMIT``
-#: (the table's blue sunlight at 2 degrees is nearly 0).
+#: Each light's ratio between two suns is kept within ``1 / RATIO_LIMIT`` (dimming: the
+#: table's blue sunlight at 2 degrees is nearly 0) and :data:`BRIGHTEN_LIMIT` (a photo of a
+#: low sun relit high: with ``r = (4, 3, 2)`` from 3 to 60 degrees the blue channel of a lit
+#: surface would grow x45, and an elevation aligned a few degrees low, or a camera's white
+#: balance that already warmed the photo, turns that into a blue cast; a review).
 RATIO_LIMIT = 64.0
+BRIGHTEN_LIMIT = 4.0
 #: Table entries are floored at this (linear) before a ratio is taken.
 _FLOOR = 0.005
 
@@ -98,7 +102,7 @@ def sky_seen(elevation_deg: float, view_elevation: np.ndarray) -> np.ndarray:
     height only)."""
     t = _table()
     az = t["view_azimuths"]
-    wts = np.gradient(az)  # trapezoid-like weights of the uneven azimuth grid
+    wts = np.diff(az, prepend=az[0]) / 2 + np.diff(az, append=az[-1]) / 2  # trapezoid
     mean = (t["sky_seen"] * wts[None, None, :, None]).sum(2) / wts.sum()  # sun x view x 3
     el = _clamped(elevation_deg)
     xs = t["sun_elevations"]
@@ -114,7 +118,7 @@ def sky_change(view_dirs: np.ndarray, up: Any, elevation_old: float, elevation_n
     """Per pixel (``H x W x 3``, linear RGB), how the clear sky seen along ``view_dirs``
     (camera-space unit rays) changes from a sun at ``elevation_old`` to one at
     ``elevation_new`` (degrees): :func:`sky_seen` new over old, kept within
-    :data:`RATIO_LIMIT`; the ray's elevation is taken against ``up`` (as
+    :data:`RATIO_LIMIT` and :data:`BRIGHTEN_LIMIT`; the ray's elevation is taken against ``up`` (as
     :func:`elevation_above`'s)."""
     d = np.asarray(view_dirs, np.float64)
     u = np.asarray(up, np.float64).reshape(3)
@@ -122,7 +126,7 @@ def sky_change(view_dirs: np.ndarray, up: Any, elevation_old: float, elevation_n
     v = np.degrees(np.arcsin(np.clip(d @ u, -1.0, 1.0)))
     old, new = sky_seen(elevation_old, v), sky_seen(elevation_new, v)
     k = np.maximum(new, _FLOOR) / np.maximum(old, _FLOOR)
-    return np.clip(k, 1.0 / RATIO_LIMIT, RATIO_LIMIT).astype(np.float32)
+    return np.clip(k, 1.0 / RATIO_LIMIT, BRIGHTEN_LIMIT).astype(np.float32)
 
 
 def daylight_change(elevation_old: float, elevation_new: float) -> DaylightChange:
@@ -136,8 +140,8 @@ def daylight_change(elevation_old: float, elevation_new: float) -> DaylightChang
         True
     """
     old, new = daylight(elevation_old), daylight(elevation_new)
-    k = [np.clip((np.maximum(b, _FLOOR) / np.maximum(a, _FLOOR)), 1.0 / RATIO_LIMIT, RATIO_LIMIT)
-         for a, b in zip(old, new, strict=True)]
+    k = [np.clip((np.maximum(b, _FLOOR) / np.maximum(a, _FLOOR)), 1.0 / RATIO_LIMIT,
+                 BRIGHTEN_LIMIT) for a, b in zip(old, new, strict=True)]
     return DaylightChange(k[0].astype(np.float32), k[1].astype(np.float32),
                           _clamped(elevation_old), _clamped(elevation_new))
 

@@ -82,6 +82,7 @@ from outcast_core.runtime.pipeline.relight import (
     physics_relight,
     remove_sun_glare,
     shadow_toward_original,
+    smooth_new_shadow,
     snap_shadow_to_photo,
     toward_photo,
     transfer_to_full_resolution,
@@ -318,6 +319,7 @@ class RelightSession:
         #: relit by physics (:meth:`_lift_inputs`; measured in that docstring).
         self.lift_new_light = True
         self._daylight = True
+        self._tilt: tuple[float, float] | None = None
         self._exposure = "photo"
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
@@ -411,16 +413,34 @@ class RelightSession:
                 self._daylight = bool(on)
                 self._relight_cache = _LRU()
 
+    def set_camera_tilt(self, pitch: float | None, roll: float = 0.0) -> None:
+        """The camera's pitch and roll (degrees, as
+        :func:`~outcast_core.runtime.pipeline.auto_sun.photo_camera_tilt` gives them: the
+        photo's metadata, the sun seen in the frame, the ground plane), which
+        :meth:`horizon_up` takes; ``None``: the ground plane's again. Kept for this photo
+        (:meth:`set_image` forgets it); the app, the time-lapse and batch pass the tilt their
+        EXIF suns are placed with, so the daylight's elevations are the same ones."""
+        with self._lock:
+            tilt = None if pitch is None else (float(pitch), float(roll))
+            if tilt is not None and not all(math.isfinite(v) for v in tilt):
+                raise ValueError(f"expected a finite camera pitch and roll, got {tilt}")
+            if tilt != self._tilt:
+                self._tilt = tilt
+                self._up = None
+                self._relight_cache = _LRU()
+
     def horizon_up(self) -> np.ndarray:
         """The horizon's upward direction in camera space (unit ``(3,)``), against which a
-        sun's elevation is taken for :attr:`daylight`: the fitted ground plane's normal
+        sun's elevation is taken for :attr:`daylight`: from :meth:`set_camera_tilt`'s tilt,
+        else the fitted ground plane's normal
         (:func:`~outcast_core.runtime.pipeline.auto_sun.ground_plane_tilt`; a level camera's
         ``(0, -1, 0)`` without one). Made once per photo and preset; needs :meth:`set_image`."""
-        self._require_image()
-        if self._up is None:
-            pitch, roll, _ = ground_plane_tilt(self)
-            self._up = camera_rotation(pitch, roll) @ np.array([0.0, -1.0, 0.0])
-        return self._up
+        with self._lock:
+            self._require_image()
+            if self._up is None:
+                pitch, roll = self._tilt if self._tilt is not None else ground_plane_tilt(self)[:2]
+                self._up = camera_rotation(pitch, roll) @ np.array([0.0, -1.0, 0.0])
+            return self._up
 
     def _daylight_gain(self, s_new: np.ndarray, sky: np.ndarray, light: LightEstimate,
                        w_old: np.ndarray, w_new: np.ndarray, up: np.ndarray, cam: Camera
@@ -431,6 +451,8 @@ class RelightSession:
         :attr:`daylight` is off or both suns stand at one elevation."""
         if not self._daylight:
             return None
+        if self.relight_mode == "learned":  # as the guards' physics image takes it
+            s_new = smooth_new_shadow(s_new)
         change = daylight_change(elevation_above(w_old, up), elevation_above(w_new, up))
         if change.is_identity:
             return None
@@ -557,6 +579,7 @@ class RelightSession:
         report = progress or (lambda stage, frac: None)
         full = self.full_image_srgb
         h, w = working_shape(full.shape[0], full.shape[1], self.preset.working_size)
+        self._tilt = None  # another photo: its own tilt, if any, is set again
         self._reset_working()
         t0 = time.perf_counter()
         self.image_srgb = resize_to_working(full, (h, w))
@@ -1015,6 +1038,7 @@ class RelightSession:
                 raise RuntimeError("set_original_sun() must be called before "
                                    "prepare_relight_preview()")
             st = self._relight_preview_state()
+            self.horizon_up()  # not on the first drag frame
             if self.relight_mode == "learned" and (
                     self.lift_new_light and self.contrast_floor or self.keep_detail):
                 shape = tuple(st["shadow_old"].shape)
@@ -1093,7 +1117,7 @@ class RelightSession:
             "original_shadow": self.original_shadow, "light": self._light,
             "original_geometry": self._original_geometry, "preset": self.preset,
             "sun_seen": self.sun_seen, "greyscale": self.greyscale, "exposure": self._exposure,
-            "up": self.horizon_up(),
+            "up": self.horizon_up(), "daylight": self._daylight,
         }
 
     def _relight_from(
@@ -1107,8 +1131,10 @@ class RelightSession:
         if share >= 1.0:  # the photo's own sun: the photo, no network runs
             return np.array(image, np.float32)
         s_new = shadow_toward_original(s_new, s_o, inp["original_geometry"], share)
-        gain = self._daylight_gain(s_new, inp["sky"], inp["light"], w_o, wv, inp["up"],
-                                   inp["camera"])
+        gain = None
+        if inp.get("daylight", True):
+            gain = self._daylight_gain(s_new, inp["sky"], inp["light"], w_o, wv, inp["up"],
+                                       inp["camera"])
         if self.relight_mode == "learned":
             model = self.registry.load("relight", threads=threads)
             out = model.run({

@@ -32,9 +32,12 @@ def test_a_lower_sun_is_weaker_and_redder_and_its_sky_dimmer() -> None:
     low = dl.daylight_change(45.0, 4.0)
     assert low.sun[2] < low.sun[1] < low.sun[0] < 1.0  # blue fades most
     assert np.all(low.sky < 1.0)
-    high = dl.daylight_change(4.0, 45.0)  # and back
-    np.testing.assert_allclose(low.sun * high.sun, 1.0, rtol=1e-5)
-    np.testing.assert_allclose(low.sky * high.sky, 1.0, rtol=1e-5)
+    high = dl.daylight_change(4.0, 45.0)  # and back, where no limit holds it
+    free = high.sun < dl.BRIGHTEN_LIMIT
+    assert free[0] and not free[2]  # the blue sunlight's growth is bounded
+    np.testing.assert_allclose((low.sun * high.sun)[free], 1.0, rtol=1e-5)
+    free = high.sky < dl.BRIGHTEN_LIMIT
+    np.testing.assert_allclose((low.sky * high.sky)[free], 1.0, rtol=1e-5)
     # Dusk: the sky near the horizon dims less in red than in blue, and dims overall.
     horizon = np.array([[0.0, -math.sin(math.radians(3)), math.cos(math.radians(3))]])
     k = dl.sky_change(horizon, LEVEL_UP, 45.0, 4.0)[0]
@@ -131,3 +134,29 @@ def test_keep_light_on_the_command_line(scene, tmp_path) -> None:
                      "-q", *extra]) == 0
         outs[name] = read_image(out).image_srgb
     assert outs["new"].mean() < 0.9 * outs["kept"].mean()
+
+
+def test_a_given_camera_tilt_sets_the_horizon(scene, tmp_path) -> None:
+    """``set_camera_tilt`` (the tilt the EXIF suns are placed with) is the daylight's horizon,
+    forgotten with the photo; a new tilt clears the relit photos made with the old one."""
+    image, depth = scene
+    s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", preset="fast")
+    s.set_image(image, depth=depth)
+    s.set_original_sun(sun_vector(100.0, 40.0))
+    before = s.relight(sun_vector(200.0, 20.0))
+    s.set_camera_tilt(-30.0, 0.0)
+    np.testing.assert_allclose(s.horizon_up(), camera_rotation(-30.0, 0.0) @ LEVEL_UP)
+    after = s.relight(sun_vector(200.0, 20.0))
+    assert not np.allclose(before, after)  # other elevations, other daylight
+    with pytest.raises(ValueError, match="finite"):
+        s.set_camera_tilt(float("nan"))
+    s.set_image(image, depth=depth)
+    assert s._tilt is None
+
+
+def test_a_low_sun_relit_high_is_bounded() -> None:
+    """From 3 degrees to 60 the blue sunlight would grow x100; no light grows past
+    BRIGHTEN_LIMIT (an aligned elevation a little low would turn the photo blue)."""
+    change = dl.daylight_change(3.0, 60.0)
+    assert change.sun.max() <= dl.BRIGHTEN_LIMIT and change.sky.max() <= dl.BRIGHTEN_LIMIT
+    assert change.sun[2] == pytest.approx(dl.BRIGHTEN_LIMIT)
