@@ -304,8 +304,8 @@ def evaluate_photo(
                     deshadowed=deshadowed,
                     sweep={"masks": np.stack(swept), "sky": _on_grid(sky, grid),
                            "truth": _on_grid(truth, grid)})
-        if hasattr(session, "relight"):  # two relit suns, +-RELIGHT_TURN (cached in the session)
-            keep["relit"] = [session.relight(sun_vector((az + turn) % 360.0, el))
+        if hasattr(session, "relight"):  # the checks' sun (cached in the session) and its mirror
+            keep["relit"] = [session.relight(relit_check_sun(session, az, el, turn))
                              for turn in (RELIGHT_TURN, -RELIGHT_TURN)]
     return res
 
@@ -336,18 +336,19 @@ def _relight_checks(session: Any, res: PhotoResult, az: float, el: float,
     res.old_shade = old_shade_ratio(image, relit, marked, session.shadow(w_n), session.sky)
 
 
-def relit_check_sun(session: Any, az: float, el: float) -> np.ndarray:
-    """The relighting checks' new sun: the sun ``(az, el)`` (camera-relative) turned
-    :data:`RELIGHT_TURN` degrees about the horizon's up (the session's ``horizon_up``: the
+def relit_check_sun(session: Any, az: float, el: float, turn: float = RELIGHT_TURN
+                    ) -> np.ndarray:
+    """The relighting checks' new sun: the sun ``(az, el)`` (camera-relative) turned ``turn``
+    (:data:`RELIGHT_TURN`) degrees about the horizon's up (the session's ``horizon_up``: the
     fitted ground plane's normal, the camera's vertical without one), so both suns stand at one
     elevation above the horizon and the light's strength and colour are the same
     (``RelightSession.daylight``). Until 2026-12-01 (tenth session) the turn was about the
     camera's vertical, which for a camera pitched down put the new sun at another elevation
-    (20-40 degrees apart for the dev photos looking down)."""
+    (up to 38 degrees apart for a camera pitched 22 degrees down, the dev photos' median)."""
     from outcast_core.runtime.pipeline.daylight import turned_about
 
     up = session.horizon_up() if hasattr(session, "horizon_up") else (0.0, -1.0, 0.0)
-    return turned_about(sun_vector(az, el), up, RELIGHT_TURN)
+    return turned_about(sun_vector(az, el), up, turn)
 
 
 #: Least pixels of each kind :func:`new_shade_ratio` needs.
