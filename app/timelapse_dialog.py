@@ -44,7 +44,7 @@ from app import display
 from app.canvas import qimage_from_array
 from app.errors import message_for
 from app.state import Step, Sun, TimelapseSettings
-from app.workers import JobContext
+from app.workers import JobCancelledError, JobContext
 from outcast_core.runtime.pipeline import timelapse as tl
 
 if TYPE_CHECKING:
@@ -331,6 +331,8 @@ class TimelapseDialog(QDialog):
         #: Timed exports: (photo load, preset, size, format, exposure) -> ExportTiming.
         self._timings: dict[tuple[Any, ...], ExportTiming] = {}
         self._untimed: set[tuple[Any, ...]] = set()  # settings whose timing failed
+        #: The settings of the timing submitted last and not yet back (none twice at once).
+        self._timing_key: tuple[Any, ...] | None = None
         out_form = QFormLayout()
         out_form.addRow("Frames", self.frames_box)
         out_form.addRow("Frames per second", self.fps_box)
@@ -592,8 +594,9 @@ class TimelapseDialog(QDialog):
             self.main.set_timelapse_settings(self.settings())
 
     def _time_export(self) -> int | None:
-        """Time what an export does, for :meth:`estimate`: a few frames of this path (a
-        quarter, half and three quarters of the way) relit as an export relights them (the
+        """Time what an export does, for :meth:`estimate`: :data:`ESTIMATE_FRAMES` frames of
+        this path, spread evenly along it (one fewer above :data:`ESTIMATE_LARGE_MP` megapixels
+        a frame), relit as an export relights them (the
         next sun's shadow beside this one's relighting, a thread each), made at the chosen
         size and written in the chosen format to a temporary file, in the worker. The
         estimate from the last interactive relighting's stages timed another thing (the
@@ -605,9 +608,11 @@ class TimelapseDialog(QDialog):
                 or self._exporting or not self._samples):
             return None
         key = self._estimate_key()
+        if key == self._timing_key:  # timing these settings already (a review)
+            return None
         shape = key[2]
         n = len(self._samples)
-        k = min(n, 2 if shape[0] * shape[1] > ESTIMATE_LARGE_MP * 1e6 else ESTIMATE_FRAMES)
+        k = min(n, ESTIMATE_FRAMES - (shape[0] * shape[1] > ESTIMATE_LARGE_MP * 1e6))
         picks = [self._samples[round((i + 1) * (n - 1) / (k + 1))] for i in range(k)]
         size, fmt, fps = self.size(), key[3], self.fps_box.value()
         exposure, edits = key[4], self.main.shadow_edits
@@ -615,17 +620,23 @@ class TimelapseDialog(QDialog):
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)  # as the export does
             stamps: list[float] = []
-            with tempfile.TemporaryDirectory(prefix="outcast-estimate-") as folder:
-                out = Path(folder) / ("frames" if fmt == "png" else f"estimate.{fmt}")
-                t0 = time.perf_counter()
-                tl.render_timelapse(
-                    session, picks, out, fps=fps, size=size, fmt=fmt,
-                    progress=lambda _stage, _f: stamps.append(time.perf_counter() - t0),
-                    cancel=ctx.cancel_event, exposure=exposure,
-                )  # fmt: skip
-                total = time.perf_counter() - t0
+            try:
+                with tempfile.TemporaryDirectory(prefix="outcast-estimate-") as folder:
+                    out = Path(folder) / ("frames" if fmt == "png" else f"estimate.{fmt}")
+                    t0 = time.perf_counter()
+                    tl.render_timelapse(
+                        session, picks, out, fps=fps, size=size, fmt=fmt,
+                        progress=lambda _stage, _f: stamps.append(time.perf_counter() - t0),
+                        cancel=ctx.cancel_event, exposure=exposure,
+                    )  # fmt: skip
+                    total = time.perf_counter() - t0
+            except (JobCancelledError, tl.ExportCancelledError):
+                raise
+            except Exception as exc:  # said under the size, for these settings (its key)
+                return {"key": key, "failed": exc}
             return {"key": key, "timing": ExportTiming.from_stamps(stamps, total)}
 
+        self._timing_key = key
         return self.main.runner.submit("tl_estimate", job, "Timing a short time-lapse export")
 
     def samples(self) -> list[tl.SunSample]:
@@ -769,6 +780,7 @@ class TimelapseDialog(QDialog):
     def hideEvent(self, event: Any) -> None:  # noqa: N802 (Qt's name)
         super().hideEvent(event)
         self.main.runner.cancel("tl_estimate")  # for nobody now
+        self._timing_key = None
 
     # ------------------------------------------------------------------ export
     def export_dialog(self) -> None:
@@ -824,6 +836,7 @@ class TimelapseDialog(QDialog):
                                                        seconds / len(samples))}
 
         self.main.runner.cancel("tl_estimate")  # the worker is the export's now
+        self._timing_key = None
         self._set_exporting(True)
         self.progress.setValue(0)
         shape = self.frame_shape()
@@ -864,11 +877,17 @@ class TimelapseDialog(QDialog):
                 self._preview_pixmap = QPixmap.fromImage(qimage_from_array(result["image"]))
                 self._show_preview()
             return
-        # A short export timed, or an export done: how long these settings take from now on.
-        self._timings[result["key"]] = result["timing"]
         if channel == "tl_estimate":
+            if result["key"] == self._timing_key:
+                self._timing_key = None
+            if "failed" in result:  # these settings' timing, not the current ones'
+                self._untimed.add(result["key"])
+            else:
+                self._timings[result["key"]] = result["timing"]
             self._update_estimate()
             return
+        # An export done: how long these settings take from now on.
+        self._timings[result["key"]] = result["timing"]
         self._set_exporting(False)
         self.progress.setValue(100)
         self.last_export = result["path"]
@@ -889,8 +908,8 @@ class TimelapseDialog(QDialog):
             self.last_result = "failed"
             self._say_failed(exc)
             self._update_estimate()
-        elif channel == "tl_estimate":  # said under the size, not in an error dialog
-            self._untimed.add(self._estimate_key())
+        elif channel == "tl_estimate":  # (a timing's own failure comes back as its result)
+            self._timing_key = None
             self._update_estimate()
 
     def closeEvent(self, event: QCloseEvent) -> None:

@@ -166,3 +166,45 @@ def test_an_estimate_that_cannot_be_timed_is_said_without_an_error_dialog(
     settle()
     assert not errors and dialog.estimate() is None
     assert dialog.estimate_label.text().endswith(": the export could not be timed")
+
+
+def test_a_timing_under_way_is_not_submitted_again(window, photo, settle, monkeypatch):
+    """Settings changed while a short export is timed (frames, fps: the same key) do not queue
+    the same timing again behind it (a review: each change resubmitted it, and the worker ran
+    the whole short export twice); a timing that fails is said for its own settings."""
+    import threading
+    import time as _time
+
+    from PySide6.QtWidgets import QApplication
+
+    _relight(window, photo, settle)
+    calls = []
+    real = tl.render_timelapse
+    running, release = threading.Event(), threading.Event()
+
+    def spy(session, samples, path, **kw):
+        calls.append(kw["fmt"])
+        if kw["fmt"] == "mp4":
+            raise OSError("no encoder")
+        running.set()
+        release.wait(10.0)  # the timing is under way while the settings change
+        return real(session, samples, path, **kw)
+
+    monkeypatch.setattr(tl, "render_timelapse", spy)
+    dialog = _timelapse(window, 48, "gif")
+    deadline = _time.monotonic() + 10.0
+    while not running.is_set() and _time.monotonic() < deadline:
+        QApplication.processEvents()
+        _time.sleep(0.01)
+    assert running.is_set()
+    dialog.frames_box.setValue(60)  # while the timing runs
+    dialog.fps_box.setValue(24.0)
+    release.set()
+    settle()
+    assert calls == ["gif"]
+    gif_key = dialog._estimate_key()
+    dialog.format_combo.setCurrentIndex(dialog.format_combo.findData("mp4"))
+    settle()
+    assert calls == ["gif", "mp4"]
+    assert "could not be timed" in dialog.estimate_label.text()
+    assert gif_key not in dialog._untimed and dialog._estimate_key() in dialog._untimed
