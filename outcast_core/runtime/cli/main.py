@@ -425,6 +425,10 @@ def cmd_relight(args: argparse.Namespace) -> int:
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
     _set_image(session, loaded, args)
+    if session.daylight:  # the new sun's daylight takes the horizon the app takes
+        from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
+
+        session.set_camera_tilt(*photo_camera_tilt(session, args.image)[:2])
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(w_from)
     corrections = say_unused_shadow_edits(session, args)
