@@ -101,6 +101,7 @@ def test_session_relights_with_a_physics_base_l_as_the_physics_mode_does(tmp_pat
     # physics on the smoothed new shadow, the lift and the photo's detail are tested in
     # test_relight).
     s.colour_guard = s.lift_new_light = s.contrast_floor = s.keep_detail = False
+    s.daylight = False  # (the new sun's daylight, the same for both: tested in test_daylight)
     s.set_image(image, depth=depth, fov_deg=30.0)
     # Shade the photo by its own shadows so the session measures its light ratio.
     from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
