@@ -9,10 +9,10 @@ nearly black, under an unchanged blue midday sky (a user trial).
 The light is the renderer's (Mitsuba's ``sunsky``: the Hosek-Wilkie sky and its sun, as
 ``outcast_core.data.sky`` bakes them for the training renders) at turbidity 3 and ground
 albedo 0.3, tabulated per sun elevation by ``python3 scripts/daylight_table.py`` into
-``daylight_sky.npz`` beside this module: the sun's irradiance on a surface facing it, the sky's
-irradiance on level ground, and the sky's radiance seen at a grid of view elevations and
-azimuths, linear RGB. Below :data:`MIN_ELEVATION` the model's sun stops changing; lower suns are
-taken at it.
+:mod:`~outcast_core.runtime.pipeline.daylight_table`: the sun's irradiance on a surface facing
+it, the sky's irradiance on level ground, and the sky's radiance seen at a grid of view
+elevations (averaged over the view's azimuth), linear RGB. Below :data:`MIN_ELEVATION` the
+model's sun stops changing; lower suns are taken at it.
 
 The photo's own light is measured (``relight.LightEstimate``: the sun over the sky, per
 channel); this module gives how both change from the photo's sun to the new one, as ratios
@@ -22,18 +22,15 @@ new elevation (:func:`daylight_gain`), and two suns at one elevation change noth
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
+from outcast_core.runtime.pipeline import daylight_table as _t
 
-#: The table (``python3 scripts/daylight_table.py``), beside this module.
-TABLE = Path(__file__).with_name("daylight_sky.npz")
 #: The lowest sun elevation (degrees) the table holds; lower suns are taken at it (below about
 #: 2 degrees the model's sun stops changing).
 MIN_ELEVATION = 2.0
@@ -48,13 +45,11 @@ BRIGHTEN_LIMIT = 4.0
 _FLOOR = 0.005
 
 
-@functools.lru_cache(maxsize=1)
-def _table() -> dict[str, np.ndarray]:
-    try:
-        with np.load(TABLE) as z:
-            return {k: np.asarray(z[k], np.float64) for k in z.files}
-    except (OSError, ValueError, KeyError) as exc:  # a broken install
-        raise RuntimeError(f"cannot read the daylight table {TABLE}: {exc}") from exc
+_SUN_ELEVATIONS = np.asarray(_t.SUN_ELEVATIONS, np.float64)
+_VIEW_ELEVATIONS = np.asarray(_t.VIEW_ELEVATIONS, np.float64)
+_SUN = np.asarray(_t.SUN, np.float64)  # sun elevation x 3
+_SKY = np.asarray(_t.SKY, np.float64)  # sun elevation x 3
+_SKY_SEEN = np.asarray(_t.SKY_SEEN, np.float64)  # sun elevation x view elevation x 3
 
 
 @dataclass(frozen=True)
@@ -88,10 +83,9 @@ def daylight(elevation_deg: float) -> tuple[np.ndarray, np.ndarray]:
         >>> bool(sun[0] > sun[2] and sky[2] > sky[0])  # a warm sun, a blue sky
         True
     """
-    el, t = _clamped(elevation_deg), _table()
-    xs = t["sun_elevations"]
-    return tuple(np.array([np.interp(el, xs, t[k][:, c]) for c in range(3)])
-                 for k in ("sun", "sky"))  # type: ignore[return-value]
+    el = _clamped(elevation_deg)
+    return tuple(np.array([np.interp(el, _SUN_ELEVATIONS, t[:, c]) for c in range(3)])
+                 for t in (_SUN, _SKY))  # type: ignore[return-value]
 
 
 def sky_seen(elevation_deg: float, view_elevation: np.ndarray) -> np.ndarray:
@@ -100,17 +94,12 @@ def sky_seen(elevation_deg: float, view_elevation: np.ndarray) -> np.ndarray:
     the table's elevations. The azimuth is averaged out so that a sun moved round the horizon
     at one elevation leaves the sky as it is (the relit photo's sky changes with the sun's
     height only)."""
-    t = _table()
-    az = t["view_azimuths"]
-    wts = np.diff(az, prepend=az[0]) / 2 + np.diff(az, append=az[-1]) / 2  # trapezoid
-    mean = (t["sky_seen"] * wts[None, None, :, None]).sum(2) / wts.sum()  # sun x view x 3
     el = _clamped(elevation_deg)
-    xs = t["sun_elevations"]
-    at_sun = np.stack([np.array([np.interp(el, xs, mean[:, i, c]) for c in range(3)])
-                       for i in range(mean.shape[1])])  # view x 3
-    v = np.clip(np.asarray(view_elevation, np.float64), t["view_elevations"][0],
-                t["view_elevations"][-1])
-    return np.stack([np.interp(v, t["view_elevations"], at_sun[:, c]) for c in range(3)], -1)
+    at_sun = np.array([[np.interp(el, _SUN_ELEVATIONS, _SKY_SEEN[:, i, c]) for c in range(3)]
+                       for i in range(len(_VIEW_ELEVATIONS))])  # view x 3
+    v = np.clip(np.asarray(view_elevation, np.float64), _VIEW_ELEVATIONS[0],
+                _VIEW_ELEVATIONS[-1])
+    return np.stack([np.interp(v, _VIEW_ELEVATIONS, at_sun[:, c]) for c in range(3)], -1)
 
 
 def sky_change(view_dirs: np.ndarray, up: Any, elevation_old: float, elevation_new: float

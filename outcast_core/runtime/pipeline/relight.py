@@ -922,7 +922,7 @@ def guard_learned_relight(
     kept = None  # how much of each pixel's colour is the photo's, not L's or physics'
     if colour:
         out = keep_photo_colour(image_srgb, out, shadow_old, shadow_new, sky, keep_sky=keep_sky)
-        kept = _lit(shadow_old) * _lit(shadow_new)
+        kept = _both_lit(shadow_old, shadow_new)
         if floor and lift and lift_guard is not None and lift_colour is not None:
             up = lift_weight(shadow_old, s_new, lift_guard)
             out = lifted_colour(out, up, lift_colour)
@@ -983,6 +983,12 @@ def lifted_colour(relit_srgb: np.ndarray, weight: np.ndarray, lit_ab: np.ndarray
     return linear_to_srgb(lin)
 
 
+def _both_lit(shadow_old: np.ndarray, shadow_new: np.ndarray) -> np.ndarray:
+    """How much a pixel is lit under both suns (soft): where :func:`keep_photo_colour` keeps
+    the photo's colour."""
+    return _lit(shadow_old) * _lit(shadow_new)
+
+
 def _lit(s: np.ndarray) -> np.ndarray:
     """Soft "lit" of a shadow image: 0 below ``LIT_LEVEL - LIT_SOFT``, 1 above ``+ LIT_SOFT``."""
     return np.clip((np.asarray(s, np.float32) - LIT_LEVEL + LIT_SOFT) / (2 * LIT_SOFT), 0, 1)
@@ -1024,7 +1030,7 @@ def keep_photo_colour(
     _check_pair(image, np.asarray(shadow_old), "shadow_old")
     _check_pair(image, np.asarray(shadow_new), "shadow_new")
     lin, lin_r = srgb_to_linear(image), srgb_to_linear(relit)
-    weight = _lit(shadow_old) * _lit(shadow_new)
+    weight = _both_lit(shadow_old, shadow_new)
     both = weight > 0  # only there: the drag preview runs this on every frame
     out = lin_r.copy()
     if both.any():

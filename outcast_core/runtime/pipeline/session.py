@@ -442,24 +442,25 @@ class RelightSession:
                 self._up = camera_rotation(pitch, roll) @ np.array([0.0, -1.0, 0.0])
             return self._up
 
-    def _daylight_gain(self, s_new: np.ndarray, sky: np.ndarray, light: LightEstimate,
-                       w_old: np.ndarray, w_new: np.ndarray, up: np.ndarray, cam: Camera
-                       ) -> np.ndarray | None:
-        """The gain that carries a relighting (made with the photo's light, seen by ``cam``) to
-        the new sun's daylight (:func:`~outcast_core.runtime.pipeline.daylight.daylight_gain`,
-        the sky by :func:`~outcast_core.runtime.pipeline.daylight.sky_change`); None when
-        :attr:`daylight` is off or both suns stand at one elevation."""
-        if not self._daylight:
+    def _daylight_gain(self, on: bool, s_new: np.ndarray, sky: np.ndarray,
+                       light: LightEstimate, w_old: np.ndarray, w_new: np.ndarray,
+                       up: np.ndarray, view_dirs: np.ndarray) -> np.ndarray | None:
+        """The gain that carries a relighting (made with the photo's light; ``view_dirs``: its
+        pixels' rays) to the new sun's daylight
+        (:func:`~outcast_core.runtime.pipeline.daylight.daylight_gain`, the sky by
+        :func:`~outcast_core.runtime.pipeline.daylight.sky_change`); None when ``on`` (the
+        caller's :attr:`daylight`) is False or both suns stand at one elevation."""
+        if not on:
             return None
-        if self.relight_mode == "learned":  # as the guards' physics image takes it
-            s_new = smooth_new_shadow(s_new)
         change = daylight_change(elevation_above(w_old, up), elevation_above(w_new, up))
         if change.is_identity:
             return None
+        if self.relight_mode == "learned":  # as the guards' physics image takes it
+            s_new = smooth_new_shadow(s_new)
         sky_gain = None
         if sky.any():
             sky_gain = np.ones(sky.shape + (3,), np.float32)
-            sky_gain[sky] = sky_change(view_directions(cam)[sky], up, change.elevation_old,
+            sky_gain[sky] = sky_change(view_dirs[sky], up, change.elevation_old,
                                        change.elevation_new)
         return daylight_gain(s_new, sky, light.ratio, change, sky_gain)
 
@@ -589,7 +590,7 @@ class RelightSession:
         t0 = time.perf_counter()
         depth, sky = self._estimate_depth()
         self.depth, self.sky = depth, sky
-        self._up = None  # the horizon of this depth's ground plane (_horizon_up)
+        self._up = None  # the horizon of this depth's ground plane (horizon_up)
         # The sun itself in the frame, if the photo shows it: relit to a sun outside the frame,
         # its disc and glare go (relight.remove_sun_glare).
         self.sun_seen = sun_in_photo(self.image_srgb, sky, self.camera)
@@ -1001,6 +1002,7 @@ class RelightSession:
         sky = resize(self.sky.astype(np.uint8), (h, w), nearest=True) > 0
         image = resize(self.image_srgb, (h, w))
         normals = normals_from_depth(depth, cam)
+        view_dirs = view_directions(cam)
         s_o = np.clip(resize(self.original_shadow, (h, w)), 0.0, 1.0).astype(np.float32)
         assert self._original_geometry is not None
         geometry_o = np.clip(resize(self._original_geometry, (h, w)), 0.0, 1.0).astype(np.float32)
@@ -1017,12 +1019,13 @@ class RelightSession:
             else None,
             # The working-size photo in 8 bits: the preview is moved onto it by tables only.
             "working_u8": np.rint(self.image_srgb * 255.0).astype(np.uint8),
+            "view_dirs": view_dirs,
             "feeds_s": {"image": nchw(image), "depth": nchw(network_depth(depth)),
                         "normals": nchw(normals),
                         "focal": np.array([[cam.focal]], np.float32)},
             "feeds_l": {"image": nchw(image), "shadow_old": nchw(s_o),
                         "normals": nchw(normals),
-                        "view_dirs": nchw(view_directions(cam)),
+                        "view_dirs": nchw(view_dirs),
                         "sun_old": self.original_sun.astype(np.float32)[None],
                         "light_ratio": self._light.ratio.astype(np.float32)[None]},
         }
@@ -1074,8 +1077,8 @@ class RelightSession:
         t1 = time.perf_counter()
         self.timings["shadow_preview"] = t1 - t0
         image = st["image"]
-        gain = self._daylight_gain(s_new, st["sky"], self._light, self.original_sun, wv,
-                                   self.horizon_up(), st["camera"])
+        gain = self._daylight_gain(self._daylight, s_new, st["sky"], self._light,
+                                   self.original_sun, wv, self.horizon_up(), st["view_dirs"])
         if self.relight_mode == "learned":
             out = self.registry.load("relight", threads=PREVIEW_THREADS).run({
                 **st["feeds_l"], "shadow_new": s_new[None, None],
@@ -1131,10 +1134,8 @@ class RelightSession:
         if share >= 1.0:  # the photo's own sun: the photo, no network runs
             return np.array(image, np.float32)
         s_new = shadow_toward_original(s_new, s_o, inp["original_geometry"], share)
-        gain = None
-        if inp.get("daylight", True):
-            gain = self._daylight_gain(s_new, inp["sky"], inp["light"], w_o, wv, inp["up"],
-                                       inp["camera"])
+        gain = self._daylight_gain(inp["daylight"], s_new, inp["sky"], inp["light"], w_o, wv,
+                                   inp["up"], inp["view_dirs"])
         if self.relight_mode == "learned":
             model = self.registry.load("relight", threads=threads)
             out = model.run({

@@ -76,16 +76,16 @@ def test_the_gain_follows_the_light_model() -> None:
         dl.daylight_gain(s, sky, r, change, np.ones((2, 2, 3), np.float32))
 
 
-def test_a_missing_table_is_said(tmp_path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(dl, "TABLE", tmp_path / "none.npz")
-    dl._table.cache_clear()
-    try:
-        with pytest.raises(RuntimeError, match="daylight table"):
-            dl.daylight(30.0)
-    finally:
-        monkeypatch.undo()
-        dl._table.cache_clear()
-    assert dl.daylight(30.0)[0].shape == (3,)
+def test_the_table_is_the_renderers_clear_sky() -> None:
+    """The shipped table's shapes, and a midday sun whiter and stronger than a low one."""
+    from outcast_core.runtime.pipeline import daylight_table as t
+
+    n, m = len(t.SUN_ELEVATIONS), len(t.VIEW_ELEVATIONS)
+    assert np.shape(t.SUN) == np.shape(t.SKY) == (n, 3)
+    assert np.shape(t.SKY_SEEN) == (n, m, 3)
+    assert t.SUN_ELEVATIONS[0] == dl.MIN_ELEVATION
+    sun = np.asarray(t.SUN)
+    assert np.all(sun[-1] > sun[0]) and sun[-1, 2] / sun[-1, 0] > sun[5, 2] / sun[5, 0]
 
 
 @pytest.fixture
