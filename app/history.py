@@ -2,11 +2,11 @@
 
 What is undoable: moving either sun (a drag counts once, on release; a key nudge or a typed value
 once each), confirming the original sun and going back to re-align it (the step), the quality
-preset, the depth map, the camera heading typed in step 1, step 2's exposure and the user's
-corrections of the photo's found shadows (step 2's "Not a shadow" / "Mark shadow": a click, or
-a brush stroke, one step however many dabs it lays). View settings
-(overlay opacity, split, buffer view, zoom) are not; the time-lapse dialog's settings are not
-either, but they count as unsaved work (``MainWindow.has_unsaved_changes``).
+preset, the depth map, the camera heading typed in step 1, step 2's exposure and light ("Keep
+the photo's light") and the user's corrections of the photo's found shadows (step 2's "Not a
+shadow" / "Mark shadow": a click, or a brush stroke, one step however many dabs it lays). View
+settings (overlay opacity, split, buffer view, zoom) are not; the time-lapse dialog's settings
+are not either, but they count as unsaved work (``MainWindow.has_unsaved_changes``).
 
 Each user action records ``EditState`` before and after; undo applies "before", redo "after".
 The window applies a state through one narrow method, :meth:`EditTarget.apply_edit_state`, so
@@ -48,6 +48,8 @@ class EditState:
         heading: the camera's compass heading typed in step 1 (degrees from true north), or
             ``None`` (unknown, or the one the photo's EXIF records).
         exposure: ``"photo"`` (the photo's exposure kept) or ``"metered"`` (step 2).
+        daylight: whether relit photos take the new sun's daylight (step 2's "Keep the
+            photo's light" clear; ``RelightSession.daylight``).
         shadow_edits: the user's corrections of the photo's found shadows, in order
             (:class:`~outcast_core.runtime.pipeline.photo_shadows.ShadowEdit`); ``()``: none.
     """
@@ -60,6 +62,7 @@ class EditState:
     depth_path: str = ""
     heading: float | None = None
     exposure: str = "photo"
+    daylight: bool = True
     shadow_edits: tuple[ShadowEdit, ...] = ()
 
     def __post_init__(self) -> None:
@@ -89,6 +92,8 @@ def describe_change(before: EditState, after: EditState) -> str:
         return "Camera heading"
     if before.exposure != after.exposure:
         return "Meter the new light" if after.exposure == "metered" else "Keep the photo's exposure"
+    if before.daylight != after.daylight:
+        return "Take the new sun's daylight" if after.daylight else "Keep the photo's light"
     if before.shadow_edits != after.shadow_edits:
         return shadow_edit_text(after.shadow_edits)
     if before.target_sun != after.target_sun:

@@ -107,8 +107,9 @@ def leave_questions(
         questions.append(
             Question(
                 title="Save the changes to this photo?",
-                text=("The suns, quality, depth map, camera heading, exposure, corrections of "
-                      "the found shadows and time-lapse settings you chose are not saved."),
+                text=("The suns, quality, depth map, camera heading, exposure, light, "
+                      "corrections of the found shadows and time-lapse settings you chose are "
+                      "not saved."),
                 detail=f"Save them in {project_name} to continue later, or drop them.",
                 choices=(
                     Choice(SAVE, "Save project", "accept"),

@@ -620,6 +620,7 @@ class MainWindow(QMainWindow):
         rp.sun_panel.sun_committed.connect(self._on_target_sun_committed)
         rp.split_slider.valueChanged.connect(self._on_split_changed)
         rp.exposure_changed.connect(self._on_exposure_changed)
+        rp.daylight_changed.connect(self._on_daylight_changed)
         self.canvas.split_dragged.connect(lambda f: rp.split_slider.setValue(round(f * 100)))
         rp.view_combo.currentIndexChanged.connect(self._on_view_changed)
         rp.export_still_clicked.connect(self.export_still_dialog)
@@ -746,6 +747,7 @@ class MainWindow(QMainWindow):
             depth_path=self.depth_path,
             heading=self.user_heading,
             exposure=self.relight_panel.exposure(),
+            daylight=self.relight_panel.daylight(),
             shadow_edits=self.shadow_edits,
         )
 
@@ -788,6 +790,9 @@ class MainWindow(QMainWindow):
                 self.set_user_heading(state.heading)
             if state.exposure != self.relight_panel.exposure():
                 self.set_exposure(state.exposure, refresh=False)  # relit below, once
+            if state.daylight != self.relight_panel.daylight():
+                self.set_daylight(state.daylight, refresh=False)  # relit below, once
+                self._refresh_timelapse_preview()
             if state.preset != self.preset:
                 self.set_preset(state.preset)
             self.relight_panel.sun_panel.set_sun(*state.target_sun)
@@ -815,6 +820,7 @@ class MainWindow(QMainWindow):
         project.depth_path = state.depth_path
         project.heading = state.heading
         project.exposure = state.exposure
+        project.daylight = state.daylight
         project.shadow_edits = state.shadow_edits
         relight = state.step == "relight" and state.original_sun is not None
         project.original_sun = Sun(*state.original_sun) if relight else None
@@ -1006,7 +1012,10 @@ class MainWindow(QMainWindow):
         self.session = result["session"]
         if restore is None:  # another photo: the photo's own exposure (a project's: below)
             self.relight_panel.set_exposure("photo")
+            self.relight_panel.set_daylight(True)  # and the new sun's daylight
         self.session.exposure = self.relight_panel.exposure()
+        # (a new session, no job holds it yet: its lock is not waited for)
+        self.session.daylight = self.relight_panel.daylight()
         self.loaded = result["loaded"]
         self._set_camera_tilt(result.get("tilt", LEVEL_TILT))
         self.depth_path = result.get("depth_path", "")
@@ -1342,6 +1351,26 @@ class MainWindow(QMainWindow):
         self.request_relight(preview=False)
         self._refresh_timelapse_preview()
 
+    @Slot(bool)
+    def _on_daylight_changed(self, on: bool) -> None:
+        """Step 2's "Keep the photo's light" cleared (``on``: the new sun's daylight) or
+        ticked: applied, and undoable."""
+        self.set_daylight(on)
+        self._record()
+
+    def set_daylight(self, on: bool, refresh: bool = True) -> None:
+        """Whether relit photos take the new sun's daylight (``RelightSession.daylight``): the
+        checkbox; with ``refresh``, the relit view and an open time-lapse preview are drawn
+        again. As the exposure, jobs take the light shown when they are asked for; each sets
+        it on the session as it starts, in the worker (the setter waits for the session's
+        lock, which a relighting under way holds, and forgets the relit images kept)."""
+        if self.relight_panel.daylight() != on:
+            self.relight_panel.set_daylight(on)
+        if not refresh or self.step is not Step.RELIGHT:
+            return
+        self.request_relight(preview=False)
+        self._refresh_timelapse_preview()
+
     @Slot(object, bool)
     def _on_heading_typed(self, heading: float | None, stepped: bool = False) -> None:
         """A heading typed (or cleared) in step 1: applied, and undoable; ``stepped`` (arrow
@@ -1523,6 +1552,8 @@ class MainWindow(QMainWindow):
         self.set_user_heading(project.heading)
         self.relight_panel.set_exposure(project.exposure)
         self.session.exposure = project.exposure
+        self.relight_panel.set_daylight(project.daylight)
+        self.session.daylight = project.daylight  # (the session just loaded: no job holds it)
         confirmed = project.original_sun is not None and not project.realigning
         if confirmed:
             self.align_panel.sun_panel.set_sun(*project.original_sun.as_tuple())
@@ -1893,10 +1924,12 @@ class MainWindow(QMainWindow):
         if az is None or el is None:
             az, el = self.relight_panel.sun_panel.sun()
         exposure = self.relight_panel.exposure()
+        daylight = self.relight_panel.daylight()
         edits = self.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)  # what lifts the photo's shadows
+            session.daylight = daylight  # (in the worker: set_daylight)
             w = sun_vector(az, el)
             if view == "output":
                 # While dragging: the working-size preview. On release: full resolution, so the
@@ -2136,12 +2169,16 @@ class MainWindow(QMainWindow):
             return None
         w = sun_vector(*self.relight_panel.sun_panel.sun())
         exposure = self.relight_panel.exposure()  # as asked, whatever is ticked later
+        daylight = self.relight_panel.daylight()  # likewise
         bits = output_bit_depth(path, getattr(self.loaded, "bit_depth", 8))
         dtype = np.float32 if bits == 16 else np.uint8
+
+        def render() -> np.ndarray:
+            session.daylight = daylight  # (in the worker: set_daylight)
+            return session.relight_full(w, dtype=dtype, exposure=exposure)
+
         return self._export_image(
-            "export_still", path, force,
-            lambda: session.relight_full(w, dtype=dtype, exposure=exposure),
-            "relighting at full resolution",
+            "export_still", path, force, render, "relighting at full resolution",
         )  # fmt: skip
 
     @_typed_numbers_first
@@ -2343,6 +2380,7 @@ class MainWindow(QMainWindow):
             timelapse=self._timelapse_to_save(),
             heading=self.user_heading,
             exposure=self.relight_panel.exposure(),
+            daylight=self.relight_panel.daylight(),
             shadow_edits=self.shadow_edits,
         )
 

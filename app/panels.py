@@ -294,6 +294,8 @@ class RelightPanel(QWidget):
     timelapse_clicked = Signal()
     realign_clicked = Signal()
     exposure_changed = Signal(str)  # "photo" or "metered"
+    #: "Keep the photo's light" cleared (True: the new sun's daylight) or ticked (False).
+    daylight_changed = Signal(bool)
     #: The shadow-correction tool turned on (a key of :data:`SHADOW_TOOLS`) or off (``""``).
     shadow_tool_changed = Signal(str)
     clear_shadow_edits_clicked = Signal()
@@ -326,6 +328,13 @@ class RelightPanel(QWidget):
         )
         self.meter_check.toggled.connect(
             lambda on: self.exposure_changed.emit("metered" if on else "photo"))
+        self.keep_light_check = QCheckBox("Keep the photo's light", self)
+        self.keep_light_check.setToolTip(
+            "Off: the relit photo takes the new sun's daylight: near the horizon the sunlight "
+            "is weaker and redder and the sky dimmer. On: the photo's light, its strength and "
+            "colour, is kept at every sun."
+        )
+        self.keep_light_check.toggled.connect(lambda on: self.daylight_changed.emit(not on))
         self.export_button = QPushButton("Export still…", self)
         self.export_button.setToolTip("Save the relit photo at full resolution (Ctrl+E)")
         self.timelapse_button = QPushButton("Time-lapse…", self)
@@ -393,7 +402,14 @@ class RelightPanel(QWidget):
         form = QFormLayout()
         form.addRow("View", self.view_combo)
         form.addRow("Before | after", self.split_slider)
-        form.addRow("Exposure", self.meter_check)
+        # Both change the relit photo's light: one row, packed (at 1024 x 700 a row of its own
+        # took the dial's room).
+        light = QVBoxLayout()
+        light.setSpacing(0)
+        light.addWidget(self.meter_check)
+        light.addWidget(self.keep_light_check)
+        form.addRow("Light", light)
+        form.setVerticalSpacing(4)
         buttons = QHBoxLayout()
         buttons.addWidget(self.export_button)
         buttons.addWidget(self.timelapse_button)
@@ -421,6 +437,16 @@ class RelightPanel(QWidget):
         self.meter_check.blockSignals(True)
         self.meter_check.setChecked(mode == "metered")
         self.meter_check.blockSignals(False)
+
+    def daylight(self) -> bool:
+        """Whether relit photos take the new sun's daylight ("Keep the photo's light" clear)."""
+        return not self.keep_light_check.isChecked()
+
+    def set_daylight(self, on: bool) -> None:
+        """Show ``on`` (the new sun's daylight) without emitting :attr:`daylight_changed`."""
+        self.keep_light_check.blockSignals(True)
+        self.keep_light_check.setChecked(not on)
+        self.keep_light_check.blockSignals(False)
 
     def set_view(self, key: str) -> None:
         idx = self.view_combo.findData(key)

@@ -4,9 +4,13 @@ Project files are JSON next to the photo (``photo.jpg`` -> ``photo.outcast.json`
 image path (relative to the project file when possible), what identifies the photo (its pixel
 size and a fingerprint of its content, :class:`PhotoIdentity`: a project warns when the photo at
 its path is another one), the depth source, the original and target suns, the preset, view
-settings, the time-lapse settings and the user's corrections of the photo's found shadows
-(``shadow_edits``, the runtime's format:
+settings, the time-lapse settings, the exposure, the light (``daylight``: the new sun's
+daylight, or false for step 2's "Keep the photo's light"; ``RelightSession.daylight``) and the
+user's corrections of the photo's found shadows (``shadow_edits``, the runtime's format:
 :func:`~outcast_core.runtime.pipeline.photo_shadows.shadow_edits_to_json`).
+
+Keys added since version 1 are read with their defaults when missing, so older projects open
+as they were saved (the version stays 1: batch reads projects too).
 """
 
 from __future__ import annotations
@@ -301,6 +305,9 @@ class ProjectState:
     heading: float | None = None
     #: How relit photos are exposed (:data:`EXPOSURE_NAMES`: the photo's, or metered again).
     exposure: str = "photo"
+    #: Whether relit photos take the new sun's daylight (step 2's "Keep the photo's light"
+    #: clear; ``RelightSession.daylight``); a project saved before the setting: on.
+    daylight: bool = True
     #: The user's corrections of the photo's found shadows, in order (step 2's "Not a shadow"
     #: / "Mark shadow" clicks); ``()`` (and a project saved before them): none.
     shadow_edits: tuple[ShadowEdit, ...] = ()
@@ -337,6 +344,7 @@ class ProjectState:
             "timelapse": self.timelapse.to_dict(),
             "heading": self.heading,
             "exposure": self.exposure,
+            "daylight": self.daylight,
             "shadow_edits": _shadow_edits_json(self.shadow_edits),
         }
 
@@ -378,6 +386,7 @@ class ProjectState:
             timelapse=TimelapseSettings.from_dict(d.get("timelapse", {})),
             heading=_heading(d.get("heading")),
             exposure=exposure,
+            daylight=_flag(d.get("daylight", True), "daylight"),
             shadow_edits=_shadow_edits(d.get("shadow_edits")),
         )
 

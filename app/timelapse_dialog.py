@@ -328,7 +328,7 @@ class TimelapseDialog(QDialog):
         )
         self.estimate_label = QLabel("", self)
         self.estimate_label.setWordWrap(True)
-        #: Timed exports: (photo load, preset, size, format, exposure) -> ExportTiming.
+        #: Timed exports: (photo load, preset, size, format, exposure, light) -> ExportTiming.
         self._timings: dict[tuple[Any, ...], ExportTiming] = {}
         self._untimed: set[tuple[Any, ...]] = set()  # settings whose timing failed
         #: The settings of the timing submitted last and not yet back (none twice at once).
@@ -555,9 +555,11 @@ class TimelapseDialog(QDialog):
 
     def _estimate_key(self) -> tuple[Any, ...]:
         """What an export's time depends on besides its number of frames: the photo as loaded
-        (and its depth), the preset, the frame size, the format, the exposure."""
+        (and its depth), the preset, the frame size, the format, the exposure, the light (the
+        new sun's daylight or the photo's)."""
+        panel = self.main.relight_panel
         return (self.main._loads, self.main.preset, self.frame_shape(),
-                str(self.format_combo.currentData()), self.main.relight_panel.exposure())
+                str(self.format_combo.currentData()), panel.exposure(), panel.daylight())
 
     def estimate(self) -> float | None:
         """Estimated seconds to export the current path at the chosen size and format: from a
@@ -615,10 +617,11 @@ class TimelapseDialog(QDialog):
         k = min(n, ESTIMATE_FRAMES - (shape[0] * shape[1] > ESTIMATE_LARGE_MP * 1e6))
         picks = [self._samples[round((i + 1) * (n - 1) / (k + 1))] for i in range(k)]
         size, fmt, fps = self.size(), key[3], self.fps_box.value()
-        exposure, edits = key[4], self.main.shadow_edits
+        exposure, daylight, edits = key[4], key[5], self.main.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)  # as the export does
+            session.daylight = daylight
             stamps: list[float] = []
             try:
                 with tempfile.TemporaryDirectory(prefix="outcast-estimate-") as folder:
@@ -664,8 +667,9 @@ class TimelapseDialog(QDialog):
         self._settings_changed()
 
     def refresh_preview(self) -> None:
-        """Draw the shown frame again (the exposure or the shadow corrections have changed),
-        and say the export's time for them (timed again for another exposure)."""
+        """Draw the shown frame again (the exposure, the light or the shadow corrections have
+        changed), and say the export's time for them (timed again for another exposure or
+        light)."""
         self._on_scrub(self.scrubber.value())
         self._update_estimate()
 
@@ -747,10 +751,12 @@ class TimelapseDialog(QDialog):
         w = tl.sun_vectors([s])[0]
 
         exposure = self.main.relight_panel.exposure()  # as the user sees it now
+        daylight = self.main.relight_panel.daylight()  # likewise the light
         edits = self.main.shadow_edits  # the photo's shadows as corrected now
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)
+            session.daylight = daylight  # (in the worker: MainWindow.set_daylight)
             return {"index": index, "image": display.to_uint8_rgb(
                 session.relight(w, preview=True, exposure=exposure))}
 
@@ -820,11 +826,13 @@ class TimelapseDialog(QDialog):
             return self._refuse(IsADirectoryError(problem))
 
         exposure = self.main.relight_panel.exposure()  # as asked, whatever is ticked later
-        edits = self.main.shadow_edits  # likewise the shadow corrections
+        daylight = self.main.relight_panel.daylight()  # likewise the light
+        edits = self.main.shadow_edits  # and the shadow corrections
         key = self._estimate_key()
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)
+            session.daylight = daylight  # the stream takes it as it starts
             t0 = time.perf_counter()
             out = tl.render_timelapse(
                 session, samples, path, fps=fps, size=size, fmt=fmt, force=force,
