@@ -18,7 +18,12 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from outcast_core.runtime.cli.main import add_exposure_option, int_in, names_in
+from outcast_core.runtime.cli.main import (
+    add_exposure_option,
+    add_light_option,
+    int_in,
+    names_in,
+)
 from outcast_core.runtime.cli.timelapse_cli import (
     SWEEP_HELP,
     fps_value,
@@ -99,6 +104,10 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     add_exposure_option(p, "keep the photo's exposure, or meter the new light again as a "
                            "camera would (default: what the photo's project says, else the "
                            "photo's)", default=None)
+    add_light_option(p, "keep the photo's light, its strength and colour, whatever the new "
+                        "sun's height (--no-keep-light: the new sun's daylight); either "
+                        "overrides the photos' projects (default: what the photo's project "
+                        "says, else the new sun's daylight)", overrides=True)
     p.add_argument("--preset", choices=["fast", "balanced", "accurate"], default="balanced",
                    help="speed/accuracy preset")
     p.add_argument("--mode", choices=["auto", "learned", "classic"], default="auto",
@@ -135,7 +144,7 @@ def _options(args: argparse.Namespace) -> BatchOptions:
         fmt=args.fmt, preset=args.preset, mode=args.mode, depth_model=args.depth_model,
         use_phone_depth=not args.no_phone_depth, sweep=args.sweep, day=args.day,
         frames=args.frames, easing=args.easing, fps=args.fps, size=args.size,
-        exposure=args.exposure, force=args.force)
+        exposure=args.exposure, keep_light=args.keep_light, force=args.force)
 
 
 def check_batch_output(args: argparse.Namespace) -> None:

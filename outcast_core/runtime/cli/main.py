@@ -136,13 +136,19 @@ def add_exposure_option(p: argparse.ArgumentParser, help_text: str = "",
                    "puts in shade comes out dark), or meter the new light again as a camera would")
 
 
-def add_light_option(p: argparse.ArgumentParser) -> None:
+def add_light_option(p: argparse.ArgumentParser, help_text: str = "",
+                     overrides: bool = False) -> None:
     """``--keep-light``: the photo's light kept instead of the new sun's daylight
-    (``RelightSession.daylight``)."""
-    p.add_argument("--keep-light", action="store_true",
-                   help="keep the photo's light, its strength and colour, whatever the new "
-                   "sun's height (default: the new sun's daylight: near the horizon the "
-                   "sunlight is weaker and redder and the sky dimmer)")
+    (``RelightSession.daylight``). ``overrides``: also ``--no-keep-light``, and None when
+    neither is given (a setting that otherwise comes from elsewhere: ``batch``'s projects)."""
+    help_text = help_text or ("keep the photo's light, its strength and colour, whatever the "
+                              "new sun's height (default: the new sun's daylight: near the "
+                              "horizon the sunlight is weaker and redder and the sky dimmer)")
+    if overrides:
+        p.add_argument("--keep-light", action=argparse.BooleanOptionalAction, default=None,
+                       help=help_text)
+    else:
+        p.add_argument("--keep-light", action="store_true", help=help_text)
 
 
 def parse_point(text: str) -> tuple[float, float]:

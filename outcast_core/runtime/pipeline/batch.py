@@ -93,6 +93,9 @@ class BatchOptions:
         exposure: ``photo`` (the photo's exposure kept), ``metered`` (relit photos and
             time-lapse frames metered again; ``RelightSession.exposure``), or None: the
             photo's project's (:func:`project_exposure`), else ``photo``.
+        keep_light: True: the photo's light kept (``RelightSession.daylight`` off), False: the
+            new sun's daylight, None: the photo's project's (step 2's "Keep the photo's
+            light"), else the new sun's daylight (:func:`daylight_for`).
         force: overwrite existing outputs (else finished photos are skipped).
         threads: onnxruntime threads per worker (None: onnxruntime's default).
     """
@@ -112,6 +115,7 @@ class BatchOptions:
     easing: str = "ease-in-out"
     fps: float = 12.0
     exposure: str | None = None
+    keep_light: bool | None = None
     size: str = "1080p"
     force: bool = False
     threads: int | None = None
@@ -359,9 +363,19 @@ def exposure_for(options: BatchOptions, read: ProjectSettings | None) -> str:
     return options.exposure or (read.exposure if read is not None else None) or "photo"
 
 
+def daylight_for(options: BatchOptions, read: ProjectSettings | None) -> bool:
+    """Whether a job takes the new sun's daylight (``RelightSession.daylight``): not with
+    ``--keep-light``, else as its project says (step 2's "Keep the photo's light", as its
+    suns are taken from it), else it does."""
+    if options.keep_light is not None:
+        return not options.keep_light
+    daylight = read.daylight if read is not None else None
+    return True if daylight is None else daylight
+
+
 def _project_key(read: ProjectSettings | None, photo: Path) -> Any:
     """The photo's project as the record compares it: what a batch reads of it (its suns,
-    depth map and shadow corrections; its exposure counts in the job's), so a project saved
+    depth map and shadow corrections; its exposure and light count in the job's), so a project saved
     again with the same ones (the dial moved in step 1, say) is not other settings (a user
     trial's was redone); None without one."""
     if read is None:
@@ -412,6 +426,8 @@ def job_settings(job: BatchJob, options: BatchOptions) -> str:
     exposure = exposure_for(options, read)
     if options.kind != "deshadow" and exposure != "photo":
         keys["exposure"] = exposure  # (absent at the photo's: records made before it match)
+    if options.kind != "deshadow" and not daylight_for(options, read):
+        keys["daylight"] = False  # (absent when on: records made before it match)
     keys.update(photo=_file_key(image), project=project,
                 job_to_sun=_sun_key(job.to_sun), job_from_sun=_sun_key(job.from_sun))
     return json.dumps(keys, sort_keys=True)
@@ -590,6 +606,9 @@ class ProjectSettings:
     #: The user's corrections of the found shadows (the app's "Not a shadow" / "Mark
     #: shadow"; :class:`~outcast_core.runtime.pipeline.photo_shadows.ShadowEdit`).
     shadow_edits: tuple[Any, ...] = ()
+    #: Whether relit photos take the new sun's daylight (False: step 2's "Keep the photo's
+    #: light"); None in projects from before the setting.
+    daylight: bool | None = None
 
 
 def _project_data(photo: Path) -> tuple[Path, dict[str, Any]] | None:
@@ -620,12 +639,13 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
     ``original_sun`` (the sun the user confirmed last: a project saved while re-aligning
     still gives that one, the dial's being no answer yet), ``target_sun``, ``depth_path`` (a
     depth map the user loaded, relative to the project file), ``exposure`` ("Meter the new
-    light"; None in projects from before it) and ``shadow_edits`` (the user's corrections of
-    the found shadows; none in projects from before them).
+    light"; None in projects from before it), ``shadow_edits`` (the user's corrections of
+    the found shadows; none in projects from before them) and ``daylight`` (false: "Keep the
+    photo's light"; None in projects from before it).
 
     Raises:
         ValueError: the project file is not a valid OutCast project, is for another photo, or
-            holds a sun or an exposure the app does not write.
+            holds a sun, an exposure or a light the app does not write.
     """
     from outcast_core.runtime.pipeline.relight import EXPOSURES
 
@@ -652,13 +672,18 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
     if exposure is not None and exposure not in EXPOSURES:
         raise ValueError(f"project '{project.name}' exposure: expected one of {EXPOSURES}, got "
                          f"{exposure!r}")
+    daylight = data.get("daylight")
+    if daylight is not None and not isinstance(daylight, bool):
+        raise ValueError(f"project '{project.name}' daylight: expected true or false, got "
+                         f"{daylight!r}")
     from outcast_core.runtime.pipeline.photo_shadows import shadow_edits_from_json
 
     try:
         edits = shadow_edits_from_json(data.get("shadow_edits"))
     except ValueError as exc:
         raise ValueError(f"project '{project.name}' shadow_edits: {exc}") from None
-    return ProjectSettings(sun("original_sun"), sun("target_sun"), str(depth), exposure, edits)
+    return ProjectSettings(sun("original_sun"), sun("target_sun"), str(depth), exposure, edits,
+                           daylight)
 
 
 def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None, str]:
@@ -825,6 +850,8 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
                              mode=options.mode)
     session.exposure = exposure_for(options, read)  # (a user trial's metered project was
     # batch-relit unmetered)
+    if options.kind != "deshadow":  # (a de-shadowed photo is not relit: no new sun's light)
+        session.daylight = daylight_for(options, read)
     depth = read_depth(depth_path) if depth_path else None
     if depth is None:
         width, height = loaded.original_size

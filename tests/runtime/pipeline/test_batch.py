@@ -259,6 +259,72 @@ def test_batch_takes_the_projects_exposure_unless_told(tmp_path: Path,
         batch.project_exposure(photo)
 
 
+def test_batch_takes_the_projects_light_unless_told(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A project saved with step 2's "Keep the photo's light" is batch-relit and time-lapsed
+    in the photo's light, as its suns are taken from it; `--keep-light` / `--no-keep-light`
+    override it; a light the app does not write is refused."""
+    from app import state
+    from outcast_core.runtime.pipeline import batch, timelapse
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    seen: list[bool] = []  # the session's daylight at each relighting / time-lapse
+    real = RelightSession.relight_full
+    monkeypatch.setattr(RelightSession, "relight_full",
+                        lambda self, w, **kw: seen.append(self.daylight) or real(self, w, **kw))
+    monkeypatch.setattr(timelapse, "render_timelapse",
+                        lambda session, *a, **kw: seen.append(session.daylight))
+    d = tmp_path / "in"
+    d.mkdir()
+    photo = _photo(d / "a.png", 0)
+    project = state.project_path_for(photo)
+    data = {"outcast_project": 1, "image": "a.png",
+            "original_sun": {"azimuth": 200.0, "elevation": 40.0},
+            "target_sun": {"azimuth": 90.0, "elevation": 30.0}}
+    project.write_text(json.dumps(data))
+    assert batch.read_project(photo).daylight is None  # a project from before the setting
+
+    def save(daylight: bool) -> None:
+        state.save_project(state.ProjectState(
+            image_path=str(photo), original_sun=state.Sun(200.0, 40.0),
+            target_sun=state.Sun(90.0, 30.0), daylight=daylight), project)
+
+    save(daylight=False)
+    assert batch.read_project(photo).daylight is False
+    for i, keep_light in enumerate((None, False, True)):
+        opts = BatchOptions(kind="relight", preset="fast", keep_light=keep_light)
+        r = run_job(BatchJob(str(photo), str(tmp_path / "o" / f"{i}.png")), opts)
+        assert r.status == "done", r.message
+    assert seen == [False, True, False]
+    sweep = ((0.0, 30.0), (90.0, 30.0))
+    for keep_light in (None, False):
+        opts = BatchOptions(kind="timelapse", sweep=sweep, frames=2, keep_light=keep_light)
+        r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "t.mp4")), opts)
+        assert r.status == "done", r.message
+    assert seen[3:] == [False, True]
+    # The command line: --keep-light over a project in the new sun's daylight, and back.
+    save(daylight=True)
+    seen.clear()
+    args = ["batch", str(d), "--preset", "fast", "-q"]
+    assert main([*args, "-o", str(tmp_path / "day")]) == 0
+    assert main([*args, "-o", str(tmp_path / "kept"), "--keep-light"]) == 0
+    save(daylight=False)
+    assert main([*args, "-o", str(tmp_path / "kept2")]) == 0
+    assert main([*args, "-o", str(tmp_path / "day2"), "--no-keep-light"]) == 0
+    assert seen == [True, False, False, True]
+    # A rerun after the light was changed is other settings (kept until --force); unchanged, done.
+    capsys.readouterr()
+    assert main([*args, "-o", str(tmp_path / "day")]) == 2
+    assert "other settings" in capsys.readouterr().err
+    assert main([*args, "-o", str(tmp_path / "kept")]) == 0
+    assert seen == [True, False, False, True]
+    data["daylight"] = "off"
+    project.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match="'a.outcast.json' daylight: expected true or false"):
+        batch.read_project(photo)
+
+
 def test_batch_applies_the_projects_shadow_corrections(tmp_path: Path,
                                                       monkeypatch: pytest.MonkeyPatch) -> None:
     """The app's "Not a shadow" / "Mark shadow" clicks, saved in the project, act on a batch
@@ -436,6 +502,23 @@ def test_job_settings_name_what_decides_an_output(tmp_path: Path) -> None:
         job, replace(relight, exposure="photo"))
     assert job_settings(job, replace(relight, exposure=None)) == job_settings(
         job, replace(relight, exposure="metered"))
+    # The light likewise: kept (the project's "Keep the photo's light" or --keep-light), another
+    # relit output or time-lapse; absent at the new sun's daylight (records from before match).
+    project = state.project_path_for(photo)
+    project.write_text(json.dumps({"outcast_project": 1, "image": photo.name,
+                                   "original_sun": {"azimuth": 200.0, "elevation": 40.0}}))
+    key = job_settings(job, relight)
+    assert '"daylight"' not in key
+    save(daylight=True)
+    assert job_settings(job, relight) == key == job_settings(job, replace(relight,
+                                                                          keep_light=False))
+    assert job_settings(job, replace(relight, keep_light=True)) != key
+    save(daylight=False)
+    assert job_settings(job, relight) != key
+    assert job_settings(job, relight) == job_settings(job, replace(relight, keep_light=True))
+    assert job_settings(job, replace(relight, keep_light=False)) == key
+    assert job_settings(job, timelapse) != job_settings(job, replace(timelapse, keep_light=False))
+    assert job_settings(job, deshadow) == job_settings(job, replace(deshadow, keep_light=False))
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
