@@ -10,8 +10,14 @@ elevation the photo's EXIF time and place give. The dial's angles are the camera
 pitched or rolled (:meth:`QtSunDial.set_tilt`) that ring is drawn where the camera sees it, and
 the suns under the true horizon are shaded (``paint_horizon``).
 
-Keyboard (dial focused): Left/Right turn the azimuth, Up/Down raise/lower the sun; 1 degree per
-press, 10 with Shift, 0.1 with Ctrl.
+Keyboard (dial focused, a ring round the disc shows it): Left/Right turn the azimuth, Up/Down
+raise/lower the sun; 1 degree per press, 10 with Shift, 0.1 with Ctrl.
+
+The direction labels (front, right, behind, left) stand outside the disc, :data:`LABEL_GAP`
+from its rim, at every size (:meth:`QtSunDial.label_rects`: the disc is made as large as leaves
+them room); the shadow ruler stays inside the disc (:meth:`QtSunDial.shadow_ruler_line`) and
+the elevation rings' labels move off the sun and the ruler
+(:meth:`QtSunDial.ring_label_rects`).
 """
 
 from __future__ import annotations
@@ -19,16 +25,20 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from PySide6.QtCore import QPointF, QRectF, QSize, Qt, Signal
+from PySide6.QtCore import QLineF, QPointF, QRectF, QSize, Qt, Signal
 from PySide6.QtGui import (
     QColor,
+    QFocusEvent,
     QFont,
+    QFontMetricsF,
     QKeyEvent,
     QMouseEvent,
     QPainter,
     QPainterPath,
+    QPainterPathStroker,
     QPaintEvent,
     QPen,
+    QPolygonF,
     QRadialGradient,
 )
 from PySide6.QtWidgets import (
@@ -43,6 +53,23 @@ from PySide6.QtWidgets import (
 from app import sun_dial_math as dm
 
 HANDLE_RADIUS = 9.0
+#: How far the sun's rays reach from its centre.
+RAY_RADIUS = 15.0
+#: Between the disc's rim and the direction labels: the focus ring (:data:`FOCUS_RING_WIDTH`
+#: wide) is drawn in it, clear of both. A user trial saw "right" clipped by the disc in a
+#: narrow panel (the labels' room was a fixed 22 px, and a label moved into the disc to stay
+#: in the widget) and the shadow ruler's "…" on "behind".
+LABEL_GAP = 6.0
+FOCUS_RING_WIDTH = 2.0
+#: The direction labels by azimuth.
+DIRECTION_LABELS = {0: "front", 90: "right", 180: "behind", 270: "left"}
+#: The elevation rings (their dashed circles and labels).
+RING_ELEVATIONS = (30.0, 60.0)
+#: A capped shadow ruler (longer than the disc) ends this far inside the rim, in an arrowhead
+#: :data:`RULER_ARROW` long that says it goes on; its ticks reach 4 px to each side.
+RULER_INSET = 2.0
+RULER_ARROW = 8.0
+RULER_REACH = 5.0
 
 
 class QtSunDial(QWidget):
@@ -212,11 +239,110 @@ class QtSunDial(QWidget):
         return path
 
     # ------------------------------------------------------------------ geometry
+    def label_font(self) -> QFont:
+        """The font of the direction and ring labels: a little smaller than the widget's."""
+        font = QFont(self.font())
+        font.setPointSizeF(max(7.0, font.pointSizeF() * 0.85))
+        return font
+
+    def _label_sizes(self) -> dict[int, tuple[float, float]]:
+        """Each direction label's ``(width, height)`` in pixels, a pixel to spare."""
+        fm = QFontMetricsF(self.label_font())
+        return {az: (fm.horizontalAdvance(text) + 2.0, fm.height())
+                for az, text in DIRECTION_LABELS.items()}
+
     def dial_geometry(self) -> tuple[float, float, float]:
-        """``(cx, cy, radius)`` of the disc in widget pixels."""
-        margin = 22.0
-        radius = max(10.0, min(self.width(), self.height()) / 2.0 - margin)
+        """``(cx, cy, radius)`` of the disc in widget pixels: as large as leaves the direction
+        labels their room outside it, :data:`LABEL_GAP` from the rim (:meth:`label_rects`)."""
+        sizes = self._label_sizes()
+        side = max(sizes[90][0], sizes[270][0]) + LABEL_GAP + 1.0
+        top = max(sizes[0][1], sizes[180][1]) + LABEL_GAP + 1.0
+        radius = max(10.0, min(self.width() / 2.0 - side, self.height() / 2.0 - top))
         return self.width() / 2.0, self.height() / 2.0, radius
+
+    def label_rects(self) -> dict[int, QRectF]:
+        """Where the direction labels are drawn, by azimuth: outside the disc, each
+        :data:`LABEL_GAP` from the rim along its direction."""
+        cx, cy, r = self.dial_geometry()
+        sizes = self._label_sizes()
+        (fw, fh), (rw, rh), (bw, bh), (lw, lh) = (sizes[az] for az in (0, 90, 180, 270))
+        d = r + LABEL_GAP
+        return {
+            0: QRectF(cx - fw / 2.0, cy - d - fh, fw, fh),
+            90: QRectF(cx + d, cy - rh / 2.0, rw, rh),
+            180: QRectF(cx - bw / 2.0, cy + d, bw, bh),
+            270: QRectF(cx - d - lw, cy - lh / 2.0, lw, lh),
+        }
+
+    def shadow_ruler_line(self) -> tuple[QLineF, bool]:
+        """The shadow ruler (:meth:`paint_shadow_ruler`) from the disc's centre, and whether it
+        is capped: a shadow longer than the disc ends :data:`RULER_INSET` inside the rim, its
+        arrowhead included, clear of the labels outside."""
+        cx, cy, r = self.dial_geometry()
+        (x0, y0), (x1, y1), capped = dm.shadow_ruler(self._azimuth, self._elevation, cx, cy,
+                                                      r / 3.0)
+        length = math.hypot(x1 - x0, y1 - y0)
+        room = r - RULER_INSET
+        if length > room:
+            x1, y1 = x0 + (x1 - x0) * room / length, y0 + (y1 - y0) * room / length
+            capped = True
+        return QLineF(x0, y0, x1, y1), capped
+
+    def _obstacles(self) -> list[QPainterPath]:
+        """What the ring labels must not sit on: the sun with its rays, the faint reference
+        sun, the shadow ruler with its ticks."""
+        cx, cy, r = self.dial_geometry()
+        sun = QPainterPath()
+        sun.addEllipse(self.handle_position(), RAY_RADIUS + 1.0, RAY_RADIUS + 1.0)
+        paths = [sun]
+        if self._reference is not None:
+            ref = QPainterPath()
+            x, y = dm.sun_to_point(self._reference[0], self._reference[1], cx, cy, r)
+            ref.addEllipse(QPointF(x, y), HANDLE_RADIUS, HANDLE_RADIUS)
+            paths.append(ref)
+        line, _ = self.shadow_ruler_line()
+        if line.length() > 0.5:
+            ruler = QPainterPath(line.p1())
+            ruler.lineTo(line.p2())
+            stroker = QPainterPathStroker()
+            stroker.setWidth(2.0 * RULER_REACH)
+            paths.append(stroker.createStroke(ruler))
+        return paths
+
+    def ring_label_rects(self) -> list[tuple[str, QRectF]]:
+        """The elevation rings' labels and where they are drawn: each outside its ring, beside
+        the front-behind line (clear of a ruler along it), inside the disc, on the first side
+        the sun, the faint sun and the shadow ruler leave free (in front, right of the line,
+        where they were); none where no side is (on a small dial the sun sat on "30°": a user
+        trial)."""
+        cx, cy, r = self.dial_geometry()
+        fm = QFontMetricsF(self.label_font())
+        obstacles = self._obstacles()
+        for above in (True, False):
+            for right in (True, False):
+                placed = []
+                for el in RING_ELEVATIONS:
+                    text, rr = f"{el:.0f}°", r * (90.0 - el) / 90.0
+                    w, h = fm.horizontalAdvance(text) + 2.0, fm.height()
+                    x = cx + RULER_REACH + 1.0 if right else cx - RULER_REACH - 1.0 - w
+                    y = cy - rr - h if above else cy + rr
+                    placed.append((text, QRectF(x, y, w, h)))
+                inside = all(math.hypot(c.x() - cx, c.y() - cy) <= r for _, rect in placed
+                             for c in (rect.topLeft(), rect.topRight(), rect.bottomLeft(),
+                                       rect.bottomRight()))
+                if inside and not any(path.intersects(rect) for _, rect in placed
+                                      for path in obstacles):
+                    return placed
+        return []
+
+    def focus_ring_visible(self) -> bool:
+        """Whether the focus ring is drawn: the dial has the keyboard focus (its arrow keys move
+        the sun)."""
+        return self.hasFocus()
+
+    def focus_ring_radius(self) -> float:
+        """The focus ring's radius: round the disc, in the gap before the labels."""
+        return self.dial_geometry()[2] + LABEL_GAP / 2.0
 
     def handle_position(self) -> QPointF:
         cx, cy, r = self.dial_geometry()
@@ -239,7 +365,26 @@ class QtSunDial(QWidget):
         self.paint_shadow_ruler(p, cx, cy, r)
         self.paint_reference(p, cx, cy, r)
         self.paint_sun(p, cx, cy, r)
+        self.paint_focus_ring(p, cx, cy, r)
         p.end()
+
+    def paint_focus_ring(self, p: QPainter, cx: float, cy: float, r: float) -> None:
+        """A ring round the disc in the highlight colour while the dial has the focus (it
+        takes the arrow keys; a user trial tabbed onto it and saw nothing)."""
+        if not self.focus_ring_visible():
+            return
+        p.setBrush(Qt.BrushStyle.NoBrush)
+        p.setPen(QPen(self.palette().highlight().color(), FOCUS_RING_WIDTH))
+        rr = self.focus_ring_radius()
+        p.drawEllipse(QPointF(cx, cy), rr, rr)
+
+    def focusInEvent(self, event: QFocusEvent) -> None:  # noqa: N802 (Qt's name)
+        super().focusInEvent(event)
+        self.update()
+
+    def focusOutEvent(self, event: QFocusEvent) -> None:  # noqa: N802 (Qt's name)
+        super().focusOutEvent(event)
+        self.update()
 
     def paint_sky(self, p: QPainter, cx: float, cy: float, r: float) -> None:
         grad = QRadialGradient(QPointF(cx, cy), r)
@@ -306,7 +451,7 @@ class QtSunDial(QWidget):
     def paint_grid(self, p: QPainter, cx: float, cy: float, r: float) -> None:
         p.setBrush(Qt.BrushStyle.NoBrush)
         p.setPen(QPen(QColor(255, 255, 255, 90), 1.0, Qt.PenStyle.DashLine))
-        for el in (30.0, 60.0):
+        for el in RING_ELEVATIONS:
             rr = r * (90.0 - el) / 90.0
             p.drawEllipse(QPointF(cx, cy), rr, rr)
         p.setPen(QPen(QColor(255, 255, 255, 140), 1.0))
@@ -317,25 +462,13 @@ class QtSunDial(QWidget):
                 QPointF(cx + inner * math.sin(a), cy - inner * math.cos(a)),
                 QPointF(cx + r * math.sin(a), cy - r * math.cos(a)),
             )
-        font = QFont(self.font())
-        font.setPointSizeF(max(7.0, font.pointSizeF() * 0.85))
-        p.setFont(font)
+        p.setFont(self.label_font())
         p.setPen(self.palette().windowText().color())
-        labels = {0: "front", 90: "right", 180: "behind", 270: "left"}
-        for az, text in labels.items():
-            a = math.radians(az)
-            x, y = cx + (r + 11.0) * math.sin(a), cy - (r + 11.0) * math.cos(a)
-            box = QRectF(x - 30.0, y - 8.0, 60.0, 16.0)
-            if az == 90:
-                box.moveLeft(x - 8.0)
-                box.setWidth(40.0)
-                box.moveRight(min(box.right(), self.width() - 1.0))
-            elif az == 270:
-                box = QRectF(max(0.0, x - 32.0), y - 8.0, 40.0, 16.0)
-            p.drawText(box, Qt.AlignmentFlag.AlignCenter, text)
+        for az, box in self.label_rects().items():
+            p.drawText(box, Qt.AlignmentFlag.AlignCenter, DIRECTION_LABELS[az])
         p.setPen(QColor(255, 255, 255, 170))
-        p.drawText(QRectF(cx + 2.0, cy - r * 2 / 3 - 14.0, 30.0, 14.0), "30°")
-        p.drawText(QRectF(cx + 2.0, cy - r / 3 - 14.0, 30.0, 14.0), "60°")
+        for text, box in self.ring_label_rects():
+            p.drawText(box, Qt.AlignmentFlag.AlignCenter, text)
 
     def paint_camera(self, p: QPainter, cx: float, cy: float, r: float) -> None:
         """The camera at the centre and its horizontal field of view toward azimuth 0."""
@@ -353,31 +486,38 @@ class QtSunDial(QWidget):
         p.drawRect(QRectF(cx - 3.0, cy - 7.0, 6.0, 4.0))
 
     def paint_shadow_ruler(self, p: QPainter, cx: float, cy: float, r: float) -> None:
-        """The shadow of a pole ``r/3`` tall at the centre: 1/tan(el) long, a tick per height."""
+        """The shadow of a pole ``r/3`` tall at the centre: 1/tan(el) long, a tick per height;
+        one longer than the disc ends in an arrowhead inside the rim
+        (:meth:`shadow_ruler_line`)."""
         unit = r / 3.0
-        (x0, y0), (x1, y1), capped = dm.shadow_ruler(self._azimuth, self._elevation, cx, cy, unit)
-        # Keep the ruler inside the disc.
-        length = math.hypot(x1 - x0, y1 - y0)
-        if length > r:
-            x1, y1 = x0 + (x1 - x0) * r / length, y0 + (y1 - y0) * r / length
-            capped = True
-        pen = QPen(QColor(20, 20, 30, 200), 3.0, Qt.PenStyle.SolidLine, Qt.PenCapStyle.FlatCap)
-        p.setPen(pen)
-        p.drawLine(QPointF(x0, y0), QPointF(x1, y1))
+        line, capped = self.shadow_ruler_line()
+        length = line.length()
+        if length <= 1e-6:
+            return
+        x0, y0 = line.x1(), line.y1()
+        ux, uy = line.dx() / length, line.dy() / length
+        colour = QColor(20, 20, 30, 200)
+        end = line.p2()
+        if capped:  # the line stops where the arrowhead starts
+            end = QPointF(line.x2() - ux * RULER_ARROW, line.y2() - uy * RULER_ARROW)
+        p.setPen(QPen(colour, 3.0, Qt.PenStyle.SolidLine, Qt.PenCapStyle.FlatCap))
+        p.drawLine(line.p1(), end)
         # Ticks every object height along the shadow.
-        if length > 1e-6:
-            ux, uy = (
-                (x1 - x0) / math.hypot(x1 - x0, y1 - y0),
-                (y1 - y0) / math.hypot(x1 - x0, y1 - y0),
-            )
-            p.setPen(QPen(QColor(20, 20, 30, 200), 1.5))
-            k = 1
-            while k * unit <= math.hypot(x1 - x0, y1 - y0) + 1e-6:
-                tx, ty = x0 + ux * k * unit, y0 + uy * k * unit
-                p.drawLine(QPointF(tx - uy * 4, ty + ux * 4), QPointF(tx + uy * 4, ty - ux * 4))
-                k += 1
-            if capped:
-                p.drawText(QPointF(x1 + ux * 4 - 4, y1 + uy * 4 + 4), "…")
+        p.setPen(QPen(colour, 1.5))
+        k = 1
+        while k * unit <= length + 1e-6:
+            tx, ty = x0 + ux * k * unit, y0 + uy * k * unit
+            p.drawLine(QPointF(tx - uy * 4, ty + ux * 4), QPointF(tx + uy * 4, ty - ux * 4))
+            k += 1
+        if capped:  # the shadow goes on past the rim
+            p.setPen(Qt.PenStyle.NoPen)
+            p.setBrush(colour)
+            half = RULER_ARROW / 2.0
+            p.drawPolygon(QPolygonF([
+                line.p2(),
+                QPointF(end.x() - uy * half, end.y() + ux * half),
+                QPointF(end.x() + uy * half, end.y() - ux * half),
+            ]))
 
     def paint_reference(self, p: QPainter, cx: float, cy: float, r: float) -> None:
         if self._reference is None:
@@ -394,7 +534,7 @@ class QtSunDial(QWidget):
             a = math.radians(k * 45.0)
             p.drawLine(
                 QPointF(pos.x() + 11.0 * math.cos(a), pos.y() + 11.0 * math.sin(a)),
-                QPointF(pos.x() + 15.0 * math.cos(a), pos.y() + 15.0 * math.sin(a)),
+                QPointF(pos.x() + RAY_RADIUS * math.cos(a), pos.y() + RAY_RADIUS * math.sin(a)),
             )
         edge = QColor(255, 255, 255) if self.hasFocus() else QColor(120, 80, 0)
         p.setPen(QPen(edge, 2.0))

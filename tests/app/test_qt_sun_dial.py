@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
-from PySide6.QtCore import QPoint, Qt
+from PySide6.QtCore import QPoint, QRectF, Qt
 
 from app import sun_dial_math as dm
-from app.qt_sun_dial import QtSunDial, SunDialPanel
+from app.qt_sun_dial import FOCUS_RING_WIDTH, LABEL_GAP, QtSunDial, SunDialPanel
 
 
 @pytest.fixture
@@ -115,3 +117,145 @@ def test_a_tilted_camera_shades_the_suns_under_the_horizon(qtbot):
     assert after.blue() < before.blue() - 40 and after.red() >= after.blue()  # brown, not blue
     with pytest.raises(ValueError, match="pitch"):
         panel.dial.set_tilt(float("nan"), 0.0)
+
+
+#: Dial sizes from the side panel's: its smallest (150 px high, as narrow as that or as wide as
+#: the panel at 1024 x 700) to its largest (300 px high in a panel about as wide).
+DIAL_SIZES = [(150, 150), (290, 150), (302, 300), (240, 240), (300, 220), (500, 300)]
+
+
+def _distance_to_rect(x: float, y: float, rect) -> float:
+    """From a point to the nearest point of ``rect`` (0 inside it)."""
+    nx = min(max(x, rect.left()), rect.right())
+    ny = min(max(y, rect.top()), rect.bottom())
+    return math.hypot(nx - x, ny - y)
+
+
+@pytest.mark.parametrize("size", DIAL_SIZES)
+def test_direction_labels_stand_outside_the_disc_at_every_size(qtbot, dial, size):
+    """A user trial: in a narrow panel "right" was moved into the disc to stay in the widget
+    (clipped by the circle), and the labels stood a fixed 22 px from the widget's edges. Each
+    label is inside the widget and LABEL_GAP clear of the rim, the focus ring between them."""
+    dial.resize(*size)
+    cx, cy, r = dial.dial_geometry()
+    bounds = QRectF(dial.rect())
+    rects = dial.label_rects()
+    assert sorted(rects) == [0, 90, 180, 270]
+    ring_out = dial.focus_ring_radius() + FOCUS_RING_WIDTH / 2.0
+    for az, rect in rects.items():
+        assert bounds.contains(rect), (az, rect, bounds)
+        gap = _distance_to_rect(cx, cy, rect)
+        assert gap >= r + LABEL_GAP - 0.01, (az, gap, r)
+        assert ring_out < gap
+    # Each where it says: front above the disc, right to its right, ...
+    assert rects[0].bottom() <= cy - r and rects[180].top() >= cy + r
+    assert rects[90].left() >= cx + r and rects[270].right() <= cx - r
+
+
+@pytest.mark.parametrize("size", DIAL_SIZES)
+@pytest.mark.parametrize("sun", [(0.0, 5.0), (354.0, 15.0), (135.0, 10.0), (90.0, 2.0)])
+def test_a_long_shadow_ruler_stops_inside_the_rim(qtbot, dial, size, sun):
+    """A low sun's shadow is longer than the disc: its ruler ran to the rim and its "…" was
+    drawn outside, on the "behind" label (a user trial). It ends inside the disc (its
+    arrowhead too) and, ticks and all, crosses no label."""
+    from PySide6.QtGui import QPainterPath, QPainterPathStroker
+
+    from app.qt_sun_dial import RULER_INSET, RULER_REACH
+
+    dial.resize(*size)
+    dial.set_sun(*sun)
+    cx, cy, r = dial.dial_geometry()
+    line, capped = dial.shadow_ruler_line()
+    assert capped
+    assert line.p1().toTuple() == pytest.approx((cx, cy))
+    assert math.hypot(line.x2() - cx, line.y2() - cy) == pytest.approx(r - RULER_INSET)
+    path = QPainterPath(line.p1())
+    path.lineTo(line.p2())
+    stroker = QPainterPathStroker()
+    stroker.setWidth(2.0 * RULER_REACH)
+    ruler = stroker.createStroke(path)
+    for az, rect in dial.label_rects().items():
+        assert not ruler.intersects(rect), az
+
+
+def test_a_short_shadow_ruler_keeps_its_length(qtbot, dial):
+    dial.set_sun(200.0, 60.0)
+    cx, cy, r = dial.dial_geometry()
+    line, capped = dial.shadow_ruler_line()
+    assert not capped
+    assert line.length() == pytest.approx(r / 3.0 / math.tan(math.radians(60.0)), rel=1e-3)
+
+
+@pytest.mark.parametrize("size", DIAL_SIZES)
+@pytest.mark.parametrize("sun", [(354.0, 15.0), (0.0, 40.0), (180.0, 20.0), (10.0, 65.0)])
+def test_ring_labels_keep_off_the_sun_and_the_ruler(qtbot, dial, size, sun):
+    """At 1024 x 700 the sun sat on the "30°" label (a user trial: the labels always stood in
+    front of the camera). They stand on a side the sun, its rays and the shadow ruler leave
+    free, inside the disc, each outside its ring."""
+    from PySide6.QtGui import QPainterPath, QPainterPathStroker
+
+    from app.qt_sun_dial import RAY_RADIUS
+
+    dial.resize(*size)
+    dial.set_sun(*sun)
+    cx, cy, r = dial.dial_geometry()
+    placed = dial.ring_label_rects()
+    if size[0] >= 240:  # (a dial 150 px wide has no room for them inside its disc)
+        assert [text for text, _ in placed] == ["30°", "60°"]
+    sun_disc = QPainterPath()
+    sun_disc.addEllipse(dial.handle_position(), RAY_RADIUS, RAY_RADIUS)
+    line, _ = dial.shadow_ruler_line()
+    path = QPainterPath(line.p1())
+    path.lineTo(line.p2())
+    stroker = QPainterPathStroker()
+    stroker.setWidth(8.0)  # its ticks reach 4 px to each side
+    ruler = stroker.createStroke(path)
+    for text, rect in placed:
+        assert not sun_disc.intersects(rect), (text, rect)
+        assert not ruler.intersects(rect), (text, rect)
+        for corner in (rect.topLeft(), rect.topRight(), rect.bottomLeft(), rect.bottomRight()):
+            assert math.hypot(corner.x() - cx, corner.y() - cy) <= r, (text, rect)
+
+
+def test_ring_labels_stand_in_front_where_they_were_when_nothing_is_there(qtbot, dial):
+    dial.resize(302, 300)
+    dial.set_sun(135.0, 45.0)
+    cx, cy, r = dial.dial_geometry()
+    placed = dict(dial.ring_label_rects())
+    for text, el in (("30°", 30.0), ("60°", 60.0)):
+        rect = placed[text]
+        assert rect.left() > cx and rect.bottom() <= cy - r * (90.0 - el) / 90.0 + 0.01
+
+
+def _ring_pixels(dial):
+    """The colours along the top of where the focus ring is drawn."""
+    cx, cy, _ = dial.dial_geometry()
+    top = cy - dial.focus_ring_radius()
+    image = dial.grab().toImage()
+    return [image.pixelColor(round(cx), y) for y in range(math.floor(top) - 1, math.ceil(top) + 2)]
+
+
+def test_a_focus_ring_shows_while_the_dial_has_the_focus(qtbot):
+    """The dial takes the arrow keys once Tab reaches it, but showed nothing of it (a user
+    trial): a ring in the highlight colour goes round the disc while it has the focus."""
+    panel = SunDialPanel("Sun")
+    qtbot.addWidget(panel)
+    panel.resize(300, 400)
+    panel.show()
+    qtbot.waitExposed(panel)
+    dial = panel.dial
+    highlight = dial.palette().highlight().color()
+
+    def ringed() -> bool:
+        return any(abs(c.red() - highlight.red()) + abs(c.green() - highlight.green())
+                   + abs(c.blue() - highlight.blue()) < 60 for c in _ring_pixels(dial))
+
+    panel.elevation_box.setFocus(Qt.FocusReason.OtherFocusReason)
+    qtbot.waitUntil(panel.elevation_box.hasFocus)
+    assert not dial.focus_ring_visible() and not ringed()
+    dial.setFocus(Qt.FocusReason.BacktabFocusReason)
+    qtbot.waitUntil(dial.hasFocus)
+    assert dial.focus_ring_visible() and ringed()
+    panel.azimuth_box.setFocus(Qt.FocusReason.TabFocusReason)
+    qtbot.waitUntil(lambda: not dial.hasFocus())
+    assert not dial.focus_ring_visible() and not ringed()
