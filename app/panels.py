@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 from PySide6.QtCore import QSize, Qt, Signal
 from PySide6.QtGui import QColor, QHideEvent, QShowEvent
 from PySide6.QtWidgets import (
@@ -74,6 +76,13 @@ def _header(text: str, hint: str, parent: QWidget) -> tuple[QLabel, QLabel]:
     body = QLabel(hint, parent)
     body.setWordWrap(True)
     return title, body
+
+
+def chain_tab_order(widgets: list[QWidget]) -> None:
+    """Tab goes through ``widgets`` in this order (the order they stand on screen, top to
+    bottom; Qt's default is the order they were made in)."""
+    for first, second in pairwise(widgets):
+        QWidget.setTabOrder(first, second)
 
 
 def _percent_slider(value: int, parent: QWidget) -> QSlider:
@@ -235,6 +244,10 @@ class AlignPanel(QWidget):
         foot = QVBoxLayout(self.footer)
         foot.setContentsMargins(9, 4, 9, 6)
         foot.addWidget(self.confirm_button)
+        sun = self.sun_panel
+        chain_tab_order([sun.dial, sun.azimuth_box, sun.elevation_box, self.find_button,
+                         self.exif_button, self.heading_box, self.opacity_slider,
+                         self.confirm_button])
 
     def heading(self) -> float | None:
         """The heading typed by the user (degrees from north), or None."""
@@ -424,6 +437,14 @@ class RelightPanel(QWidget):
         self.footer = QWidget(self)  # below the scrolling panel, always in view
         buttons.setContentsMargins(9, 4, 9, 6)
         self.footer.setLayout(buttons)
+        # The correction tools stand above "Re-align" and the footer's buttons, but were made
+        # after them: Tab went from the light's boxes to Export still (a user trial).
+        sun = self.sun_panel
+        chain_tab_order([sun.dial, sun.azimuth_box, sun.elevation_box, self.view_combo,
+                         self.split_slider, self.meter_check, self.keep_light_check,
+                         *self.shadow_tool_buttons.values(), self.brush_box,
+                         self.clear_shadow_edits_button, self.realign_button,
+                         self.export_button, self.timelapse_button])
 
     def view(self) -> str:
         return str(self.view_combo.currentData())
