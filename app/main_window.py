@@ -122,6 +122,7 @@ from outcast_core.runtime.geometry.camera import cosine_term, sun_angles, sun_ve
 from outcast_core.runtime.io.imageio import same_file
 from outcast_core.runtime.io.models import ModelError
 from outcast_core.runtime.pipeline.auto_sun import SOURCE_EXIF, SOURCE_SUN_IN_FRAME
+from outcast_core.runtime.pipeline.batch import small_photo_note
 from outcast_core.runtime.pipeline.photo_shadows import (
     STROKE_FEATHER,
     ShadowEdit,
@@ -2714,17 +2715,20 @@ EXPOSURE_HINT_FACTOR = 2.0
 
 def photo_file_notes(loaded: Any) -> list[str]:
     """What the command line says of a photo file as it reads it, as sentences: the
-    transparency filled with white, a panorama strip's shape (:func:`elongation_note`); empty
-    for an ordinary photo or ``None``."""
+    transparency filled with white, a panorama strip's shape (:func:`elongation_note`), a photo
+    too small to relight meaningfully (:func:`small_photo_note`, its shorter side under
+    ``MIN_PHOTO_SIDE`` pixels, as ``outcast batch`` warns: the app opened, relit and exported
+    a tiny photo without a word, a user trial); empty for an ordinary photo or ``None``."""
     if loaded is None:
         return []
     notes = []
     if getattr(loaded, "has_alpha", False):  # composited on white as it was read
         notes.append("The photo has transparency; it is filled with white, and the relit photo "
                      "and the exports have none.")
-    long_note = elongation_note(*loaded.original_size)
-    if long_note:  # a panorama strip: the depth sees a few rows of it
-        notes.append(f"{long_note[:1].upper()}{long_note[1:]}.")
+    for note in (elongation_note(*loaded.original_size),  # a panorama strip: the depth sees
+                 small_photo_note(*loaded.original_size)):  # a few rows of it
+        if note:
+            notes.append(f"{note[:1].upper()}{note[1:]}.")
     return notes
 
 

@@ -742,6 +742,41 @@ def test_transparency_and_a_strip_shape_are_said_as_the_cli_says(window, settle,
         assert QApplication.activeModalWidget() is None
 
 
+def test_a_photo_too_small_to_relight_is_said_as_the_cli_says(window, settle, tmp_path):
+    """A user trial opened, relit and exported a tiny photo without a word; the CLI's batch
+    warns when its shorter side is under MIN_PHOTO_SIDE. The app says it as it says the file's
+    other notes: in the notice above the photo, in the status bar as it opens and in "Photo
+    notes", without a modal box; the photo is relit all the same."""
+    from PySide6.QtWidgets import QApplication
+
+    from outcast_core.runtime.pipeline.batch import MIN_PHOTO_SIDE, small_photo_note
+    from tests.app.conftest import make_photo
+
+    size = (2 * MIN_PHOTO_SIDE, MIN_PHOTO_SIDE - 4)
+    tiny = make_photo(tmp_path / "tiny.jpg", *size)
+    said = small_photo_note(*size)[1:]  # (capitalised in the notice, not in the status bar)
+    assert said and str(MIN_PHOTO_SIDE) in said
+    window.open_path(tiny)
+    settle()
+    assert window.step is Step.ALIGN
+    notice = window.align_panel.notice
+    assert notice.isVisibleTo(window) and notice.text().count(said) == 1
+    status = window.stage_label.text()
+    assert status.startswith("Opened tiny.jpg") and status.count(said) == 1
+    notes = window.photo_notes_button
+    assert notes.isVisibleTo(window) and said in notes.toolTip()
+    assert QApplication.activeModalWidget() is None
+    _confirm(window, settle)  # a note, not a refusal
+    assert notes.isVisibleTo(window) and said in notes.toolTip()
+
+    enough = make_photo(tmp_path / "enough.jpg", 2 * MIN_PHOTO_SIDE, MIN_PHOTO_SIDE)
+    window.open_path(enough)
+    settle()
+    assert "too small to relight" not in notice.text()
+    assert "too small to relight" not in window.stage_label.text()
+    assert "too small to relight" not in notes.toolTip()
+
+
 def _project_in_step_2(image: Path) -> str:
     """A project of ``image`` with its sun confirmed: it opens straight into step 2."""
     from app.state import ProjectState, save_project
