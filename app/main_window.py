@@ -38,7 +38,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from PySide6.QtCore import QEvent, QEventLoop, QObject, QPoint, QSettings, Qt, QTimer, Slot
+from PySide6.QtCore import (
+    QEvent,
+    QEventLoop,
+    QObject,
+    QPoint,
+    QSettings,
+    QSize,
+    Qt,
+    QTimer,
+    Slot,
+)
 from PySide6.QtGui import (
     QAction,
     QCloseEvent,
@@ -180,6 +190,24 @@ def _timings(session: Any) -> dict[str, float]:
     return dict(getattr(session, "timings", {}) or {})
 
 
+#: What an opening and a quality switch do after the session's preparation (its depth,
+#: normals...): the camera's tilt, and for a quality switch with a confirmed sun first its
+#: shadows at the new size.
+TILT_STAGE = "camera tilt"
+REDO_STAGE = "original shadows"
+
+
+def session_progress(ctx: JobContext, then: str, share: float) -> Callable[[str, float], None]:
+    """The session's progress reports as the first ``share`` of a job's; its last, "ready" at
+    100 %, says what the job does next, ``then`` (the status bar said "Changing quality: ready
+    100 %" while the original shadows were redone, a user trial)."""
+
+    def report(stage: str, fraction: float) -> None:
+        ctx.progress(stage if fraction < 1.0 else then, share * min(fraction, 1.0))
+
+    return report
+
+
 class WindowShortcutsWin(QObject):
     """Event filter for text fields: the window's shortcuts win over the field's own key bindings.
 
@@ -213,31 +241,81 @@ class StatusText(QLabel):
     """The status bar's message, whole in its tooltip too: a long one (a found sun with its
     EXIF prior, a shadow tool's hint) does not fit at 1366 x 768. It is shown cut with an
     ellipsis at the width the status bar gives it; drawn whole, it ran under the timings
-    beside it (a screenshot at 1400 px). :meth:`text` is the whole message."""
+    beside it (a screenshot at 1400 px). :meth:`text` is the whole message.
+
+    Its size hint is the whole message's width and it can shrink to nothing: in the status bar
+    it takes the room it needs before the timings (:class:`TimingsText`, which take only what
+    is left), and is cut only where the bar has no more (a user trial at 1024 x 700 saw the
+    timings keep their room and the message, a shadow tool's hint, cut to nothing)."""
 
     def __init__(self, text: str, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self._full = ""
-        # Its width is what the bar has left, not its text's: it must never push the bar.
-        self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Preferred)
         self.setText(text)
 
     def setText(self, text: str) -> None:  # noqa: N802 (Qt's name)
         self._full = text
         self.setToolTip(text)
         self._elide()
+        self.updateGeometry()  # the whole message's width is its size hint
 
     def text(self) -> str:
         return self._full
+
+    def sizeHint(self) -> QSize:  # noqa: N802 (Qt's name)
+        m = self.contentsMargins()
+        width = self.fontMetrics().horizontalAdvance(self._full) + m.left() + m.right()
+        return QSize(width + 2 * self.margin() + 1, super().sizeHint().height())
+
+    def minimumSizeHint(self) -> QSize:  # noqa: N802 (Qt's name)
+        return QSize(0, super().minimumSizeHint().height())
 
     def resizeEvent(self, event: Any) -> None:  # noqa: N802 (Qt's name)
         super().resizeEvent(event)
         self._elide()
 
+    def shown(self) -> str:
+        """The message as drawn: cut to the label's width."""
+        return super().text()
+
     def _elide(self) -> None:
-        shown = self.fontMetrics().elidedText(self._full, Qt.TextElideMode.ElideRight,
-                                              max(0, self.contentsRect().width()))
-        super().setText(shown)
+        super().setText(self._cut(self._full, max(0, self.contentsRect().width())))
+
+    def _cut(self, text: str, width: int) -> str:
+        return self.fontMetrics().elidedText(text, Qt.TextElideMode.ElideRight, width)
+
+
+class TimingsText(StatusText):
+    """The status bar's stage timings ("shadow 0.21 s · relight 1 ms · ..."), for developers:
+    they take only the room the message (:class:`StatusText`) leaves, and are shown as many
+    whole entries as fit, then "…" (none where there is no room); all of them in the window's
+    tooltip for them. :meth:`text` is the whole line."""
+
+    SEPARATOR = " · "
+
+    def __init__(self, text: str, parent: QWidget | None = None) -> None:
+        super().__init__(text, parent)
+        # Its size hint is ignored: it gets what the bar has left, never more.
+        self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        self.setAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+
+    def setText(self, text: str) -> None:  # noqa: N802 (Qt's name)
+        tip = self.toolTip()
+        super().setText(text)
+        self.setToolTip(tip)  # the window's, with one stage a line
+
+    def _cut(self, text: str, width: int) -> str:
+        fm = self.fontMetrics()
+        if fm.horizontalAdvance(text) <= width:
+            return text
+        entries = text.split(self.SEPARATOR)
+        while entries:
+            entries.pop()
+            shown = self.SEPARATOR.join([*entries, "…"])
+            if fm.horizontalAdvance(shown) <= width:
+                return shown
+        return ""
 
 
 def _typed_numbers_first(method: Callable[..., Any]) -> Callable[..., Any]:
@@ -574,14 +652,20 @@ class MainWindow(QMainWindow):
         tb.addAction(self.act_export)
         tb.addAction(self.act_timelapse)
 
-        # Status bar: running stage + progress on the left, stage timings and modes on the right.
+        # Status bar: the message and the running job's progress on the left, the stage timings
+        # in the room they leave (cut first), the photo's notes, modes and zoom on the right.
         self.stage_label = StatusText("Ready", self)
         self.progress_bar = QProgressBar(self)
         self.progress_bar.setMaximumWidth(180)
         self.progress_bar.setRange(0, 100)
-        self.progress_bar.setTextVisible(False)
+        # The percentage in the bar, never cut with the message beside it (a user trial at
+        # 1280 px read "Exporting shadows removed: removing …" and no percentage).
+        self.progress_bar.setFormat("%p %")
+        self.progress_bar.setTextVisible(True)
+        self.progress_bar.setMinimumWidth(
+            self.progress_bar.fontMetrics().horizontalAdvance("100 %") + 40)
         self.progress_bar.hide()
-        self.timings_label = QLabel("", self)
+        self.timings_label = TimingsText("", self)
         self.timings_label.setToolTip("How long each stage took, last run")
         self.mode_label = QLabel("", self)
         self.zoom_label = QLabel("", self)
@@ -601,10 +685,10 @@ class MainWindow(QMainWindow):
         self.photo_notes_button.hide()
         self.canvas.zoom_changed.connect(lambda z: self.zoom_label.setText(f"{z * 100:.0f} %"))
         sb = self.statusBar()
-        sb.addWidget(self.stage_label, 1)
+        sb.addWidget(self.stage_label)  # as wide as its message, while the bar has room
         sb.addWidget(self.progress_bar)
+        sb.addWidget(self.timings_label, 1)  # the rest, if any
         sb.addPermanentWidget(self.photo_notes_button)
-        sb.addPermanentWidget(self.timings_label)
         sb.addPermanentWidget(self.mode_label)
         sb.addPermanentWidget(self.zoom_label)
 
@@ -970,7 +1054,7 @@ class MainWindow(QMainWindow):
                 )
             focal = loaded.exif.focal_35mm if loaded.exif else None
             session.set_image(loaded.image_srgb, focal_35mm=focal or None, depth=depth,
-                              progress=ctx.progress)
+                              progress=session_progress(ctx, TILT_STAGE, 0.9))
             # The camera's pitch and roll (its metadata's, else the ground plane's): the frame
             # in which the EXIF sun and the real sun path are given.
             tilt = photo_camera_tilt(session, path)
@@ -1612,7 +1696,11 @@ class MainWindow(QMainWindow):
             from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
 
             session.set_shadow_edits(edits)  # before the found shadows are redone at its size
-            session.set_preset(name, progress=ctx.progress)
+            redo = session.original_sun is not None  # (its shadows, at the new working size)
+            session.set_preset(name, progress=session_progress(
+                ctx, REDO_STAGE if redo else TILT_STAGE, 0.7 if redo else 0.9))
+            if redo:
+                ctx.progress(TILT_STAGE, 0.95)
             tilt = photo_camera_tilt(session, path)
             session.set_camera_tilt(*tilt[:2])  # the new sun's daylight: the same horizon
             return {"timings": _timings(session), "tilt": tilt, "session": session}
@@ -2475,11 +2563,16 @@ class MainWindow(QMainWindow):
     # ================================================================== job plumbing
     @Slot(int, str, str)
     def _on_job_started(self, job_id: int, channel: str, description: str) -> None:
+        """The job now running, in the status bar: its words, and its progress bar for the
+        jobs that have one; the bar of the one before goes (a user trial saw a quality switch's
+        "100 %" stay through the view's job that followed it)."""
         self.stage_label.setText(f"{description or STAGE_WORDS.get(channel, channel)}…")
         if channel in ("load", "preset", "confirm", "find_sun", *EXPORT_CHANNELS):
             self.progress_bar.setRange(0, 0 if channel == "confirm" else 100)
             self.progress_bar.setValue(0)
             self.progress_bar.show()
+        else:
+            self.progress_bar.hide()
 
     @Slot(int, str, str, float)
     def _on_job_progress(self, job_id: int, channel: str, stage: str, fraction: float) -> None:
@@ -2487,9 +2580,9 @@ class MainWindow(QMainWindow):
             self._job_fraction[job_id] = fraction
         if channel in ("load", "preset", "find_sun", *EXPORT_CHANNELS):
             self.progress_bar.setRange(0, 100)
-            self.progress_bar.setValue(round(100 * fraction))
+            self.progress_bar.setValue(round(100 * fraction))  # the percentage: in the bar
             base = STAGE_WORDS.get(channel, channel)
-            self.stage_label.setText(f"{base}: {stage} {100 * fraction:.0f} %")
+            self.stage_label.setText(f"{base}: {stage}")
         if channel == "tl_export" and self._timelapse_dialog is not None:
             self._timelapse_dialog.on_export_progress(fraction)
 
