@@ -73,7 +73,9 @@ from outcast_core.runtime.pipeline.relight import (
     LIFT_COLOUR_SIGMA,
     LIFT_PRIOR_RADIUS,
     LIFT_SHADE_SHIFT,
+    SUN_CORE_DEG,
     LightEstimate,
+    add_sun,
     estimate_light,
     glare_gone_full,
     guard_learned_relight,
@@ -84,6 +86,7 @@ from outcast_core.runtime.pipeline.relight import (
     shadow_toward_original,
     smooth_new_shadow,
     snap_shadow_to_photo,
+    sun_reach,
     toward_photo,
     transfer_to_full_resolution,
 )
@@ -441,6 +444,15 @@ class RelightSession:
                 pitch, roll = self._tilt if self._tilt is not None else ground_plane_tilt(self)[:2]
                 self._up = camera_rotation(pitch, roll) @ np.array([0.0, -1.0, 0.0])
             return self._up
+
+    @staticmethod
+    def _sun_colour(on: bool, w_old: np.ndarray, w_new: np.ndarray, up: np.ndarray
+                    ) -> np.ndarray | None:
+        """The new sun's colour relative to the photo's (linear RGB; None: white), for a sun
+        drawn into the frame: the new sun's daylight (``on``) reddens it near the horizon."""
+        if not on:
+            return None
+        return daylight_change(elevation_above(w_old, up), elevation_above(w_new, up)).sun
 
     def _daylight_gain(self, on: bool, s_new: np.ndarray, sky: np.ndarray,
                        light: LightEstimate, w_old: np.ndarray, w_new: np.ndarray,
@@ -1094,7 +1106,10 @@ class RelightSession:
             if gain is not None:
                 relit = in_new_daylight(relit, gain)
         relit = self._finish(image, relit, share, st["sky"], self.sun_seen, st["camera"], wv,
-                             st["camera"].width / self.camera.width, exposure, self.greyscale)
+                             st["camera"].width / self.camera.width, exposure, self.greyscale,
+                             self.original_sun, self._sun_colour(self._daylight,
+                                                                 self.original_sun, wv,
+                                                                 self.horizon_up()))
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
                                           threads=1)
         self._time("relight_preview", t1)
@@ -1157,17 +1172,20 @@ class RelightSession:
             if gain is not None:
                 img = in_new_daylight(img, gain)
         img = self._finish(image, img, share, inp["sky"], inp["sun_seen"], inp["camera"], wv,
-                           1.0, inp["exposure"], inp["greyscale"])
+                           1.0, inp["exposure"], inp["greyscale"], w_o,
+                           self._sun_colour(inp["daylight"], w_o, wv, inp["up"]))
         return img.astype(np.float32)
 
     def _finish(self, image: np.ndarray, relit: np.ndarray, share: float, sky: np.ndarray,
                 seen: SunInPhoto | None, cam: Camera, w_new: np.ndarray, scale: float,
-                exposure: str, greyscale: bool) -> np.ndarray:
+                exposure: str, greyscale: bool, w_old: np.ndarray | None = None,
+                sun_colour: np.ndarray | None = None) -> np.ndarray:
         """What every relighting (the drag preview's and the working size's) ends with, in
-        this order: drawn toward the photo near its own sun, the photo's own sun taken out
-        (on the blend too), metered when asked, and black and white for such a photo."""
+        this order: drawn toward the photo near its own sun, the sun in the sky
+        (:meth:`_sun_in_sky`, on the blend too), metered when asked, and black and white for
+        such a photo."""
         relit = toward_photo(image, relit, share)
-        relit = self._without_old_sun(relit, sky, seen, cam, w_new, scale)
+        relit = self._sun_in_sky(relit, sky, seen, cam, w_new, scale, w_old, share, sun_colour)
         if exposure == "metered":
             relit = meter_exposure(image, relit)
         return self._in_photo_colours(relit, greyscale)
@@ -1179,20 +1197,35 @@ class RelightSession:
         return grey_like(img) if grey else img
 
     @staticmethod
-    def _without_old_sun(img: np.ndarray, sky: np.ndarray, seen: SunInPhoto | None,
-                         cam: Camera, w_new: np.ndarray, scale: float) -> np.ndarray:
-        """The sun the photo shows leaves with the old sun: gone for a new sun outside the
-        frame, moved to a new sun inside it
-        (:func:`~outcast_core.runtime.pipeline.relight.remove_sun_glare`); ``scale``: this
-        image's size over the working size (the drag preview's is smaller)."""
-        if seen is None:
+    def _sun_in_sky(img: np.ndarray, sky: np.ndarray, seen: SunInPhoto | None, cam: Camera,
+                    w_new: np.ndarray, scale: float, w_old: np.ndarray | None = None,
+                    share: float = 0.0, colour: np.ndarray | None = None) -> np.ndarray:
+        """The sun in the relit sky (which is the photo's): the sun the photo shows leaves
+        with the old sun (:func:`~outcast_core.runtime.pipeline.relight.remove_sun_glare`)
+        and, for a new sun inside the frame, is drawn there with its own core's size
+        (:func:`~outcast_core.runtime.pipeline.relight.add_sun`, in ``colour``); a photo
+        whose sun ``w_old`` stood outside the frame gets a new sun inside it drawn, faded in
+        by ``1 - share`` (none when its own sun stood inside the frame unseen: behind
+        something). ``scale``: this image's size over the working size (the drag preview's
+        is smaller)."""
+        core_deg = SUN_CORE_DEG
+        strength = 1.0
+        if seen is not None:
+            core = seen.core_radius(sky.shape)
+            img = remove_sun_glare(img, sky, seen.u * scale, seen.v * scale, core)
+            core_deg = math.degrees(math.atan(core / max(cam.focal, 1e-6)))
+        elif w_old is None or sun_in_frame(w_old, cam):
             return img
-        core = seen.core_radius(sky.shape)
-        to = None
-        if sun_in_frame(w_new, cam):
-            u1, v1 = project(normalize_sun(w_new), cam)
-            to = (float(u1), float(v1))
-        return remove_sun_glare(img, sky, seen.u * scale, seen.v * scale, core, to=to)
+        else:
+            strength = 1.0 - share
+        wn = normalize_sun(w_new)
+        u1, v1 = project(wn, cam)
+        reach = sun_reach(cam.focal, core_deg)  # its glare may reach in from outside
+        if not (wn[2] > 0 and -reach < u1 < cam.width + reach and -reach < v1 < cam.height
+                + reach):
+            return img
+        return add_sun(img, sky, float(u1), float(v1), cam.focal, colour, strength=strength,
+                       core_deg=core_deg)
 
     def _guard(
         self, image: np.ndarray, relit: np.ndarray, s_o: np.ndarray, s_new: np.ndarray,
@@ -1201,7 +1234,9 @@ class RelightSession:
     ) -> np.ndarray:
         """The learned relighting with the guards this session turns on
         (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`)."""
-        keep_sky = not (sun_in_frame(w_o, cam) or sun_in_frame(w_n, cam))
+        # The photo's sky (in the new daylight): L's own sky is a flat pale wash on photos,
+        # and a sun in the frame is moved, taken out or drawn in by _finish.
+        keep_sky = True
         lift = self.lift_new_light and self.contrast_floor
         # The detail's lifted texture is the lift's de-shadowed photo, lift or not; the
         # photo's bands are kept per size with the lift's inputs (per S_o).

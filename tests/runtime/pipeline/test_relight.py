@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 import pytest
@@ -493,6 +495,31 @@ def test_the_sun_the_photo_showed_leaves_with_it() -> None:
     assert moved[25, 90].min() > max(0.9, sunny[25, 90].min() + 0.2)
     assert moved[20, 60].min() < sunny[20, 60].min() - 0.2  # no longer white
     assert np.array_equal(moved[70:], sunny[70:])  # far from both suns, nothing changes
+
+
+def test_a_sun_brought_into_the_frame_is_drawn_on_the_sky_only() -> None:
+    """``add_sun``: a clipped white core, glare in the sun's colour falling off beyond it, on
+    the sky only (what stands in front of the sun keeps its darkness), faded by strength."""
+    from outcast_core.runtime.pipeline.relight import SUN_CORE_DEG, add_sun
+
+    h, w, focal = 90, 120, 100.0
+    img = np.full((h, w, 3), 0.3, np.float32)
+    sky = np.zeros((h, w), bool)
+    sky[:45] = True
+    sky[10:30, 58:62] = False  # a pole in front of the sun
+    warm = np.array([1.0, 0.7, 0.4], np.float32)
+    out = add_sun(img, sky, 40.0, 20.0, focal, warm)
+    core = focal * math.tan(math.radians(SUN_CORE_DEG))
+    assert out[20, 40].min() > 0.99  # the core clips white whatever the colour
+    ring = out[20, 40 + int(core) + 3]  # the glare just beyond it: brighter, warm
+    assert ring.mean() > 0.5 and ring[0] > ring[1] > ring[2]
+    assert np.array_equal(out[~sky], img[~sky])  # the ground and the pole are untouched
+    assert np.abs(out[5, 115] - img[5, 115]).max() < 0.02  # far from the sun, the sky stays
+    assert np.array_equal(add_sun(img, sky, 40.0, 20.0, focal, strength=0.0), img)
+    half = add_sun(img, sky, 40.0, 20.0, focal, strength=0.5)
+    assert img[20, 40, 0] < half[20, 40, 0] < out[20, 40, 0]
+    outside = add_sun(img, sky, -500.0, 20.0, focal)  # a sun far outside: nothing to draw
+    assert np.array_equal(outside, img)
 
 
 def test_the_old_suns_glare_leaves_no_halo_round_a_thin_bar_at_full_resolution() -> None:

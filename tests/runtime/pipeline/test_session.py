@@ -140,3 +140,37 @@ def test_a_black_and_white_photo_stays_black_and_white(mode: str) -> None:
     s.set_original_sun((0.5, -0.7, 0.5))
     out = s.relight((-0.6, -0.5, 0.6))
     assert out[22, 32, 0] > out[22, 32, 1] + 0.2  # the coat stays red
+
+
+@pytest.mark.parametrize("mode", ["classic", "learned"])
+def test_a_sun_entering_the_frame_is_drawn_into_the_photos_sky(tmp_path, mode: str) -> None:
+    """The relit sky is the photo's (L's own is a flat wash on photos); a new sun in the frame,
+    when the photo's stood outside it, is drawn there, white at its core; a photo whose own
+    sun stood in the frame (unseen: behind something) gets none."""
+    from outcast_core.runtime.geometry.camera import project, sun_in_frame, sun_vector
+
+    image, depth = noisy_box_photo(4)
+    depth = depth.copy()
+    depth[:18] = np.inf  # sky above the horizon
+    image = image.copy()
+    image[:18] = (0.45, 0.6, 0.9)
+    registry = ModelRegistry(tmp_path) if mode == "classic" else ModelRegistry()
+    s = RelightSession(registry=registry, mode=mode, preset="fast")
+    s.daylight = False  # the sky exactly the photo's away from the sun
+    s.set_image(image, depth=depth)
+    assert s.sky[:18].all() and not s.sky[25:].any()
+    s.set_original_sun(sun_vector(100.0, 40.0))
+    new = sun_vector(0.0, 12.0)
+    assert sun_in_frame(new, s.camera) and not sun_in_frame(s.original_sun, s.camera)
+    u, v = (int(c) for c in project(new, s.camera))
+    assert s.sky[v, u]
+    out = s.relight(new)
+    assert out[v, u].min() > 0.99  # the sun's core
+    far = s.sky.copy()
+    far[:, max(0, u - 30):u + 31] = False
+    np.testing.assert_allclose(out[far], s.image_srgb[far], atol=2e-3)  # the photo's sky
+    away = s.relight(sun_vector(200.0, 30.0))  # out of the frame: no sun, the photo's sky
+    np.testing.assert_allclose(away[s.sky], s.image_srgb[s.sky], atol=2e-3)
+    s.set_original_sun(sun_vector(20.0, 10.0))  # the photo's own sun in the frame, unseen
+    assert sun_in_frame(s.original_sun, s.camera) and s.sun_seen is None
+    assert s.relight(new)[v, u].min() < 0.95
