@@ -787,6 +787,26 @@ def test_a_mark_shadow_stroke_on_lit_ground_is_refused(qtbot, window, photo, set
     assert np.array_equal(window.session.shadow_probability, before)
 
 
+def test_a_mark_shadow_stroke_over_a_shadow_shown_already_is_taken_back(qtbot, window, photo,
+                                                                        settle):
+    """A "Mark shadow" stroke along the found band, which "Shadows found" shows and the
+    de-shadow lifts already, changes (almost) nothing: no correction counted, no undo step,
+    and the status bar says so (on the ski slope such a stroke added 160 pixels of a trunk
+    and was counted: a user trial)."""
+    _shadows_view(window, photo, settle)
+    assert window.session.lifted_shadows()[64:70, 36:58].min() > 0.85  # under the stroke
+    _tool(window, "shadow")
+    count, clean = window.undo_stack.count(), window.undo_stack.isClean()
+    before = window.session.shadow_probability.copy()
+    _drag(window, [(0.3, 0.7), (0.375, 0.7), (0.45, 0.7)])
+    settle()
+    assert "no shadow under the stroke" in window.stage_label.text()
+    assert window.shadow_edits == () and window.undo_stack.count() == count
+    assert window.undo_stack.isClean() == clean
+    assert window.relight_panel.shadow_edits_label.text() == "No corrections"
+    assert np.array_equal(window.session.shadow_probability, before)
+
+
 def test_undo_while_painting_cancels_the_stroke_only(qtbot, window, photo, settle):
     """Ctrl+Z in the middle of a stroke undid the step before, and the stroke was still added
     on release (its redo lost): now it cancels the stroke, as Esc does, and nothing else."""
