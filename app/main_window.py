@@ -2110,7 +2110,8 @@ class MainWindow(QMainWindow):
     def _idle_note(edit: ShadowEdit) -> str:
         """What to say of a click or a stroke (``edit``, its last dab) that changed nothing."""
         if edit.radius > 0:
-            return ("no shadow under the stroke (lit ground, the sky, or painted already): "
+            return ("no shadow under the stroke (lit ground, the sky, or found or painted "
+                    "already): "
                     "paint over a shadow the app missed" if edit.shadow else
                     "no found shadow under the stroke: paint over the magenta area of "
                     "\"Shadows found\"")
