@@ -458,8 +458,7 @@ SUN_GLARE_REACH = 5.0
 
 
 def sun_reach(focal: float, core_deg: float = SUN_CORE_DEG) -> float:
-    """How far (pixels) :func:`add_sun`'s glare reaches from the sun's centre: a sun this close
-    outside the frame already lights its edge."""
+    """How far (pixels) :func:`add_sun`'s glare reaches from the sun's centre."""
     core = focal * math.tan(math.radians(min(max(core_deg, 0.0), 45.0)))
     return core + SUN_GLARE_REACH * focal * math.tan(math.radians(SUN_GLARE_DEG)) + 1.0
 

@@ -86,7 +86,6 @@ from outcast_core.runtime.pipeline.relight import (
     shadow_toward_original,
     smooth_new_shadow,
     snap_shadow_to_photo,
-    sun_reach,
     toward_photo,
     transfer_to_full_resolution,
 )
@@ -1206,8 +1205,8 @@ class RelightSession:
         (:func:`~outcast_core.runtime.pipeline.relight.add_sun`, in ``colour``); a photo
         whose sun ``w_old`` stood outside the frame gets a new sun inside it drawn, faded in
         by ``1 - share`` (none when its own sun stood inside the frame unseen: behind
-        something). ``scale``: this image's size over the working size (the drag preview's
-        is smaller)."""
+        something). A sun fades in as its disc enters the frame. ``scale``: this image's size
+        over the working size (the drag preview's is smaller)."""
         core_deg = SUN_CORE_DEG
         strength = 1.0
         if seen is not None:
@@ -1219,12 +1218,15 @@ class RelightSession:
         else:
             strength = 1.0 - share
         wn = normalize_sun(w_new)
-        u1, v1 = project(wn, cam)
-        reach = sun_reach(cam.focal, core_deg)  # its glare may reach in from outside
-        if not (wn[2] > 0 and -reach < u1 < cam.width + reach and -reach < v1 < cam.height
-                + reach):
+        if wn[2] <= 0:
             return img
-        return add_sun(img, sky, float(u1), float(v1), cam.focal, colour, strength=strength,
+        u1, v1 = (float(c) for c in project(wn, cam))
+        # A sun whose disc is entering the frame fades in with the share of it inside, so
+        # the sky is the photo's until the sun enters it, and a sweep has no pop at the edge.
+        core = cam.focal * math.tan(math.radians(core_deg))
+        out = math.hypot(max(0.0, -u1, u1 - cam.width), max(0.0, -v1, v1 - cam.height))
+        strength *= min(max(1.0 - out / max(core, 1.0), 0.0), 1.0)
+        return add_sun(img, sky, u1, v1, cam.focal, colour, strength=strength,
                        core_deg=core_deg)
 
     def _guard(

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -171,6 +173,13 @@ def test_a_sun_entering_the_frame_is_drawn_into_the_photos_sky(tmp_path, mode: s
     np.testing.assert_allclose(out[far], s.image_srgb[far], atol=2e-3)  # the photo's sky
     away = s.relight(sun_vector(200.0, 30.0))  # out of the frame: no sun, the photo's sky
     np.testing.assert_allclose(away[s.sky], s.image_srgb[s.sky], atol=2e-3)
+    # Just outside the frame (beyond its disc's radius), the sky is still the photo's; with
+    # its centre on the frame's edge, half a disc shows.
+    half_fov = math.degrees(math.atan(s.camera.width / 2 / s.camera.focal))
+    beside = s.relight(sun_vector(half_fov + 3.5, 12.0))
+    np.testing.assert_allclose(beside[s.sky], s.image_srgb[s.sky], atol=2e-3)
+    edge = s.relight(sun_vector(half_fov, 12.0))
+    assert edge[s.sky][:, 0].max() > 0.99
     s.set_original_sun(sun_vector(20.0, 10.0))  # the photo's own sun in the frame, unseen
     assert sun_in_frame(s.original_sun, s.camera) and s.sun_seen is None
     assert s.relight(new)[v, u].min() < 0.95
