@@ -2111,8 +2111,8 @@ class MainWindow(QMainWindow):
         """What to say of a click or a stroke (``edit``, its last dab) that changed nothing."""
         if edit.radius > 0:
             return ("no shadow under the stroke (lit ground, the sky, or found or painted "
-                    "already): "
-                    "paint over a shadow the app missed" if edit.shadow else
+                    "already): paint over a shadow the app missed, or click inside a found one "
+                    "to lift it to the lit ground round it" if edit.shadow else
                     "no found shadow under the stroke: paint over the magenta area of "
                     "\"Shadows found\"")
         return ("nothing was added there (the sky, lit ground, or a shadow already): click "

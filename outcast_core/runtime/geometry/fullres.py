@@ -140,7 +140,7 @@ class SkyGuide:
 
     Bilinear upsampling gives a full-resolution pixel next to the skyline a mix of its working
     neighbours' gains; where the relighting darkens a roof or a treetop and keeps the sky (the
-    learned relighting keeps the photo's sky when no sun is in the frame), the sky along the
+    learned relighting keeps the photo's sky), the sky along the
     edge took part of the darkening: dark smudges along the pool sample's roof and tree line
     (a user trial). So for a full-resolution pixel whose bilinear neighbours are within
     :data:`SKYLINE_REACH` working pixels of both sides (the working mask is coarse: a working

@@ -673,7 +673,7 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
         raise ValueError(f"project '{project.name}' exposure: expected one of {EXPOSURES}, got "
                          f"{exposure!r}")
     daylight = data.get("daylight")
-    if daylight is not None and not isinstance(daylight, bool):
+    if "daylight" in data and not isinstance(daylight, bool):  # null too, as the app says
         raise ValueError(f"project '{project.name}' daylight: expected true or false, got "
                          f"{daylight!r}")
     from outcast_core.runtime.pipeline.photo_shadows import shadow_edits_from_json

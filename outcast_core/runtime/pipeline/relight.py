@@ -993,16 +993,19 @@ def guard_learned_relight(
     kept = None  # how much of each pixel's colour is the photo's, not L's or physics'
     if colour:
         out = keep_photo_colour(image_srgb, out, shadow_old, shadow_new, sky, keep_sky=keep_sky)
+    elif keep_sky:  # the photo's sky with or without the colour guard
+        out = np.where(np.asarray(sky, bool)[..., None], np.asarray(image_srgb, np.float32), out)
+    if colour:
         kept = _both_lit(shadow_old, shadow_new)
         if floor and lift and lift_guard is not None and lift_colour is not None:
             up = lift_weight(shadow_old, s_new, lift_guard)
             out = lifted_colour(out, up, lift_colour)
             kept = np.clip(kept + up, 0.0, 1.0)
-    if gain is not None and kept is not None:
+    if gain is not None and (kept is not None or keep_sky):
         # The new light's colour where the colour is the photo's (L's and physics' have it);
         # the whole gain on a sky kept as the photo's (the anchor left its level).
         tint = gain / np.maximum(luminance(gain), 1e-6)[..., None]
-        tint = 1.0 + kept[..., None] * (tint - 1.0)
+        tint = 1.0 + (0.0 if kept is None else kept[..., None]) * (tint - 1.0)
         if keep_sky:
             tint = np.where(np.asarray(sky, bool)[..., None], gain, tint)
         out = in_new_daylight(out, tint)
@@ -1085,7 +1088,7 @@ def keep_photo_colour(
       Y_photo``, the earlier rule) is exact for a pure change of intensity but still moves
       ``a*, b*``, which grow with lightness (a cube root): a saturated lawn brightened 1.5x
       gains about 6 in ``a*``. Where ``L*`` is pushed past the sRGB gamut the colour clips.
-    * With ``keep_sky`` (neither sun in the frame) the sky is the photo's.
+    * With ``keep_sky`` (the session's always) the sky is the photo's.
 
     Args:
         image_srgb, relit_srgb: ``H x W x 3`` sRGB; shadow_old, shadow_new: ``H x W`` in [0, 1];

@@ -301,9 +301,9 @@ class RelightSession:
         if refine not in {"photo", "learned"}:
             raise ValueError(f"expected refine photo or learned, got {refine!r}")
         self.refine = refine
-        #: Learned relighting keeps the photo's colour where both suns light a surface, and its
-        #: sky when no sun is in the frame (:func:`~outcast_core.runtime.pipeline.relight.
-        #: keep_photo_colour`).
+        #: Learned relighting keeps the photo's colour where both suns light a surface
+        #: (:func:`~outcast_core.runtime.pipeline.relight.keep_photo_colour`); the photo's sky
+        #: is kept whatever this says (:meth:`_sun_in_sky` handles a sun in the frame).
         self.colour_guard = True
         #: Learned relighting darkens newly shadowed surfaces at least as much as physics does
         #: (:func:`~outcast_core.runtime.pipeline.relight.shadow_contrast_floor`).
@@ -987,7 +987,7 @@ class RelightSession:
         :attr:`exposure`; the app passes the one the user saw when asking).
         """
         exposure = self._checked_exposure(exposure)
-        key = (_key(w_new), preview, self.preset.name, exposure)
+        key = (_key(w_new), preview, self.preset.name, exposure, self._daylight)
         with self._lock:
             self._require_image()
             if self.original_sun is None or self.original_shadow is None:
@@ -1196,36 +1196,55 @@ class RelightSession:
         return grey_like(img) if grey else img
 
     @staticmethod
-    def _sun_in_sky(img: np.ndarray, sky: np.ndarray, seen: SunInPhoto | None, cam: Camera,
-                    w_new: np.ndarray, scale: float, w_old: np.ndarray | None = None,
-                    share: float = 0.0, colour: np.ndarray | None = None) -> np.ndarray:
-        """The sun in the relit sky (which is the photo's): the sun the photo shows leaves
-        with the old sun (:func:`~outcast_core.runtime.pipeline.relight.remove_sun_glare`)
-        and, for a new sun inside the frame, is drawn there with its own core's size
-        (:func:`~outcast_core.runtime.pipeline.relight.add_sun`, in ``colour``); a photo
-        whose sun ``w_old`` stood outside the frame gets a new sun inside it drawn, faded in
-        by ``1 - share`` (none when its own sun stood inside the frame unseen: behind
-        something). A sun fades in as its disc enters the frame. ``scale``: this image's size
-        over the working size (the drag preview's is smaller)."""
+    def _sun_to_draw(seen: SunInPhoto | None, cam: Camera, w_new: np.ndarray,
+                     w_old: np.ndarray | None, share: float, sky_shape: tuple[int, int]
+                     ) -> tuple[float, float, float, float] | None:
+        """Where and how a new sun is drawn into an image of camera ``cam`` (:meth:`_sun_in_sky`):
+        ``(u, v, strength, core_deg)``, or None when none is. A photo that shows its sun
+        (``seen``) has it drawn at its own core's size, as a photo whose sun ``w_old`` stood
+        outside the frame has it at :data:`~outcast_core.runtime.pipeline.relight.SUN_CORE_DEG`
+        (none when the photo's sun stood in the frame unseen: behind something); faded in by
+        ``1 - share`` near the photo's own sun, and with the share of its disc inside the
+        frame as it enters it (the sky is the photo's until the sun enters it, and a sweep
+        has no pop at the edge)."""
         core_deg = SUN_CORE_DEG
-        strength = 1.0
         if seen is not None:
-            core = seen.core_radius(sky.shape)
-            img = remove_sun_glare(img, sky, seen.u * scale, seen.v * scale, core)
-            core_deg = math.degrees(math.atan(core / max(cam.focal, 1e-6)))
+            core_px = seen.core_radius(sky_shape)
+            core_deg = math.degrees(math.atan(core_px / max(cam.focal, 1e-6)))
         elif w_old is None or sun_in_frame(w_old, cam):
-            return img
-        else:
-            strength = 1.0 - share
+            return None
         wn = normalize_sun(w_new)
         if wn[2] <= 0:
-            return img
+            return None
         u1, v1 = (float(c) for c in project(wn, cam))
-        # A sun whose disc is entering the frame fades in with the share of it inside, so
-        # the sky is the photo's until the sun enters it, and a sweep has no pop at the edge.
         core = cam.focal * math.tan(math.radians(core_deg))
         out = math.hypot(max(0.0, -u1, u1 - cam.width), max(0.0, -v1, v1 - cam.height))
-        strength *= min(max(1.0 - out / max(core, 1.0), 0.0), 1.0)
+        strength = (1.0 - share) * min(max(1.0 - out / max(core, 1.0), 0.0), 1.0)
+        if strength <= 0.0:
+            return None
+        return u1, v1, strength, core_deg
+
+    @classmethod
+    def _sun_in_sky(cls, img: np.ndarray, sky: np.ndarray, seen: SunInPhoto | None,
+                    cam: Camera, w_new: np.ndarray, scale: float,
+                    w_old: np.ndarray | None = None, share: float = 0.0,
+                    colour: np.ndarray | None = None) -> np.ndarray:
+        """The sun in the relit sky (which is the photo's): the sun the photo shows leaves
+        with the old sun, its glare moved to a new sun in the frame
+        (:func:`~outcast_core.runtime.pipeline.relight.remove_sun_glare`), and a new sun is
+        drawn where :meth:`_sun_to_draw` says (:func:`~outcast_core.runtime.pipeline.relight.
+        add_sun`, in ``colour``), so near the photo's own sun the photo's glare alone moves.
+        ``scale``: this image's size over the working size (the drag preview's is smaller)."""
+        draw = cls._sun_to_draw(seen, cam, w_new, w_old, share, sky.shape)
+        if seen is not None:
+            to = None
+            if draw is not None and sun_in_frame(w_new, cam):
+                to = (draw[0], draw[1])
+            img = remove_sun_glare(img, sky, seen.u * scale, seen.v * scale,
+                                   seen.core_radius(sky.shape), to=to)
+        if draw is None:
+            return img
+        u1, v1, strength, core_deg = draw
         return add_sun(img, sky, u1, v1, cam.focal, colour, strength=strength,
                        core_deg=core_deg)
 
@@ -1380,7 +1399,8 @@ class RelightSession:
 
         def cached(wv: np.ndarray) -> np.ndarray | None:
             with self._lock:
-                return self._relight_cache.get((_key(wv), False, preset, inp["exposure"]))
+                return self._relight_cache.get((_key(wv), False, preset, inp["exposure"],
+                                                inp["daylight"]))
 
         def shadow_of(wv: np.ndarray) -> np.ndarray | None:
             if cached(wv) is not None:
@@ -1428,10 +1448,16 @@ class RelightSession:
         with the photo's sun gone pixel by pixel when ``w_new`` takes it out of the frame
         (:func:`~outcast_core.runtime.pipeline.relight.glare_gone_full`: no halo of its glare
         round a bar or a branch against it). Unchanged at the photo's own sun (the relighting
-        is the photo there) and for a photo that shows no sun."""
+        is the photo there), for a photo that shows no sun, and while the new sun is in the
+        frame or entering it (:meth:`_sun_to_draw`): the clean-up takes whatever is brighter
+        than the sky round the old sun, the new sun too when it stands near."""
         seen, wv = self.sun_seen, normalize_sun(w_new)
-        if (seen is None or self.original_sun is None or sun_in_frame(wv, self.camera)
-                or original_share(self.original_sun, wv) >= 1.0):
+        if seen is None or self.original_sun is None:
+            return out
+        share = original_share(self.original_sun, wv)
+        if (share >= 1.0 or sun_in_frame(wv, self.camera)
+                or self._sun_to_draw(seen, self.camera, wv, self.original_sun, share,
+                                     self.sky.shape) is not None):
             return out
         return glare_gone_full(out, relit, self.sky, seen.u, seen.v,
                                seen.core_radius(self.sky.shape))

@@ -364,6 +364,52 @@ def test_relit_to_a_sun_outside_the_frame_the_photo_loses_its_sun() -> None:
     assert s.relight(w_new)[v1, u1].min() > s.image_srgb[v1, u1].min()
 
 
+def test_the_photos_own_sun_moves_smoothly_and_keeps_at_full_resolution() -> None:
+    """Near the photo's own sun the relit sky is the photo's (its glare moved, no drawn disc
+    popping in); a new sun entering the frame at its edge is as bright at full resolution as
+    at the working size (the old glare's clean-up must not take it)."""
+    import cv2
+
+    from outcast_core.runtime.geometry.camera import project, sun_angles, sun_vector
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_005_es_skislope.jpg"
+    loaded = read_image(sample)
+    s = RelightSession(preset="fast")
+    s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
+    seen = s.sun_seen
+    assert seen is not None
+    s.set_original_sun(seen.w)
+    az, el = sun_angles(seen.w)
+    near = s.relight(sun_vector(az + 0.2, el))
+    h, w = s.sky.shape
+    r = int(3 * seen.core_radius(s.sky.shape))
+    v, u = int(seen.v), int(seen.u)
+    box = (slice(max(0, v - r), v + r), slice(max(0, u - r), u + r))
+    assert np.abs(near[box] - s.image_srgb[box]).mean() < 0.012  # a drawn disc: 0.025
+    # A sun whose centre is just above the frame, its disc reaching in.
+    cam = s.camera
+    core = seen.core_radius(s.sky.shape)
+    for az_new in np.arange(az - 30.0, az + 30.0, 1.0):
+        for el_new in np.arange(el, el + 40.0, 0.5):
+            w_new = sun_vector(float(az_new), float(el_new))
+            u1, v1 = (float(c) for c in project(w_new, cam))
+            if -0.6 * core < v1 < -0.3 * core and 2 * core < u1 < w - 2 * core:
+                break
+        else:
+            continue
+        break
+    else:
+        pytest.fail("no sun just above the frame")
+    work = s.relight(w_new)
+    full = s.relight_full(w_new)
+    small = cv2.resize(full, (w, h), interpolation=cv2.INTER_AREA)
+    top = (slice(0, int(core)), slice(int(u1 - core), int(u1 + core)))
+    assert work[top].mean() > s.image_srgb[top].mean() - 0.05  # drawn at the working size
+    assert small[top].mean() > work[top].mean() - 0.03  # and kept at full resolution
+
+
 def test_cli_sun_takes_a_heading(capsys: pytest.CaptureFixture[str]) -> None:
     """The field path records GPS and time but no heading: --heading gives it (and would
     replace a recorded one)."""

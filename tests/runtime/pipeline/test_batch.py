@@ -319,10 +319,11 @@ def test_batch_takes_the_projects_light_unless_told(
     assert "other settings" in capsys.readouterr().err
     assert main([*args, "-o", str(tmp_path / "kept")]) == 0
     assert seen == [True, False, False, True]
-    data["daylight"] = "off"
-    project.write_text(json.dumps(data))
-    with pytest.raises(ValueError, match="'a.outcast.json' daylight: expected true or false"):
-        batch.read_project(photo)
+    for bad in ("off", None):  # null too: the app refuses it
+        data["daylight"] = bad
+        project.write_text(json.dumps(data))
+        with pytest.raises(ValueError, match="'a.outcast.json' daylight: expected true or fal"):
+            batch.read_project(photo)
 
 
 def test_batch_applies_the_projects_shadow_corrections(tmp_path: Path,
