@@ -526,7 +526,8 @@ def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float
     over the glare (smoothed), and every pixel brighter than that loses its excess, fully near
     the sun and fading to nothing at the edge: darker things (trees, a cable) keep theirs.
     ``to``: the new sun's pixel when it is in the frame too; the
-    glare's light is added there (in linear light), so the sun moves with it."""
+    glare's light is added there (in linear light) on the sky, so the sun moves with it and
+    what stands in front of it (a pylon, a tree) keeps its darkness."""
     relit = np.asarray(relit_srgb, np.float32)
     sky = np.asarray(sky, bool)
     if relit.shape[:2] != sky.shape:
@@ -548,6 +549,7 @@ def remove_sun_glare(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float
             src = relit[y0:y1, x0:x1]
             light = srgb_to_linear(src) - srgb_to_linear(np.clip(src - excess, 0.0, 1.0))
             part = light[ty0 - y0 - dy:ty1 - y0 - dy, tx0 - x0 - dx:tx1 - x0 - dx]
+            part = part * sky[ty0:ty1, tx0:tx1, None]  # what stands in front keeps its own
             dst = out[ty0:ty1, tx0:tx1]
             out[ty0:ty1, tx0:tx1] = linear_to_srgb(np.clip(srgb_to_linear(dst) + part, 0, 1))
     return out

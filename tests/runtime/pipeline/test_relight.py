@@ -495,6 +495,11 @@ def test_the_sun_the_photo_showed_leaves_with_it() -> None:
     assert moved[25, 90].min() > max(0.9, sunny[25, 90].min() + 0.2)
     assert moved[20, 60].min() < sunny[20, 60].min() - 0.2  # no longer white
     assert np.array_equal(moved[70:], sunny[70:])  # far from both suns, nothing changes
+    pole = sky.copy()
+    pole[15:35, 96:99] = False  # a pole in front of the new sun keeps its darkness
+    in_front = remove_sun_glare(sunny, pole, 60.0, 20.0, 5.0, to=(90.0, 25.0))
+    assert np.array_equal(in_front[15:35, 96:99], sunny[15:35, 96:99])
+    assert in_front[25, 90].min() > 0.9
 
 
 def test_a_sun_brought_into_the_frame_is_drawn_on_the_sky_only() -> None:
