@@ -1092,6 +1092,7 @@ class MainWindow(QMainWindow):
                 self.stage_label.setText(
                     f"Not opened: {os.path.basename(result['path'])} is not the project's photo "
                     f"({mismatch})")
+                self._opening_project_file = ""  # declined: no project is being opened
                 return False
         self.photo_identity = identity
         self.session = result["session"]
