@@ -82,7 +82,7 @@ shade's colour cast on the 47 photos (``a*b*`` gap 14.95): the blue-grey ghosts 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -417,6 +417,77 @@ MARKED_GAP = 0.005
 MARKED_TOP = 75.0
 
 
+#: :func:`_region_bands`: a region of at most this many pixels stamps the elements.
+_STAMP_AREA = 64
+
+
+def _ellipse_spans(radius: int) -> np.ndarray:
+    """Half the width of each row of OpenCV's ``2 radius + 1`` elliptical element."""
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1,) * 2)
+    return k.sum(axis=1) // 2
+
+
+def _dilated_ellipse(mask: np.ndarray, radius: int) -> np.ndarray:
+    """``cv2.dilate`` of a ``uint8`` 0/1 mask by OpenCV's elliptical element of that radius,
+    bit for bit, as one dilation by a row per distinct row width shifted onto each row (the
+    element is symmetric and each row an unbroken run): a large element's direct dilation
+    costs its area per pixel."""
+    h = mask.shape[0]
+    out = mask.copy()
+    rows: dict[int, np.ndarray] = {}
+    for i, half in enumerate(_ellipse_spans(radius).tolist()):
+        dy = i - radius
+        if abs(dy) >= h:
+            continue
+        wide = rows.get(half)
+        if wide is None:
+            wide = rows[half] = cv2.dilate(mask, np.ones((1, 2 * half + 1), np.uint8))
+        if dy >= 0:
+            np.maximum(out[:h - dy], wide[dy:], out=out[:h - dy])
+        else:
+            np.maximum(out[-dy:], wide[:h + dy], out=out[-dy:])
+    return out
+
+
+def _region_bands(labels: np.ndarray, stats: np.ndarray, gap: int, reach: int
+                  ) -> Iterator[tuple[tuple[int, int, int, int], np.ndarray, np.ndarray]]:
+    """For each 8-connected region of ``labels`` in turn: ``(window, inside, band)``, the
+    window (``top, bottom, left, right``) of its bounding box widened by ``reach`` (cut to
+    the image), the region inside it, and the pixels within ``reach`` of it (OpenCV's
+    elliptical element) but not within ``gap``. A region of a few pixels stamps the two
+    elements once per pixel; a larger one is dilated (:func:`_dilated_ellipse`)."""
+    h, w = labels.shape
+    far_k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * reach + 1,) * 2).astype(bool)
+    near_k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * gap + 1,) * 2).astype(bool)
+    lone = far_k.copy()  # a one-pixel region's band
+    lone[reach - gap:reach + gap + 1, reach - gap:reach + gap + 1] &= ~near_k
+    for k in range(1, len(stats)):
+        x0, y0, bw, bh, area = (int(v) for v in stats[k, :5])
+        t, le = max(0, y0 - reach), max(0, x0 - reach)
+        b, r = min(h, y0 + bh + reach), min(w, x0 + bw + reach)
+        inside = labels[t:b, le:r] == k
+        if area <= _STAMP_AREA:
+            # On a grid widened by ``reach`` on every side, then cut to the window.
+            if area == 1:
+                band = lone
+            else:
+                far = np.zeros((bh + 2 * reach, bw + 2 * reach), bool)
+                near = np.zeros_like(far)
+                ys, xs = np.nonzero(labels[y0:y0 + bh, x0:x0 + bw] == k)
+                for yy, xx in zip(ys.tolist(), xs.tolist(), strict=True):
+                    far[yy:yy + 2 * reach + 1, xx:xx + 2 * reach + 1] |= far_k
+                    near[yy + reach - gap:yy + reach + gap + 1,
+                         xx + reach - gap:xx + reach + gap + 1] |= near_k
+                band = far & ~near
+            band = band[t - y0 + reach:b - y0 + reach, le - x0 + reach:r - x0 + reach]
+        else:
+            region = inside.astype(np.uint8)
+            near = cv2.dilate(region, cv2.getStructuringElement(cv2.MORPH_ELLIPSE,
+                                                                (2 * gap + 1,) * 2))
+            band = (_dilated_ellipse(region, reach) > 0) & (near == 0)
+        yield (t, b, le, r), inside, band
+
+
 def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """The lift of the shadows the user marked, from the lit surface just round each of them
@@ -449,7 +520,7 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     m = np.clip(np.asarray(marked, np.float32), 0.0, 1.0)
     h, w = m.shape
     side = max(h, w)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats((m > 0).astype(np.uint8),
+    _, labels, stats, _ = cv2.connectedComponentsWithStats((m > 0).astype(np.uint8),
                                                            connectivity=8)
     gap = max(1, round(MARKED_GAP * side))
     reach = gap + max(2, round(MARKED_RING * side))
@@ -458,15 +529,8 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     lit = np.zeros(log_c.shape, np.float32)
     top = np.zeros((h, w), np.float32)
     weight = np.zeros((h, w), np.float32)
-    for k in range(1, n):
-        x0, y0, bw, bh = stats[k, :4]
-        t, le = max(0, y0 - reach), max(0, x0 - reach)
-        b, r = min(h, y0 + bh + reach), min(w, x0 + bw + reach)
-        region = (labels[t:b, le:r] == k).astype(np.uint8)
-        near = cv2.dilate(region, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * gap + 1,) * 2))
-        far = cv2.dilate(region, cv2.getStructuringElement(cv2.MORPH_ELLIPSE,
-                                                           (2 * reach + 1,) * 2))
-        ring = (far > 0) & (near == 0) & candidates[t:b, le:r]
+    for (t, b, le, r), inside, band in _region_bands(labels, stats, gap, reach):
+        ring = band & candidates[t:b, le:r]
         if ring.sum() < 16:
             continue
         values = y[t:b, le:r][ring]
@@ -475,7 +539,6 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
         if (STROKE_MIN_SHARE * values.size <= bright.sum() < values.size
                 and np.median(values[bright]) - np.median(values[~bright]) > STROKE_SPLIT):
             ring[ring] = bright
-        inside = region > 0
         lit[t:b, le:r][inside] = log_c[t:b, le:r][ring].mean(axis=0)
         top[t:b, le:r][inside] = np.percentile(y[t:b, le:r][ring], MARKED_TOP)
         weight[t:b, le:r][inside] = m[t:b, le:r][inside]

@@ -1067,3 +1067,126 @@ def test_a_marked_shadow_is_lifted_to_the_lit_surface_round_it() -> None:
     unmarked = deshadow_log_gain(img, lift, sky | not_shadow)
     np.testing.assert_array_equal(gain[marked == 0], unmarked[marked == 0])
     assert (gain[inner] > unmarked[inner] + 0.1).all()
+
+
+def _reference_marked_lift(log_c, p, usable, marked):
+    """``marked_lift`` as first written (ab58bda): two elliptical dilations per region."""
+    from outcast_core.runtime.pipeline import photo_shadows as ps
+
+    m = np.clip(np.asarray(marked, np.float32), 0.0, 1.0)
+    h, w = m.shape
+    side = max(h, w)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats((m > 0).astype(np.uint8),
+                                                           connectivity=8)
+    gap = max(1, round(ps.MARKED_GAP * side))
+    reach = gap + max(2, round(ps.MARKED_RING * side))
+    candidates = usable & (p <= 0.5) & (m <= 0)
+    y = log_c @ ps.LUMA_709
+    lit = np.zeros(log_c.shape, np.float32)
+    top = np.zeros((h, w), np.float32)
+    weight = np.zeros((h, w), np.float32)
+    for k in range(1, n):
+        x0, y0, bw, bh = stats[k, :4]
+        t, le = max(0, y0 - reach), max(0, x0 - reach)
+        b, r = min(h, y0 + bh + reach), min(w, x0 + bw + reach)
+        region = (labels[t:b, le:r] == k).astype(np.uint8)
+        near = cv2.dilate(region, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * gap + 1,) * 2))
+        far = cv2.dilate(region, cv2.getStructuringElement(cv2.MORPH_ELLIPSE,
+                                                           (2 * reach + 1,) * 2))
+        ring = (far > 0) & (near == 0) & candidates[t:b, le:r]
+        if ring.sum() < 16:
+            continue
+        values = y[t:b, le:r][ring]
+        split = ps._otsu_threshold(values)
+        bright = values >= split
+        if (ps.STROKE_MIN_SHARE * values.size <= bright.sum() < values.size
+                and np.median(values[bright]) - np.median(values[~bright]) > ps.STROKE_SPLIT):
+            ring[ring] = bright
+        inside = region > 0
+        lit[t:b, le:r][inside] = log_c[t:b, le:r][ring].mean(axis=0)
+        top[t:b, le:r][inside] = np.percentile(y[t:b, le:r][ring], ps.MARKED_TOP)
+        weight[t:b, le:r][inside] = m[t:b, le:r][inside]
+    if not weight.any():
+        return None
+    on = (weight > 0) & usable
+    sigma = max(1.0, ps.RATIO_SIGMA * ps.SHADE_SIGMA * side)
+    n_m = ps.wide_blur((weight * on).astype(np.float32), sigma)
+    mu = (ps.wide_blur(log_c * (weight * on)[..., None], sigma)
+          / np.maximum(n_m, 1e-6)[..., None])
+    mu = np.where((n_m > 1e-4)[..., None], mu, log_c)
+    gain = ps.warm_lift(np.clip(lit - mu, 0.0, ps.MAX_LIFT_LOG))
+    excess = (mu - log_c) @ ps.LUMA_709 - ps.DARKER_MARGIN
+    keep = np.exp(-0.5 * (np.maximum(excess, 0.0) / ps.DARKER_WIDTH) ** 2)
+    return (np.where((weight > 0)[..., None], gain, 0.0).astype(np.float32), top,
+            keep.astype(np.float32), weight)
+
+
+def _lift_scene(rng: np.random.Generator, h: int, w: int
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Log colour (two surfaces on the left, so Otsu's split is taken in the bands there, one
+    on the right), a shadow probability and a usable mask."""
+    log_c = rng.normal(-1.5, 0.3, (h, w, 3)).astype(np.float32)
+    dark = rng.random((h, w)) < 0.3
+    dark[:, w // 2:] = False
+    log_c[dark] -= 1.2
+    p = cv2.GaussianBlur(rng.random((h, w)).astype(np.float32), (0, 0), 3) * 2 - 0.5
+    usable = rng.random((h, w)) > 0.1
+    return log_c, np.clip(p, 0, 1), usable
+
+
+def _assert_same_lift(got, want) -> None:
+    assert (got is None) == (want is None)
+    if want is not None:
+        for a, b in zip(got, want, strict=True):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_the_ellipse_dilation_by_rows_is_opencv_s() -> None:
+    from outcast_core.runtime.pipeline.photo_shadows import _dilated_ellipse
+
+    rng = np.random.default_rng(3)
+    for radius in (1, 2, 5, 14, 36):
+        for shape in ((9, 13), (80, 60), (40, 150)):
+            mask = (rng.random(shape) < 0.01).astype(np.uint8)
+            mask[rng.integers(shape[0]), :rng.integers(1, shape[1])] = 1
+            want = cv2.dilate(mask, cv2.getStructuringElement(cv2.MORPH_ELLIPSE,
+                                                              (2 * radius + 1,) * 2))
+            np.testing.assert_array_equal(_dilated_ellipse(mask, radius), want)
+
+
+def test_marked_lift_reads_each_region_s_own_band_as_the_reference_does() -> None:
+    """Regions of one pixel, a few and many, touching the border and each other's bands (each
+    region reads its whole band, however it overlaps another's), at two sizes (bands 6 and 14
+    pixels out): the same as the loop of two dilations per region, bit for bit."""
+    from outcast_core.runtime.pipeline.photo_shadows import marked_lift
+
+    rng = np.random.default_rng(7)
+    for seed, (h, w) in enumerate([(120, 160), (300, 400), (120, 160), (300, 400)]):
+        log_c, p, usable = _lift_scene(rng, h, w)
+        m = np.zeros((h, w), np.float32)
+        for _ in range(6):
+            cx, cy = int(rng.integers(-5, w + 5)), int(rng.integers(-5, h + 5))
+            axes = (int(rng.integers(1, w // 6)), int(rng.integers(1, h // 6)))
+            cv2.ellipse(m, (cx, cy), axes, float(rng.integers(180)), 0, 360,
+                        float(rng.uniform(0.2, 1.0)), -1)
+        m[rng.random((h, w)) < 0.002] = 1.0  # lone pixels
+        m[0, :5] = m[-3:, -1] = 0.5  # on the border
+        m[h // 2, w // 2:w // 2 + 4] = m[h // 2 + 1, w // 2 + 4] = 1.0  # a few, diagonal
+        if seed >= 2:
+            m[:, w // 3] = 0.7  # one long region crossing everything
+        _assert_same_lift(marked_lift(log_c, p, usable, m),
+                          _reference_marked_lift(log_c, p, usable, m))
+
+
+def test_marked_lift_takes_a_speckled_mark_of_many_regions() -> None:
+    from outcast_core.runtime.pipeline.photo_shadows import marked_lift
+
+    rng = np.random.default_rng(11)
+    h, w = 150, 200
+    log_c, p, usable = _lift_scene(rng, h, w)
+    m = (rng.random((h, w)) < 0.01).astype(np.float32)
+    n = cv2.connectedComponents((m > 0).astype(np.uint8), connectivity=8)[0] - 1
+    assert n > 250
+    got = marked_lift(log_c, p, usable, m)
+    _assert_same_lift(got, _reference_marked_lift(log_c, p, usable, m))
+    assert got is not None and (got[3][m > 0] > 0).mean() > 0.9
