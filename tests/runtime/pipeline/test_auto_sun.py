@@ -7,6 +7,7 @@ import json
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -313,8 +314,8 @@ def test_the_sun_in_the_frame_and_the_exif_elevation_give_the_camera_pitch() -> 
     assert sun_frame_pitch(s, pool) is None  # no sun in the pool's frame
 
 
-def test_relit_to_a_sun_outside_the_frame_the_photo_loses_its_sun() -> None:
-    from outcast_core.runtime.geometry.camera import sun_vector
+def _ski_slope_at_its_sun() -> tuple[Any, Any]:
+    """The ski-slope sample's session (fast) at the sun it shows, and that sun."""
     from outcast_core.runtime.io.imageio import read_image
     from outcast_core.runtime.pipeline.session import RelightSession
 
@@ -325,6 +326,13 @@ def test_relit_to_a_sun_outside_the_frame_the_photo_loses_its_sun() -> None:
     seen = s.sun_seen
     assert seen is not None
     s.set_original_sun(seen.w)
+    return s, seen
+
+
+def test_relit_to_a_sun_outside_the_frame_the_photo_loses_its_sun() -> None:
+    from outcast_core.runtime.geometry.camera import sun_vector
+
+    s, seen = _ski_slope_at_its_sun()
     u, v = round(seen.u), round(seen.v)
     assert s.relight(seen.w)[v, u].min() > 0.95  # its own sun: the photo, sun and all
     for preview in (False, True):
@@ -371,16 +379,8 @@ def test_the_photos_own_sun_moves_smoothly_and_keeps_at_full_resolution() -> Non
     import cv2
 
     from outcast_core.runtime.geometry.camera import project, sun_angles, sun_vector
-    from outcast_core.runtime.io.imageio import read_image
-    from outcast_core.runtime.pipeline.session import RelightSession
 
-    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_005_es_skislope.jpg"
-    loaded = read_image(sample)
-    s = RelightSession(preset="fast")
-    s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
-    seen = s.sun_seen
-    assert seen is not None
-    s.set_original_sun(seen.w)
+    s, seen = _ski_slope_at_its_sun()
     az, el = sun_angles(seen.w)
     near = s.relight(sun_vector(az + 0.2, el))
     h, w = s.sky.shape
