@@ -147,29 +147,6 @@ def elevation_above(w: Any, up: Any) -> float:
     return math.degrees(math.asin(max(-1.0, min(1.0, float(v @ u) / (nv * nu)))))
 
 
-def turned_about(w: Any, up: Any, degrees: float) -> np.ndarray:
-    """A sun direction turned ``degrees`` of azimuth about ``up`` (Rodrigues' rotation, unit
-    result; the way :func:`~outcast_core.runtime.geometry.camera.sun_vector`'s azimuth grows,
-    for a level camera), at the same elevation above the horizon whose upward direction is
-    ``up``.
-
-    Example:
-        >>> up = np.array([0.0, -1.0, 0.0]); w = np.array([0.0, -0.5, 0.8])
-        >>> round(elevation_above(turned_about(w, up, 120.0), up), 6) == round(
-        ...     elevation_above(w, up), 6)
-        True
-    """
-    v = np.asarray(w, np.float64).reshape(3)
-    k = np.asarray(up, np.float64).reshape(3)
-    nv, nk = float(np.linalg.norm(v)), float(np.linalg.norm(k))
-    if not (nv > 0 and nk > 0 and math.isfinite(nv) and math.isfinite(nk)):
-        raise ValueError(f"expected non-zero finite vectors, got {v.tolist()} and {k.tolist()}")
-    v, k = v / nv, k / nk
-    t = -math.radians(degrees)  # image y points down: azimuth grows clockwise about up
-    out = v * math.cos(t) + np.cross(k, v) * math.sin(t) + k * float(k @ v) * (1 - math.cos(t))
-    return out / float(np.linalg.norm(out))
-
-
 def daylight_gain(shadow_new: np.ndarray, sky: np.ndarray, ratio: np.ndarray,
                   change: DaylightChange, sky_gain: np.ndarray | None = None) -> np.ndarray:
     """The per-pixel linear gain (``H x W x 3``) that carries a relit photo, made with the

@@ -70,7 +70,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from outcast_core.runtime.geometry.camera import sun_in_frame, sun_vector
+from outcast_core.runtime.geometry.camera import sun_angles, sun_in_frame, sun_vector
 from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
 
 #: Shadow images below this are "in shadow" (the overlay's display threshold).
@@ -339,16 +339,15 @@ def _relight_checks(session: Any, res: PhotoResult, az: float, el: float,
 def relit_check_sun(session: Any, az: float, el: float, turn: float = RELIGHT_TURN
                     ) -> np.ndarray:
     """The relighting checks' new sun: the sun ``(az, el)`` (camera-relative) turned ``turn``
-    (:data:`RELIGHT_TURN`) degrees about the horizon's up (the session's ``horizon_up``: the
-    fitted ground plane's normal, the camera's vertical without one), so both suns stand at one
+    (:data:`RELIGHT_TURN`) degrees about the horizon's up (the session's ``horizon_tilt``: the
+    fitted ground plane's, the camera's vertical without one), so both suns stand at one
     elevation above the horizon and the light's strength and colour are the same
     (``RelightSession.daylight``). Until 2026-12-01 (tenth session) the turn was about the
     camera's vertical, which for a camera pitched down put the new sun at another elevation
     (up to 38 degrees apart for a camera pitched 22 degrees down, the dev photos' median)."""
-    from outcast_core.runtime.pipeline.daylight import turned_about
-
-    up = session.horizon_up() if hasattr(session, "horizon_up") else (0.0, -1.0, 0.0)
-    return turned_about(sun_vector(az, el), up, turn)
+    tilt = session.horizon_tilt() if hasattr(session, "horizon_tilt") else (0.0, 0.0)
+    a, e = sun_angles(sun_vector(az, el), *tilt)  # the sun against the horizon
+    return sun_vector(a + turn, e, *tilt)
 
 
 #: Least pixels of each kind :func:`new_shade_ratio` needs.

@@ -457,10 +457,10 @@ SUN_GLARE_DEG = 3.5
 SUN_GLARE_REACH = 5.0
 
 
-def sun_reach(focal: float, core_deg: float = SUN_CORE_DEG) -> float:
-    """How far (pixels) :func:`add_sun`'s glare reaches from the sun's centre."""
-    core = focal * math.tan(math.radians(min(max(core_deg, 0.0), 45.0)))
-    return core + SUN_GLARE_REACH * focal * math.tan(math.radians(SUN_GLARE_DEG)) + 1.0
+def sun_core_px(focal: float, core_deg: float = SUN_CORE_DEG) -> float:
+    """The radius (pixels) of :func:`add_sun`'s core of ``core_deg`` degrees (kept within
+    0-45) for a focal length of ``focal`` pixels."""
+    return focal * math.tan(math.radians(min(max(core_deg, 0.0), 45.0)))
 
 
 def add_sun(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float, focal: float,
@@ -492,9 +492,9 @@ def add_sun(relit_srgb: np.ndarray, sky: np.ndarray, u: float, v: float, focal: 
     if strength <= 0.0 or focal <= 0.0 or not (math.isfinite(u) and math.isfinite(v)):
         return relit
     h, w = sky.shape
-    core = focal * math.tan(math.radians(min(max(core_deg, 0.0), 45.0)))
+    core = sun_core_px(focal, core_deg)
     scale = focal * math.tan(math.radians(SUN_GLARE_DEG))
-    reach = sun_reach(focal, core_deg)
+    reach = core + SUN_GLARE_REACH * scale + 1.0
     y0, y1 = max(0, int(v - reach)), min(h, int(math.ceil(v + reach)) + 1)
     x0, x1 = max(0, int(u - reach)), min(w, int(math.ceil(u + reach)) + 1)
     if y0 >= y1 or x0 >= x1:
@@ -995,14 +995,13 @@ def guard_learned_relight(
     kept = None  # how much of each pixel's colour is the photo's, not L's or physics'
     if colour:
         out = keep_photo_colour(image_srgb, out, shadow_old, shadow_new, sky, keep_sky=keep_sky)
-    elif keep_sky:  # the photo's sky with or without the colour guard
-        out = np.where(np.asarray(sky, bool)[..., None], np.asarray(image_srgb, np.float32), out)
-    if colour:
         kept = _both_lit(shadow_old, shadow_new)
         if floor and lift and lift_guard is not None and lift_colour is not None:
             up = lift_weight(shadow_old, s_new, lift_guard)
             out = lifted_colour(out, up, lift_colour)
             kept = np.clip(kept + up, 0.0, 1.0)
+    elif keep_sky:  # the photo's sky with or without the colour guard
+        out = np.where(np.asarray(sky, bool)[..., None], np.asarray(image_srgb, np.float32), out)
     if gain is not None and (kept is not None or keep_sky):
         # The new light's colour where the colour is the photo's (L's and physics' have it);
         # the whole gain on a sky kept as the photo's (the anchor left its level).

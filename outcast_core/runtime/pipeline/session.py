@@ -45,6 +45,7 @@ from outcast_core.runtime.geometry.shadows import DirectStats, direct_shadow
 from outcast_core.runtime.io.models import ModelError, ModelRegistry
 from outcast_core.runtime.pipeline.auto_sun import SunInPhoto, ground_plane_tilt, sun_in_photo
 from outcast_core.runtime.pipeline.daylight import (
+    DaylightChange,
     daylight_change,
     daylight_gain,
     elevation_above,
@@ -86,6 +87,7 @@ from outcast_core.runtime.pipeline.relight import (
     shadow_toward_original,
     smooth_new_shadow,
     snap_shadow_to_photo,
+    sun_core_px,
     toward_photo,
     transfer_to_full_resolution,
 )
@@ -431,40 +433,52 @@ class RelightSession:
                 self._up = None
                 self._relight_cache = _LRU()
 
-    def horizon_up(self) -> np.ndarray:
-        """The horizon's upward direction in camera space (unit ``(3,)``), against which a
-        sun's elevation is taken for :attr:`daylight`: from :meth:`set_camera_tilt`'s tilt,
-        else the fitted ground plane's normal
-        (:func:`~outcast_core.runtime.pipeline.auto_sun.ground_plane_tilt`; a level camera's
-        ``(0, -1, 0)`` without one). Made once per photo and preset; needs :meth:`set_image`."""
+    def horizon_tilt(self) -> tuple[float, float]:
+        """The camera's ``(pitch, roll)`` (degrees) against the horizon, as :meth:`horizon_up`
+        takes it: :meth:`set_camera_tilt`'s, else the fitted ground plane's
+        (:func:`~outcast_core.runtime.pipeline.auto_sun.ground_plane_tilt`; level without
+        one). Suns turned or placed with it
+        (:func:`~outcast_core.runtime.geometry.camera.sun_vector`'s ``pitch_deg``, ``roll_deg``)
+        keep their elevation above the horizon."""
         with self._lock:
             self._require_image()
+            if self._tilt is not None:
+                return self._tilt
+            if self._plane_tilt is None:
+                self._plane_tilt = tuple(ground_plane_tilt(self)[:2])  # type: ignore[assignment]
+            assert self._plane_tilt is not None
+            return self._plane_tilt
+
+    def horizon_up(self) -> np.ndarray:
+        """The horizon's upward direction in camera space (unit ``(3,)``), against which a
+        sun's elevation is taken for :attr:`daylight`: :meth:`horizon_tilt`'s (a level
+        camera's ``(0, -1, 0)`` without one). Made once per photo and preset; needs
+        :meth:`set_image`."""
+        with self._lock:
             if self._up is None:
-                pitch, roll = self._tilt if self._tilt is not None else ground_plane_tilt(self)[:2]
-                self._up = camera_rotation(pitch, roll) @ np.array([0.0, -1.0, 0.0])
+                self._up = camera_rotation(*self.horizon_tilt()) @ np.array([0.0, -1.0, 0.0])
             return self._up
 
     @staticmethod
-    def _sun_colour(on: bool, w_old: np.ndarray, w_new: np.ndarray, up: np.ndarray
-                    ) -> np.ndarray | None:
-        """The new sun's colour relative to the photo's (linear RGB; None: white), for a sun
-        drawn into the frame: the new sun's daylight (``on``) reddens it near the horizon."""
-        if not on:
-            return None
-        return daylight_change(elevation_above(w_old, up), elevation_above(w_new, up)).sun
-
-    def _daylight_gain(self, on: bool, s_new: np.ndarray, sky: np.ndarray,
-                       light: LightEstimate, w_old: np.ndarray, w_new: np.ndarray,
-                       up: np.ndarray, view_dirs: np.ndarray) -> np.ndarray | None:
-        """The gain that carries a relighting (made with the photo's light; ``view_dirs``: its
-        pixels' rays) to the new sun's daylight
-        (:func:`~outcast_core.runtime.pipeline.daylight.daylight_gain`, the sky by
-        :func:`~outcast_core.runtime.pipeline.daylight.sky_change`); None when ``on`` (the
-        caller's :attr:`daylight`) is False or both suns stand at one elevation."""
+    def _daylight_change(on: bool, w_old: np.ndarray, w_new: np.ndarray, up: np.ndarray
+                         ) -> DaylightChange | None:
+        """How the light changes from the photo's sun to ``w_new`` (:func:`~outcast_core.
+        runtime.pipeline.daylight.daylight_change`, elevations above the horizon ``up``); None
+        when ``on`` (the caller's :attr:`daylight`) is False or both suns stand at one
+        elevation."""
         if not on:
             return None
         change = daylight_change(elevation_above(w_old, up), elevation_above(w_new, up))
-        if change.is_identity:
+        return None if change.is_identity else change
+
+    def _daylight_gain(self, change: DaylightChange | None, s_new: np.ndarray,
+                       sky: np.ndarray, light: LightEstimate, up: np.ndarray,
+                       view_dirs: np.ndarray) -> np.ndarray | None:
+        """The gain that carries a relighting (made with the photo's light; ``view_dirs``: its
+        pixels' rays) to the new sun's daylight ``change`` (:meth:`_daylight_change`;
+        :func:`~outcast_core.runtime.pipeline.daylight.daylight_gain`, the sky by
+        :func:`~outcast_core.runtime.pipeline.daylight.sky_change`); None without a change."""
+        if change is None:
             return None
         if self.relight_mode == "learned":  # as the guards' physics image takes it
             s_new = smooth_new_shadow(s_new)
@@ -477,6 +491,7 @@ class RelightSession:
 
     def _reset_working(self) -> None:
         self._up: np.ndarray | None = None
+        self._plane_tilt: tuple[float, float] | None = None
         self.image_srgb: np.ndarray | None = None
         self.camera: Camera | None = None
         self.depth: np.ndarray | None = None
@@ -602,6 +617,7 @@ class RelightSession:
         depth, sky = self._estimate_depth()
         self.depth, self.sky = depth, sky
         self._up = None  # the horizon of this depth's ground plane (horizon_up)
+        self._plane_tilt = None
         # The sun itself in the frame, if the photo shows it: relit to a sun outside the frame,
         # its disc and glare go (relight.remove_sun_glare).
         self.sun_seen = sun_in_photo(self.image_srgb, sky, self.camera)
@@ -1088,8 +1104,9 @@ class RelightSession:
         t1 = time.perf_counter()
         self.timings["shadow_preview"] = t1 - t0
         image = st["image"]
-        gain = self._daylight_gain(self._daylight, s_new, st["sky"], self._light,
-                                   self.original_sun, wv, self.horizon_up(), st["view_dirs"])
+        up = self.horizon_up()
+        change = self._daylight_change(self._daylight, self.original_sun, wv, up)
+        gain = self._daylight_gain(change, s_new, st["sky"], self._light, up, st["view_dirs"])
         if self.relight_mode == "learned":
             out = self.registry.load("relight", threads=PREVIEW_THREADS).run({
                 **st["feeds_l"], "shadow_new": s_new[None, None],
@@ -1097,8 +1114,7 @@ class RelightSession:
             })
             relit = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
             relit = self._guard(image, relit, st["shadow_old"], s_new, st["sky"], self._light,
-                                self.camera, self.original_sun, wv, keep_old=share,
-                                daylight=gain)
+                                keep_old=share, daylight=gain)
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=self._light, snap=False)
@@ -1106,9 +1122,7 @@ class RelightSession:
                 relit = in_new_daylight(relit, gain)
         relit = self._finish(image, relit, share, st["sky"], self.sun_seen, st["camera"], wv,
                              st["camera"].width / self.camera.width, exposure, self.greyscale,
-                             self.original_sun, self._sun_colour(self._daylight,
-                                                                 self.original_sun, wv,
-                                                                 self.horizon_up()))
+                             self.original_sun, None if change is None else change.sun)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
                                           threads=1)
         self._time("relight_preview", t1)
@@ -1148,8 +1162,9 @@ class RelightSession:
         if share >= 1.0:  # the photo's own sun: the photo, no network runs
             return np.array(image, np.float32)
         s_new = shadow_toward_original(s_new, s_o, inp["original_geometry"], share)
-        gain = self._daylight_gain(inp["daylight"], s_new, inp["sky"], inp["light"], w_o, wv,
-                                   inp["up"], inp["view_dirs"])
+        change = self._daylight_change(inp["daylight"], w_o, wv, inp["up"])
+        gain = self._daylight_gain(change, s_new, inp["sky"], inp["light"], inp["up"],
+                                   inp["view_dirs"])
         if self.relight_mode == "learned":
             model = self.registry.load("relight", threads=threads)
             out = model.run({
@@ -1164,15 +1179,15 @@ class RelightSession:
                 "light_ratio": inp["light"].ratio.astype(np.float32)[None],
             })
             img = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
-            img = self._guard(image, img, s_o, s_new, inp["sky"], inp["light"], inp["camera"],
-                              w_o, wv, keep_old=share, daylight=gain)
+            img = self._guard(image, img, s_o, s_new, inp["sky"], inp["light"], keep_old=share,
+                              daylight=gain)
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
             if gain is not None:
                 img = in_new_daylight(img, gain)
         img = self._finish(image, img, share, inp["sky"], inp["sun_seen"], inp["camera"], wv,
                            1.0, inp["exposure"], inp["greyscale"], w_o,
-                           self._sun_colour(inp["daylight"], w_o, wv, inp["up"]))
+                           None if change is None else change.sun)
         return img.astype(np.float32)
 
     def _finish(self, image: np.ndarray, relit: np.ndarray, share: float, sky: np.ndarray,
@@ -1217,7 +1232,7 @@ class RelightSession:
         if wn[2] <= 0:
             return None
         u1, v1 = (float(c) for c in project(wn, cam))
-        core = cam.focal * math.tan(math.radians(core_deg))
+        core = sun_core_px(cam.focal, core_deg)
         out = math.hypot(max(0.0, -u1, u1 - cam.width), max(0.0, -v1, v1 - cam.height))
         strength = (1.0 - share) * min(max(1.0 - out / max(core, 1.0), 0.0), 1.0)
         if strength <= 0.0:
@@ -1250,20 +1265,19 @@ class RelightSession:
 
     def _guard(
         self, image: np.ndarray, relit: np.ndarray, s_o: np.ndarray, s_new: np.ndarray,
-        sky: np.ndarray, light: LightEstimate, cam: Camera, w_o: np.ndarray, w_n: np.ndarray,
-        keep_old: float = 0.0, daylight: np.ndarray | None = None,
+        sky: np.ndarray, light: LightEstimate, keep_old: float = 0.0,
+        daylight: np.ndarray | None = None,
     ) -> np.ndarray:
         """The learned relighting with the guards this session turns on
-        (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`)."""
-        # The photo's sky (in the new daylight): L's own sky is a flat pale wash on photos,
-        # and a sun in the frame is moved, taken out or drawn in by _finish.
-        keep_sky = True
+        (:func:`~outcast_core.runtime.pipeline.relight.guard_learned_relight`), with the
+        photo's sky (in the new daylight): L's own sky is a flat pale wash on photos, and a sun
+        in the frame is moved, taken out or drawn in by :meth:`_finish`."""
         lift = self.lift_new_light and self.contrast_floor
         # The detail's lifted texture is the lift's de-shadowed photo, lift or not; the
         # photo's bands are kept per size with the lift's inputs (per S_o).
         inputs = self._lift_inputs(s_o.shape) if lift or self.keep_detail else {}
         cache = self._lift_guards.setdefault(("detail", tuple(s_o.shape)), {})
-        return guard_learned_relight(image, relit, s_o, s_new, sky, light, keep_sky=keep_sky,
+        return guard_learned_relight(image, relit, s_o, s_new, sky, light, keep_sky=True,
                                      colour=self.colour_guard, floor=self.contrast_floor,
                                      anchor=self.exposure_anchor, detail=self.keep_detail,
                                      lift=lift, keep_old=keep_old, detail_cache=cache,

@@ -294,10 +294,10 @@ def test_the_relit_check_turns_the_sun_about_the_horizon() -> None:
     from outcast_core.runtime.pipeline.real_eval import RELIGHT_TURN, relit_check_sun
 
     class Pitched:
-        def horizon_up(self) -> np.ndarray:
-            return camera_rotation(-25.0, 0.0) @ np.array([0.0, -1.0, 0.0])
+        def horizon_tilt(self) -> tuple[float, float]:
+            return -25.0, 0.0
 
-    up = Pitched().horizon_up()
+    up = camera_rotation(-25.0, 0.0) @ np.array([0.0, -1.0, 0.0])
     w_o = sun_vector(30.0, 20.0)
     w_n = relit_check_sun(Pitched(), 30.0, 20.0)
     assert elevation_above(w_n, up) == pytest.approx(elevation_above(w_o, up), abs=1e-9)
@@ -307,5 +307,5 @@ def test_the_relit_check_turns_the_sun_about_the_horizon() -> None:
     # About the camera's vertical the elevation would differ by tens of degrees here.
     w_cam = sun_vector(30.0 + RELIGHT_TURN, 20.0)
     assert abs(elevation_above(w_cam, up) - elevation_above(w_o, up)) > 10.0
-    # Without a horizon (an object with no horizon_up): the camera's vertical.
+    # Without a horizon (an object with no horizon_tilt): the camera's vertical.
     np.testing.assert_allclose(relit_check_sun(object(), 30.0, 20.0), w_cam, atol=1e-9)
