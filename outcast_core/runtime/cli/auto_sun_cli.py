@@ -32,7 +32,6 @@ def cmd_sun(args: argparse.Namespace) -> int:
         SOURCE_SUN_IN_FRAME,
         exif_sun_prior,
         find_sun,
-        photo_camera_tilt,
     )
     from outcast_core.runtime.pipeline.timelapse import (
         exif_heading_from_sun,
@@ -51,7 +50,7 @@ def cmd_sun(args: argparse.Namespace) -> int:
               file=sys.stderr)
     # The camera's tilt as the app and batch take it: metadata, the sun in the frame, the
     # ground plane.
-    tilt = None if args.no_exif else photo_camera_tilt(session, args.image)
+    tilt = None if args.no_exif else session.photo_tilt()
     fit = find_sun(session, prior=prior, pitch_roll=tilt)
     sure = fit.found or fit.source == SOURCE_EXIF
     # A sun seen in the frame and the photo's GPS and time give the compass heading.

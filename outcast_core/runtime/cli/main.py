@@ -311,7 +311,7 @@ def _set_image(session, loaded, args: argparse.Namespace, progress=None) -> None
     _set_depth_source(session, loaded, args)
     focal35 = None if args.fov is not None else loaded.exif.focal_35mm
     session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth,
-                      progress=progress)
+                      progress=progress, photo_path=getattr(args, "image", None))
     getattr(progress, "end_line", lambda: None)()  # (the warnings below on their own lines)
     from outcast_core.runtime.pipeline.batch import small_photo_note
     from outcast_core.runtime.pipeline.session import elongation_note
@@ -430,11 +430,7 @@ def cmd_relight(args: argparse.Namespace) -> int:
     loaded = _load(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit end to end
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
-    _set_image(session, loaded, args)
-    if session.daylight:  # the new sun's daylight takes the horizon the app takes
-        from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
-
-        session.set_camera_tilt(*photo_camera_tilt(session, args.image)[:2])
+    _set_image(session, loaded, args)  # the daylight's horizon: the photo's tilt, as the app's
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(w_from)
     corrections = say_unused_shadow_edits(session, args)

@@ -317,14 +317,9 @@ def _run_timelapse(args: argparse.Namespace, loaded: Any, exif: Any, session: An
     quiet = report.quiet
     _set_image(session, loaded, args, progress=report)
 
-    def tilt() -> tuple[float, float, str]:
-        from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
-
-        found = photo_camera_tilt(session, args.image)
-        session.set_camera_tilt(*found[:2])  # the daylight's horizon: the samples' own
-        return found
-
-    samples = _samples_from_args(args, exif, tilt)
+    # The photo's tilt (set_image's photo_path) places the day's suns and is the daylight's
+    # horizon, for a sweep too.
+    samples = _samples_from_args(args, exif, session.photo_tilt)
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(sun_vector(*args.from_sun))
     corrections = say_unused_shadow_edits(session, args)  # (notes as relight and deshadow)

@@ -858,12 +858,10 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
         session.depth_provider, _note = pick_depth_source(
             loaded.path, (height, width), model_path=options.depth_model,
             use_phone=options.use_phone_depth, strict=False, photo_srgb=loaded.image_srgb)
-    session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm, depth=depth)
+    session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm, depth=depth,
+                      photo_path=job.image)
     result.warnings = photo_warnings(loaded, session)
-    from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
-
-    tilt = photo_camera_tilt(session, job.image)
-    session.set_camera_tilt(*tilt[:2])  # the new sun's daylight takes the same horizon
+    tilt = session.photo_tilt()  # the EXIF sun's frame and the new sun's daylight's horizon
     seen = session.sun_seen  # the sun the photo shows, if it does
     sun, source = original_sun_for(job, options, loaded.exif, project_sun,
                                    _auto_sun(session, loaded.exif, result, tilt), tilt[:2],

@@ -14,6 +14,7 @@ shading-ratio relighting; ``auto`` picks learned where the model is installed.
 from __future__ import annotations
 
 import math
+import os
 import threading
 import time
 from collections import OrderedDict
@@ -43,7 +44,7 @@ from outcast_core.runtime.geometry.fullres import resize_to_working
 from outcast_core.runtime.geometry.raymarch import RaySampler
 from outcast_core.runtime.geometry.shadows import DirectStats, direct_shadow
 from outcast_core.runtime.io.models import ModelError, ModelRegistry
-from outcast_core.runtime.pipeline.auto_sun import SunInPhoto, ground_plane_tilt, sun_in_photo
+from outcast_core.runtime.pipeline.auto_sun import SunInPhoto, photo_camera_tilt, sun_in_photo
 from outcast_core.runtime.pipeline.daylight import (
     DaylightChange,
     daylight_change,
@@ -324,6 +325,7 @@ class RelightSession:
         self.lift_new_light = True
         self._daylight = True
         self._tilt: tuple[float, float] | None = None
+        self._photo_path: str | None = None
         self._exposure = "photo"
         if mode not in {"auto", "learned", "classic"}:
             raise ValueError(f"expected mode auto, learned or classic, got {mode!r}")
@@ -413,17 +415,13 @@ class RelightSession:
     @daylight.setter
     def daylight(self, on: bool) -> None:
         with self._lock:
-            if bool(on) != self._daylight:
-                self._daylight = bool(on)
-                self._relight_cache = _LRU()
+            self._daylight = bool(on)  # in the relit cache's key: both stay cached
 
     def set_camera_tilt(self, pitch: float | None, roll: float = 0.0) -> None:
-        """The camera's pitch and roll (degrees, as
-        :func:`~outcast_core.runtime.pipeline.auto_sun.photo_camera_tilt` gives them: the
-        photo's metadata, the sun seen in the frame, the ground plane), which
-        :meth:`horizon_up` takes; ``None``: the ground plane's again. Kept for this photo
-        (:meth:`set_image` forgets it); the app, the time-lapse and batch pass the tilt their
-        EXIF suns are placed with, so the daylight's elevations are the same ones."""
+        """The camera's pitch and roll (degrees) given instead of :meth:`photo_tilt`'s (the
+        photo's file is not at hand, or the caller knows better), which :meth:`horizon_up`
+        takes; ``None``: :meth:`photo_tilt`'s again. Kept for this photo across presets
+        (:meth:`set_image` forgets it)."""
         with self._lock:
             tilt = None if pitch is None else (float(pitch), float(roll))
             if tilt is not None and not all(math.isfinite(v) for v in tilt):
@@ -433,21 +431,29 @@ class RelightSession:
                 self._up = None
                 self._relight_cache = _LRU()
 
-    def horizon_tilt(self) -> tuple[float, float]:
-        """The camera's ``(pitch, roll)`` (degrees) against the horizon, as :meth:`horizon_up`
-        takes it: :meth:`set_camera_tilt`'s, else the fitted ground plane's
-        (:func:`~outcast_core.runtime.pipeline.auto_sun.ground_plane_tilt`; level without
-        one). Suns turned or placed with it
-        (:func:`~outcast_core.runtime.geometry.camera.sun_vector`'s ``pitch_deg``, ``roll_deg``)
-        keep their elevation above the horizon."""
+    def photo_tilt(self) -> tuple[float, float, str]:
+        """The camera's ``(pitch, roll, source)`` (degrees) found for this photo
+        (:func:`~outcast_core.runtime.pipeline.auto_sun.photo_camera_tilt`): its file's
+        metadata pose (``set_image``'s ``photo_path``), else the pitch that puts the sun seen in
+        the frame at the capture's true elevation, else the fitted ground plane, else level.
+        The app, the time-lapse and batch place their EXIF suns with it. Made once per photo
+        and preset."""
         with self._lock:
             self._require_image()
+            if self._photo_tilt is None:
+                found = photo_camera_tilt(self, self._photo_path)
+                self._photo_tilt = (float(found[0]), float(found[1]), str(found[2]))
+            return self._photo_tilt
+
+    def horizon_tilt(self) -> tuple[float, float]:
+        """The camera's ``(pitch, roll)`` (degrees) against the horizon, as :meth:`horizon_up`
+        takes it: :meth:`set_camera_tilt`'s, else :meth:`photo_tilt`'s. Suns turned or placed
+        with it (:func:`~outcast_core.runtime.geometry.camera.sun_vector`'s ``pitch_deg``,
+        ``roll_deg``) keep their elevation above the horizon."""
+        with self._lock:
             if self._tilt is not None:
                 return self._tilt
-            if self._plane_tilt is None:
-                self._plane_tilt = tuple(ground_plane_tilt(self)[:2])  # type: ignore[assignment]
-            assert self._plane_tilt is not None
-            return self._plane_tilt
+            return self.photo_tilt()[:2]
 
     def horizon_up(self) -> np.ndarray:
         """The horizon's upward direction in camera space (unit ``(3,)``), against which a
@@ -491,7 +497,7 @@ class RelightSession:
 
     def _reset_working(self) -> None:
         self._up: np.ndarray | None = None
-        self._plane_tilt: tuple[float, float] | None = None
+        self._photo_tilt: tuple[float, float, str] | None = None
         self.image_srgb: np.ndarray | None = None
         self.camera: Camera | None = None
         self.depth: np.ndarray | None = None
@@ -542,6 +548,7 @@ class RelightSession:
         focal_35mm: float | None = None,
         depth: np.ndarray | None = None,
         progress: Progress | None = None,
+        photo_path: str | os.PathLike[str] | None = None,
     ) -> None:
         """Set the photo and run every light-independent stage once.
 
@@ -553,6 +560,8 @@ class RelightSession:
             depth: optional ``h x w`` depth from elsewhere (any resolution with the photo's
                 aspect ratio; non-finite or <= 0 marks sky). Replaces the depth model.
             progress: called with ``(stage, fraction)``.
+            photo_path: the photo's file, whose metadata (a pose; the capture time and place
+                for the sun seen in the frame) give the camera's tilt (:meth:`photo_tilt`).
         """
         img = np.asarray(image_srgb)
         if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] < 1 or img.shape[1] < 1:
@@ -577,6 +586,8 @@ class RelightSession:
             self.greyscale = is_greyscale(img)
             self._focal_full = focal
             self._given_depth = depth
+            self._photo_path = None if photo_path is None else os.fspath(photo_path)
+            self._tilt = None  # another photo: a tilt given for the last one is not its own
             self.original_sun = None
             self.original_shadow = None
             self.shadow_edits, self.shadow_edits_used = (), ()
@@ -606,7 +617,6 @@ class RelightSession:
         report = progress or (lambda stage, frac: None)
         full = self.full_image_srgb
         h, w = working_shape(full.shape[0], full.shape[1], self.preset.working_size)
-        self._tilt = None  # another photo: its own tilt, if any, is set again
         self._reset_working()
         t0 = time.perf_counter()
         self.image_srgb = resize_to_working(full, (h, w))
@@ -617,7 +627,7 @@ class RelightSession:
         depth, sky = self._estimate_depth()
         self.depth, self.sky = depth, sky
         self._up = None  # the horizon of this depth's ground plane (horizon_up)
-        self._plane_tilt = None
+        self._photo_tilt = None
         # The sun itself in the frame, if the photo shows it: relit to a sun outside the frame,
         # its disc and glare go (relight.remove_sun_glare).
         self.sun_seen = sun_in_photo(self.image_srgb, sky, self.camera)

@@ -329,6 +329,29 @@ def _ski_slope_at_its_sun() -> tuple[Any, Any]:
     return s, seen
 
 
+def test_the_session_takes_the_photos_tilt_from_its_file() -> None:
+    """Given the photo's file, the session finds its tilt itself (the ski slope: the sun in
+    the frame), the daylight's horizon without any caller setting it; a given tilt overrides
+    it and survives a preset change, not another photo."""
+    from outcast_core.runtime.geometry.camera import camera_rotation
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_005_es_skislope.jpg"
+    loaded = read_image(sample)
+    s = RelightSession(preset="fast")
+    s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm, photo_path=sample)
+    pitch, roll, source = s.photo_tilt()
+    assert source == "sun in the frame" and 7.0 < pitch < 13.0
+    assert s.horizon_tilt() == (pitch, roll)
+    np.testing.assert_allclose(s.horizon_up(), camera_rotation(pitch, roll) @ (0.0, -1.0, 0.0))
+    s.set_camera_tilt(-5.0, 1.0)
+    s.set_preset("balanced")
+    assert s.horizon_tilt() == (-5.0, 1.0)
+    s.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)  # no file: no pose
+    assert s.horizon_tilt() != (-5.0, 1.0)
+
+
 def test_relit_to_a_sun_outside_the_frame_the_photo_loses_its_sun() -> None:
     from outcast_core.runtime.geometry.camera import sun_vector
 
@@ -487,8 +510,9 @@ def test_cli_sun_says_which_sun_is_in_which_frame(capsys: pytest.CaptureFixture[
     said = capsys.readouterr()
     assert "the shadows alone fit best near azimuth" in said.err  # the map's words, kept
     assert "map" not in said.err and "against the horizon" not in said.err  # level camera
-    monkeypatch.setattr(auto_sun, "photo_camera_tilt",
-                        lambda session, path: (-12.0, 3.0, "ground plane"))
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    monkeypatch.setattr(RelightSession, "photo_tilt", lambda self: (-12.0, 3.0, "ground plane"))
     assert main(["sun", str(sample), "--preset", "fast"]) == 0
     said = capsys.readouterr()
     az, el = (float(v) for v in said.out.split()[1:4:2])
