@@ -300,11 +300,6 @@ class TimingsText(StatusText):
         self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
         self.setAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
 
-    def setText(self, text: str) -> None:  # noqa: N802 (Qt's name)
-        tip = self.toolTip()
-        super().setText(text)
-        self.setToolTip(tip)  # the window's, with one stage a line
-
     def _cut(self, text: str, width: int) -> str:
         fm = self.fontMetrics()
         if fm.horizontalAdvance(text) <= width:
@@ -396,9 +391,6 @@ class MainWindow(QMainWindow):
         # the photo just opened: what was found in it must not flash by).
         self._held_message = ""
         self._load_notice = ""  # the warning above the photo after loading (file, depth)
-        #: What the last Find sun said above the photo, over the load's notice, until the sun
-        #: or the heading it speaks of is set otherwise ("" : nothing).
-        self._search_notice = ""
         #: What the command line says of the photo's file (photo_file_notes), kept for the
         #: status bar's "Photo notes" in every step.
         self._file_notes: list[str] = []
@@ -802,6 +794,11 @@ class MainWindow(QMainWindow):
     def _on_clean_changed(self, _clean: bool) -> None:
         self._update_title()
 
+    @property
+    def loads(self) -> int:
+        """How many photos (sessions) were loaded: a job's result for an earlier one is stale."""
+        return self._loads
+
     def has_unsaved_changes(self) -> bool:
         """Whether undoable edits, or changes to the time-lapse settings, were made since the
         photo was opened or the project saved."""
@@ -873,10 +870,15 @@ class MainWindow(QMainWindow):
                 self._refresh_timelapse_preview()
             if state.heading != self.user_heading:
                 self.set_user_heading(state.heading)
-            if state.exposure != self.relight_panel.exposure():
-                self.set_exposure(state.exposure, refresh=False)  # relit below, once
-            if state.daylight != self.relight_panel.daylight():
-                self.set_daylight(state.daylight, refresh=False)  # relit below, once
+            # The exposure and the light: relit below, once; an open time-lapse's frame too
+            # (an undone exposure left it drawn at the other one: a review).
+            exposure = state.exposure != self.relight_panel.exposure()
+            daylight = state.daylight != self.relight_panel.daylight()
+            if exposure:
+                self.set_exposure(state.exposure, refresh=False)
+            if daylight:
+                self.set_daylight(state.daylight, refresh=False)
+            if exposure or daylight:
                 self._refresh_timelapse_preview()
             if state.preset != self.preset:
                 self.set_preset(state.preset)
@@ -1432,10 +1434,8 @@ class MainWindow(QMainWindow):
             self.relight_panel.set_exposure(mode)
         if self.session is not None:
             self.session.exposure = mode
-        if not refresh or self.step is not Step.RELIGHT:
-            return
-        self.request_relight(preview=False)
-        self._refresh_timelapse_preview()
+        if refresh:
+            self._relight_for_light()
 
     @Slot(bool)
     def _on_daylight_changed(self, on: bool) -> None:
@@ -1452,10 +1452,15 @@ class MainWindow(QMainWindow):
         lock, which a relighting under way holds, and forgets the relit images kept)."""
         if self.relight_panel.daylight() != on:
             self.relight_panel.set_daylight(on)
-        if not refresh or self.step is not Step.RELIGHT:
-            return
-        self.request_relight(preview=False)
-        self._refresh_timelapse_preview()
+        if refresh:
+            self._relight_for_light()
+
+    def _relight_for_light(self) -> None:
+        """The exposure or the light changed: the relit view and an open time-lapse preview
+        drawn again (in step 2)."""
+        if self.step is Step.RELIGHT:
+            self.request_relight(preview=False)
+            self._refresh_timelapse_preview()
 
     @Slot(object, bool)
     def _on_heading_typed(self, heading: float | None, stepped: bool = False) -> None:
@@ -1592,7 +1597,6 @@ class MainWindow(QMainWindow):
     def _show_search_notice(self, notice: str) -> None:
         """Step 1's notice above the photo: what Find sun said (``""``: nothing, or no longer
         true), over the load's warning (the file, the depth source), which stays."""
-        self._search_notice = notice
         self.align_panel.show_notice("\n\n".join(t for t in (notice, self._load_notice) if t))
 
     def _prior_words(self, prior: Any) -> str:

@@ -558,7 +558,7 @@ class TimelapseDialog(QDialog):
         (and its depth), the preset, the frame size, the format, the exposure, the light (the
         new sun's daylight or the photo's)."""
         panel = self.main.relight_panel
-        return (self.main._loads, self.main.preset, self.frame_shape(),
+        return (self.main.loads, self.main.preset, self.frame_shape(),
                 str(self.format_combo.currentData()), panel.exposure(), panel.daylight())
 
     def estimate(self) -> float | None:
@@ -578,8 +578,10 @@ class TimelapseDialog(QDialog):
             self.estimate_label.setText("")
             return
         n, fps = len(self._samples), self.fps_box.value()
-        seconds = self.estimate()
-        untimed = self._estimate_key() in self._untimed
+        key = self._estimate_key()
+        timing = self._timings.get(key)
+        seconds = None if timing is None else timing.seconds_for(n)
+        untimed = key in self._untimed
         if seconds is None and not untimed:
             self._time_export()
         how_long = (f"{tl.describe_seconds(seconds)} to export" if seconds is not None
@@ -587,7 +589,6 @@ class TimelapseDialog(QDialog):
                     else "timing a short export…")
         self.estimate_label.setText(f"{n} frames of {shape[1]} × {shape[0]}, "
                                     f"{video_length(n, fps)} at {fps:g} fps: {how_long}")
-        timing = self._timings.get(self._estimate_key())
         self.estimate_label.setToolTip(
             "" if timing is None else
             f"From an export of {timing.frames} frames of this path at this size and format, "
@@ -595,7 +596,7 @@ class TimelapseDialog(QDialog):
         if self._ready:
             self.main.set_timelapse_settings(self.settings())
 
-    def _time_export(self) -> int | None:
+    def _time_export(self) -> None:
         """Time what an export does, for :meth:`estimate`: :data:`ESTIMATE_FRAMES` frames of
         this path, spread evenly along it (one fewer above :data:`ESTIMATE_LARGE_MP` megapixels
         a frame), relit as an export relights them (the
@@ -604,14 +605,15 @@ class TimelapseDialog(QDialog):
         estimate from the last interactive relighting's stages timed another thing (the
         networks on every core, one after the other, not the export's one thread each side
         by side; and whatever ran last) and was 4x off at working size (a user trial: 3 s
-        estimated for 11.6 s). Not while hidden or exporting."""
+        estimated for 11.6 s). Not while hidden or exporting. A timing of other settings still
+        under way is cancelled (its result would be for nobody, and hold up this one)."""
         session = self.main.session
         if (session is None or session.original_sun is None or not self.isVisible()
                 or self._exporting or not self._samples):
-            return None
+            return
         key = self._estimate_key()
         if key == self._timing_key:  # timing these settings already (a review)
-            return None
+            return
         shape = key[2]
         n = len(self._samples)
         k = min(n, ESTIMATE_FRAMES - (shape[0] * shape[1] > ESTIMATE_LARGE_MP * 1e6))
@@ -620,10 +622,10 @@ class TimelapseDialog(QDialog):
         exposure, daylight, edits = key[4], key[5], self.main.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            session.set_shadow_edits(edits)  # as the export does
-            session.daylight = daylight
             stamps: list[float] = []
-            try:
+            try:  # all of it: a failure is said for its settings, never timed again (a review)
+                session.set_shadow_edits(edits)  # as the export does
+                session.daylight = daylight
                 with tempfile.TemporaryDirectory(prefix="outcast-estimate-") as folder:
                     out = Path(folder) / ("frames" if fmt == "png" else f"estimate.{fmt}")
                     t0 = time.perf_counter()
@@ -639,8 +641,9 @@ class TimelapseDialog(QDialog):
                 return {"key": key, "failed": exc}
             return {"key": key, "timing": ExportTiming.from_stamps(stamps, total)}
 
+        self.main.runner.cancel("tl_estimate")  # timing other settings: for nobody now
         self._timing_key = key
-        return self.main.runner.submit("tl_estimate", job, "Timing a short time-lapse export")
+        self.main.runner.submit("tl_estimate", job, "Timing a short time-lapse export")
 
     def samples(self) -> list[tl.SunSample]:
         """The current sun path (ValueError when the settings are incomplete)."""
@@ -917,6 +920,8 @@ class TimelapseDialog(QDialog):
             self._say_failed(exc)
             self._update_estimate()
         elif channel == "tl_estimate":  # (a timing's own failure comes back as its result)
+            if self._timing_key is not None:  # not timed again for these settings
+                self._untimed.add(self._timing_key)
             self._timing_key = None
             self._update_estimate()
 

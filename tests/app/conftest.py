@@ -25,6 +25,12 @@ def make_photo(path, width: int = 128, height: int = 96) -> str:
     return str(path)
 
 
+def undo_texts(window) -> list[str]:
+    """The names of the window's undo steps, oldest first."""
+    stack = window.undo_stack
+    return [stack.text(i) for i in range(stack.count())]
+
+
 @pytest.fixture
 def photo(tmp_path):
     return make_photo(tmp_path / "scene.jpg")

@@ -10,12 +10,8 @@ from PySide6.QtCore import Qt
 
 from app.history import EditState, describe_change
 from app.state import Step
+from tests.app.conftest import undo_texts
 from tests.app.test_main_window import _confirm, _drag, _ground_with_a_box, _load
-
-
-def _undo_texts(window) -> list[str]:
-    stack = window.undo_stack
-    return [stack.text(i) for i in range(stack.count())]
 
 
 def _type_sun(panel, az: float, el: float) -> None:
@@ -49,7 +45,7 @@ def test_edit_menu_undoes_and_redoes_sun_moves(qtbot, window, photo, settle):
     _drag(qtbot, dial, [(200.0, 30.0), (240.0, 25.0)])
     settle()
     second = dial.sun()
-    assert _undo_texts(window) == ["Move original sun", "Move original sun"]  # a drag is one step
+    assert undo_texts(window) == ["Move original sun", "Move original sun"]  # a drag is one step
     assert window.act_undo.text().replace("&", "") == "Undo Move original sun"
     window.activateWindow()
     qtbot.keyClick(window, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier)
@@ -74,7 +70,7 @@ def test_undo_steps_and_new_sun(qtbot, window, photo, settle):
     assert rp.sun() == pytest.approx((100.0, 35.0))
     _type_sun(rp, 220.0, 25.0)
     settle()
-    assert _undo_texts(window)[-3:] == ["Confirm original sun", "Move new sun", "Move new sun"]
+    assert undo_texts(window)[-3:] == ["Confirm original sun", "Move new sun", "Move new sun"]
     window.act_undo.trigger()
     window.act_undo.trigger()
     settle()
@@ -102,7 +98,7 @@ def test_new_sun_is_kept_across_a_realignment(qtbot, window, photo, settle):
     window.relight_panel.realign_button.click()
     settle()
     assert window.step is Step.ALIGN
-    assert _undo_texts(window)[-1] == "Re-align original sun"
+    assert undo_texts(window)[-1] == "Re-align original sun"
     _type_sun(window.align_panel.sun_panel, 110.0, 40.0)
     _confirm(window, settle)
     assert window.original_sun.as_tuple() == (110.0, 40.0)
@@ -133,7 +129,7 @@ def test_undo_preset_and_depth_map(qtbot, window, photo, settle, tmp_path):
     window.load_depth(str(depth_file))
     settle()
     assert window.session.depth_source == "given"
-    assert _undo_texts(window) == ["Quality: Balanced", "Load depth map"]
+    assert undo_texts(window) == ["Quality: Balanced", "Load depth map"]
     window.act_undo.trigger()
     settle()
     assert window.session.depth_source != "given" and window.depth_path == ""
@@ -183,7 +179,7 @@ def test_a_typed_heading_is_undoable_and_unsaved_work(window, photo, settle):
     window.align_panel.heading_box.setValue(200.0)
     assert window.user_heading == pytest.approx(200.0)
     assert window.has_unsaved_changes() and window.isWindowModified()
-    assert _undo_texts(window) == ["Camera heading"]
+    assert undo_texts(window) == ["Camera heading"]
     window.act_undo.trigger()
     settle()
     assert window.user_heading is None and window.align_panel.heading() is None
@@ -206,7 +202,7 @@ def test_metering_the_new_light_is_undoable_and_saved(window, photo, settle, reo
     window.relight_panel.meter_check.setChecked(True)
     settle()
     assert window.session.exposure == "metered"
-    assert _undo_texts(window)[-1] == "Meter the new light" and window.has_unsaved_changes()
+    assert undo_texts(window)[-1] == "Meter the new light" and window.has_unsaved_changes()
     window.act_undo.trigger()
     settle()
     assert window.session.exposure == "photo" and not window.relight_panel.meter_check.isChecked()
@@ -218,6 +214,31 @@ def test_metering_the_new_light_is_undoable_and_saved(window, photo, settle, reo
     with reopen(path, Step.RELIGHT) as other:
         assert other.session.exposure == "metered"
         assert other.relight_panel.meter_check.isChecked() and not other.has_unsaved_changes()
+
+
+def test_undoing_the_exposure_redraws_the_time_lapse_frame(window, photo, settle, monkeypatch):
+    """A review: undo and redo of the light drew an open time-lapse dialog's frame again, not
+    those of the exposure (its frame stayed at the other exposure)."""
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    dialog = window.open_timelapse()
+    settle()
+    window.relight_panel.meter_check.setChecked(True)
+    settle()
+    redrawn = []
+    real = dialog.refresh_preview
+
+    def spy():
+        redrawn.append(window.relight_panel.exposure())
+        real()
+
+    monkeypatch.setattr(dialog, "refresh_preview", spy)
+    window.act_undo.trigger()
+    settle()
+    assert redrawn == ["photo"]
+    window.act_redo.trigger()
+    settle()
+    assert redrawn == ["photo", "metered"]
 
 
 def test_jobs_take_the_exposure_shown_when_asked_and_a_new_photo_starts_unmetered(
@@ -293,7 +314,7 @@ def test_undo_does_not_take_in_a_number_being_typed(window, photo, settle):
     window.act_undo.trigger()
     settle()
     assert window.step is Step.RELIGHT and window.user_heading == pytest.approx(42.0)
-    assert _undo_texts(window)[-1] == "Camera heading"
+    assert undo_texts(window)[-1] == "Camera heading"
     assert window.undo_stack.index() == window.undo_stack.count()
     window.act_undo.trigger()
     settle()
@@ -786,7 +807,7 @@ def test_a_burst_of_heading_steps_is_one_undo_step(qtbot, window, settle, clock)
         _step(qtbot, box, Qt.Key.Key_Up, clock)
     _step(qtbot, box, Qt.Key.Key_PageUp, clock)  # ten steps at once
     assert window.user_heading == pytest.approx(176.7)
-    assert _undo_texts(window) == ["Camera heading"]
+    assert undo_texts(window) == ["Camera heading"]
     clock.now += STEP_BURST_S  # a pause
     _step(qtbot, box, Qt.Key.Key_Down, clock)
     assert window.user_heading == pytest.approx(175.7) and window.undo_stack.count() == 2
@@ -800,7 +821,7 @@ def test_a_burst_of_heading_steps_is_one_undo_step(qtbot, window, settle, clock)
     count = window.undo_stack.count()
     _step(qtbot, box, Qt.Key.Key_Up, clock)
     assert window.undo_stack.count() == count + 1
-    assert _undo_texts(window)[-1] == "Camera heading"
+    assert undo_texts(window)[-1] == "Camera heading"
     while window.undo_stack.index() > 4:  # the last step, the sun's two boxes
         window.act_undo.trigger()
         settle()

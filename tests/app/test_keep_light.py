@@ -10,12 +10,8 @@ import pytest
 
 from app.state import ProjectState, Step, load_project
 from outcast_core.runtime.pipeline import timelapse as tl
+from tests.app.conftest import undo_texts
 from tests.app.test_main_window import _confirm, _load
-
-
-def _undo_texts(window) -> list[str]:
-    stack = window.undo_stack
-    return [stack.text(i) for i in range(stack.count())]
 
 
 def _spy_daylight(monkeypatch, session) -> list[bool]:
@@ -46,7 +42,7 @@ def test_the_checkbox_sets_the_session_s_light_relights_and_is_undoable(
     rp.keep_light_check.setChecked(True)
     settle()
     assert session.daylight is False and seen == [False]  # the view relit in the photo's light
-    assert _undo_texts(window)[-1] == "Keep the photo's light"
+    assert undo_texts(window)[-1] == "Keep the photo's light"
     assert window.has_unsaved_changes() and window.isWindowModified()
     window.act_undo.trigger()
     settle()
@@ -60,7 +56,7 @@ def test_the_checkbox_sets_the_session_s_light_relights_and_is_undoable(
     rp.keep_light_check.setChecked(False)
     settle()
     assert session.daylight is True
-    assert _undo_texts(window)[-1] == "Take the new sun's daylight"
+    assert undo_texts(window)[-1] == "Take the new sun's daylight"
 
 
 def test_a_project_keeps_the_photo_s_light(window, photo, settle, reopen):

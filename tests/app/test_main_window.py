@@ -711,6 +711,17 @@ def test_save_as_over_another_photos_project_names_that_photo(qtbot, window, pho
     assert window.save_project(mine) == mine and not leave_answers.asked  # its own: no question
 
 
+def _cutout_png(tmp_path: Path) -> Path:
+    """``cutout.png``: a green photo with transparency (a cut-out sky)."""
+    rgba = np.zeros((96, 128, 4), np.uint8)
+    rgba[..., :3] = (90, 140, 70)
+    rgba[..., 3] = 255
+    rgba[:30, :, 3] = 0  # a cut-out sky
+    path = tmp_path / "cutout.png"
+    Image.fromarray(rgba, "RGBA").save(path)
+    return path
+
+
 def test_transparency_and_a_strip_shape_are_said_as_the_cli_says(window, settle, tmp_path):
     """The CLI notes a photo with transparency (filled with white) and a strip-shaped one (its
     depth sees a few pixels across); the app said nothing of the first (a user trial): both
@@ -720,12 +731,7 @@ def test_transparency_and_a_strip_shape_are_said_as_the_cli_says(window, settle,
 
     from outcast_core.runtime.pipeline.session import elongation_note
 
-    rgba = np.zeros((96, 128, 4), np.uint8)
-    rgba[..., :3] = (90, 140, 70)
-    rgba[..., 3] = 255
-    rgba[:30, :, 3] = 0  # a cut-out sky
-    clear = tmp_path / "cutout.png"
-    Image.fromarray(rgba, "RGBA").save(clear)
+    clear = _cutout_png(tmp_path)
     strip = tmp_path / "strip.png"
     Image.fromarray(np.full((4000, 1, 3), 120, np.uint8)).save(strip)
     said = "has transparency; it is filled with white"
@@ -794,12 +800,7 @@ def test_a_project_opened_in_step_2_keeps_the_photos_notes_at_hand(window, settl
     a click shows it without hovering; a photo with nothing to say has none."""
     from PySide6.QtWidgets import QApplication, QToolTip
 
-    rgba = np.zeros((96, 128, 4), np.uint8)
-    rgba[..., :3] = (90, 140, 70)
-    rgba[..., 3] = 255
-    rgba[:30, :, 3] = 0  # a cut-out sky
-    cutout = tmp_path / "cutout.png"
-    Image.fromarray(rgba, "RGBA").save(cutout)
+    cutout = _cutout_png(tmp_path)
     said = "The photo has transparency; it is filled with white"
     notes = window.photo_notes_button
     assert not notes.isVisibleTo(window)  # no photo
@@ -833,7 +834,7 @@ def test_a_project_opened_in_step_2_keeps_the_photos_notes_at_hand(window, settl
     assert "heading below" in window.align_panel.exif_note.text()  # step 1's, under the button
 
     plain = tmp_path / "plain.png"  # nothing to say: no "Photo notes" (not even the EXIF's
-    Image.fromarray(rgba[..., :3]).save(plain)  # "no GPS position", true of most photos)
+    Image.open(cutout).convert("RGB").save(plain)  # "no GPS position", true of most photos)
     window.open_path(_project_in_step_2(plain))
     settle()
     assert window.step is Step.RELIGHT and not notes.isVisibleTo(window)

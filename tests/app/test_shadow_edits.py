@@ -21,7 +21,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     MAX_SHADOW_EDITS,
     ShadowEdit,
 )
-from tests.app.conftest import make_photo
+from tests.app.conftest import make_photo, undo_texts
 from tests.app.test_main_window import _confirm, _load, _timelapse
 
 # make_photo's dark band (found as a shadow) at 128 x 96, and where to click it.
@@ -112,10 +112,6 @@ def _handed_edits(window, settle) -> tuple:
     return edits
 
 
-def _undo_texts(window) -> list[str]:
-    return [window.undo_stack.text(i) for i in range(window.undo_stack.count())]
-
-
 def test_edit_menu_names_the_corrections():
     from app.history import EditState, describe_change
 
@@ -161,7 +157,7 @@ def test_not_a_shadow_drops_the_found_region(qtbot, window, photo, settle, error
     assert window.session.shadow_edits == window.shadow_edits
     assert window.session.shadow_probability[BAND].mean() < 0.1
     assert _alpha(window.canvas.overlay())[BAND].mean() < 30  # the shown overlay follows
-    assert _undo_texts(window)[-1] == "Not a shadow"
+    assert undo_texts(window)[-1] == "Not a shadow"
     assert window.has_unsaved_changes() and window.isWindowModified()
     assert rp.clear_shadow_edits_button.isEnabled() and rp.shadow_tool() == "not_shadow"
 
@@ -174,7 +170,7 @@ def test_mark_shadow_adds_a_missed_shadow_and_lifts_it(qtbot, window, patch_phot
     assert window.stage_label.text().startswith("Click inside a shadow the app missed")
     _click(qtbot, window, *PATCH_XY)
     settle()
-    assert window.shadow_edits[-1].shadow and _undo_texts(window)[-1] == "Mark shadow"
+    assert window.shadow_edits[-1].shadow and undo_texts(window)[-1] == "Mark shadow"
     p = window.session.shadow_probability
     assert p[PATCH].mean() > 0.9 and p[LIT].mean() < 0.1  # the patch, not the ground round it
     after = _rgb(window.canvas.after()).astype(np.float32)  # redrawn without asking
@@ -236,7 +232,7 @@ def test_clear_corrections_is_one_undo_step(qtbot, window, patch_photo, settle):
     window.relight_panel.clear_shadow_edits_button.click()
     settle()
     assert window.shadow_edits == () and _handed_edits(window, settle) == ()
-    assert _undo_texts(window)[-3:] == ["Not a shadow", "Mark shadow", "Clear shadow corrections"]
+    assert undo_texts(window)[-3:] == ["Not a shadow", "Mark shadow", "Clear shadow corrections"]
     assert not window.relight_panel.clear_shadow_edits_button.isEnabled()
     window.act_undo.trigger()
     settle()
@@ -335,7 +331,7 @@ def test_tools_are_unavailable_in_step_1_and_in_other_views(qtbot, window, photo
     assert rp.shadow_tool() == "" and not window.canvas.click_tool()
     _click(qtbot, window, *BAND_XY)
     settle()
-    assert window.shadow_edits == () and "Not a shadow" not in _undo_texts(window)
+    assert window.shadow_edits == () and "Not a shadow" not in undo_texts(window)
 
 
 def test_tools_are_exclusive_and_esc_ends_them(qtbot, window, photo, settle):
@@ -563,7 +559,7 @@ def test_a_drag_paints_one_stroke_that_undo_takes_back_whole(qtbot, window, phot
     assert dabs[0].x == pytest.approx(0.27, abs=0.01) and dabs[-1].x == pytest.approx(0.40,
                                                                                        abs=0.01)
     assert window.undo_stack.count() == count + 1
-    assert _undo_texts(window)[-1] == "Paint not a shadow"
+    assert undo_texts(window)[-1] == "Paint not a shadow"
     assert rp.shadow_edits_label.text() == "1 correction"  # a stroke, not its dabs
     assert window.has_unsaved_changes()
     p = window.session.shadow_probability
@@ -580,7 +576,7 @@ def test_a_drag_paints_one_stroke_that_undo_takes_back_whole(qtbot, window, phot
     _tool(window, "shadow")
     _drag(window, [(0.33, 0.55), (0.33, 0.7)])  # from lit ground into the band
     settle()
-    assert _undo_texts(window)[-1] == "Paint shadow"
+    assert undo_texts(window)[-1] == "Paint shadow"
     prob = window.session.shadow_probability
     assert prob[64:67, 41:44].min() > 0.9  # the band's, fading out where the stroke ends:
     assert 0.5 < prob[67:70, 41:44].min() < 0.9  # a soft brush
@@ -588,7 +584,7 @@ def test_a_drag_paints_one_stroke_that_undo_takes_back_whole(qtbot, window, phot
     _tool(window, "not_shadow")
     _click(qtbot, window, 0.48, 0.7)
     settle()
-    assert _undo_texts(window)[-1] == "Not a shadow" and window.shadow_edits[-1].radius == 0
+    assert undo_texts(window)[-1] == "Not a shadow" and window.shadow_edits[-1].radius == 0
     assert rp.shadow_edits_label.text() == "3 corrections"
     window.act_undo.trigger()
     window.act_undo.trigger()
@@ -623,7 +619,7 @@ def test_a_press_without_a_drag_is_still_a_region_click(qtbot, window, photo, se
     _mouse(canvas, QEvent.Type.MouseButtonRelease, at + QPoint(1, 0), Qt.MouseButton.NoButton)
     settle()
     (edit,) = window.shadow_edits
-    assert edit.radius == 0 and _undo_texts(window)[-1] == "Not a shadow"
+    assert edit.radius == 0 and undo_texts(window)[-1] == "Not a shadow"
     assert window.session.shadow_probability[BAND].max() < 0.05  # the whole band
 
 

@@ -13,7 +13,7 @@ from PIL import Image
 from PySide6.QtGui import QImage
 
 from app.state import BUFFER_VIEWS, load_project, project_path_for
-from tests.app.conftest import make_photo
+from tests.app.conftest import make_photo, undo_texts
 from tests.app.test_main_window import _confirm, _load, _results
 
 BAND = (slice(66, 72), slice(34, 62))  # inside make_photo's dark band at 128 x 96
@@ -152,7 +152,7 @@ def test_a_new_original_sun_or_preset_recomputes_the_view(window, photo, settle)
     settle()
     assert window._deshadow_images is not second
     # The view choices made along the way are no undo steps.
-    texts = [window.undo_stack.text(i) for i in range(window.undo_stack.count())]
+    texts = undo_texts(window)
     assert texts == [
         "Confirm original sun", "Re-align original sun", "Confirm original sun", "Quality: Balanced"
     ]  # fmt: skip

@@ -4,7 +4,7 @@ keeps its percentage in view, and what it says and shows is the job that is runn
 from __future__ import annotations
 
 import pytest
-from PySide6.QtWidgets import QApplication, QLabel
+from PySide6.QtWidgets import QApplication
 
 from app.main_window import SHADOW_TOOL_HINTS, STAGE_WORDS
 from app.state import Step
@@ -21,11 +21,6 @@ def _bar(qtbot, window, size):
     window.zoom_label.setText("30 %")
     window.photo_notes_button.show()
     window.timings_label.setText(TIMINGS)
-
-
-def _shown(label: QLabel) -> str:
-    """What a status label draws (its ``text()`` is the whole message)."""
-    return QLabel.text(label)
 
 
 def _laid_out(window) -> None:
@@ -46,17 +41,17 @@ def test_the_message_takes_its_room_before_the_timings(qtbot, window, message):
     label, timings = window.stage_label, window.timings_label
     label.setText(message)
     _laid_out(window)
-    assert _shown(label) == message
+    assert label.shown() == message
     assert label.width() >= label.fontMetrics().horizontalAdvance(message)
     assert timings.text() == TIMINGS
-    shown = _shown(timings)
+    shown = timings.shown()
     assert shown != TIMINGS and (shown == "" or shown.endswith(" · …"))
     assert TIMINGS.startswith(shown.removesuffix("…"))  # whole entries, from the first
     assert timings.fontMetrics().horizontalAdvance(shown) <= timings.contentsRect().width()
     assert label.geometry().right() < timings.geometry().left()
     window.resize(2400, 700)  # room for both: both whole
     _laid_out(window)
-    assert _shown(timings) == TIMINGS and _shown(label) == message
+    assert timings.shown() == TIMINGS and label.shown() == message
 
 
 def test_a_tools_hint_is_not_cut_to_nothing_by_the_timings(qtbot, window):
@@ -68,8 +63,8 @@ def test_a_tools_hint_is_not_cut_to_nothing_by_the_timings(qtbot, window):
     label = window.stage_label
     label.setText(hint)
     _laid_out(window)
-    assert _shown(label).startswith("Click inside a shadow the app missed")
-    assert _shown(window.timings_label) == "" and window.timings_label.width() == 0
+    assert label.shown().startswith("Click inside a shadow the app missed")
+    assert window.timings_label.shown() == "" and window.timings_label.width() == 0
     notes = window.photo_notes_button.geometry()  # the first of the permanent widgets
     assert notes.left() - label.geometry().right() < 20  # (the layout's spacing)
 
@@ -93,7 +88,7 @@ def test_an_exports_progress_keeps_its_percentage_in_view(qtbot, window):
     _laid_out(window)
     assert bar.text() == "45 %" and bar.width() >= bar.minimumWidth()
     assert window.statusBar().rect().contains(bar.geometry())
-    assert _shown(window.stage_label).endswith("…")
+    assert window.stage_label.shown().endswith("…")
     runner.idle.emit()
     assert not bar.isVisible()
 

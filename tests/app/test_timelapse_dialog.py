@@ -208,3 +208,80 @@ def test_a_timing_under_way_is_not_submitted_again(window, photo, settle, monkey
     assert calls == ["gif", "mp4"]
     assert "could not be timed" in dialog.estimate_label.text()
     assert gif_key not in dialog._untimed and dialog._estimate_key() in dialog._untimed
+
+
+def _wait_for(event) -> None:
+    """Deliver the GUI's events until the worker sets ``event`` (a job under way)."""
+    import time as _time
+
+    from PySide6.QtWidgets import QApplication
+
+    deadline = _time.monotonic() + 10.0
+    while not event.is_set() and _time.monotonic() < deadline:
+        QApplication.processEvents()
+        _time.sleep(0.01)
+    assert event.is_set()
+
+
+def test_a_timing_of_other_settings_is_cancelled_for_the_new_one(window, photo, settle,
+                                                                  monkeypatch):
+    """A review: the short export timed for the settings before (another format) ran to its
+    end ahead of the one for the settings now, its result for nobody."""
+    import threading
+
+    _relight(window, photo, settle)
+    cancels: list[threading.Event] = []
+    real = tl.render_timelapse
+    running, release = threading.Event(), threading.Event()
+
+    def spy(session, samples, path, **kw):
+        cancels.append(kw["cancel"])
+        if len(cancels) == 1:
+            running.set()
+            release.wait(10.0)  # the gif's timing is under way while the format changes
+        return real(session, samples, path, **kw)
+
+    monkeypatch.setattr(tl, "render_timelapse", spy)
+    dialog = _timelapse(window, 48, "gif")
+    _wait_for(running)
+    gif_key = dialog._estimate_key()
+    try:
+        dialog.format_combo.setCurrentIndex(dialog.format_combo.findData("mp4"))
+        assert cancels[0].is_set()  # the gif's timing: for nobody now
+    finally:
+        release.set()
+    settle()
+    assert len(cancels) == 2 and not cancels[1].is_set()
+    assert gif_key not in dialog._timings and dialog.estimate() is not None
+
+
+def test_an_estimate_that_fails_is_not_submitted_again(window, photo, settle, errors,
+                                                       monkeypatch):
+    """A review: the session's settings were set outside the timing's ``try``; when they failed
+    the job failed, the dialog forgot the settings it was timing and timed them again, for
+    ever. The failure is said for these settings, once."""
+    _relight(window, photo, settle)
+
+    def broken(edits):
+        raise RuntimeError("no shadows")
+
+    monkeypatch.setattr(window.session, "set_shadow_edits", broken)
+    runner, submitted = window.runner, []
+    real_submit = runner.submit
+
+    def counting(channel, fn, description=""):
+        if channel == "tl_estimate":
+            submitted.append(channel)
+            if len(submitted) > 3:  # (without the fix: ends the loop, not the test)
+                return 0
+        return real_submit(channel, fn, description)
+
+    monkeypatch.setattr(runner, "submit", counting)
+    dialog = _timelapse(window, 5)
+    settle()
+    assert len(submitted) == 1
+    assert dialog.estimate() is None and dialog._estimate_key() in dialog._untimed
+    assert dialog.estimate_label.text().endswith(": the export could not be timed")
+    dialog.frames_box.setValue(6)  # the same settings' timing: not asked again
+    settle()
+    assert len(submitted) == 1
