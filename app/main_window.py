@@ -1030,7 +1030,6 @@ class MainWindow(QMainWindow):
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.io.depth_models import pick_depth_source
             from outcast_core.runtime.io.imageio import read_depth, read_image
-            from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
             from outcast_core.runtime.pipeline.session import RelightSession, check_given_depth
 
             ctx.progress("reading", 0.02)
@@ -1056,11 +1055,11 @@ class MainWindow(QMainWindow):
                 )
             focal = loaded.exif.focal_35mm if loaded.exif else None
             session.set_image(loaded.image_srgb, focal_35mm=focal or None, depth=depth,
-                              progress=session_progress(ctx, TILT_STAGE, 0.9))
-            # The camera's pitch and roll (its metadata's, else the ground plane's): the frame
-            # in which the EXIF sun and the real sun path are given.
-            tilt = photo_camera_tilt(session, path)
-            session.set_camera_tilt(*tilt[:2])  # the new sun's daylight: the same horizon
+                              progress=session_progress(ctx, TILT_STAGE, 0.9), photo_path=path)
+            # The camera's pitch and roll (its metadata's, the sun in the frame's, else the
+            # ground plane's): the frame in which the EXIF sun and the real sun path are given,
+            # and the new sun's daylight's horizon.
+            tilt = session.photo_tilt()
             photo = display.to_uint8_rgb(loaded.image_srgb)
             return {"path": path, "loaded": loaded, "session": session, "photo": photo,
                     "depth_path": depth_path, "depth_note": note, "tilt": tilt,
@@ -1694,20 +1693,16 @@ class MainWindow(QMainWindow):
         if session is None:
             return
 
-        path = self.image_path
         edits = self.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            from outcast_core.runtime.pipeline.auto_sun import photo_camera_tilt
-
             session.set_shadow_edits(edits)  # before the found shadows are redone at its size
             redo = session.original_sun is not None  # (its shadows, at the new working size)
             session.set_preset(name, progress=session_progress(
                 ctx, REDO_STAGE if redo else TILT_STAGE, 0.7 if redo else 0.9))
             if redo:
                 ctx.progress(TILT_STAGE, 0.95)
-            tilt = photo_camera_tilt(session, path)
-            session.set_camera_tilt(*tilt[:2])  # the new sun's daylight: the same horizon
+            tilt = session.photo_tilt()  # this preset's depth: its ground plane
             return {"timings": _timings(session), "tilt": tilt, "session": session}
 
         self.runner.submit("preset", job, f"Switching to {name}")
