@@ -8,7 +8,9 @@ photos whose gap is at most ``--within`` (issue 17: 0.03 for at least 70 %), mea
 
 Held-out synthetic views (``--synthetic DIR``, made by ``outcast data make``; the true sun is
 known): the angle between the found and the true sun, with the depth the app would estimate
-(``Z``) and with the renderer's exact depth (``--given-depth``), and the time per view.
+(``Z``) and with the renderer's exact depth (``--given-depth``), and the time per view; with the
+sun model (``models/sun.onnx``) also the angle of ``D``'s own peak (``look_angle``). ``--set
+LOOK_WEIGHT=0`` measures the search without ``D``.
 
 The samples (``--samples``: ``samples/`` with ``suns.json``): the angle between the found sun and
 the listed one, and the found elevation against astral's from the EXIF GPS and time, without the
@@ -139,12 +141,16 @@ def measure_synthetic(folder: str, *, preset: str, limit: int | None,
             fit = find_sun(s, measure=MEASURE[0])
             sec = time.perf_counter() - t0
             true = np.asarray(view["sun"][k], np.float64)
-            ang = math.degrees(math.acos(float(np.clip(fit.w @ true / np.linalg.norm(true),
-                                                       -1.0, 1.0))))
+            true = true / np.linalg.norm(true)
+            ang = math.degrees(math.acos(float(np.clip(fit.w @ true, -1.0, 1.0))))
+            look = s.sun_look()  # D's own peak, when the sun model is there and used
+            look_ang = None if look is None else round(math.degrees(math.acos(float(
+                np.clip(look.peak() @ true, -1.0, 1.0)))), 2)
             rows.append({"view": view["meta"].get("seed", len(rows)), "sun": k,
                          "true": [round(float(x), 1) for x in view["sun_azel"][k]],
                          "found": [round(fit.azimuth, 1), round(fit.elevation, 1)],
-                         "angle": round(ang, 2), "confidence": round(fit.confidence, 3),
+                         "angle": round(ang, 2), "look_angle": look_ang,
+                         "confidence": round(fit.confidence, 3),
                          "seconds": round(sec, 3)})
             print(json.dumps(rows[-1]), flush=True)
     angles = np.array([r["angle"] for r in rows])
@@ -156,6 +162,9 @@ def measure_synthetic(folder: str, *, preset: str, limit: int | None,
                if (conf >= 0.3).any() else None,
                "confident": int((conf >= 0.3).sum()),
                "median_seconds": round(float(np.median([r["seconds"] for r in rows])), 3)}
+    looks = [r["look_angle"] for r in rows if r["look_angle"] is not None]
+    if looks:  # D alone: the peak of its distribution
+        summary["look_median_angle"] = round(float(np.median(looks)), 2)
     print(json.dumps(summary))
     return {"rows": rows, "summary": summary}
 

@@ -51,6 +51,8 @@ def training_record(ckpt: dict[str, Any], data_seed: int | None) -> dict[str, An
         "loss_replacing_elpips": (
             "none needed: Z is trained with a scale-invariant log loss and sky cross-entropy"
             if cfg["stage"] == "depth"
+            else "none needed: D is trained with a cross-entropy over sun directions"
+            if cfg["stage"] == "sun"
             else "L1 + (1 - SSIM) / 2 (E-LPIPS backbones cannot be downloaded)"
         ),
         "data_record": rec,

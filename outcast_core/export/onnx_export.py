@@ -39,8 +39,8 @@ class IOSpec:
     """
 
     inputs: tuple[tuple[str, int | None], ...]  # (name, channels; None = a B x 3/1 vector)
-    outputs: tuple[tuple[str, int], ...]
-    vectors: dict[str, int]  # vector inputs: name -> length
+    outputs: tuple[tuple[str, int | None], ...]  # (name, channels; None = a B x K vector)
+    vectors: dict[str, int]  # vector inputs and outputs: name -> length
 
 
 SPECS: dict[str, IOSpec] = {
@@ -63,6 +63,8 @@ SPECS: dict[str, IOSpec] = {
     ),
 }
 SPECS["shadow_2d"] = SPECS["shadow"]
+#: ``D``: one probability logit per direction bin (``outcast_core.nets.sun.BINS``).
+SPECS["sun"] = IOSpec((("image", 3),), (("logits", None),), {"logits": 320})
 #: ``L`` with the physics base (``RelightNet(base="physics")``) takes the light ratio as well.
 RELIGHT_PHYSICS = IOSpec(
     SPECS["relight"].inputs + (("light_ratio", None),), SPECS["relight"].outputs,
@@ -76,6 +78,9 @@ def spec_for(kind: str, net: nn.Module | None = None) -> IOSpec:
         raise ValueError(f"expected a kind in {sorted(SPECS)}, got {kind!r}")
     if kind == "relight" and getattr(net, "base", "photo") == "physics":
         return RELIGHT_PHYSICS
+    if kind == "sun" and net is not None:  # as many logits as the network has bins
+        return IOSpec(SPECS["sun"].inputs, SPECS["sun"].outputs,
+                      {"logits": int(net.bins.shape[0])})
     return SPECS[kind]
 
 
@@ -176,8 +181,8 @@ def export_onnx(
     dynamic: dict[str, dict[int, str]] = {}
     for n, ch in spec.inputs:
         dynamic[n] = {0: "batch"} if ch is None else {0: "batch", 2: "height", 3: "width"}
-    for n in names_out:
-        dynamic[n] = {0: "batch", 2: "height", 3: "width"}
+    for n, ch in spec.outputs:
+        dynamic[n] = {0: "batch"} if ch is None else {0: "batch", 2: "height", 3: "width"}
     with torch.no_grad(), warnings.catch_warnings():
         # The legacy exporter is chosen on purpose (dynamic H/W at opset 17); silence its
         # deprecation notice and the tracer's notes about the input checks (constant at trace).
@@ -209,7 +214,7 @@ def io_shapes(
         return ["B", ch, "H", "W"]
 
     ins = [{"name": n, "shape": shape(c, n)} for n, c in spec.inputs]
-    outs = [{"name": n, "shape": ["B", c, "H", "W"]} for n, c in spec.outputs]
+    outs = [{"name": n, "shape": shape(c, n)} for n, c in spec.outputs]
     return ins, outs
 
 
@@ -244,6 +249,10 @@ def write_manifest(
     if kind == "depth" and (training.get("config") or {}).get("size"):
         # The runtime shrinks larger photos to this side before Z (depth_post.run_depth_model).
         manifest["input_side"] = int(training["config"]["size"])
+    if kind == "sun":  # what the runtime needs to read D's logits (runtime.pipeline.sun_look)
+        manifest["bins"] = int(net.bins.shape[0])
+        manifest["kappa"] = _sun_kappa()
+        manifest["input_side"] = int((training.get("config") or {}).get("size") or 128)
     if kind in ("shadow", "shadow_2d") and hasattr(net, "steps"):
         manifest["march_steps"] = int(net.steps)
         manifest["march_step"] = float(net.step)
@@ -253,6 +262,12 @@ def write_manifest(
     out = onnx_path.with_suffix(".json")
     out.write_text(json.dumps(manifest, indent=2) + "\n")
     return out
+
+
+def _sun_kappa() -> float:
+    from outcast_core.nets.sun import KAPPA
+
+    return float(KAPPA)
 
 
 def update_metrics(manifest_path: Path, metrics: dict[str, Any]) -> None:

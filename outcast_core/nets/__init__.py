@@ -13,6 +13,7 @@ from torch import nn
 from outcast_core.nets.depth import DepthNet
 from outcast_core.nets.relight import PatchDiscriminator, Pix2PixRelightNet, RefineNet, RelightNet
 from outcast_core.nets.shadow import Shadow2DNet, ShadowNet
+from outcast_core.nets.sun import SunNet
 
 #: Network kind -> class. The kinds are also the shipped ONNX names.
 NETWORKS: dict[str, type[nn.Module]] = {
@@ -23,6 +24,7 @@ NETWORKS: dict[str, type[nn.Module]] = {
     "relight": RelightNet,
     "relight_pix2pix": Pix2PixRelightNet,
     "critic": PatchDiscriminator,
+    "sun": SunNet,
 }
 
 
@@ -35,5 +37,5 @@ def build(kind: str, **kwargs: Any) -> nn.Module:
 
 __all__ = [
     "NETWORKS", "DepthNet", "PatchDiscriminator", "Pix2PixRelightNet", "RefineNet", "RelightNet",
-    "Shadow2DNet", "ShadowNet", "build",
+    "Shadow2DNet", "ShadowNet", "SunNet", "build",
 ]

@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-STAGES = ("shadow", "shadow_2d", "relight", "relight_pix2pix", "depth")
+STAGES = ("shadow", "shadow_2d", "relight", "relight_pix2pix", "depth", "sun")
 
 
 @dataclass
@@ -24,7 +24,8 @@ class TrainConfig:
         run: run name (checkpoint folder).
         stage: what is trained (one of :data:`STAGES`). ``relight`` trains ``R``, ``L`` and the
             critic ``A`` jointly on top of a frozen ``S`` (``shadow_checkpoint``);
-            ``relight_pix2pix`` trains the ablation with the same critic.
+            ``relight_pix2pix`` trains the ablation with the same critic; ``sun`` trains ``D``
+            (the sun's direction from the photo, :mod:`outcast_core.nets.sun`).
         data: training data folder (views written by ``outcast data make``).
         extra_data: more data folders whose views are all added to ``data``'s (e.g. a set of
             one-sun views made for ``Z`` only, or of one scene kind); ``max_views`` applies to
@@ -76,7 +77,8 @@ class TrainConfig:
         init_onnx: when this run has no checkpoint yet, start the stage's network from the
             weights of a shipped ONNX model (e.g. ``models/depth.onnx``: its initialisers carry
             the network's parameter names); optimiser, step and schedule start afresh. For
-            continuing a model whose training checkpoint is gone.
+            continuing a model whose training checkpoint is gone. The ``sun`` stage may name
+            ``models/depth.onnx``: ``D``'s encoder then starts from ``Z``'s.
         sun_noise_deg: std of the angular noise added to the original sun (user alignment).
         cloud_prob: probability of painting random clouds into the sky of a training pair (the
             synthetic skies are cloudless; see :func:`outcast_core.train.data.add_clouds`).
@@ -85,10 +87,10 @@ class TrainConfig:
         zoom_max: the largest zoom factor (uniform in ``[1, zoom_max]``).
         degrade_prob: probability that a pair's input photo gets a camera's flaws (white
             balance, blur, noise, JPEG: :func:`outcast_core.train.data.degrade_photo`); the
-            depth and shadow stages only (a relighting target must stay clean).
+            depth, shadow and sun stages only (a relighting target must stay clean).
         stain_prob: probability that a pair's input photo gets dark stains and fine albedo
             texture that no geometry casts (:func:`outcast_core.train.data.stain_photo`); the
-            depth and shadow stages only.
+            depth, shadow and sun stages only.
         exposure_stops: range of the random exposure (both images of a pair alike).
         saturation: range of the random saturation factor.
         gamma: range of the random gamma.
@@ -168,8 +170,9 @@ class TrainConfig:
             raise ValueError(f"expected zoom_prob only for the depth stage (a zoomed view's "
                              f"principal point is off centre), got stage {self.stage!r}")
         for key in ("degrade_prob", "stain_prob"):
-            if getattr(self, key) > 0 and self.stage not in ("depth", "shadow", "shadow_2d"):
-                raise ValueError(f"expected {key} only for the depth and shadow stages, got "
+            if getattr(self, key) > 0 and self.stage not in ("depth", "shadow", "shadow_2d",
+                                                             "sun"):
+                raise ValueError(f"expected {key} only for the depth, shadow and sun stages, got "
                                  f"stage {self.stage!r}")
         if self.relight_base not in ("photo", "physics"):
             raise ValueError(f"expected relight_base photo or physics, got {self.relight_base!r}")

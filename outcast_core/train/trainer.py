@@ -15,6 +15,9 @@ Stages (``TrainConfig.stage``):
 * ``relight_pix2pix``: the ablation, ``L`` without shadow inputs, same critic (conditioned on
   ``C_o`` and an empty shadow channel).
 * ``depth``: ``Z`` with the scale-invariant log loss plus binary cross-entropy on the sky mask.
+* ``sun``: ``D`` (:mod:`outcast_core.nets.sun`), the original sun's direction from the photo,
+  with the cross-entropy against a von Mises-Fisher kernel about the true sun; ``init_onnx`` may
+  name ``models/depth.onnx`` to start its encoder from ``Z``'s.
 
 ``f_S``, ``f_R``, ``f_L`` are ``L1 + DSSIM`` (:func:`outcast_core.train.losses.structural_loss`),
 our stand-in for the paper's E-LPIPS. Checkpoints (``last.pt``: networks, optimisers, RNG states,
@@ -45,6 +48,7 @@ from torch import nn
 from outcast_core.nets import build
 from outcast_core.nets.depth import gradient_matching_loss, normal_loss, scale_invariant_log_loss
 from outcast_core.nets.geometry_torch import normals_from_depth
+from outcast_core.nets.sun import expected_angle_deg, sun_loss
 from outcast_core.train import distributed
 from outcast_core.train.config import TrainConfig, run_dir
 from outcast_core.train.data import PairSampler, Prepared, find_views, load_prepared
@@ -63,6 +67,7 @@ STAGE_NETS: dict[str, tuple[str, ...]] = {
     "relight": ("refine", "relight", "critic"),
     "relight_pix2pix": ("relight_pix2pix", "critic"),
     "depth": ("depth",),
+    "sun": ("sun",),
 }
 
 
@@ -128,19 +133,22 @@ def onnx_origin(path: str | Path) -> dict[str, Any]:
     return rec
 
 
-def load_onnx_weights(net: nn.Module, path: str | Path) -> None:
+def load_onnx_weights(net: nn.Module, path: str | Path, prefix: str = "") -> None:
     """Copy an exported ONNX model's initialisers into ``net`` by parameter name.
 
     ``torch.onnx.export`` keeps the state-dict names of parameters it does not fold, so a model
-    exported from this network type holds every entry of its state dict. Raises ``ValueError``
-    when one is missing or has another shape (a model of another network or width).
+    exported from this network type holds every entry of its state dict. With ``prefix`` only
+    the entries whose names start with it are copied (``D``'s encoder from ``Z``'s model:
+    ``"unet.enc."``); the rest keep their values. Raises ``ValueError`` when one is missing or
+    has another shape (a model of another network or width).
     """
     import onnx
     from onnx import numpy_helper
 
     model = onnx.load(str(path))
     weights = {i.name: numpy_helper.to_array(i) for i in model.graph.initializer}
-    state = net.state_dict()
+    full = net.state_dict()
+    state = {k: v for k, v in full.items() if k.startswith(prefix)}
     missing = [k for k in state if k not in weights]
     wrong = [k for k in state if k in weights and tuple(weights[k].shape) != tuple(state[k].shape)]
     if missing or wrong:
@@ -149,7 +157,18 @@ def load_onnx_weights(net: nn.Module, path: str | Path) -> None:
             f"{len(missing)} missing ({missing[:3]}) and {len(wrong)} of another shape "
             f"({wrong[:3]})"
         )
-    net.load_state_dict({k: torch.from_numpy(weights[k].copy()) for k in state})
+    full.update({k: torch.from_numpy(weights[k].copy()) for k in state})
+    net.load_state_dict(full)
+
+
+def _is_depth_model(path: str | Path) -> bool:
+    """Whether an ONNX file is ``Z`` (its card says so, else its outputs do)."""
+    import onnx
+
+    card = Path(path).with_suffix(".json")
+    if card.exists():
+        return json.loads(card.read_text()).get("name") == "depth"
+    return [o.name for o in onnx.load(str(path)).graph.output] == ["depth", "sky"]
 
 
 def _postprocessed(
@@ -363,7 +382,10 @@ class Trainer:
         if ckpt is None:
             if self.cfg.init_onnx:
                 first = STAGE_NETS[self.cfg.stage][0]
-                load_onnx_weights(self.nets[first], self.cfg.init_onnx)
+                # D starts from a shipped D, or its encoder from Z's (``unet.enc.*``).
+                prefix = ("unet.enc." if self.cfg.stage == "sun"
+                          and _is_depth_model(self.cfg.init_onnx) else "")
+                load_onnx_weights(self.nets[first], self.cfg.init_onnx, prefix)
                 self.branched_from = onnx_origin(self.cfg.init_onnx)
             if self.cfg.init_relight_onnx:  # never with init_onnx (TrainConfig)
                 load_onnx_weights(self.nets["relight"], self.cfg.init_relight_onnx)
@@ -599,6 +621,16 @@ class Trainer:
         self.opt_g.step()
         return {"loss": loss.item(), **logs}
 
+    def _step_sun(self, t: dict[str, torch.Tensor]) -> dict[str, float]:
+        net = self.nets["sun"]
+        logits = self._forward("sun")(t["image"])
+        loss = sun_loss(logits, t["sun_old"], net.bins)
+        self.opt_g.zero_grad(set_to_none=True)
+        loss.backward()
+        self.opt_g.step()
+        angle = expected_angle_deg(logits.detach(), t["sun_old"], net.bins)
+        return {"loss": loss.item(), "angle": float(angle.median())}
+
     def lr_at(self, step: int) -> float:
         """The learning rate of optimiser step ``step`` (constant, or cosine to ``lr_final``)."""
         cfg = self.cfg
@@ -623,6 +655,8 @@ class Trainer:
             return self._step_shadow(t)
         if self.cfg.stage == "depth":
             return self._step_depth(t)
+        if self.cfg.stage == "sun":
+            return self._step_sun(t)
         return self._step_relight(t)
 
     # -- the loop ----------------------------------------------------------------------------

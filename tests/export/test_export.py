@@ -43,9 +43,35 @@ def test_export_parity_and_manifest(kind: str, tmp_path) -> None:
     assert man["pad_multiple"] == m
     if kind == "shadow":
         assert man["march_steps"] == 8 and man["volume_scale"] == 0.5
-    # Only Z records the side it was trained at (the runtime shrinks photos to it).
+    # Only Z and D record the side they were trained at (the runtime shrinks photos to it).
     man = json.loads(write_manifest(net, kind, path, {"config": {"size": 96}}).read_text())
-    assert man.get("input_side") == (96 if kind == "depth" else None)
+    assert man.get("input_side") == (96 if kind in ("depth", "sun") else None)
+    if kind == "sun":  # what the runtime needs to read D's logits
+        assert man["bins"] == net.bins.shape[0] and man["kappa"] > 0
+        assert man["outputs"] == [{"name": "logits", "shape": ["B", man["bins"]]}]
+
+
+def test_an_exported_sun_model_reads_in_the_runtime(tmp_path) -> None:
+    """D exported with a few bins runs through the registry and read_sun on any photo size;
+    the runtime's kernel mixture peaks at the bin the logits favour."""
+    from outcast_core.nets.sun import SunNet
+    from outcast_core.runtime.io.models import ModelRegistry
+    from outcast_core.runtime.pipeline.sun_look import read_sun
+
+    torch.manual_seed(0)
+    net = SunNet(bins=48).eval()
+    with torch.no_grad():  # logits that favour bin 7 whatever the photo
+        net.fc[-1].weight.zero_()
+        net.fc[-1].bias.zero_()
+        net.fc[-1].bias[7] = 6.0
+    export_onnx(net, "sun", tmp_path / "sun.onnx")
+    write_manifest(net, "sun", tmp_path / "sun.onnx", {"config": {"size": 64}})
+    model = ModelRegistry(tmp_path).load("sun")
+    for shape in ((300, 400, 3), (20, 90, 3)):
+        look = read_sun(model, np.random.default_rng(0).random(shape, np.float32))
+        assert look.probabilities.shape == (48,)
+        assert look.probabilities.sum() == pytest.approx(1.0)
+        np.testing.assert_allclose(look.peak(), net.bins[7].numpy(), atol=1e-6)
 
 
 def test_model_input_side_from_the_manifest_or_its_training_config() -> None:

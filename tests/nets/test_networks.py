@@ -213,6 +213,41 @@ def test_parameter_budgets() -> None:
     assert 150_000 < counts["shadow"] < 350_000
     assert 350_000 < counts["relight"] < 700_000
     assert 700_000 < counts["depth"] < 1_300_000
+    assert 500_000 < counts["sun"] < 1_000_000
+
+
+def test_sun_net_shapes_targets_and_zs_encoder_names() -> None:
+    from outcast_core.nets.sun import BINS, SunNet, expected_angle_deg, soft_target, sun_loss
+
+    net = SunNet().eval()
+    logits = net(torch.rand(2, 3, 48, 64))  # any multiple of 16, not square
+    assert logits.shape == (2, BINS)
+    # The encoder's parameters are named as Z's, so a run can start it from models/depth.onnx.
+    z = build("depth").state_dict()
+    enc = {k: v for k, v in net.state_dict().items() if k.startswith("unet.enc.")}
+    assert enc and all(k in z and z[k].shape == v.shape for k, v in enc.items())
+    sun = torch.nn.functional.normalize(torch.tensor([[0.3, -0.8, 0.5], [-0.6, -0.2, -0.7]]),
+                                        dim=1)
+    t = soft_target(sun, net.bins)
+    torch.testing.assert_close(t.sum(dim=1), torch.ones(2))
+    nearest = (sun @ net.bins.T).argmax(dim=1)
+    assert torch.equal(t.argmax(dim=1), nearest)
+    # The loss is lowest for logits that put the target's mass where it is, and the coarse
+    # angle of such logits is the bin spacing's, not the far side of the sphere.
+    good = torch.log(t + 1e-9)
+    assert sun_loss(good, sun, net.bins) < sun_loss(torch.zeros_like(good), sun, net.bins)
+    assert float(expected_angle_deg(good, sun, net.bins).max()) < 10.0
+    assert float(expected_angle_deg(-good, sun, net.bins).min()) > 90.0
+    with pytest.raises(ValueError, match="B x 3 x H x W"):
+        net(torch.rand(1, 1, 32, 32))
+    # Frozen levels (Z's finest features kept) take no gradient; the rest do.
+    frozen = SunNet(freeze=2)
+    sun_loss(frozen(torch.rand(1, 3, 32, 32)), sun[:1], frozen.bins).backward()
+    grads = {k: p.grad is not None for k, p in frozen.named_parameters()}
+    assert not any(v for k, v in grads.items() if k.startswith(("unet.enc.0.", "unet.enc.1.")))
+    assert all(v for k, v in grads.items() if not k.startswith(("unet.enc.0.", "unet.enc.1.")))
+    with pytest.raises(ValueError, match="freeze"):
+        SunNet(freeze=6)
 
 
 def test_unknown_kind_raises() -> None:

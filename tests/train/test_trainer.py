@@ -84,7 +84,7 @@ def test_sampler_flip_mirrors_geometry(fake_views) -> None:
     assert seen_flip
 
 
-@pytest.mark.parametrize("stage", ["shadow", "shadow_2d", "relight_pix2pix", "depth"])
+@pytest.mark.parametrize("stage", ["shadow", "shadow_2d", "relight_pix2pix", "depth", "sun"])
 def test_each_stage_trains_and_resumes(stage: str, fake_views) -> None:
     views = [resize_view(v, 32) for v in fake_views]
     tr = Trainer(_cfg(stage), views, progress=False)
@@ -515,6 +515,30 @@ def test_depth_geometry_terms_and_start_from_a_shipped_onnx(fake_views, tmp_path
     s.train_step()
     with pytest.raises(ValueError, match="init_onnx or resume_from"):
         _cfg("depth", init_onnx="a.onnx", resume_from="other")
+
+
+def test_sun_stage_starts_its_encoder_from_z_and_learns_the_sun(fake_views, tmp_path) -> None:
+    """D's encoder starts from a shipped Z (its head fresh); the stage's loss is the
+    cross-entropy against the true original sun, and overfitting one view lowers it."""
+    from outcast_core.export.onnx_export import export_onnx
+    from outcast_core.nets import build
+
+    views = [resize_view(make_view(0, suns=1), 32)]
+    z = build("depth")
+    export_onnx(z, "depth", tmp_path / "depth.onnx", parity_sizes=[(32, 32)])
+    tr = Trainer(_cfg("sun", run="d_on_z", steps=40, init_onnx=str(tmp_path / "depth.onnx"),
+                      flip=False, exposure_stops=0.0, lr=3e-3, degrade_prob=0.5,
+                      stain_prob=0.5), views, progress=False)
+    zs = z.state_dict()
+    enc = {k: v for k, v in tr.nets["sun"].state_dict().items() if k.startswith("unet.enc.")}
+    for k, v in enc.items():
+        torch.testing.assert_close(v, zs[k])
+    first = tr.train_step()
+    assert set(first) == {"loss", "angle"}
+    for _ in range(40):
+        last = tr.train_step()
+    assert last["loss"] < 0.8 * first["loss"]
+    assert last["angle"] < 15.0  # the one view's sun, to the bins' spacing
 
 
 def test_degrade_photo_draws_alike_and_touches_only_the_input(fake_views) -> None:

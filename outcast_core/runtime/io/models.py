@@ -47,6 +47,7 @@ EXPECTED_INPUTS: dict[str, frozenset[str]] = {
         {"image", "shadow_old", "shadow_new", "normals", "sun_old", "sun_new", "view_dirs"}
     ),
     "relight_pix2pix": frozenset({"image", "normals", "sun_old", "sun_new", "view_dirs"}),
+    "sun": frozenset({"image"}),
 }
 #: Inputs the runtime also feeds, which some variants use (L on the physics base).
 OPTIONAL_INPUTS: dict[str, frozenset[str]] = {"relight": frozenset({"light_ratio"})}

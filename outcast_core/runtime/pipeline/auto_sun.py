@@ -182,6 +182,12 @@ SHADING_WEIGHT = 0.5
 #: and a 600 x 4000 strip were "found" with confidence 1.0).
 LEGIBLE_LOW = 24
 LEGIBLE_HIGH = 64
+#: The photo's look (``D``, :meth:`~outcast_core.runtime.pipeline.session.RelightSession.sun_look`)
+#: in the ranking: each sun's score gains ``LOOK_WEIGHT * log(max(likelihood, LOOK_FLOOR))``
+#: (likelihood 1 at ``D``'s peak), so a sun the look rules out loses at most
+#: ``LOOK_WEIGHT * log(1 / LOOK_FLOOR)`` of agreement. 0 leaves the shadows alone.
+LOOK_WEIGHT = 0.01
+LOOK_FLOOR = 1e-3
 #: Camera tilts (degrees) from the fitted ground plane beyond which it is not trusted.
 MAX_PLANE_TILT = 25.0
 
@@ -946,19 +952,29 @@ def find_sun(
     if prior is not None:
         pitch, roll, pose_source = camera_tilt(session, pitch_roll)
         frame = _Frame(pitch, roll)
+    sun_look = getattr(session, "sun_look", None)
+    look = sun_look() if callable(sun_look) and LOOK_WEIGHT > 0 else None
+
+    def look_term(vectors: np.ndarray) -> np.ndarray:
+        """The photo's look's pull (:data:`LOOK_WEIGHT`) on camera-space suns."""
+        if look is None or len(vectors) == 0:
+            return np.zeros(len(vectors))
+        return LOOK_WEIGHT * np.log(np.maximum(look.likelihood(vectors), LOOK_FLOOR))
 
     def bias(pts: Sequence[tuple[float, float]]) -> np.ndarray:
-        """The compass heading's soft pull (:attr:`SunPrior.azimuth_weight`)."""
+        """The compass heading's soft pull (:attr:`SunPrior.azimuth_weight`), less the photo's
+        look's (:func:`look_term`)."""
+        out = -look_term(frame.vectors(pts))
         if prior is None or prior.azimuth is None or not pts:
-            return np.zeros(len(pts))
+            return out
         dev = np.radians(np.array([a for a, _ in pts]) - prior.azimuth)
-        return prior.azimuth_weight * (1.0 - np.cos(dev)) / 2.0
+        return out + prior.azimuth_weight * (1.0 - np.cos(dev)) / 2.0
 
     # -- the coarse dome (the heat map), camera-relative
     check("trying suns over the dome", 0.08, "photo shadows")
     grid = [(a, e) for e in COARSE_ELEVATIONS for a in COARSE_AZIMUTHS]
     dome_agree, dome_shading = coarse.score(_Frame().vectors(grid))
-    dome = ranking(dome_agree, dome_shading, measure)
+    dome = ranking(dome_agree, dome_shading, measure) + look_term(_Frame().vectors(grid))
     evaluations = len(grid)
     amap = AgreementMap(np.array(COARSE_AZIMUTHS), np.array(COARSE_ELEVATIONS),
                         dome.reshape(len(COARSE_ELEVATIONS), len(COARSE_AZIMUTHS)))

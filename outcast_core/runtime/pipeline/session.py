@@ -92,6 +92,7 @@ from outcast_core.runtime.pipeline.relight import (
     toward_photo,
     transfer_to_full_resolution,
 )
+from outcast_core.runtime.pipeline.sun_look import SunLook, read_sun
 
 Progress = Callable[[str, float], None]
 
@@ -348,6 +349,10 @@ class RelightSession:
         self.preset = self._check_preset(preset)
         self._lock = threading.RLock()
         self.timings: dict[str, float] = {}
+        #: Whether :meth:`sun_look` reads the photo with ``D`` when ``models/sun.onnx`` is there
+        #: (the search for the sun then weighs its suns by it); not in the classic mode, which
+        #: uses no learned network but ``Z``.
+        self.use_sun_look = mode != "classic"
         self.full_image_srgb: np.ndarray | None = None
         self.greyscale = False
         self._given_depth: np.ndarray | None = None
@@ -445,6 +450,19 @@ class RelightSession:
                 self._photo_tilt = (float(found[0]), float(found[1]), str(found[2]))
             return self._photo_tilt
 
+    def sun_look(self) -> SunLook | None:
+        """``D``'s reading of the photo (:func:`~outcast_core.runtime.pipeline.sun_look.read_sun`:
+        where its look puts the sun, a distribution over directions), or None without a
+        ``sun`` model or when :attr:`use_sun_look` is off. Made once per photo and preset."""
+        with self._lock:
+            self._require_image()
+            if not self.use_sun_look or not self.registry.available("sun"):
+                return None
+            if self._sun_look is None:
+                assert self.image_srgb is not None
+                self._sun_look = read_sun(self.registry.load("sun"), self.image_srgb)
+            return self._sun_look
+
     def horizon_tilt(self) -> tuple[float, float]:
         """The camera's ``(pitch, roll)`` (degrees) against the horizon, as :meth:`horizon_up`
         takes it: :meth:`set_camera_tilt`'s, else :meth:`photo_tilt`'s. Suns turned or placed
@@ -498,6 +516,7 @@ class RelightSession:
     def _reset_working(self) -> None:
         self._up: np.ndarray | None = None
         self._photo_tilt: tuple[float, float, str] | None = None
+        self._sun_look: SunLook | None = None
         self.image_srgb: np.ndarray | None = None
         self.camera: Camera | None = None
         self.depth: np.ndarray | None = None

@@ -529,3 +529,30 @@ def test_cli_sun_says_which_sun_is_in_which_frame(capsys: pytest.CaptureFixture[
     out = json.loads(capsys.readouterr().out)
     assert [round(out["exif_camera_azimuth"]), round(out["exif_camera_elevation"])] == camera
     assert round(out["exif_elevation"]) == horizon[1]
+
+
+def test_the_photos_look_weighs_the_suns_without_overruling_clear_shadows(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """D's reading (``session.sun_look``) adds its log-likelihood to each sun's agreement: at
+    the default weight a look that points elsewhere does not move a sun the exact shadows
+    tell; weighted heavily it takes the search to its own sun; the classic mode reads none."""
+    from outcast_core.runtime.pipeline.sun_look import DEFAULT_KAPPA, SunLook, direction_bins
+
+    def look_at(w: np.ndarray) -> SunLook:
+        bins = direction_bins()
+        logits = DEFAULT_KAPPA * (bins @ w)
+        p = np.exp(logits - logits.max())
+        return SunLook(p / p.sum(), bins, DEFAULT_KAPPA)
+
+    true, other = sun_vector(150.0, 40.0), sun_vector(230.0, 55.0)
+    session = _session(_photo_lit_by(true))
+    assert session.sun_look() is None  # classic: no learned network reads the photo
+    session.sun_look = lambda: look_at(other)  # type: ignore[method-assign]
+    fit = find_sun(session)
+    assert _angle(fit.w, true) <= 6.0
+    monkeypatch.setattr(auto_sun, "LOOK_WEIGHT", 1.0)
+    pulled = find_sun(session)
+    assert _angle(pulled.w, other) <= 10.0
+    # The heat map shows what the search ranks by: warmest near the look's sun now.
+    az, el = pulled.map.best()
+    assert _angle(sun_vector(az, el), other) <= 25.0
