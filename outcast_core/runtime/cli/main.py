@@ -326,9 +326,14 @@ def _set_image(session, loaded, args: argparse.Namespace, progress=None) -> None
               file=sys.stderr)
 
 
+#: :class:`ProgressLine` says the time left once a stage has run this long (seconds).
+ETA_AFTER_S = 3.0
+
+
 class ProgressLine:
     """A ``(stage, fraction)`` progress callback that prints to stderr (nothing when
-    ``quiet``).
+    ``quiet``), with the time left at the stage's pace so far once it has run
+    :data:`ETA_AFTER_S` seconds.
 
     On a terminal, one line rewritten in place with ``\r``. Anywhere else (a log file, a pipe)
     ``\r`` runs every update into one line (a user trial's log), so each stage gets separate
@@ -348,13 +353,16 @@ class ProgressLine:
         (['frames:   1 %', 'frames:  10 %', 'frames:  20 %'], 11)
     """
 
-    def __init__(self, stream: object = None, *, quiet: bool = False, step: float = 0.1) -> None:
+    def __init__(self, stream: object = None, *, quiet: bool = False, step: float = 0.1,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.stream = stream
         self.quiet = quiet
         self.step = step
+        self.clock = clock
         self._stage: str | None = None
         self._mark = -1
         self._width = 0  # of the line open on a terminal (0: none)
+        self._began: tuple[str, float, float] | None = None  # stage, time, fraction at start
 
     def _out(self):  # sys.stderr when called, as print's default (pytest swaps it)
         return self.stream if self.stream is not None else sys.stderr
@@ -371,8 +379,9 @@ class ProgressLine:
             return
         fraction = min(1.0, max(0.0, float(fraction)))
         out = self._out()
+        left = self._time_left(stage, fraction)
         if self._tty():
-            text = f"{stage}: {100.0 * fraction:5.1f} %"
+            text = f"{stage}: {100.0 * fraction:5.1f} %{left}"
             print("\r" + text.ljust(self._width), end="", file=out, flush=True)
             self._width = len(text)
             return
@@ -380,7 +389,22 @@ class ProgressLine:
         if stage == self._stage and mark <= self._mark:
             return
         self._stage, self._mark = stage, mark
-        print(f"{stage}: {100.0 * fraction:3.0f} %", file=out, flush=True)
+        print(f"{stage}: {100.0 * fraction:3.0f} %{left}", file=out, flush=True)
+
+    def _time_left(self, stage: str, fraction: float) -> str:
+        """``", about 40 s left"`` from the stage's own pace so far, once it has run
+        :data:`ETA_AFTER_S` seconds (before that, and at its end, nothing)."""
+        now = self.clock()
+        if self._began is None or self._began[0] != stage:
+            self._began = (stage, now, fraction)
+            return ""
+        _, t0, f0 = self._began
+        elapsed, done = now - t0, fraction - f0
+        if elapsed < ETA_AFTER_S or done <= 0.0 or fraction >= 1.0:
+            return ""
+        from outcast_core.runtime.pipeline.timelapse import describe_seconds
+
+        return f", {describe_seconds(elapsed * (1.0 - fraction) / done)} left"
 
     def end_line(self) -> None:
         """End the terminal line the progress left open, if any."""

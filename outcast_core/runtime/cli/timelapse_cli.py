@@ -33,8 +33,6 @@ from outcast_core.runtime.pipeline.timelapse import (
     MAX_FPS,
     MIN_FPS,
     SunSample,
-    describe_seconds,
-    estimate_seconds,
     format_from_path,
     frame_shape,
     frames_folder_problem,
@@ -328,14 +326,14 @@ def _run_timelapse(args: argparse.Namespace, loaded: Any, exif: Any, session: An
         raise ValueError(f"expected either --full-res or --size, got --full-res --size {size}")
     work = session.image_srgb.shape[:2]
     shape = frame_shape(size, session.full_image_srgb.shape[:2], work)
-    guess = estimate_seconds(len(samples), shape, work, dict(session.timings),
-                             format_from_path(args.output))
     odd = format_from_path(args.output) == "mp4" and (shape[0] % 2 or shape[1] % 2)
     padded = (f", written as {shape[1] + shape[1] % 2}x{shape[0] + shape[0] % 2} (H.264 needs "
               "even sides: the edge is repeated)" if odd else "")
     if not quiet:
-        print(f"rendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}){padded}, "
-              f"{describe_seconds(guess)}", file=sys.stderr)
+        # No guess up front: a formula from the session's last stages was 4x off (the app
+        # times a short export instead); the progress says the time left at the frames' pace.
+        print(f"rendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}){padded}",
+              file=sys.stderr)
     out = render_timelapse(
         session,
         samples,

@@ -62,20 +62,6 @@ MIN_RENDER_ELEVATION = 0.5
 FRAME_SIZES = ("working", "720p", "1080p", "4k", "full")
 DEFAULT_FRAME_SIZE = "1080p"
 SHORT_SIDES = {"720p": 720, "1080p": 1080, "4k": 2160}
-#: Seconds per output megapixel of one frame, for estimates where nothing was measured:
-#: moving the working-size relighting onto the photo (the banded 8-bit transfer; 44 ms of CPU
-#: for a 1440 x 1080 frame on 2 busy cores), and encoding it, per format. MP4 47 ms of CPU for
-#: that frame; the others fitted to wall times of 8-frame time-lapses of the pool sample at
-#: 1080p and full size (balanced, 2 cores, 2026-12-01): per frame about 0.21 s plus 0.035 s
-#: (GIF), 0.11 s (WebP) and 0.19 s (PNG folder) per megapixel, transfer included. With one
-#: figure for every format, full-size PNG and WebP time-lapses took 2.5-3x their estimate (a
-#: user trial).
-TRANSFER_SECONDS_PER_MP = 0.03
-ENCODE_SECONDS_PER_MP = {"mp4": 0.03, "gif": 0.03, "webp": 0.08, "png": 0.16}
-#: Share of ``shadow + relight`` a frame takes when the next sun's shadow runs beside this
-#: sun's relighting (:meth:`~outcast_core.runtime.pipeline.session.RelightSession.relight_stream`;
-#: measured 0.64 on 2 busy cores, balanced preset).
-STREAM_SHARE = 0.65
 #: x264's speed preset: "veryfast" took 47 ms of CPU per 1440 x 1080 frame against 70 ms for
 #: "faster", for files about 12 % larger at the same CRF (measured on this machine).
 X264_PRESET = "veryfast"
@@ -988,33 +974,6 @@ def frame_shape(
         return h, w
     scale = SHORT_SIDES[size] / min(h, w)
     return max(2, 2 * round(h * scale / 2)), max(2, 2 * round(w * scale / 2))
-
-
-def estimate_seconds(
-    frames: int,
-    shape: tuple[int, int],
-    working_shape: tuple[int, int],
-    timings: dict[str, float] | None = None,
-    fmt: str = "mp4",
-) -> float:
-    """Rough time to render and write ``frames`` frames of ``shape`` (for the dialog and CLI).
-
-    Per frame: the new sun's shadow and relighting at working size (the session's last measured
-    ``shadow`` and ``relight`` stages, else 0.1 s, the two overlapping: :data:`STREAM_SHARE`),
-    moving it onto ``shape`` when that is larger than the working size, and encoding it as
-    ``fmt`` (:data:`ENCODE_SECONDS_PER_MP`).
-
-    Returns:
-        Seconds (at least 0).
-    """
-    timings = timings or {}
-    per_frame = STREAM_SHARE * (float(timings.get("shadow", 0.05))
-                                + float(timings.get("relight", 0.05)))
-    mp = shape[0] * shape[1] / 1e6
-    if shape[0] * shape[1] > working_shape[0] * working_shape[1]:
-        per_frame += TRANSFER_SECONDS_PER_MP * mp
-    per_frame += ENCODE_SECONDS_PER_MP.get(fmt, ENCODE_SECONDS_PER_MP["png"]) * mp
-    return max(0.0, frames * per_frame)
 
 
 def describe_seconds(seconds: float) -> str:

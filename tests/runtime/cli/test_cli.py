@@ -269,6 +269,29 @@ def test_progress_is_rewritten_on_a_terminal_and_separate_lines_in_a_log() -> No
     assert quiet.getvalue() == ""
 
 
+def test_progress_says_the_time_left_at_the_stages_own_pace() -> None:
+    """After ETA_AFTER_S seconds of a stage, the time left from its pace since it began (a
+    formula from the session's last stages was 4x off for time-lapses); a new stage starts
+    its own clock; none at the end."""
+    import io
+
+    from outcast_core.runtime.cli.main import ProgressLine
+
+    now = [0.0]
+    log = io.StringIO()
+    progress = ProgressLine(log, clock=lambda: now[0])
+    for i in range(0, 11):  # 10 % every 2 s after a start at 0
+        now[0] = 2.0 * i
+        progress("timelapse", i / 10)
+    now[0] = 100.0
+    progress("writing", 0.5)  # a new stage: no pace yet
+    lines = log.getvalue().splitlines()
+    assert lines[0] == "timelapse:   0 %" and lines[1] == "timelapse:  10 %"  # 2 s: too soon
+    assert lines[2] == "timelapse:  20 %, about 16 s left"  # 4 s for 20 %: 16 s for 80 %
+    assert lines[9] == "timelapse:  90 %, about 2 s left"
+    assert lines[10] == "timelapse: 100 %" and lines[11] == "writing:  50 %"
+
+
 def test_timelapse_progress_in_a_log_is_lines(photo: Path, tmp_path: Path, capsys) -> None:
     assert main(["timelapse", str(photo), "--from", "120,40", "--sweep", "1,20:90,20",
                  "--frames", "20", "--size", "working", "--preset", "fast", "-o",
