@@ -433,7 +433,8 @@ class MainWindow(QMainWindow):
         self._exposure_hint = ""  # said after "Ready" when the new light changes the level a lot
         self._close_without_asking = False
 
-        self.runner = TaskRunner(self)
+        # Timing a short time-lapse export gives way to anything the user asks for.
+        self.runner = TaskRunner(self, background=frozenset({"tl_estimate"}))
         self.runner.started.connect(self._on_job_started)
         self.runner.progress.connect(self._on_job_progress)
         self.runner.finished.connect(self._on_job_finished)

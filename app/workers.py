@@ -1,7 +1,10 @@
 """Background work: one worker thread that owns every call into the relighting session.
 
 * :class:`JobQueue` (Qt-free): one pending job per *channel*; submitting to a channel replaces the
-  job waiting there, so while the user drags only the latest request counts.
+  job waiting there, so while the user drags only the latest request counts. A *background*
+  channel's job (the time-lapse dialog's timing of a short export) gives way to any other:
+  it starts only when no other job waits, and one submitted while it runs stops it; it is
+  then queued again behind that job, unseen by the GUI (which still waits for its result).
 * :class:`JobContext`: handed to each job: ``progress(stage, fraction)`` and cancellation.
 * :class:`TaskRunner` (a QObject living in the GUI thread): starts the thread, takes submissions,
   and re-emits results, failures and progress as signals in the GUI thread.
@@ -40,6 +43,8 @@ class Job:
     description: str = ""
     id: int = 0
     cancel_event: threading.Event = field(default_factory=threading.Event)
+    #: Stopped to let another job run (a background job): queued again, not cancelled.
+    preempted: bool = False
 
 
 class JobContext:
@@ -70,8 +75,10 @@ class JobContext:
 class JobQueue:
     """Thread-safe queue with one pending job per channel (latest wins), FIFO across channels."""
 
-    def __init__(self) -> None:
+    def __init__(self, background: frozenset[str] = frozenset()) -> None:
         self._cond = threading.Condition()
+        #: Channels whose jobs give way to any other (see the module docstring).
+        self.background = frozenset(background)
         self._pending: OrderedDict[str, Job] = OrderedDict()
         self._running: Job | None = None
         self._closed = False
@@ -85,8 +92,24 @@ class JobQueue:
             job.id = next(self._ids)
             replaced = self._pending.pop(job.channel, None)
             self._pending[job.channel] = job
+            run = self._running
+            if (run is not None and run.channel in self.background
+                    and job.channel not in self.background and not run.cancel_event.is_set()):
+                run.preempted = True  # stopped for this one, queued again when it has stopped
+                run.cancel_event.set()
             self._cond.notify()
             return job.id, replaced
+
+    def requeue(self, job: Job) -> bool:
+        """Queue a preempted background job again, under its id with a fresh cancel event,
+        unless a newer job of its channel waits or the queue is closed; whether it was."""
+        with self._cond:
+            if self._closed or job.channel in self._pending:
+                return False
+            again = Job(job.channel, job.fn, job.description, id=job.id)
+            self._pending[job.channel] = again
+            self._cond.notify()
+            return True
 
     def take(self, timeout: float | None = None) -> Job | None:
         """Wait for the next job; ``None`` when closed (or on timeout)."""
@@ -99,7 +122,10 @@ class JobQueue:
                 self._cond.wait(left)
             if self._closed:
                 return None
-            _, job = self._pending.popitem(last=False)
+            # The first job waiting, a background one only when nothing else waits.
+            channel = next((c for c in self._pending if c not in self.background),
+                           next(iter(self._pending)))
+            job = self._pending.pop(channel)
             self._running = job
             return job
 
@@ -118,6 +144,7 @@ class JobQueue:
                 job.cancel_event.set()
                 dropped.append(job)
             if self._running is not None and self._running.channel == channel:
+                self._running.preempted = False  # cancelled for good, not queued again
                 self._running.cancel_event.set()
             return dropped
 
@@ -173,6 +200,8 @@ class _WorkerThread(QThread):
             seconds = time.perf_counter() - t0
             self.queue.done(job)
             kind, value = outcome
+            if kind == "cancelled" and job.preempted and self.queue.requeue(job):
+                continue  # it runs again after the job it gave way to
             if kind == "finished":
                 self.job_finished.emit(job.id, job.channel, value, seconds)
             elif kind == "failed":
@@ -200,9 +229,10 @@ class TaskRunner(QObject):
     cancelled = Signal(int, str)
     idle = Signal()
 
-    def __init__(self, parent: QObject | None = None) -> None:
+    def __init__(self, parent: QObject | None = None,
+                 background: frozenset[str] = frozenset()) -> None:
         super().__init__(parent)
-        self.queue = JobQueue()
+        self.queue = JobQueue(background)
         self._latest: dict[str, int] = {}
         # Jobs whose outcome has not reached the GUI thread yet (GUI-thread state only).
         self._outstanding: set[int] = set()

@@ -107,3 +107,55 @@ def test_failure_and_cancel_signals(qtbot, runner):
         runner.cancel("export")
     assert cancelled.args[1] == "export"
     assert issubclass(JobCancelledError, RuntimeError)
+
+
+def test_queue_takes_a_background_job_only_when_nothing_else_waits():
+    q = JobQueue(background=frozenset({"estimate"}))
+    q.put(Job("estimate", lambda c: "e"))
+    q.put(Job("shadow", lambda c: "s"))
+    assert [q.take(0.1).channel, q.take(0.1).channel] == ["shadow", "estimate"]
+
+
+def test_a_background_job_gives_way_and_runs_again_unseen(qtbot):
+    """The time-lapse estimate used the only worker thread, so a relighting waited behind it (a
+    review): a job submitted while a background job runs stops it, runs first, and the
+    background job runs again from the start under its id; the GUI sees only its result. A
+    background job cancelled by its own channel is not run again."""
+    runner = TaskRunner(background=frozenset({"estimate"}))
+    try:
+        runs: list[str] = []
+        started = threading.Event()
+
+        def estimate(ctx):
+            runs.append("estimate")
+            started.set()
+            for _ in range(400):
+                if len(runs) > 2:  # the second run: done at once
+                    return "timed"
+                ctx.progress("timing", 0.0)  # a cancellation point
+                time.sleep(0.005)
+            return "never preempted"
+
+        cancelled: list[int] = []
+        runner.cancelled.connect(lambda job_id, channel: cancelled.append(job_id))
+        with qtbot.waitSignal(runner.finished, timeout=5000,
+                              check_params_cb=lambda i, c, r, s: c == "estimate") as done:
+            job_id = runner.submit("estimate", estimate)
+            assert started.wait(5)
+            runner.submit("relight", lambda ctx: runs.append("relight"))
+        assert runs == ["estimate", "relight", "estimate"]
+        assert done.args[0] == job_id and done.args[2] == "timed" and cancelled == []
+        qtbot.waitUntil(lambda: not runner.busy(), timeout=5000)
+
+        started.clear()
+        runs.clear()
+        with qtbot.waitSignal(runner.cancelled, timeout=5000) as stopped:
+            job_id = runner.submit("estimate", estimate)
+            assert started.wait(5)
+            runner.submit("relight", lambda ctx: time.sleep(0.05))
+            runner.cancel("estimate")  # for good: not queued again
+        assert stopped.args[0] == job_id
+        qtbot.waitUntil(lambda: not runner.busy(), timeout=5000)
+        assert runs == ["estimate"]
+    finally:
+        runner.shutdown()
