@@ -37,6 +37,8 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
+from outcast_core.runtime.io.photo_identity import PhotoIdentity
+
 #: Photo extensions a batch picks up (what :func:`~outcast_core.runtime.io.imageio.read_image`
 #: reads).
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".webp", ".heic", ".heif", ".bmp")
@@ -609,6 +611,11 @@ class ProjectSettings:
     #: Whether relit photos take the new sun's daylight (False: step 2's "Keep the photo's
     #: light"); None in projects from before the setting.
     daylight: bool | None = None
+    #: The photo the project was saved with (pixel size and fingerprint); None in projects
+    #: from before the app recorded it.
+    photo: PhotoIdentity | None = None
+    #: The project file's name (for messages).
+    name: str = ""
 
 
 def _project_data(photo: Path) -> tuple[Path, dict[str, Any]] | None:
@@ -682,8 +689,12 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
         edits = shadow_edits_from_json(data.get("shadow_edits"))
     except ValueError as exc:
         raise ValueError(f"project '{project.name}' shadow_edits: {exc}") from None
+    try:
+        photo_id = PhotoIdentity.from_any(data.get("photo"))
+    except ValueError as exc:
+        raise ValueError(f"project '{project.name}' photo: {exc}") from None
     return ProjectSettings(sun("original_sun"), sun("target_sun"), str(depth), exposure, edits,
-                           daylight)
+                           daylight, photo_id, project.name)
 
 
 def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None, str]:
@@ -842,6 +853,13 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
     project_sun, project_target, depth_path = (
         (None, None, "") if read is None else (read.original_sun, read.target_sun, read.depth_path))
     loaded = read_image(job.image, keep_uint8=True)  # as the app reads it
+    if read is not None and read.photo is not None:  # before the slow part
+        why = read.photo.mismatch(PhotoIdentity.of(loaded.image_srgb))
+        if why:  # the app asks, with "Cancel" the default; a batch cannot ask
+            raise ValueError(
+                f"the photo does not look like the one project '{read.name}' was saved with "
+                f"({why}): its suns and shadow corrections may not fit; open the photo in the "
+                "app to check, or move the project away")
     to_sun = None
     if options.kind == "relight":  # before the slow part
         to_sun = target_sun_for(job, options, project_target)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import os
 from pathlib import Path
@@ -232,6 +233,41 @@ def test_project_reader_matches_the_app(tmp_path: Path) -> None:
     state.project_path_for(photo).write_text(json.dumps({"outcast_project": 1, "image": "c.png"}))
     with pytest.raises(ValueError, match="is for 'c.png'"):
         project_suns(photo)
+
+
+def test_batch_refuses_a_project_saved_with_another_picture(tmp_path: Path) -> None:
+    """The app asks before laying a project's suns and corrections over another picture of
+    the same name (Cancel by default); batch did not check at all (a review). Now the photo
+    fails, saying why, before the slow part; the same photo, or a project from before the
+    app recorded the photo, relights."""
+    from app import state
+
+    photo = _photo(tmp_path / "a.png", 0)
+    identity = state.PhotoIdentity.of(read_image(photo, keep_uint8=True).image_srgb)
+    project = state.ProjectState(image_path=str(photo), photo=identity,
+                                 original_sun=state.Sun(200.0, 40.0),
+                                 target_sun=state.Sun(90.0, 30.0))
+    state.save_project(project, state.project_path_for(photo))
+    opts = BatchOptions(kind="relight", preset="fast", mode="classic", force=True)
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "same.png")), opts)
+    assert r.status == "done", r.message
+    with Image.open(photo) as im:  # another picture under the same name: upside down
+        im.transpose(Image.Transpose.FLIP_TOP_BOTTOM).save(photo)
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "other.png")), opts)
+    assert r.status == "failed" and "not the one the project was saved with" in r.message
+    assert "a.outcast.json" in r.message and not (tmp_path / "o" / "other.png").exists()
+    _photo(photo, 0, size=(48, 64))  # another size
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "other.png")), opts)
+    assert r.status == "failed" and "48 × 64 pixels" in r.message
+    state.save_project(dataclasses.replace(project, photo=None),
+                       state.project_path_for(photo))  # saved before identities: not checked
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "old.png")), opts)
+    assert r.status == "done", r.message
+    data = json.loads(state.project_path_for(photo).read_text())
+    data["photo"] = {"width": -1, "height": 2}
+    state.project_path_for(photo).write_text(json.dumps(data))
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "bad.png")), opts)
+    assert r.status == "failed" and "photo:" in r.message
 
 
 def test_batch_takes_the_projects_exposure_unless_told(tmp_path: Path,
