@@ -20,6 +20,9 @@ EXIF prior (shadows only) and with it.
     python scripts/eval_auto_sun.py --samples samples
     python scripts/eval_auto_sun.py --synthetic DIR [--given-depth] [--limit N]
 
+``--look-weights 0,0.01,...`` measures every photo (or pair) at each weight of the photo's look
+(one session a photo), with one summary each.
+
 Numbers only: nothing of a research data set is written anywhere but the optional JSON.
 """
 
@@ -53,6 +56,14 @@ from outcast_core.runtime.pipeline.session import RelightSession
 
 #: What find_sun ranks by in this run (``--measure``).
 MEASURE = [DEFAULT_MEASURE]
+#: The weights of the photo's look (``auto_sun.LOOK_WEIGHT``) each photo is measured at
+#: (``--look-weights``; None: the module's).
+LOOK_WEIGHTS: list[float | None] = [None]
+_DEFAULT_LOOK_WEIGHT = auto_sun.LOOK_WEIGHT
+
+
+def _set_look_weight(weight: float | None) -> None:
+    auto_sun.LOOK_WEIGHT = _DEFAULT_LOOK_WEIGHT if weight is None else weight
 
 
 def _session(image: Any, preset: str) -> RelightSession:
@@ -83,22 +94,31 @@ def measure_real(folder: str, *, preset: str, every: int, limit: int | None,
         cache[key] = sweep
         if sweep_cache:
             Path(sweep_cache).write_text(json.dumps(cache))
-        t0 = time.perf_counter()
-        fit = find_sun(session, measure=MEASURE[0])
-        seconds = time.perf_counter() - t0
-        found = balanced_error_rate(shadow_mask(session.shadow(fit.w), session.sky, truth.shape),
-                                    truth)
-        best = float(min(sweep))
-        row = {"name": item.name, "best_sweep_ber": round(best, 4),
-               "best_sweep_sun": list(SWEEP_SUNS[int(np.argmin(sweep))]),
-               "found_ber": round(found, 4), "gap": round(found - best, 4),
-               "found_sun": [round(fit.azimuth, 1), round(fit.elevation, 1)],
-               "confidence": round(fit.confidence, 3), "found": fit.found,
-               "agreement": round(fit.agreement, 4), "seconds": round(seconds, 3)}
-        rows.append(row)
-        print(f"{item.name:10s} sweep {best:.3f}  found {found:.3f}  gap {found - best:+.3f}  "
-              f"sun {fit.azimuth:5.1f},{fit.elevation:4.1f}  conf {fit.confidence:.2f}  "
-              f"{seconds:.2f} s", flush=True)
+        for weight in LOOK_WEIGHTS:
+            _set_look_weight(weight)
+            t0 = time.perf_counter()
+            fit = find_sun(session, measure=MEASURE[0])
+            seconds = time.perf_counter() - t0
+            found = balanced_error_rate(shadow_mask(session.shadow(fit.w), session.sky,
+                                                    truth.shape), truth)
+            best = float(min(sweep))
+            row = {"name": item.name, "look_weight": auto_sun.LOOK_WEIGHT,
+                   "best_sweep_ber": round(best, 4),
+                   "best_sweep_sun": list(SWEEP_SUNS[int(np.argmin(sweep))]),
+                   "found_ber": round(found, 4), "gap": round(found - best, 4),
+                   "found_sun": [round(fit.azimuth, 1), round(fit.elevation, 1)],
+                   "confidence": round(fit.confidence, 3), "found": fit.found,
+                   "agreement": round(fit.agreement, 4), "seconds": round(seconds, 3)}
+            rows.append(row)
+            print(f"{item.name:10s} w {auto_sun.LOOK_WEIGHT:<6g} sweep {best:.3f}  found "
+                  f"{found:.3f}  gap {found - best:+.3f}  sun {fit.azimuth:5.1f},"
+                  f"{fit.elevation:4.1f}  conf {fit.confidence:.2f}  {seconds:.2f} s", flush=True)
+    summaries = [_real_summary([r for r in rows if r["look_weight"] == w], within)
+                 for w in dict.fromkeys(r["look_weight"] for r in rows)]
+    return {"rows": rows, "summary": summaries[0] if len(summaries) == 1 else summaries}
+
+
+def _real_summary(rows: list[dict[str, Any]], within: float) -> dict[str, Any]:
     gaps = np.array([r["gap"] for r in rows])
     secs = np.array([r["seconds"] for r in rows])
     summary = {
@@ -115,9 +135,10 @@ def measure_real(folder: str, *, preset: str, every: int, limit: int | None,
             [r["gap"] <= within for r in rows if not r["found"]] or [float("nan")])), 3),
         "median_seconds": round(float(np.median(secs)), 3),
         "max_seconds": round(float(secs.max()), 3),
+        "look_weight": rows[0]["look_weight"],
     }
     print(json.dumps(summary))
-    return {"rows": rows, "summary": summary}
+    return summary
 
 
 def measure_synthetic(folder: str, *, preset: str, limit: int | None,
@@ -127,9 +148,10 @@ def measure_synthetic(folder: str, *, preset: str, limit: int | None,
     from outcast_core.runtime.geometry.colour import tonemap_aces
 
     rows = []
+    pairs = 0
     for view in iter_views(folder):
         for k in range(len(view["sun"])):
-            if limit and len(rows) >= limit:
+            if limit and pairs >= limit:
                 break
             # The training views' tone curve (train.data.tonemap: ACES, then sRGB), as Z and
             # S saw them; a plain sRGB encoding clips the highlights they never saw clipped.
@@ -137,22 +159,32 @@ def measure_synthetic(folder: str, *, preset: str, limit: int | None,
             s = RelightSession(preset=preset)
             depth = np.where(view["sky"], np.inf, view["depth"]) if given_depth else None
             s.set_image(img.astype(np.float32), fov_deg=view["fov_deg"], depth=depth)
-            t0 = time.perf_counter()
-            fit = find_sun(s, measure=MEASURE[0])
-            sec = time.perf_counter() - t0
             true = np.asarray(view["sun"][k], np.float64)
             true = true / np.linalg.norm(true)
-            ang = math.degrees(math.acos(float(np.clip(fit.w @ true, -1.0, 1.0))))
             look = s.sun_look()  # D's own peak, when the sun model is there and used
             look_ang = None if look is None else round(math.degrees(math.acos(float(
                 np.clip(look.peak() @ true, -1.0, 1.0)))), 2)
-            rows.append({"view": view["meta"].get("seed", len(rows)), "sun": k,
-                         "true": [round(float(x), 1) for x in view["sun_azel"][k]],
-                         "found": [round(fit.azimuth, 1), round(fit.elevation, 1)],
-                         "angle": round(ang, 2), "look_angle": look_ang,
-                         "confidence": round(fit.confidence, 3),
-                         "seconds": round(sec, 3)})
-            print(json.dumps(rows[-1]), flush=True)
+            for weight in LOOK_WEIGHTS:
+                _set_look_weight(weight)
+                t0 = time.perf_counter()
+                fit = find_sun(s, measure=MEASURE[0])
+                sec = time.perf_counter() - t0
+                ang = math.degrees(math.acos(float(np.clip(fit.w @ true, -1.0, 1.0))))
+                rows.append({"view": view["meta"].get("seed", len(rows)), "sun": k,
+                             "look_weight": auto_sun.LOOK_WEIGHT,
+                             "true": [round(float(x), 1) for x in view["sun_azel"][k]],
+                             "found": [round(fit.azimuth, 1), round(fit.elevation, 1)],
+                             "angle": round(ang, 2), "look_angle": look_ang,
+                             "confidence": round(fit.confidence, 3),
+                             "seconds": round(sec, 3)})
+                print(json.dumps(rows[-1]), flush=True)
+            pairs += 1
+    summaries = [_synthetic_summary([r for r in rows if r["look_weight"] == w], given_depth)
+                 for w in dict.fromkeys(r["look_weight"] for r in rows)]
+    return {"rows": rows, "summary": summaries[0] if len(summaries) == 1 else summaries}
+
+
+def _synthetic_summary(rows: list[dict[str, Any]], given_depth: bool) -> dict[str, Any]:
     angles = np.array([r["angle"] for r in rows])
     conf = np.array([r["confidence"] for r in rows])
     summary = {"pairs": len(rows), "depth": "given" if given_depth else "estimated",
@@ -165,8 +197,9 @@ def measure_synthetic(folder: str, *, preset: str, limit: int | None,
     looks = [r["look_angle"] for r in rows if r["look_angle"] is not None]
     if looks:  # D alone: the peak of its distribution
         summary["look_median_angle"] = round(float(np.median(looks)), 2)
+    summary["look_weight"] = rows[0]["look_weight"]
     print(json.dumps(summary))
-    return {"rows": rows, "summary": summary}
+    return summary
 
 
 def _angle(a: tuple[float, float], b: tuple[float, float]) -> float:
@@ -231,6 +264,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="override an auto_sun constant for this run (a Python literal), e.g. "
                          "FINE_PATTERNS='((3, 0.5), (2, 0.25))'")
     ap.add_argument("--sweep-cache", default="", help="JSON file keeping the sweeps between runs")
+    ap.add_argument("--look-weights", default="", metavar="W1,W2,...",
+                    help="measure every photo at each of these weights of the photo's look "
+                         "(auto_sun.LOOK_WEIGHT; 0: the shadows alone), one summary each")
     args = ap.parse_args(argv)
     if not args.folder and not args.samples and not args.synthetic:
         ap.error("give a folder of photos with masks, --samples or --synthetic")
@@ -240,6 +276,10 @@ def main(argv: list[str] | None = None) -> int:
         if not hasattr(auto_sun, name):
             ap.error(f"--set: auto_sun has no {name!r}")
         setattr(auto_sun, name, ast.literal_eval(value))
+    global _DEFAULT_LOOK_WEIGHT
+    _DEFAULT_LOOK_WEIGHT = auto_sun.LOOK_WEIGHT  # after --set
+    if args.look_weights:
+        LOOK_WEIGHTS[:] = [float(w) for w in args.look_weights.split(",")]
     out: dict[str, Any] = {"preset": args.preset, "measure": args.measure, "set": args.set}
     if args.folder:
         out["real"] = measure_real(args.folder, preset=args.preset, every=max(1, args.every),
