@@ -13,6 +13,7 @@ PURPOSE = {
     "relight": "L: relights the photo from (C_o, S_o, S_n, N, w_o, w_n, Psi)",
     "relight_pix2pix": "the paper's 'Pix2Pix-like' ablation of L (no shadow inputs)",
     "depth": "Z: monocular depth (scale-free) + sky mask",
+    "sun": "D: the sun's direction from the photo's look, a distribution over directions",
 }
 
 
@@ -39,8 +40,18 @@ def _card(man: dict[str, Any]) -> list[str]:
     if man.get("input_side"):
         lines.append(
             f"- Run at its training scale: the app shrinks a photo whose longer side exceeds "
-            f"{man['input_side']} px to that side before this network and brings its outputs "
-            f"back up (`runtime.pipeline.depth_post.run_depth_model`)"
+            f"{man['input_side']} px to that side before this network "
+            + ("" if man["name"] == "sun" else "and brings its outputs ")
+            + ("(`runtime.pipeline.sun_look.read_sun`)" if man["name"] == "sun" else
+               "back up (`runtime.pipeline.depth_post.run_depth_model`)")
+        )
+    if "bins" in man:
+        lines.append(
+            f"- Output: one logit per direction of a {man['bins']}-point Fibonacci lattice over "
+            f"the sphere of camera-space directions; the runtime's density is a von "
+            f"Mises-Fisher kernel mixture of the bins (kappa {man.get('kappa', 0):.1f}: "
+            f"`runtime.pipeline.sun_look`), a term of the sun search's ranking "
+            f"(`auto_sun.LOOK_WEIGHT`)"
         )
     if "march_steps" in man:
         lines.append(

@@ -22,7 +22,6 @@ import numpy as np
 import torch
 from torch import nn
 
-from outcast_core.nets.blocks import count_parameters
 from outcast_core.runtime.io.models import sha256_file
 
 OPSET = 17
@@ -236,7 +235,7 @@ def write_manifest(
         "outputs": outs,
         "colour_space": "srgb",
         "pad_multiple": int(getattr(net, "pad_multiple", 8)),
-        "parameters": count_parameters(net),
+        "parameters": sum(p.numel() for p in net.parameters()),  # frozen ones too
         "training": training,
         "metrics": metrics or {},
         "created": dt.datetime.now(dt.UTC).date().isoformat(),
