@@ -1244,7 +1244,7 @@ class MainWindow(QMainWindow):
             opened += "".join(f" · {note[:1].lower()}{note[1:].rstrip('.')}"
                               for note in file_notes)
         self.stage_label.setText(opened)
-        self._held_message = opened if self.runner.busy() else ""
+        self._held_message = opened if self.runner.busy(background=False) else ""
         if restore is not None:  # the same photo again: keep the history
             self._edit_state = record_from
             self._record(restore)
@@ -1580,7 +1580,7 @@ class MainWindow(QMainWindow):
                 text += (f" Its elevation is set to {where} turn the sun around the ring until "
                          "the shadows fit.")
         self.stage_label.setText(text)
-        self._held_message = text if self.runner.busy() else ""
+        self._held_message = text if self.runner.busy(background=False) else ""
         notice = (text if not (fit.found or fit.source == SOURCE_EXIF) or fit.compass_decided
                   else "")
         prior = result.get("prior")
@@ -1628,7 +1628,8 @@ class MainWindow(QMainWindow):
         text = (f"Sun from EXIF: azimuth {sun[0]:.1f}°, elevation {sun[1]:.1f}°"
                 f"{f' for a {tilt}' if tilt else ''} (check it against the shadows{note})")
         self.stage_label.setText(text)
-        self._held_message = text if self.runner.busy() else ""  # past the overlay's "Ready"
+        # (past the overlay's "Ready")
+        self._held_message = text if self.runner.busy(background=False) else ""
 
     def _apply_project(self, project: ProjectState) -> None:
         self.preset = project.preset  # the session was created with it
@@ -1847,7 +1848,7 @@ class MainWindow(QMainWindow):
                                   BRUSH_SOFTNESS[tool])
             self.stage_label.setText(SHADOW_TOOL_HINTS[tool])
             self.canvas.setFocus()  # Esc reaches the window's action from here
-        elif not self.runner.busy():
+        elif not self.runner.busy(background=False):
             self.stage_label.setText("Ready")
 
     def _undo_step(self, step: Callable[[], None]) -> None:
@@ -2567,7 +2568,10 @@ class MainWindow(QMainWindow):
     def _on_job_started(self, job_id: int, channel: str, description: str) -> None:
         """The job now running, in the status bar: its words, and its progress bar for the
         jobs that have one; the bar of the one before goes (a user trial saw a quality switch's
-        "100 %" stay through the view's job that followed it)."""
+        "100 %" stay through the view's job that followed it). A background job (the
+        time-lapse dialog's timing) leaves the status as it is: the dialog says it."""
+        if channel in self.runner.queue.background:
+            return
         self.stage_label.setText(f"{description or STAGE_WORDS.get(channel, channel)}…")
         if channel in ("load", "preset", "confirm", "find_sun", *EXPORT_CHANNELS):
             self.progress_bar.setRange(0, 0 if channel == "confirm" else 100)
@@ -2622,7 +2626,10 @@ class MainWindow(QMainWindow):
         elif (channel in ("tl_preview", "tl_export", "tl_estimate")
               and self._timelapse_dialog is not None):
             self._timelapse_dialog.on_job_finished(channel, result)
-        if not self.runner.busy() and channel != "find_sun":
+        # The status says the user's jobs (not the time-lapse dialog's timing, which says its
+        # own result in the dialog and gives way to them).
+        if (not self.runner.busy(background=False) and channel != "find_sun"
+                and channel not in self.runner.queue.background):
             if channel in IMAGE_EXPORT_CHANNELS:
                 text = f"Saved {os.path.basename(result['path'])} in {seconds:.1f} s"
             elif channel == "tl_export":

@@ -638,6 +638,8 @@ class TimelapseDialog(QDialog):
             except (JobCancelledError, tl.ExportCancelledError):
                 raise
             except Exception as exc:  # said under the size, for these settings (its key)
+                if ctx.cancelled():  # stopped (for another job, or for good), not failed
+                    raise JobCancelledError("timing cancelled") from exc
                 return {"key": key, "failed": exc}
             return {"key": key, "timing": ExportTiming.from_stamps(stamps, total)}
 

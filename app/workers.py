@@ -4,7 +4,8 @@
   job waiting there, so while the user drags only the latest request counts. A *background*
   channel's job (the time-lapse dialog's timing of a short export) gives way to any other:
   it starts only when no other job waits, and one submitted while it runs stops it; it is
-  then queued again behind that job, unseen by the GUI (which still waits for its result).
+  then queued again behind that job under its id, and its second start is not signalled (the
+  GUI still waits for its one result).
 * :class:`JobContext`: handed to each job: ``progress(stage, fraction)`` and cancellation.
 * :class:`TaskRunner` (a QObject living in the GUI thread): starts the thread, takes submissions,
   and re-emits results, failures and progress as signals in the GUI thread.
@@ -45,6 +46,8 @@ class Job:
     cancel_event: threading.Event = field(default_factory=threading.Event)
     #: Stopped to let another job run (a background job): queued again, not cancelled.
     preempted: bool = False
+    #: A preempted job queued again (its start was signalled the first time).
+    rerun: bool = False
 
 
 class JobContext:
@@ -73,7 +76,8 @@ class JobContext:
 
 
 class JobQueue:
-    """Thread-safe queue with one pending job per channel (latest wins), FIFO across channels."""
+    """Thread-safe queue with one pending job per channel (latest wins), FIFO across channels
+    except that a background channel's job waits for every other."""
 
     def __init__(self, background: frozenset[str] = frozenset()) -> None:
         self._cond = threading.Condition()
@@ -100,16 +104,22 @@ class JobQueue:
             self._cond.notify()
             return job.id, replaced
 
-    def requeue(self, job: Job) -> bool:
-        """Queue a preempted background job again, under its id with a fresh cancel event,
-        unless a newer job of its channel waits or the queue is closed; whether it was."""
+    def finish(self, job: Job, cancelled: bool) -> bool:
+        """The running ``job`` has ended (``cancelled``: by its cancel event). A preempted
+        background job is queued again, under its id with a fresh cancel event, unless it was
+        cancelled for good since (:meth:`cancel` clears ``preempted`` under the same lock), a
+        newer job of its channel waits, or the queue is closed. Returns whether it was queued
+        again (then its end is not reported)."""
         with self._cond:
-            if self._closed or job.channel in self._pending:
-                return False
-            again = Job(job.channel, job.fn, job.description, id=job.id)
-            self._pending[job.channel] = again
-            self._cond.notify()
-            return True
+            if self._running is job:
+                self._running = None
+            again = (cancelled and job.preempted and not self._closed
+                     and job.channel not in self._pending)
+            if again:
+                self._pending[job.channel] = Job(job.channel, job.fn, job.description,
+                                                 id=job.id, rerun=True)
+            self._cond.notify_all()
+            return again
 
     def take(self, timeout: float | None = None) -> Job | None:
         """Wait for the next job; ``None`` when closed (or on timeout)."""
@@ -185,7 +195,8 @@ class _WorkerThread(QThread):
             job = self.queue.take()
             if job is None:
                 return
-            self.job_started.emit(job.id, job.channel, job.description)
+            if not job.rerun:
+                self.job_started.emit(job.id, job.channel, job.description)
             ctx = JobContext(job, self.job_progress.emit)
             t0 = time.perf_counter()
             outcome: tuple[str, Any] = ("finished", None)
@@ -198,9 +209,8 @@ class _WorkerThread(QThread):
             except Exception as exc:  # noqa: BLE001 - every failure goes to the GUI as a dialog
                 outcome = ("cancelled", None) if job.cancel_event.is_set() else ("failed", exc)
             seconds = time.perf_counter() - t0
-            self.queue.done(job)
             kind, value = outcome
-            if kind == "cancelled" and job.preempted and self.queue.requeue(job):
+            if self.queue.finish(job, kind == "cancelled"):
                 continue  # it runs again after the job it gave way to
             if kind == "finished":
                 self.job_finished.emit(job.id, job.channel, value, seconds)
@@ -267,9 +277,13 @@ class TaskRunner(QObject):
             self._forget(job.id)
         self._maybe_idle()
 
-    def busy(self) -> bool:
-        """Whether a job is waiting, running, or its outcome has not reached the GUI yet."""
-        return bool(self._outstanding)
+    def busy(self, background: bool = True) -> bool:
+        """Whether a job is waiting, running, or its outcome has not reached the GUI yet
+        (``background=False``: a job of a channel other than the background ones)."""
+        if background:
+            return bool(self._outstanding)
+        return any(self._about.get(i, ("", ""))[0] not in self.queue.background
+                   for i in self._outstanding)
 
     def active(self) -> list[tuple[int, str, str]]:
         """``(id, channel, description)`` of every job waiting, running or not yet reported."""

@@ -113,6 +113,7 @@ def measure_real(folder: str, *, preset: str, every: int, limit: int | None,
             print(f"{item.name:10s} w {auto_sun.LOOK_WEIGHT:<6g} sweep {best:.3f}  found "
                   f"{found:.3f}  gap {found - best:+.3f}  sun {fit.azimuth:5.1f},"
                   f"{fit.elevation:4.1f}  conf {fit.confidence:.2f}  {seconds:.2f} s", flush=True)
+    _set_look_weight(None)
     summaries = [_real_summary([r for r in rows if r["look_weight"] == w], within)
                  for w in dict.fromkeys(r["look_weight"] for r in rows)]
     return {"rows": rows, "summary": summaries[0] if len(summaries) == 1 else summaries}
@@ -179,6 +180,7 @@ def measure_synthetic(folder: str, *, preset: str, limit: int | None,
                              "seconds": round(sec, 3)})
                 print(json.dumps(rows[-1]), flush=True)
             pairs += 1
+    _set_look_weight(None)
     summaries = [_synthetic_summary([r for r in rows if r["look_weight"] == w], given_depth)
                  for w in dict.fromkeys(r["look_weight"] for r in rows)]
     return {"rows": rows, "summary": summaries[0] if len(summaries) == 1 else summaries}
@@ -280,6 +282,10 @@ def main(argv: list[str] | None = None) -> int:
     _DEFAULT_LOOK_WEIGHT = auto_sun.LOOK_WEIGHT  # after --set
     if args.look_weights:
         LOOK_WEIGHTS[:] = [float(w) for w in args.look_weights.split(",")]
+        if min(LOOK_WEIGHTS) < 0:  # type: ignore[type-var]
+            ap.error("--look-weights: expected weights >= 0")
+        if args.samples:
+            ap.error("--look-weights: not with --samples (set LOOK_WEIGHT with --set)")
     out: dict[str, Any] = {"preset": args.preset, "measure": args.measure, "set": args.set}
     if args.folder:
         out["real"] = measure_real(args.folder, preset=args.preset, every=max(1, args.every),

@@ -39,11 +39,12 @@ def _card(man: dict[str, Any]) -> list[str]:
         )
     if man.get("input_side"):
         lines.append(
+            (f"- Run at its training scale: the app resizes a photo to a longer side of "
+             f"{man['input_side']} px, both sides multiples of {man['pad_multiple']}, before "
+             "this network (`runtime.pipeline.sun_look.read_sun`)") if man["name"] == "sun" else
             f"- Run at its training scale: the app shrinks a photo whose longer side exceeds "
-            f"{man['input_side']} px to that side before this network "
-            + ("" if man["name"] == "sun" else "and brings its outputs ")
-            + ("(`runtime.pipeline.sun_look.read_sun`)" if man["name"] == "sun" else
-               "back up (`runtime.pipeline.depth_post.run_depth_model`)")
+            f"{man['input_side']} px to that side before this network and brings its outputs "
+            "back up (`runtime.pipeline.depth_post.run_depth_model`)"
         )
     if "bins" in man:
         lines.append(

@@ -116,45 +116,89 @@ def test_queue_takes_a_background_job_only_when_nothing_else_waits():
     assert [q.take(0.1).channel, q.take(0.1).channel] == ["shadow", "estimate"]
 
 
+def test_a_cancel_between_a_preempted_jobs_end_and_its_requeue_is_kept():
+    """A review's race: the worker ended a preempted job and queued it again in two steps, so
+    a cancel in between was lost and the job ran again. ``finish`` does both under one lock."""
+    q = JobQueue(background=frozenset({"bg"}))
+    q.put(Job("bg", lambda c: 1))
+    job = q.take(0.1)
+    q.put(Job("relight", lambda c: 2))
+    assert job.preempted and job.cancel_event.is_set()
+    assert q.cancel("bg") == [] and not job.preempted  # cancelled for good while stopping
+    assert q.finish(job, cancelled=True) is False
+    assert [q.take(0.1).channel, q.take(0.01)] == ["relight", None]
+    # Preempted and not cancelled: queued again under its id, its start not to be signalled.
+    q.put(Job("bg", lambda c: 3))
+    job = q.take(0.1)
+    q.put(Job("relight", lambda c: 4))
+    assert q.finish(job, cancelled=True) is True
+    assert q.take(0.1).channel == "relight"
+    again = q.take(0.1)
+    assert (again.id, again.rerun, again.cancel_event.is_set()) == (job.id, True, False)
+    # A job that finished before it noticed the preemption is reported, not run again.
+    q.finish(again, cancelled=False)
+    assert q.take(0.01) is None
+
+
 def test_a_background_job_gives_way_and_runs_again_unseen(qtbot):
     """The time-lapse estimate used the only worker thread, so a relighting waited behind it (a
     review): a job submitted while a background job runs stops it, runs first, and the
-    background job runs again from the start under its id; the GUI sees only its result. A
-    background job cancelled by its own channel is not run again."""
+    background job runs again from the start under its id, its second start not signalled; the
+    GUI sees one start and one result, and ``busy(background=False)`` ignores it. A background
+    job cancelled by its own channel, running or queued again, is not run again."""
     runner = TaskRunner(background=frozenset({"estimate"}))
     try:
         runs: list[str] = []
         started = threading.Event()
+        hold = threading.Event()
 
         def estimate(ctx):
             runs.append("estimate")
             started.set()
-            for _ in range(400):
-                if len(runs) > 2:  # the second run: done at once
-                    return "timed"
-                ctx.progress("timing", 0.0)  # a cancellation point
-                time.sleep(0.005)
-            return "never preempted"
+            if runs.count("estimate") > 1 and hold.is_set():
+                return "timed"
+            while not ctx.cancelled():  # until stopped
+                time.sleep(0.002)
+            ctx.check()
 
+        starts: list[str] = []
         cancelled: list[int] = []
+        runner.started.connect(lambda i, channel, d: starts.append(channel))
         runner.cancelled.connect(lambda job_id, channel: cancelled.append(job_id))
+        hold.set()
         with qtbot.waitSignal(runner.finished, timeout=5000,
                               check_params_cb=lambda i, c, r, s: c == "estimate") as done:
             job_id = runner.submit("estimate", estimate)
             assert started.wait(5)
             runner.submit("relight", lambda ctx: runs.append("relight"))
+            assert runner.busy() and runner.busy(background=False)
         assert runs == ["estimate", "relight", "estimate"]
         assert done.args[0] == job_id and done.args[2] == "timed" and cancelled == []
+        assert starts == ["estimate", "relight"]
         qtbot.waitUntil(lambda: not runner.busy(), timeout=5000)
 
-        started.clear()
+        # Cancelled while it runs: stopped for good.
         runs.clear()
+        started.clear()
+        hold.clear()
         with qtbot.waitSignal(runner.cancelled, timeout=5000) as stopped:
             job_id = runner.submit("estimate", estimate)
             assert started.wait(5)
-            runner.submit("relight", lambda ctx: time.sleep(0.05))
-            runner.cancel("estimate")  # for good: not queued again
-        assert stopped.args[0] == job_id
+            assert runner.busy() and not runner.busy(background=False)
+            runner.cancel("estimate")
+        assert stopped.args[0] == job_id and runs == ["estimate"]
+        qtbot.waitUntil(lambda: not runner.busy(), timeout=5000)
+
+        # Cancelled once queued again behind the job it gave way to: dropped, never rerun.
+        runs.clear()
+        started.clear()
+        gate = threading.Event()
+        runner.submit("estimate", estimate)
+        assert started.wait(5)
+        runner.submit("relight", lambda ctx: gate.wait(5))
+        qtbot.waitUntil(lambda: runner.queue.running_channel() == "relight", timeout=5000)
+        runner.cancel("estimate")
+        gate.set()
         qtbot.waitUntil(lambda: not runner.busy(), timeout=5000)
         assert runs == ["estimate"]
     finally:

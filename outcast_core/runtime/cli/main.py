@@ -363,6 +363,7 @@ class ProgressLine:
         self._mark = -1
         self._width = 0  # of the line open on a terminal (0: none)
         self._began: tuple[str, float, float] | None = None  # stage, time, fraction at start
+        self._last = 0.0  # the last fraction seen
 
     def _out(self):  # sys.stderr when called, as print's default (pytest swaps it)
         return self.stream if self.stream is not None else sys.stderr
@@ -379,6 +380,8 @@ class ProgressLine:
             return
         fraction = min(1.0, max(0.0, float(fraction)))
         out = self._out()
+        if stage == self._stage and fraction < self._last:
+            self._mark = -1  # the stage started over: its lines too
         left = self._time_left(stage, fraction)
         if self._tty():
             text = f"{stage}: {100.0 * fraction:5.1f} %{left}"
@@ -395,9 +398,11 @@ class ProgressLine:
         """``", about 40 s left"`` from the stage's own pace so far, once it has run
         :data:`ETA_AFTER_S` seconds (before that, and at its end, nothing)."""
         now = self.clock()
-        if self._began is None or self._began[0] != stage:
-            self._began = (stage, now, fraction)
+        if self._began is None or self._began[0] != stage or fraction < self._last:
+            self._began = (stage, now, fraction)  # a new stage, or one started over
+            self._last = fraction
             return ""
+        self._last = fraction
         _, t0, f0 = self._began
         elapsed, done = now - t0, fraction - f0
         if elapsed < ETA_AFTER_S or done <= 0.0 or fraction >= 1.0:

@@ -1,8 +1,8 @@
 """What identifies a photo: its pixel size and a cheap fingerprint of its content.
 
 A project file (the app's ``NAME.outcast.json``) records the identity of the photo it was saved
-with; the app warns when the photo opened with it is another one, and ``outcast batch`` says so
-in the photo's warnings (the project's suns and shadow corrections were made for that picture).
+with; the app asks before using it with another picture, and ``outcast batch`` fails that
+photo, saying why (the project's suns and shadow corrections were made for that picture).
 """
 
 from __future__ import annotations

@@ -974,10 +974,13 @@ def find_sun(
     check("trying suns over the dome", 0.08, "photo shadows")
     grid = [(a, e) for e in COARSE_ELEVATIONS for a in COARSE_AZIMUTHS]
     dome_agree, dome_shading = coarse.score(_Frame().vectors(grid))
-    dome = ranking(dome_agree, dome_shading, measure) + look_term(_Frame().vectors(grid))
+    dome = ranking(dome_agree, dome_shading, measure)
     evaluations = len(grid)
+    # The map is what the shadows say (the heat map the dial shows, and the compass's note);
+    # the search ranks with the photo's look as well.
     amap = AgreementMap(np.array(COARSE_AZIMUTHS), np.array(COARSE_ELEVATIONS),
                         dome.reshape(len(COARSE_ELEVATIONS), len(COARSE_AZIMUTHS)))
+    dome = dome + look_term(_Frame().vectors(grid))
     d_az = COARSE_AZIMUTHS[1] - COARSE_AZIMUTHS[0]
     d_el = COARSE_ELEVATIONS[1] - COARSE_ELEVATIONS[0]
     el_range = (MIN_ELEVATION, 90.0)
@@ -1062,6 +1065,11 @@ def find_sun(
     unfound = ""
     if found:
         note = f"sun found from the photo's shadows (confidence {confidence:.2f})"
+        if look is not None and amap.at(cam_az, cam_el) < COLD_ON_MAP and (
+                prior is None or prior.azimuth is None):
+            # The map is the shadows' alone: say what moved the sun off its warm area.
+            note += ("; the photo's look chose it among suns its shadows fit almost alike "
+                     "(the map shows the shadows' agreement alone)")
         if prior is not None:
             note += "; " + (prior.description or f"elevation {prior.elevation:.0f}° from EXIF")
         if prior is not None and prior.azimuth is not None:
@@ -1096,6 +1104,9 @@ def find_sun(
         else:
             note = (f"{why}: its sun cannot be told from them (confidence {confidence:.2f}); "
                     "set it by eye")
+    look_error = str(getattr(session, "sun_look_error", "") or "")
+    if look_error:  # an optional model that failed: said, and the shadows alone decided
+        note += f"; {look_error}"
     true_el = float(best_e) if prior is not None else float(cam_el)
     # -- the sun itself in the frame: its direction is exact, whatever the shadows say (the
     #    search above still draws the heat map of what they say)

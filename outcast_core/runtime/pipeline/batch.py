@@ -647,12 +647,14 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
     still gives that one, the dial's being no answer yet), ``target_sun``, ``depth_path`` (a
     depth map the user loaded, relative to the project file), ``exposure`` ("Meter the new
     light"; None in projects from before it), ``shadow_edits`` (the user's corrections of
-    the found shadows; none in projects from before them) and ``daylight`` (false: "Keep the
-    photo's light"; None in projects from before it).
+    the found shadows; none in projects from before them), ``daylight`` (false: "Keep the
+    photo's light"; None in projects from before it) and ``photo``, the identity of the photo
+    it was saved with (:class:`~outcast_core.runtime.io.photo_identity.PhotoIdentity`; None in
+    projects from before it), which a batch checks against the photo it reads.
 
     Raises:
         ValueError: the project file is not a valid OutCast project, is for another photo, or
-            holds a sun, an exposure or a light the app does not write.
+            holds a sun, an exposure, a light or a photo identity the app does not write.
     """
     from outcast_core.runtime.pipeline.relight import EXPOSURES
 

@@ -353,6 +353,8 @@ class RelightSession:
         #: (the search for the sun then weighs its suns by it); not in the classic mode, which
         #: uses no learned network but ``Z``.
         self.use_sun_look = mode != "classic"
+        #: Why :meth:`sun_look` gave None although a ``sun`` model is there ("": it did not).
+        self.sun_look_error = ""
         self.full_image_srgb: np.ndarray | None = None
         self.greyscale = False
         self._given_depth: np.ndarray | None = None
@@ -453,14 +455,22 @@ class RelightSession:
     def sun_look(self) -> SunLook | None:
         """``D``'s reading of the photo (:func:`~outcast_core.runtime.pipeline.sun_look.read_sun`:
         where its look puts the sun, a distribution over directions), or None without a
-        ``sun`` model or when :attr:`use_sun_look` is off. Made once per photo and preset."""
+        ``sun`` model or when :attr:`use_sun_look` is off. Made once per photo and working
+        size. ``D`` is an optional extra: a model file that cannot be loaded or run gives
+        None too, and :attr:`sun_look_error` says why (the sun is then found from the shadows
+        alone, as without it)."""
         with self._lock:
             self._require_image()
             if not self.use_sun_look or not self.registry.available("sun"):
                 return None
-            if self._sun_look is None:
+            if self._sun_look is None and not self.sun_look_error:
                 assert self.image_srgb is not None
-                self._sun_look = read_sun(self.registry.load("sun"), self.image_srgb)
+                t0 = time.perf_counter()
+                try:
+                    self._sun_look = read_sun(self.registry.load("sun"), self.image_srgb)
+                except (ModelError, ValueError, OSError) as exc:
+                    self.sun_look_error = f"the sun model could not be used: {exc}"
+                self._time("sun look", t0)
             return self._sun_look
 
     def horizon_tilt(self) -> tuple[float, float]:

@@ -72,7 +72,8 @@ class SunLook:
 
 
 def read_sun(model: object, image_srgb: np.ndarray) -> SunLook:
-    """Run ``D`` on a photo shrunk (area filter) to its training side.
+    """Run ``D`` on a photo resized to its training side (area filter when shrinking), both
+    sides rounded to multiples of the network's ``pad_multiple``.
 
     Args:
         model: a loaded ``sun`` model (:class:`~outcast_core.runtime.io.models.Model`): input
@@ -88,11 +89,14 @@ def read_sun(model: object, image_srgb: np.ndarray) -> SunLook:
         raise ValueError(f"expected an H x W x 3 image, got shape {image.shape}")
     manifest = getattr(model, "manifest", {}) or {}
     side = int(getattr(model, "input_side", None) or DEFAULT_SIDE)
+    m = int(getattr(model, "pad_multiple", 16) or 16)
     h, w = image.shape[:2]
-    if max(h, w) != side:
-        scale = side / max(h, w)
-        size = (max(16, round(w * scale)), max(16, round(h * scale)))
-        interp = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
+    # The longer side at the training side, both sides multiples of the network's (padding
+    # would put edge rows into its global pooling, which training never saw).
+    scale = side / max(h, w)
+    size = (max(m, m * round(w * scale / m)), max(m, m * round(h * scale / m)))
+    if size != (w, h):
+        interp = cv2.INTER_AREA if size[0] < w else cv2.INTER_LINEAR
         image = cv2.resize(image, size, interpolation=interp)
     out = model.run({"image": np.clip(image, 0.0, 1.0).transpose(2, 0, 1)[None]})  # type: ignore[attr-defined]
     logits = np.asarray(out["logits"], np.float64).reshape(-1)

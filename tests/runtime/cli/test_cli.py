@@ -290,6 +290,11 @@ def test_progress_says_the_time_left_at_the_stages_own_pace() -> None:
     assert lines[2] == "timelapse:  20 %, about 16 s left"  # 4 s for 20 %: 16 s for 80 %
     assert lines[9] == "timelapse:  90 %, about 2 s left"
     assert lines[10] == "timelapse: 100 %" and lines[11] == "writing:  50 %"
+    now[0] = 110.0
+    progress("writing", 0.1)  # the stage started over: its clock too
+    now[0] = 114.0
+    progress("writing", 0.5)
+    assert log.getvalue().splitlines()[-1] == "writing:  50 %, about 5 s left"  # 0.4 in 4 s
 
 
 def test_timelapse_progress_in_a_log_is_lines(photo: Path, tmp_path: Path, capsys) -> None:

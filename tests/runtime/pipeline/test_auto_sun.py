@@ -553,6 +553,35 @@ def test_the_photos_look_weighs_the_suns_without_overruling_clear_shadows(
     monkeypatch.setattr(auto_sun, "LOOK_WEIGHT", 1.0)
     pulled = find_sun(session)
     assert _angle(pulled.w, other) <= 10.0
-    # The heat map shows what the search ranks by: warmest near the look's sun now.
+    # The heat map stays what the shadows say (warmest at the true sun), and the note says
+    # what moved the sun off it.
+    np.testing.assert_array_equal(pulled.map.scores, fit.map.scores)
     az, el = pulled.map.best()
-    assert _angle(sun_vector(az, el), other) <= 25.0
+    assert _angle(sun_vector(az, el), true) <= 25.0
+    if pulled.found:
+        assert "the photo's look chose it" in pulled.note
+    # With an EXIF elevation the ring is weighed by the look too (in the tilted frame).
+    ring = find_sun(session, prior=SunPrior(55.0), pitch_roll=(5.0, 0.0))
+    assert abs(ring.true_elevation - 55.0) <= 10.0
+    assert _angle(ring.w, other) < _angle(find_sun(_session(_photo_lit_by(true)),
+                                                    prior=SunPrior(55.0),
+                                                    pitch_roll=(5.0, 0.0)).w, other)
+
+
+def test_a_sun_model_that_cannot_be_used_leaves_the_shadows_to_decide(tmp_path: Path) -> None:
+    """D is an optional extra: a corrupt sun.onnx must not stop Find sun (a review: its
+    ModelError reached the app, which fell back to the classic mode)."""
+    from outcast_core.runtime.io.models import ModelRegistry
+
+    models = tmp_path / "models"  # the sun model alone (the depth is given)
+    models.mkdir()
+    (models / "sun.onnx").write_bytes(b"not a model")
+    (models / "sun.json").write_text(json.dumps({"name": "sun", "file": "sun.onnx",
+                                                 "sha256": "0" * 64}))
+    session = RelightSession(preset="fast", shadow_mode="direct", relight_mode="physics",
+                             registry=ModelRegistry(models))
+    w = sun_vector(150.0, 40.0)
+    session.set_image(_photo_lit_by(w), fov_deg=60.0, depth=DEPTH)
+    assert session.sun_look() is None and "could not be used" in session.sun_look_error
+    fit = find_sun(session)
+    assert _angle(fit.w, w) <= 6.0 and "could not be used" in fit.note

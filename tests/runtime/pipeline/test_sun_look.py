@@ -59,6 +59,7 @@ class _FakeModel:
     def __init__(self, logits: np.ndarray, side: int = 64) -> None:
         self.manifest = {"bins": int(logits.size), "kappa": DEFAULT_KAPPA}
         self.input_side = side
+        self.pad_multiple = 16
         self.logits = logits
         self.seen: list[tuple[int, ...]] = []
 
@@ -73,9 +74,11 @@ def test_read_sun_shrinks_the_photo_to_the_models_side_and_checks_the_logits() -
     model = _FakeModel(logits)
     look = read_sun(model, np.random.default_rng(0).random((480, 640, 3), np.float32))
     assert model.seen == [(1, 3, 48, 64)]
+    read_sun(model, np.zeros((400, 600, 3), np.float32))  # 3:2: 42.7 rows -> 48
+    assert model.seen[-1] == (1, 3, 48, 64)
     assert look.probabilities.argmax() == 5 and look.probabilities.sum() == pytest.approx(1.0)
-    read_sun(model, np.zeros((8, 4, 3), np.float32))  # tiny: brought up to at least 16 px
-    assert min(model.seen[-1][2:]) >= 16
+    read_sun(model, np.zeros((8, 4, 3), np.float32))  # tiny: brought up, at least 16 px
+    assert model.seen[-1] == (1, 3, 64, 32)
     with pytest.raises(ValueError, match="expected 320 logits"):
         bad = _FakeModel(np.zeros(64))
         bad.manifest["bins"] = 320
