@@ -71,7 +71,7 @@ class SunLook:
         return self.bins[int(np.argmax(dens))].astype(np.float64)
 
 
-def read_sun(model: object, image_srgb: np.ndarray) -> SunLook:
+def read_sun(model: object, image_srgb: np.ndarray, *, mirrored: bool = True) -> SunLook:
     """Run ``D`` on a photo resized to its training side (area filter when shrinking), both
     sides rounded to multiples of the network's ``pad_multiple``.
 
@@ -80,9 +80,12 @@ def read_sun(model: object, image_srgb: np.ndarray) -> SunLook:
             ``image`` (1 x 3 x H x W sRGB), output ``logits`` (1 x K); its manifest may give
             ``bins``, ``kappa`` and ``input_side``.
         image_srgb: ``H x W x 3`` sRGB in [0, 1].
+        mirrored: also read the photo mirrored left to right and mix the two readings (the
+            mirrored one's directions mirrored back): ``D`` was trained on random mirrorings,
+            and the mix halves what either reading gets wrong on its own.
 
     Returns:
-        A :class:`SunLook`.
+        A :class:`SunLook` (with ``mirrored``, its bins are ``D``'s and their mirror images).
     """
     image = np.asarray(image_srgb, np.float32)
     if image.ndim != 3 or image.shape[2] != 3 or min(image.shape[:2]) < 1:
@@ -98,13 +101,20 @@ def read_sun(model: object, image_srgb: np.ndarray) -> SunLook:
     if size != (w, h):
         interp = cv2.INTER_AREA if size[0] < w else cv2.INTER_LINEAR
         image = cv2.resize(image, size, interpolation=interp)
-    out = model.run({"image": np.clip(image, 0.0, 1.0).transpose(2, 0, 1)[None]})  # type: ignore[attr-defined]
-    logits = np.asarray(out["logits"], np.float64).reshape(-1)
     k = int(manifest.get("bins", DEFAULT_BINS))
-    if logits.size != k:
-        raise ValueError(f"expected {k} logits from the sun model, got {logits.size}")
-    p = np.exp(logits - logits.max())
-    return SunLook(probabilities=p / p.sum(), bins=direction_bins(k),
+    bins = direction_bins(k)
+    views = [image, image[:, ::-1]] if mirrored else [image]
+    probs, dirs = [], []
+    for i, view in enumerate(views):
+        x = np.ascontiguousarray(np.clip(view, 0.0, 1.0).transpose(2, 0, 1)[None])
+        logits = np.asarray(model.run({"image": x})["logits"], np.float64).reshape(-1)  # type: ignore[attr-defined]
+        if logits.size != k:
+            raise ValueError(f"expected {k} logits from the sun model, got {logits.size}")
+        p = np.exp(logits - logits.max())
+        probs.append(p / p.sum() / len(views))
+        # The mirrored photo's suns are the photo's mirrored (x -> -x in camera space).
+        dirs.append(bins if i == 0 else bins * np.array([-1.0, 1.0, 1.0], np.float32))
+    return SunLook(probabilities=np.concatenate(probs), bins=np.concatenate(dirs),
                    kappa=float(manifest.get("kappa", DEFAULT_KAPPA)))
 
 

@@ -72,13 +72,24 @@ def test_read_sun_shrinks_the_photo_to_the_models_side_and_checks_the_logits() -
     logits = np.zeros(64)
     logits[5] = 8.0
     model = _FakeModel(logits)
-    look = read_sun(model, np.random.default_rng(0).random((480, 640, 3), np.float32))
+    look = read_sun(model, np.random.default_rng(0).random((480, 640, 3), np.float32),
+                    mirrored=False)
     assert model.seen == [(1, 3, 48, 64)]
-    read_sun(model, np.zeros((400, 600, 3), np.float32))  # 3:2: 42.7 rows -> 48
-    assert model.seen[-1] == (1, 3, 48, 64)
     assert look.probabilities.argmax() == 5 and look.probabilities.sum() == pytest.approx(1.0)
-    read_sun(model, np.zeros((8, 4, 3), np.float32))  # tiny: brought up, at least 16 px
+    read_sun(model, np.zeros((400, 600, 3), np.float32), mirrored=False)  # 42.7 rows -> 48
+    assert model.seen[-1] == (1, 3, 48, 64)
+    read_sun(model, np.zeros((8, 4, 3), np.float32), mirrored=False)  # tiny: brought up
     assert model.seen[-1] == (1, 3, 64, 32)
+    # Read mirrored too (the default): the second reading's suns are mirrored back, so a
+    # model that says "bin 5" whatever it sees gives bin 5 and its mirror image alike.
+    b5 = direction_bins(64)[5].astype(np.float64)
+    assert abs(b5[0]) > 0.2  # not on the mirror plane
+    mirror = b5 * np.array([-1.0, 1.0, 1.0])
+    both = read_sun(model, np.zeros((48, 64, 3), np.float32))
+    assert len(model.seen) == 5 and both.probabilities.sum() == pytest.approx(1.0)
+    lik = both.likelihood(np.stack([b5, mirror]))
+    assert lik[0] == pytest.approx(lik[1], rel=0.05) and lik.min() > 0.5
+    assert look.likelihood(mirror)[0] < 1e-3
     with pytest.raises(ValueError, match="expected 320 logits"):
         bad = _FakeModel(np.zeros(64))
         bad.manifest["bins"] = 320
