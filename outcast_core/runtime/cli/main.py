@@ -313,17 +313,12 @@ def _set_image(session, loaded, args: argparse.Namespace, progress=None) -> None
     session.set_image(loaded.image_srgb, fov_deg=args.fov, focal_35mm=focal35, depth=depth,
                       progress=progress, photo_path=getattr(args, "image", None))
     getattr(progress, "end_line", lambda: None)()  # (the warnings below on their own lines)
-    from outcast_core.runtime.pipeline.batch import small_photo_note
-    from outcast_core.runtime.pipeline.session import elongation_note
+    from outcast_core.runtime.pipeline.batch import photo_warnings
 
-    for note in (elongation_note(*loaded.original_size), small_photo_note(*loaded.original_size)):
-        if note:  # said even with -q: the output is made, and may be meaningless
-            print(f"outcast: warning: {note}", file=sys.stderr)
-    if session.depth_source.startswith("ground-plane prior"):  # said even with -q
-        folder = session.registry.directory_for("depth")
-        print(f"outcast: warning: no depth model in '{folder}': the depth is a flat ground "
-              "plane, so the predicted shadows will be poor (see 'outcast models')",
-              file=sys.stderr)
+    # Said even with -q: the output is made, and may be meaningless (the transparency was
+    # said as the photo was read).
+    for note in photo_warnings(loaded, session, transparency=False):
+        print(f"outcast: warning: {note}", file=sys.stderr)
 
 
 #: :class:`ProgressLine` says the time left once a stage has run this long (seconds).

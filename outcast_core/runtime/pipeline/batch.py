@@ -922,22 +922,25 @@ def small_photo_note(width: int, height: int) -> str:
             "on the shorter side there are too few for them)")
 
 
-def photo_warnings(loaded: Any, session: Any) -> list[str]:
-    """What ``outcast relight`` warns of for a photo, for a batch to report with its result:
+def photo_warnings(loaded: Any, session: Any, *, transparency: bool = True) -> list[str]:
+    """What ``outcast relight`` warns of for a photo (and a batch reports with its result):
     transparency filled with white, a strip's shape
     (:func:`~outcast_core.runtime.pipeline.session.elongation_note`), a photo too small
     (:func:`small_photo_note`) and depth from no model (a flat ground plane). The output is
-    made all the same; these say why it may be poor.
+    made all the same; these say why it may be poor. One list for the command line and
+    batch (the app words the file's notes as sentences: ``app.main_window.photo_file_notes``).
 
     Args:
         loaded: the photo (:class:`~outcast_core.runtime.io.imageio.LoadedImage`).
         session: its session, after ``set_image``.
+        transparency: include the transparency's note (the command line says it as it reads
+            the photo).
     """
     from outcast_core.runtime.pipeline.session import elongation_note
 
     width, height = loaded.original_size
     notes = []
-    if loaded.has_alpha:
+    if transparency and loaded.has_alpha:
         notes.append("its transparency is filled with white (the output has none)")
     notes += [note for note in (elongation_note(width, height), small_photo_note(width, height))
               if note]
