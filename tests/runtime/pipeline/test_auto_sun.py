@@ -534,8 +534,9 @@ def test_cli_sun_says_which_sun_is_in_which_frame(capsys: pytest.CaptureFixture[
 def test_the_photos_look_weighs_the_suns_without_overruling_clear_shadows(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """D's reading (``session.sun_look``) adds its log-likelihood to each sun's agreement: at
-    the default weight a look that points elsewhere does not move a sun the exact shadows
-    tell; weighted heavily it takes the search to its own sun; the classic mode reads none."""
+    a small weight a look that points elsewhere does not move a sun the exact shadows tell;
+    weighted heavily it takes the search to its own sun; the classic mode reads none; at the
+    default weight (0: D made the real photos' suns worse, EVAL.md) it is not read at all."""
     from outcast_core.runtime.pipeline.sun_look import DEFAULT_KAPPA, SunLook, direction_bins
 
     def look_at(w: np.ndarray) -> SunLook:
@@ -547,8 +548,14 @@ def test_the_photos_look_weighs_the_suns_without_overruling_clear_shadows(
     true, other = sun_vector(150.0, 40.0), sun_vector(230.0, 55.0)
     session = _session(_photo_lit_by(true))
     assert session.sun_look() is None  # classic: no learned network reads the photo
-    session.sun_look = lambda: look_at(other)  # type: ignore[method-assign]
+    reads: list[int] = []
+    session.sun_look = lambda: reads.append(1) or look_at(other)  # type: ignore[method-assign]
+    assert auto_sun.LOOK_WEIGHT == 0.0
+    plain = find_sun(session)
+    assert reads == [] and _angle(plain.w, true) <= 6.0
+    monkeypatch.setattr(auto_sun, "LOOK_WEIGHT", 0.03)
     fit = find_sun(session)
+    assert reads == [1]
     assert _angle(fit.w, true) <= 6.0
     monkeypatch.setattr(auto_sun, "LOOK_WEIGHT", 1.0)
     pulled = find_sun(session)
@@ -568,7 +575,8 @@ def test_the_photos_look_weighs_the_suns_without_overruling_clear_shadows(
                                                     pitch_roll=(5.0, 0.0)).w, other)
 
 
-def test_a_sun_model_that_cannot_be_used_leaves_the_shadows_to_decide(tmp_path: Path) -> None:
+def test_a_sun_model_that_cannot_be_used_leaves_the_shadows_to_decide(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """D is an optional extra: a corrupt sun.onnx must not stop Find sun (a review: its
     ModelError reached the app, which fell back to the classic mode)."""
     from outcast_core.runtime.io.models import ModelRegistry
@@ -583,5 +591,6 @@ def test_a_sun_model_that_cannot_be_used_leaves_the_shadows_to_decide(tmp_path: 
     w = sun_vector(150.0, 40.0)
     session.set_image(_photo_lit_by(w), fov_deg=60.0, depth=DEPTH)
     assert session.sun_look() is None and "could not be used" in session.sun_look_error
+    monkeypatch.setattr(auto_sun, "LOOK_WEIGHT", 0.03)
     fit = find_sun(session)
     assert _angle(fit.w, w) <= 6.0 and "could not be used" in fit.note
