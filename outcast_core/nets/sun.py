@@ -6,7 +6,8 @@ on held-out synthetic views even the *true* shadow mask with ``Z``'s depth puts 
 best-agreeing sun about 49 degrees off (``models/EVAL.md``): the estimated normals are 22
 degrees off the renderer's. ``D`` reads the sun from what the photo shows directly (which faces
 are bright, where the shade falls, the sky's gradient) without going through a depth map; its
-distribution is a second term of the search's ranking.
+distribution can be a second term of the search's ranking (``auto_sun.LOOK_WEIGHT``, 0 by
+default: the first ``D`` made the real dev photos' suns worse, ``models/EVAL.md``).
 
 Architecture: ``Z``'s encoder (:class:`~outcast_core.nets.depth.DepthNet`'s five levels, same
 parameter names, so a run may start it from the shipped ``models/depth.onnx``), then a 3x3

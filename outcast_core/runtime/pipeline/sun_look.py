@@ -1,10 +1,13 @@
 """The sun as the photo's look tells it: ``D``'s distribution over directions (numpy only).
 
-``D`` (``models/sun.onnx``, trained by ``outcast train outcast_core/train/configs/sun.toml``;
-the network is :mod:`outcast_core.nets.sun`) gives a probability to each of ``K`` directions of
-a Fibonacci lattice over the sphere of camera-space directions. The distribution at any
-direction is a von Mises-Fisher kernel mixture of those bins (:meth:`SunLook.likelihood`), so
-:func:`~outcast_core.runtime.pipeline.auto_sun.find_sun` can weigh any sun it tries by it.
+``D`` (a ``sun.onnx`` in the models folder, made by ``outcast train
+outcast_core/train/configs/sun.toml`` and ``outcast export``; the network is
+:mod:`outcast_core.nets.sun`) gives a probability to each of ``K`` directions of a Fibonacci
+lattice over the sphere of camera-space directions. The distribution at any direction is a von
+Mises-Fisher kernel mixture of those bins (:meth:`SunLook.likelihood`), so
+:func:`~outcast_core.runtime.pipeline.auto_sun.find_sun` can weigh any sun it tries by it
+(``auto_sun.LOOK_WEIGHT``). No ``sun.onnx`` ships and the weight is 0: the ``D`` trained so far
+helps on synthetic views and hurts on the real dev photos (``models/EVAL.md``, twelfth session).
 """
 
 from __future__ import annotations
