@@ -2588,7 +2588,9 @@ class MainWindow(QMainWindow):
             self.progress_bar.setRange(0, 100)
             self.progress_bar.setValue(round(100 * fraction))  # the percentage: in the bar
             base = STAGE_WORDS.get(channel, channel)
-            self.stage_label.setText(f"{base}: {stage}")
+            # ("Exporting time-lapse: timelapse" said the stage twice: a user trial)
+            same = stage.lower().replace("-", "") in base.lower().replace("-", "")
+            self.stage_label.setText(base if same else f"{base}: {stage}")
         if channel == "tl_export" and self._timelapse_dialog is not None:
             self._timelapse_dialog.on_export_progress(fraction)
 

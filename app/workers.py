@@ -3,9 +3,9 @@
 * :class:`JobQueue` (Qt-free): one pending job per *channel*; submitting to a channel replaces the
   job waiting there, so while the user drags only the latest request counts. A *background*
   channel's job (the time-lapse dialog's timing of a short export) gives way to any other:
-  it starts only when no other job waits, and one submitted while it runs stops it; it is
-  then queued again behind that job under its id, and its second start is not signalled (the
-  GUI still waits for its one result).
+  it starts only when no other job waits and none was submitted for :data:`BACKGROUND_QUIET_S`,
+  and one submitted while it runs stops it; it is then queued again behind that job under its
+  id, and its second start is not signalled (the GUI still waits for its one result).
 * :class:`JobContext`: handed to each job: ``progress(stage, fraction)`` and cancellation.
 * :class:`TaskRunner` (a QObject living in the GUI thread): starts the thread, takes submissions,
   and re-emits results, failures and progress as signals in the GUI thread.
@@ -21,6 +21,7 @@ guarantees: there is exactly one worker thread and jobs run one after another.
 from __future__ import annotations
 
 import itertools
+import math
 import threading
 import time
 from collections import OrderedDict
@@ -29,6 +30,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from PySide6.QtCore import QObject, QThread, Signal, Slot
+
+#: A background job starts only this long after the user's last job was submitted: stopped by
+#: each move of a drag and started again between them, the time-lapse dialog's timing held the
+#: worker for a frame each time (a user trial: relight jobs waited up to 0.34 s instead of 0.03,
+#: half of the drag's previews dropped).
+BACKGROUND_QUIET_S = 1.0
 
 
 class JobCancelledError(RuntimeError):
@@ -79,10 +86,14 @@ class JobQueue:
     """Thread-safe queue with one pending job per channel (latest wins), FIFO across channels
     except that a background channel's job waits for every other."""
 
-    def __init__(self, background: frozenset[str] = frozenset()) -> None:
+    def __init__(self, background: frozenset[str] = frozenset(),
+                 quiet_s: float = BACKGROUND_QUIET_S) -> None:
         self._cond = threading.Condition()
         #: Channels whose jobs give way to any other (see the module docstring).
         self.background = frozenset(background)
+        #: How long after the user's last job was submitted a background job may start.
+        self.quiet_s = float(quiet_s)
+        self._last_foreground = -math.inf
         self._pending: OrderedDict[str, Job] = OrderedDict()
         self._running: Job | None = None
         self._closed = False
@@ -96,6 +107,8 @@ class JobQueue:
             job.id = next(self._ids)
             replaced = self._pending.pop(job.channel, None)
             self._pending[job.channel] = job
+            if job.channel not in self.background:
+                self._last_foreground = time.monotonic()
             run = self._running
             if (run is not None and run.channel in self.background
                     and job.channel not in self.background and not run.cancel_event.is_set()):
@@ -121,20 +134,32 @@ class JobQueue:
             self._cond.notify_all()
             return again
 
+    def _next_channel(self) -> tuple[str | None, float]:
+        """The channel to run now (the first job waiting; a background one only when nothing
+        else waits and the user's jobs have been quiet :attr:`quiet_s`), and when not, how
+        long until a waiting background job may start (inf: none waits)."""
+        channel = next((c for c in self._pending if c not in self.background), None)
+        if channel is not None or not self._pending:
+            return channel, math.inf
+        wait = self._last_foreground + self.quiet_s - time.monotonic()
+        return (next(iter(self._pending)), 0.0) if wait <= 0 else (None, wait)
+
     def take(self, timeout: float | None = None) -> Job | None:
         """Wait for the next job; ``None`` when closed (or on timeout)."""
         with self._cond:
             end = None if timeout is None else time.monotonic() + timeout
-            while not self._pending and not self._closed:
+            while not self._closed:
+                channel, wait = self._next_channel()
+                if channel is not None:
+                    break
                 left = None if end is None else end - time.monotonic()
                 if left is not None and left <= 0:
                     return None
+                if math.isfinite(wait):
+                    left = wait if left is None else min(left, wait)
                 self._cond.wait(left)
             if self._closed:
                 return None
-            # The first job waiting, a background one only when nothing else waits.
-            channel = next((c for c in self._pending if c not in self.background),
-                           next(iter(self._pending)))
             job = self._pending.pop(channel)
             self._running = job
             return job
@@ -240,9 +265,10 @@ class TaskRunner(QObject):
     idle = Signal()
 
     def __init__(self, parent: QObject | None = None,
-                 background: frozenset[str] = frozenset()) -> None:
+                 background: frozenset[str] = frozenset(),
+                 quiet_s: float = BACKGROUND_QUIET_S) -> None:
         super().__init__(parent)
-        self.queue = JobQueue(background)
+        self.queue = JobQueue(background, quiet_s)
         self._latest: dict[str, int] = {}
         # Jobs whose outcome has not reached the GUI thread yet (GUI-thread state only).
         self._outstanding: set[int] = set()

@@ -110,16 +110,34 @@ def test_failure_and_cancel_signals(qtbot, runner):
 
 
 def test_queue_takes_a_background_job_only_when_nothing_else_waits():
-    q = JobQueue(background=frozenset({"estimate"}))
+    q = JobQueue(background=frozenset({"estimate"}), quiet_s=0.0)
     q.put(Job("estimate", lambda c: "e"))
     q.put(Job("shadow", lambda c: "s"))
     assert [q.take(0.1).channel, q.take(0.1).channel] == ["shadow", "estimate"]
 
 
+def test_a_background_job_waits_until_the_users_jobs_have_been_quiet():
+    """A user trial: stopped by each move of a drag and started again between moves, the
+    timing held the worker a frame each time. It now starts only ``quiet_s`` after the last
+    submission of another channel, each new one putting it off again."""
+    q = JobQueue(background=frozenset({"estimate"}), quiet_s=0.3)
+    q.put(Job("estimate", lambda c: "e"))
+    assert q.take(0.01).channel == "estimate"  # nothing submitted before: at once
+    q.put(Job("estimate", lambda c: "e"))
+    q.put(Job("relight", lambda c: "r"))
+    assert q.take(0.01).channel == "relight"
+    t0 = time.monotonic()
+    assert q.take(0.1) is None  # too soon after the relight
+    q.put(Job("relight", lambda c: "r"))  # a drag's next move puts it off again
+    assert q.take(0.01).channel == "relight"
+    job = q.take(2.0)
+    assert job.channel == "estimate" and time.monotonic() - t0 >= 0.3
+
+
 def test_a_cancel_between_a_preempted_jobs_end_and_its_requeue_is_kept():
     """A review's race: the worker ended a preempted job and queued it again in two steps, so
     a cancel in between was lost and the job ran again. ``finish`` does both under one lock."""
-    q = JobQueue(background=frozenset({"bg"}))
+    q = JobQueue(background=frozenset({"bg"}), quiet_s=0.0)
     q.put(Job("bg", lambda c: 1))
     job = q.take(0.1)
     q.put(Job("relight", lambda c: 2))
@@ -146,7 +164,7 @@ def test_a_background_job_gives_way_and_runs_again_unseen(qtbot):
     background job runs again from the start under its id, its second start not signalled; the
     GUI sees one start and one result, and ``busy(background=False)`` ignores it. A background
     job cancelled by its own channel, running or queued again, is not run again."""
-    runner = TaskRunner(background=frozenset({"estimate"}))
+    runner = TaskRunner(background=frozenset({"estimate"}), quiet_s=0.0)
     try:
         runs: list[str] = []
         started = threading.Event()

@@ -856,12 +856,15 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
         (None, None, "") if read is None else (read.original_sun, read.target_sun, read.depth_path))
     loaded = read_image(job.image, keep_uint8=True)  # as the app reads it
     if read is not None and read.photo is not None:  # before the slow part
-        why = read.photo.mismatch(PhotoIdentity.of(loaded.image_srgb))
+        now = PhotoIdentity.of(loaded.image_srgb)
+        why = read.photo.mismatch(now)
         if why:  # the app asks, with "Cancel" the default; a batch cannot ask
+            sized = (now.width, now.height) != (read.photo.width, read.photo.height)
             raise ValueError(
-                f"the photo does not look like the one project '{read.name}' was saved with "
-                f"({why}): its suns and shadow corrections may not fit; open the photo in the "
-                "app to check, or move the project away")
+                f"the photo does not look like the one project '{read.name}' was saved with"
+                f"{f' ({why})' if sized else ''}: its suns and shadow corrections may not fit; "
+                "if it is the same picture (edited), open it in the app and save its project "
+                "again, else move the project away")
     to_sun = None
     if options.kind == "relight":  # before the slow part
         to_sun = target_sun_for(job, options, project_target)
