@@ -194,6 +194,9 @@ def _timings(session: Any) -> dict[str, float]:
 #: normals...): the camera's tilt, and for a quality switch with a confirmed sun first its
 #: shadows at the new size.
 TILT_STAGE = "camera tilt"
+#: Jobs whose result a dialog shows (the time-lapse preview's frames): the status bar keeps
+#: saying the user's own jobs.
+DIALOG_CHANNELS = ("tl_preview",)
 REDO_STAGE = "original shadows"
 
 
@@ -2570,7 +2573,7 @@ class MainWindow(QMainWindow):
         jobs that have one; the bar of the one before goes (a user trial saw a quality switch's
         "100 %" stay through the view's job that followed it). A background job (the
         time-lapse dialog's timing) leaves the status as it is: the dialog says it."""
-        if channel in self.runner.queue.background:
+        if channel in self.runner.queue.background or channel in DIALOG_CHANNELS:
             return
         self.stage_label.setText(f"{description or STAGE_WORDS.get(channel, channel)}…")
         if channel in ("load", "preset", "confirm", "find_sun", *EXPORT_CHANNELS):
@@ -2630,8 +2633,11 @@ class MainWindow(QMainWindow):
             self._timelapse_dialog.on_job_finished(channel, result)
         # The status says the user's jobs (not the time-lapse dialog's timing, which says its
         # own result in the dialog and gives way to them).
+        # Nor the dialog's preview frames ("rendering time-lapse frame took 0.00 s" for a
+        # cached one replaced what the user's relighting said: a user trial).
         if (not self.runner.busy(background=False) and channel != "find_sun"
-                and channel not in self.runner.queue.background):
+                and channel not in self.runner.queue.background
+                and channel not in DIALOG_CHANNELS):
             if channel in IMAGE_EXPORT_CHANNELS:
                 text = f"Saved {os.path.basename(result['path'])} in {seconds:.1f} s"
             elif channel == "tl_export":

@@ -360,6 +360,7 @@ class TimelapseDialog(QDialog):
         self.progress = QProgressBar(self)
         self.progress.setRange(0, 100)
         self.progress.setValue(0)
+        self.progress.setTextVisible(False)  # no "0 %" before any export (a user trial)
         self.status = QLabel("", self)
         self.status.setWordWrap(True)
         self.export_button = QPushButton("Export…", self)
@@ -852,6 +853,7 @@ class TimelapseDialog(QDialog):
         self._timing_key = None
         self._set_exporting(True)
         self.progress.setValue(0)
+        self.progress.setTextVisible(True)
         shape = self.frame_shape()
         pixels = f" of {shape[1]} × {shape[0]}" if shape is not None else ""
         self.status.setText(f"Exporting {len(samples)} frames{pixels} to {os.path.basename(path)}…")

@@ -299,3 +299,21 @@ def test_an_estimate_that_fails_is_not_submitted_again(window, photo, settle, er
     dialog.frames_box.setValue(6)  # the same settings' timing: not asked again
     settle()
     assert len(submitted) == 1
+
+
+def test_the_dialogs_frames_and_bar_leave_the_users_status_alone(window, photo, settle):
+    """A user trial: scrubbing put "Ready · rendering time-lapse frame took 0.00 s" (a cached
+    frame) over what the relighting had said, and the export bar said "0 %" before any
+    export."""
+    _relight(window, photo, settle)
+    said = window.stage_label.text()
+    assert said.startswith("Ready")
+    dialog = _timelapse(window, 6)
+    settle()
+    assert not dialog.progress.isTextVisible()
+    dialog.scrubber.setValue(3)
+    settle()
+    dialog.scrubber.setValue(0)
+    settle()
+    assert "time-lapse frame" not in window.stage_label.text()
+    assert window.stage_label.text() == said
