@@ -187,7 +187,7 @@ LEGIBLE_HIGH = 64
 #: (likelihood 1 at ``D``'s peak), so a sun the look rules out loses at most
 #: ``LOOK_WEIGHT * log(1 / LOOK_FLOOR)`` of agreement. 0 (the default) leaves the shadows alone
 #: and does not run ``D``: on held-out synthetic views ``D`` alone puts the sun 26 degrees off
-#: (median; the shadows alone 58-61), but on the 47 dev photos every weight tried made the
+#: (median; the shadows alone 56-58), but on the 47 dev photos every weight tried made the
 #: found sun's overlay worse (``models/EVAL.md``, twelfth session), so no ``sun.onnx`` ships.
 LOOK_WEIGHT = 0.0
 LOOK_FLOOR = 1e-3
