@@ -2573,7 +2573,7 @@ class MainWindow(QMainWindow):
         jobs that have one; the bar of the one before goes (a user trial saw a quality switch's
         "100 %" stay through the view's job that followed it). A background job (the
         time-lapse dialog's timing) leaves the status as it is: the dialog says it."""
-        if channel in self.runner.queue.background or channel in DIALOG_CHANNELS:
+        if not self._says_status(channel):
             return
         self.stage_label.setText(f"{description or STAGE_WORDS.get(channel, channel)}…")
         if channel in ("load", "preset", "confirm", "find_sun", *EXPORT_CHANNELS):
@@ -2582,6 +2582,12 @@ class MainWindow(QMainWindow):
             self.progress_bar.show()
         else:
             self.progress_bar.hide()
+
+    def _says_status(self, channel: str) -> bool:
+        """Whether a job of ``channel`` says its start and end in the status bar: not the
+        background timing nor a dialog's own frames (:data:`DIALOG_CHANNELS`), which say theirs
+        in the dialog, so the status keeps saying the user's jobs."""
+        return channel not in self.runner.queue.background and channel not in DIALOG_CHANNELS
 
     @Slot(int, str, str, float)
     def _on_job_progress(self, job_id: int, channel: str, stage: str, fraction: float) -> None:
@@ -2636,8 +2642,7 @@ class MainWindow(QMainWindow):
         # Nor the dialog's preview frames ("rendering time-lapse frame took 0.00 s" for a
         # cached one replaced what the user's relighting said: a user trial).
         if (not self.runner.busy(background=False) and channel != "find_sun"
-                and channel not in self.runner.queue.background
-                and channel not in DIALOG_CHANNELS):
+                and self._says_status(channel)):
             if channel in IMAGE_EXPORT_CHANNELS:
                 text = f"Saved {os.path.basename(result['path'])} in {seconds:.1f} s"
             elif channel == "tl_export":

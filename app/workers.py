@@ -164,12 +164,6 @@ class JobQueue:
             self._running = job
             return job
 
-    def done(self, job: Job) -> None:
-        with self._cond:
-            if self._running is job:
-                self._running = None
-            self._cond.notify_all()
-
     def cancel(self, channel: str) -> list[Job]:
         """Cancel the pending and the running job of a channel; returns the dropped pending ones."""
         with self._cond:

@@ -32,7 +32,7 @@ def test_queue_cancel_and_close():
     dropped = q.cancel("a")
     assert dropped == [pending] and pending.cancel_event.is_set()
     assert running.cancel_event.is_set()
-    q.done(running)
+    assert q.finish(running, cancelled=True) is False  # cancelled, not preempted
     assert not q.busy()
     q.close()
     with pytest.raises(RuntimeError, match="shut down"):

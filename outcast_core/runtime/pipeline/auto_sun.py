@@ -976,14 +976,15 @@ def find_sun(
     # -- the coarse dome (the heat map), camera-relative
     check("trying suns over the dome", 0.08, "photo shadows")
     grid = [(a, e) for e in COARSE_ELEVATIONS for a in COARSE_AZIMUTHS]
-    dome_agree, dome_shading = coarse.score(_Frame().vectors(grid))
+    grid_w = _Frame().vectors(grid)
+    dome_agree, dome_shading = coarse.score(grid_w)
     dome = ranking(dome_agree, dome_shading, measure)
     evaluations = len(grid)
     # The map is what the shadows say (the heat map the dial shows, and the compass's note);
     # the search ranks with the photo's look as well.
     amap = AgreementMap(np.array(COARSE_AZIMUTHS), np.array(COARSE_ELEVATIONS),
                         dome.reshape(len(COARSE_ELEVATIONS), len(COARSE_AZIMUTHS)))
-    dome = dome + look_term(_Frame().vectors(grid))
+    dome = dome + look_term(grid_w)
     d_az = COARSE_AZIMUTHS[1] - COARSE_AZIMUTHS[0]
     d_el = COARSE_ELEVATIONS[1] - COARSE_ELEVATIONS[0]
     el_range = (MIN_ELEVATION, 90.0)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -58,20 +59,20 @@ class SunLook:
         kernel mixture over the bins, over its largest value at any bin (so in [0, ~1])."""
         w = np.atleast_2d(np.asarray(w, np.float64))
         w = w / np.maximum(np.linalg.norm(w, axis=1, keepdims=True), 1e-12)
-        dens = self._density(w)
-        return dens / max(self._peak_density(), 1e-30)
+        return self._density(w) / max(float(self._at_bins.max()), 1e-30)
 
     def _density(self, w: np.ndarray) -> np.ndarray:
         k = np.exp(self.kappa * (w @ self.bins.T.astype(np.float64) - 1.0))
         return k @ self.probabilities.astype(np.float64)
 
-    def _peak_density(self) -> float:
-        return float(self._density(self.bins.astype(np.float64)).max())
+    @cached_property
+    def _at_bins(self) -> np.ndarray:
+        """The density at every bin (``K``; made once: the search asks at every stage)."""
+        return self._density(self.bins.astype(np.float64))
 
     def peak(self) -> np.ndarray:
         """The bin direction of highest density (``3``)."""
-        dens = self._density(self.bins.astype(np.float64))
-        return self.bins[int(np.argmax(dens))].astype(np.float64)
+        return self.bins[int(np.argmax(self._at_bins))].astype(np.float64)
 
 
 def read_sun(model: object, image_srgb: np.ndarray, *, mirrored: bool = True) -> SunLook:
