@@ -43,15 +43,13 @@ def _one_line(exc: BaseException) -> str:
     """The exception in one line for a dialog: an operating-system error as its plain reason
     and the file (not ``[Errno 13] ...``), and an output's temporary file (``.NAME.part...``,
     :func:`~outcast_core.runtime.io.imageio.atomic_output`) as the folder it was written in.
-    A file that could not be read (:class:`ImageReadError`) is its message for a person,
-    without the decoder's own words (they say nothing more to a photographer: a user trial).
+    A file that could not be read (:class:`ImageReadError`) is its message for a person (its
+    ``str``), without the decoder's own words.
 
     Example:
         >>> _one_line(PermissionError(13, "Permission denied", "/photos/.t.x1.part.gif"))
         "Permission denied: cannot write in the folder '/photos'"
     """
-    if isinstance(exc, ImageReadError):
-        return exc.message
     if isinstance(exc, OSError) and exc.strerror:
         if not exc.filename:
             return exc.strerror

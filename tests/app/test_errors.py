@@ -82,7 +82,7 @@ def test_open_advice_follows_the_reason_not_the_words(tmp_path) -> None:
 
     words = ValueError("cannot read 'a.jpg': the file is truncated or corrupt (x)")
     assert "damaged" not in message_for(words, "open").todo
-    assert message_for(words, "open").what == str(words)  # only an ImageReadError is cut
+    assert message_for(words, "open").what == str(words)
     odd = ImageReadError("cannot read image 'a.tif': it cannot be decoded",
                          ImageReadReason.UNSUPPORTED_LAYOUT, "cv2.imdecode returned None")
     msg = message_for(odd, "open")

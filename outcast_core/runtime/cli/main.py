@@ -840,7 +840,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     While a command runs, SIGTERM raises :class:`Terminated` (a ``KeyboardInterrupt``), so
     temporary and partial files are removed as on Ctrl+C; the exit status is then 143.
     """
-    from outcast_core.runtime.io.imageio import ImageReadError
     from outcast_core.runtime.io.models import ModelError
 
     parser = build_parser()
@@ -853,13 +852,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         _check_output(args)  # before the work: extension, existing file, folder, input
         return int(args.func(args) or 0)
-    except ImageReadError as exc:
-        # In plain words: the decoder's own ("OSError: image file is truncated (5 bytes not
-        # processed)") say nothing more to a photographer (a user trial), as in the app;
-        # the message keeps what is worth knowing (byte counts, sizes, the format).
-        print(f"outcast {args.command}: error: {exc.message}", file=sys.stderr)
-        return 2
     except (ValueError, ModelError, FileExistsError, FileNotFoundError, CliError) as exc:
+        # A photo that cannot be read (ImageReadError, a ValueError) in plain words, as in
+        # the app: its str leaves the decoder's own out.
         print(f"outcast {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except MemoryError:

@@ -127,8 +127,11 @@ class ImageReadReason(StrEnum):
 class ImageReadError(ValueError):
     """A file could not be read as an image (or depth map).
 
-    ``str(exc)`` is one line: :attr:`message`, then the decoder's :attr:`detail` in
-    parentheses when there is one (what the command line prints).
+    ``str(exc)`` is :attr:`message`, the one line every front end shows (the app's dialog, the
+    command line, a batch report's line); the decoder's :attr:`detail` is kept apart, for a
+    batch report's ``details`` and a developer's traceback (the decoder's exception is the
+    ``__cause__``). Its words ("OSError: image file is truncated (5 bytes not processed)") say
+    nothing more to a photographer (a user trial).
 
     Attributes:
         message: one line for a person, naming the file and saying what is wrong in words a
@@ -141,8 +144,8 @@ class ImageReadError(ValueError):
     Example:
         >>> err = ImageReadError("cannot read image 'a.jpg': the file is truncated or corrupt",
         ...                      ImageReadReason.DAMAGED, "OSError: image file is truncated")
-        >>> err.reason == "damaged", str(err).endswith("corrupt (OSError: image file is truncated)")
-        (True, True)
+        >>> err.reason == "damaged", str(err) == err.message, err.detail
+        (True, True, 'OSError: image file is truncated')
     """
 
     def __init__(self, message: str, reason: ImageReadReason | str, detail: str = "") -> None:
@@ -152,7 +155,7 @@ class ImageReadError(ValueError):
         self.detail = detail
 
     def __str__(self) -> str:
-        return f"{self.message} ({self.detail})" if self.detail else self.message
+        return self.message
 
 
 @dataclass

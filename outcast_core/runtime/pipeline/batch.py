@@ -804,11 +804,8 @@ def one_line(exc: BaseException) -> str:
     """An exception as one line (user errors as their message, others with their type; a
     photo that cannot be read in plain words, without the decoder's: :func:`run_job` keeps
     those in the result's ``details["decoder"]``)."""
-    from outcast_core.runtime.io.imageio import ImageReadError
     from outcast_core.runtime.io.models import ModelError
 
-    if isinstance(exc, ImageReadError):
-        return " ".join(exc.message.split())
     text = " ".join(str(exc).split())
     if isinstance(exc, ValueError | ModelError | FileExistsError) and text:
         return text
