@@ -728,7 +728,8 @@ def lift_probability(image_srgb: np.ndarray, probability: np.ndarray, sky: np.nd
 
 def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
              shift: tuple[float, float] = SHADE_SHIFT, marked: np.ndarray | None = None,
-             above_lit: float | None = LIFT_ABOVE_LIT) -> np.ndarray:
+             above_lit: float | None = LIFT_ABOVE_LIT,
+             lifted: np.ndarray | None = None) -> np.ndarray:
     """The photo with its shadows lifted (``H x W x 3`` sRGB float32, same size); the surface's
     fine texture is not lifted (:func:`without_texture`). ``shift``: the shade's expected
     chromaticity shift (:func:`same_material`). ``marked`` (``H x W`` in [0, 1], bool or
@@ -737,6 +738,8 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
     texture nor weakened as another material than the lit surface round it (grey paving
     marked beside a cyan pool was lifted to a quarter of its probability), and lifted to the
     lit surface just round it (:func:`marked_lift`). ``above_lit``: :func:`deshadow_log_gain`'s.
+    ``lifted``: :func:`lift_probability` of these same inputs when the caller has it already
+    (the session shows it as the found shadows), so it is not made twice.
 
     Example:
         >>> img = np.full((32, 32, 3), 0.8, np.float32); img[16:, 16:] *= 0.5
@@ -746,7 +749,13 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
         True
     """
     img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
-    p = lift_probability(img, probability, sky, shift, marked)
+    if lifted is None:
+        p = lift_probability(img, probability, sky, shift, marked)
+    else:
+        p = np.asarray(lifted, np.float32)
+        if p.shape != img.shape[:2]:
+            raise ValueError(f"expected a lift probability of shape {img.shape[:2]}, got "
+                             f"{p.shape}")
     gain = deshadow_log_gain(img, p, sky, above_lit, marked)
     lin = srgb_to_linear(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
     return linear_to_srgb((lin + _LOG_EPS) * np.exp(gain) - _LOG_EPS)

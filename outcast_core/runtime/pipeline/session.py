@@ -553,8 +553,10 @@ class RelightSession:
         #: The sun the photo shows (:func:`~outcast_core.runtime.pipeline.auto_sun.sun_in_photo`)
         #: at working size, or None.
         self.sun_seen: SunInPhoto | None = None
-        #: :meth:`found_shadows_detail`'s arrays, for one ``S_o``.
+        #: :meth:`found_shadows_detail`'s arrays, for one ``S_o``, and their lift probability
+        #: (:meth:`_detail_lifted`).
         self._detail: dict[str, Any] | None = None
+        self._detail_lift: np.ndarray | None = None
         #: ``S_o`` and the shadow probability as found, before :attr:`shadow_edits`.
         self._found: tuple[np.ndarray, np.ndarray] | None = None
         #: :meth:`found_shadows_detail`'s probability as found and cosine term, per ``S_o``.
@@ -868,6 +870,7 @@ class RelightSession:
         self._lifted = None
         self._lift_guards = {"of": self.original_shadow}
         self._detail = None
+        self._detail_lift = None
 
     @property
     def refinement(self) -> str:
@@ -892,7 +895,7 @@ class RelightSession:
                 t0 = time.perf_counter()
                 self._deshadowed = self._in_photo_colours(
                     deshadow(self.image_srgb, self.shadow_probability, self._lift_excluded,
-                             marked=self._marked(self.sky)))
+                             marked=self._marked(self.sky), lifted=self.lifted_shadows()))
                 self._time("deshadow", t0)
             return self._deshadowed
 
@@ -924,17 +927,28 @@ class RelightSession:
         (:meth:`lifted_shadows` for a photo found at the working size), upsampled bilinearly
         to the photo's size, as the lift's gain is. Needs :meth:`set_original_sun`.
         """
-        d = self.found_shadows_detail()
-        if d["image"] is self.image_srgb:  # found at the working size: lifted there already
-            lifted = self.lifted_shadows()
-        else:
-            lifted = lift_probability(d["image"], d["probability"], d["excluded"],
-                                      marked=d["marked"])
+        lifted = self._detail_lifted()
         full = self.full_image_srgb
         assert full is not None
         if lifted.shape != full.shape[:2]:
             lifted = resize(lifted, full.shape[:2])
         return np.clip(lifted, 0.0, 1.0).astype(np.float32)
+
+    def _detail_lifted(self) -> np.ndarray:
+        """:func:`~outcast_core.runtime.pipeline.photo_shadows.lift_probability` at
+        :meth:`found_shadows_detail`'s size (:meth:`lifted_shadows` when that is the working
+        size): made once per ``S_o`` for the full-size de-shadow and its mask."""
+        d = self.found_shadows_detail()
+        if d["image"] is self.image_srgb:  # found at the working size: lifted there already
+            return self.lifted_shadows()
+        with self._lock:
+            if d is not self._detail:  # another S_o since: made for the caller's, not kept
+                return lift_probability(d["image"], d["probability"], d["excluded"],
+                                        marked=d["marked"])
+            if self._detail_lift is None:
+                self._detail_lift = lift_probability(d["image"], d["probability"],
+                                                     d["excluded"], marked=d["marked"])
+            return self._detail_lift
 
     def _marked(self, sky: np.ndarray) -> np.ndarray | None:
         """How much the user's "Mark shadow" counts at each pixel (float32 in [0, 1],
@@ -1020,7 +1034,8 @@ class RelightSession:
                 out = self.deshadow()
             else:
                 out = self._in_photo_colours(
-                    deshadow(d["image"], d["probability"], d["excluded"], marked=d["marked"]))
+                    deshadow(d["image"], d["probability"], d["excluded"], marked=d["marked"],
+                             lifted=self._detail_lifted()))
             full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out,
                                                sky=d["sky"])
         self._time("deshadow_full", t0)

@@ -183,6 +183,38 @@ def test_session_refines_from_the_photo_and_deshadows(tmp_path: Path) -> None:
         RelightSession(refine="magic")
 
 
+def test_the_lift_probability_is_made_once_per_size(tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """What the app shows as the found shadows and what the de-shadow lifts are one
+    computation: at the working size and at the full-size de-shadow's, each is made once for
+    both (they were made twice), and the de-shadow is the same as with its own."""
+    img, depth = _session_inputs(tmp_path)
+    big = cv2.resize(img, (4 * W, 4 * H), interpolation=cv2.INTER_LINEAR)
+    big_depth = cv2.resize(depth, (4 * W, 4 * H), interpolation=cv2.INTER_NEAREST)
+    s = RelightSession(mode="classic", preset="fast")
+    s.set_image(big, depth=big_depth)
+    s.set_original_sun((0.5, -0.6, 0.6))
+    made: list[tuple[int, int]] = []
+    real = ps.lift_probability
+
+    def counted(image, *args, **kwargs):
+        made.append(np.asarray(image).shape[:2])
+        return real(image, *args, **kwargs)
+
+    monkeypatch.setattr(ps, "lift_probability", counted)
+    monkeypatch.setattr("outcast_core.runtime.pipeline.session.lift_probability", counted)
+    shown, out = s.lifted_shadows(), s.deshadow()
+    mask, full = s.lifted_shadows_full(), s.deshadow_full()
+    detail = s.found_shadows_detail()["image"].shape[:2]
+    assert detail != s.image_srgb.shape[:2]  # the full-size de-shadow is found apart
+    assert sorted(made) == sorted([s.image_srgb.shape[:2], detail])
+    monkeypatch.setattr(ps, "lift_probability", real)
+    np.testing.assert_array_equal(out, deshadow(s.image_srgb, s.shadow_probability, s.sky))
+    assert shown.shape == out.shape[:2] and mask.shape == full.shape[:2] == big.shape[:2]
+    with pytest.raises(ValueError, match="lift probability"):
+        deshadow(s.image_srgb, s.shadow_probability, s.sky, lifted=mask)
+
+
 def test_cli_deshadow(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     img, depth = _session_inputs(tmp_path)
     photo, dpath = tmp_path / "p.png", tmp_path / "d.npy"
