@@ -440,9 +440,10 @@ def test_session_lift_expects_the_clear_sky_shade_colour(
         shifts.append(("guard", shift))
         return real_guard(img, p, sky, shift)
 
-    def lift(img, p, sky, shift=ps.SHADE_SHIFT, marked=None, above_lit=ps.LIFT_ABOVE_LIT):
+    def lift(img, p, sky, shift=ps.SHADE_SHIFT, marked=None, above_lit=ps.LIFT_ABOVE_LIT,
+             lifted=None):
         shifts.append(("deshadow", shift))
-        return real_deshadow(img, p, sky, shift, marked, above_lit)
+        return real_deshadow(img, p, sky, shift, marked, above_lit, lifted)
 
     monkeypatch.setattr(session, "material_guard", guard)
     monkeypatch.setattr(session, "deshadow", lift)

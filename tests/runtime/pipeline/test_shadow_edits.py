@@ -310,10 +310,11 @@ def test_every_de_shadow_takes_the_marked_shadow_at_its_own_size(
     bounds: list[float | None] = []
     real = session_module.deshadow
 
-    def spy(img, p, sky, shift=SHADE_SHIFT, marked=None, above_lit=LIFT_ABOVE_LIT):
+    def spy(img, p, sky, shift=SHADE_SHIFT, marked=None, above_lit=LIFT_ABOVE_LIT,
+            lifted=None):
         seen.append((p.shape, marked))
         bounds.append(above_lit)
-        return real(img, p, sky, shift, marked, above_lit)
+        return real(img, p, sky, shift, marked, above_lit, lifted)
 
     monkeypatch.setattr(session_module, "deshadow", spy)
     monkeypatch.setattr(session_module, "DETAIL_SIDE", 4 * max(H, W))
