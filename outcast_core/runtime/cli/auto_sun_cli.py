@@ -5,9 +5,9 @@ EXIF time and place put the sun below the horizon is said so on stderr, in one l
 shadows alone are searched); with no clear
 shadows in the photo it says so on stderr instead of guessing and exits with
 :data:`NO_SUN_STATUS` (with ``--json`` the JSON is printed all the same, with the best guess
-under ``best_guess`` and ``azimuth`` and ``elevation`` null), unless the EXIF's compass heading
-gives a full sun. A sun seen in the frame, with the photo's GPS and time, also gives the
-camera's compass heading (``camera heading`` / ``camera_heading``). See
+under ``best_guess`` and ``azimuth`` and ``elevation`` null, and the same line on stderr),
+unless the EXIF's compass heading gives a full sun. A sun seen in the frame, with the photo's
+GPS and time, also gives the camera's compass heading (``camera heading`` / ``camera_heading``). See
 :mod:`outcast_core.runtime.pipeline.auto_sun`.
 """
 
@@ -75,6 +75,8 @@ def cmd_sun(args: argparse.Namespace) -> int:
             (None, None) if seen_as is None else (round(seen_as[0], 2), round(seen_as[1], 2)))
         out["camera_heading"] = None if seen_heading is None else round(seen_heading, 2)
         print(json.dumps(out, indent=2, ensure_ascii=False))
+        if not sure:  # as without --json: a script's log says why there is no sun
+            print(f"outcast sun: {fit.note}", file=sys.stderr)
         return 0 if sure else NO_SUN_STATUS
     if sure:
         heading = "" if seen_heading is None else f"  camera heading {seen_heading:.1f}"

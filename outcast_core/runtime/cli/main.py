@@ -446,15 +446,42 @@ def cmd_shadow(args: argparse.Namespace) -> int:
     return 0
 
 
+def _original_sun(args: argparse.Namespace, session, loaded,
+                  given: np.ndarray | None) -> np.ndarray:
+    """The photo's original sun for ``relight`` and ``deshadow``: ``--from`` (``given``), else,
+    as the app and ``outcast batch`` take it, the sun the photo shows, else its EXIF sun (GPS,
+    capture time and compass heading, in the camera's frame); said on stderr. Raises
+    :class:`CliError` when the photo has neither."""
+    if given is not None:
+        return given
+    from outcast_core.runtime.geometry.camera import sun_angles
+    from outcast_core.runtime.pipeline.timelapse import exif_sun, exif_sun_problem
+
+    seen = session.sun_seen
+    if seen is not None:
+        az, el = sun_angles(seen.w)
+        _say(args, f"original sun: azimuth {az:.1f}, elevation {el:.1f}, the sun in the photo")
+        return np.asarray(seen.w, np.float64)
+    sun = exif_sun(loaded.exif, tilt=session.photo_tilt()[:2])
+    if sun is None:
+        problem = exif_sun_problem(loaded.exif) or "no EXIF sun"
+        raise CliError(f"no --from and no sun from the photo ({problem}): give --from AZ,EL "
+                       f"(outcast sun {args.image} looks for it in the photo's shadows)")
+    _say(args, f"original sun: azimuth {sun[0]:.1f}, elevation {sun[1]:.1f}, from the photo's "
+               "EXIF (GPS, time and compass heading)")
+    return sun_vector(*sun)
+
+
 def cmd_relight(args: argparse.Namespace) -> int:
     from outcast_core.runtime.io.imageio import output_bit_depth, write_image
 
-    w_from = parse_azel(args.from_sun)
+    w_from = None if args.from_sun is None else parse_azel(args.from_sun)
     w_to = parse_azel(args.to_sun)
     loaded = _load(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit end to end
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
     _set_image(session, loaded, args)  # the daylight's horizon: the photo's tilt, as the app's
+    w_from = _original_sun(args, session, loaded, w_from)
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(w_from)
     corrections = say_unused_shadow_edits(session, args)
@@ -473,13 +500,14 @@ def cmd_relight(args: argparse.Namespace) -> int:
 def cmd_deshadow(args: argparse.Namespace) -> int:
     from outcast_core.runtime.io.imageio import output_bit_depth, write_image, write_shadow_png
 
-    w_from = parse_azel(args.from_sun)
+    w_from = None if args.from_sun is None else parse_azel(args.from_sun)
     if args.mask:  # the main output is checked before the work by _check_output
         check_output_path(args.mask, extensions=(".png",), force=args.force,
                           inputs=[args.image, args.depth], outputs=[args.output])
     loaded = _load(args.image, keep_uint8=True)  # as the app reads it
     session = _make_session(args, shadow_mode="auto")
     _set_image(session, loaded, args)
+    w_from = _original_sun(args, session, loaded, w_from)
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(w_from)
     corrections = say_unused_shadow_edits(session, args)
@@ -586,8 +614,9 @@ def build_parser(
 
     p = sub.add_parser("relight", help="relight a photo from its original sun to a new one")
     p.add_argument("image")
-    p.add_argument("--from", dest="from_sun", required=True, metavar="AZ,EL",
-                   help="the photo's original sun")
+    p.add_argument("--from", dest="from_sun", metavar="AZ,EL",
+                   help="the photo's original sun (default: the sun in the photo, else its "
+                        "EXIF sun from GPS, time and compass heading)")
     p.add_argument("--to", dest="to_sun", required=True, metavar="AZ,EL", help="the new sun")
     p.add_argument("--mode", choices=["auto", "physics", "learned"], default="auto",
                    help="learned relighting (default when installed) or physics ratios")
@@ -605,8 +634,10 @@ def build_parser(
 
     p = sub.add_parser("deshadow", help="lift the photo's own shadows (found at its sun)")
     p.add_argument("image")
-    p.add_argument("--from", dest="from_sun", required=True, metavar="AZ,EL",
-                   help="the photo's sun (the shadows are found where it can cast them)")
+    p.add_argument("--from", dest="from_sun", metavar="AZ,EL",
+                   help="the photo's sun (the shadows are found where it can cast them; "
+                        "default: the sun in the photo, else its EXIF sun from GPS, time and "
+                        "compass heading)")
     p.add_argument("--mask", default="", metavar="MASK.png",
                    help="also write the shadows it lifted (as the app's \"Shadows found\" "
                         "shows them) as a 16-bit grey PNG at the photo's size (white = shadow)")

@@ -65,6 +65,30 @@ def test_relight_full_resolution_and_no_overwrite(photo: Path, tmp_path: Path, c
     assert main(args + ["--force"]) == 0
 
 
+@pytest.mark.parametrize("command", ["relight", "deshadow"])
+def test_without_from_the_photos_exif_sun_is_the_original(
+    command: str, photo: Path, tmp_path: Path, capsys, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--from`` may be left out, as ``outcast batch`` and the app take the photo's own sun (a
+    user trial): a photo whose EXIF gives no sun says so with what to do; one whose EXIF gives
+    a full sun is relit from it, said on stderr, exactly as with ``--from`` that sun."""
+    from outcast_core.runtime.pipeline import timelapse
+
+    to = ["--to", "250,30"] if command == "relight" else []
+    given, derived = tmp_path / "given.png", tmp_path / "exif.png"
+    assert main([command, str(photo), *to, "-o", str(derived)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"outcast {command}: error: no --from and no sun from the photo (")
+    assert "give --from AZ,EL" in err and "outcast sun" in err and not derived.exists()
+    monkeypatch.setattr(timelapse, "exif_sun", lambda exif, heading=None, tilt=(0, 0): (120.0,
+                                                                                         40.0))
+    assert main([command, str(photo), *to, "-o", str(derived)]) == 0
+    assert "original sun: azimuth 120.0, elevation 40.0, from the photo's EXIF" in (
+        capsys.readouterr().err)
+    assert main([command, str(photo), "--from", "120,40", *to, "-o", str(given), "-q"]) == 0
+    np.testing.assert_array_equal(read_image(derived).image_srgb, read_image(given).image_srgb)
+
+
 def test_argument_errors_are_one_line(capsys) -> None:
     """argparse printed its usage block before the error (11-14 lines; a user trial)."""
     for argv in (["relight", "x.jpg", "--from", "1,2", "--to", "3,4", "--exposure", "bogus",

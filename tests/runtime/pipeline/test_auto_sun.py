@@ -213,8 +213,11 @@ def test_cli_sun_says_no_shadows_and_errors_in_one_line(
     said = capsys.readouterr()
     assert said.out == "" and said.err.startswith("outcast sun: no clear shadows in the photo")
     assert main([*args, "--json"]) == 3
-    out = json.loads(capsys.readouterr().out)
+    said = capsys.readouterr()
+    out = json.loads(said.out)
     assert out["azimuth"] is None and out["found"] is False and len(out["best_guess"]) == 2
+    # The reason on stderr too, as without --json (a user trial found only the JSON's note).
+    assert said.err == f"outcast sun: {out['note']}\n"
     assert main(["sun", str(tmp_path / "missing.jpg")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("outcast sun: error:") and "\n" not in err
