@@ -38,6 +38,7 @@ from outcast_core.runtime.pipeline.batch import (
     BatchJob,
     BatchOptions,
     JobResult,
+    other_files,
     plan_batch,
     read_targets_csv,
     record_done,
@@ -257,6 +258,13 @@ def run_batch_command(args: argparse.Namespace) -> int:
     if total == 0:
         raise ValueError(f"no photos in '{args.folder}' (expected JPEG, PNG, TIFF, WebP, HEIC "
                          "or BMP files)")
+    others = other_files(args.folder)
+    if others and not args.quiet:  # (a user trial: notes.txt went unmentioned)
+        names = ", ".join(p.name for p in others[:3]) + (
+            f" and {len(others) - 3} more" if len(others) > 3 else "")
+        said = ("1 file is not a photo and was" if len(others) == 1
+                else f"{len(others)} files are not photos and were")
+        print(f"outcast batch: note: {said} left alone: {names}", file=sys.stderr)
     if options.kind == "relight" and options.to_sun is None and targets is None and jobs:
         print("outcast batch: note: no --to or --targets: each photo's project gives the new "
               "sun", file=sys.stderr)

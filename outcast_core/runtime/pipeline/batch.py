@@ -204,6 +204,25 @@ def list_photos(folder: str | os.PathLike[str]) -> list[Path]:
                   and p.suffix.lower() in PHOTO_SUFFIXES)
 
 
+def other_files(folder: str | os.PathLike[str]) -> list[Path]:
+    """The files directly in ``folder`` that a batch leaves alone, sorted by name: not photos
+    (:func:`list_photos`), not hidden (a batch's own record is), not the photos' project files
+    (``NAME.outcast.json``).
+
+    Example:
+        >>> import tempfile
+        >>> with tempfile.TemporaryDirectory() as d:
+        ...     for name in ("a.jpg", "a.outcast.json", "notes.txt", ".DS_Store"):
+        ...         _ = (Path(d) / name).write_bytes(b"")
+        ...     [p.name for p in other_files(d)]
+        ['notes.txt']
+    """
+    photos = set(list_photos(folder))
+    return sorted(p for p in Path(folder).iterdir()
+                  if p.is_file() and p not in photos and not p.name.startswith(".")
+                  and not p.name.endswith(PROJECT_SUFFIX))
+
+
 def _parse_sun(az: str, el: str, where: str) -> Sun:
     try:
         sun = float(az), float(el)

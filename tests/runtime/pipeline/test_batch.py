@@ -85,6 +85,8 @@ def test_folder_with_a_corrupt_photo_is_done_and_resumable(
     assert "9 done, 0 skipped (already done), 1 failed" in err
     assert err.strip().splitlines()[-1] == "outcast batch: error: 1 of 10 photos failed: p9.jpg"
     assert "Traceback" not in err
+    # A file that is not a photo is named, not passed over in silence (a user trial).
+    assert "outcast batch: note: 1 file is not a photo and was left alone: notes.txt\n" in err
 
     before = _mtimes(out)
     del before[RECORD_NAME]  # the record may be rewritten; the outputs may not
