@@ -1124,8 +1124,10 @@ def find_sun(
         found, confidence, source = True, 1.0, SOURCE_SUN_IN_FRAME
         compass_decided, unfound = False, ""
         true_el = float(prior.elevation) if prior is not None else float(cam_el)
-        note = (f"the sun is in the frame (at pixel {seen.u:.0f}, {seen.v:.0f} of the working "
-                "image): its direction is taken from there")
+        # Where in the picture, in words a photographer reads (not the working image's pixels).
+        h, w = session.sky.shape
+        note = (f"the sun is in the frame ({100.0 * seen.u / w:.0f} % across, "
+                f"{100.0 * seen.v / h:.0f} % down): its direction is taken from there")
         if prior is not None and prior.azimuth is not None:
             seen_az = sun_angles(seen.w, frame.pitch, frame.roll)[0]  # the horizon's frame
             off = abs((seen_az - prior.azimuth + 180.0) % 360.0 - 180.0)

@@ -283,6 +283,10 @@ def test_find_sun_takes_the_sun_in_the_frame(capsys: pytest.CaptureFixture[str])
     assert abs((out["azimuth"] - 354.0 + 180.0) % 360.0 - 180.0) < 4.0
     assert 10.0 < out["elevation"] < 20.0
     assert "compass heading puts it" in out["note"]
+    # Where in the picture, as a share of it (the working image's pixels said nothing to a
+    # photographer: a user trial); the sun stands left of centre, in the upper fifth.
+    where = re.match(r"the sun is in the frame \((\d+) % across, (\d+) % down\)", out["note"])
+    assert where and 35 <= int(where[1]) <= 47 and 12 <= int(where[2]) <= 26
     # The seen sun, GPS and time give the camera's heading: the EXIF sun at that heading is the
     # seen sun (the compass records about 93°).
     from outcast_core.runtime.io.imageio import read_image
