@@ -29,6 +29,7 @@ from PySide6.QtGui import (
     QColor,
     QCursor,
     QFont,
+    QFontMetrics,
     QImage,
     QMouseEvent,
     QPainter,
@@ -402,7 +403,8 @@ class ImageCanvas(QWidget):
         p.setPen(QPen(QColor(255, 255, 255, 220), 2.0))
         top, bottom = max(rect.top(), 0.0), min(rect.bottom(), float(self.height()))
         p.drawLine(QPointF(x, top), QPointF(x, bottom))
-        self.paint_split_labels(p, x, top)
+        self.paint_split_labels(p, x, top, max(rect.left(), 0.0),
+                                min(rect.right(), float(self.width())))
 
     def paint_brush(self, p: QPainter) -> None:
         """The stroke being painted (a translucent band the brush's width along the mouse's
@@ -439,16 +441,30 @@ class ImageCanvas(QWidget):
                     p.drawEllipse(self._hover, inner, inner)
         p.restore()
 
-    def paint_split_labels(self, p: QPainter, x: float, top: float) -> None:
+    def split_label_boxes(self, x: float, top: float, left: float, right: float
+                          ) -> list[tuple[str, QRectF]]:
+        """The split's labels and their boxes beside the line at ``x``; a label whose side of
+        the photo (``left`` .. ``right``: its visible part) is too narrow to hold it whole is
+        left out (at the split's end one showed as a cut-off sliver: a user trial)."""
         font = QFont(self.font())
         font.setBold(True)
-        p.setFont(font)
-        fm = p.fontMetrics()
+        fm = QFontMetrics(font)
+        boxes = []
         for text, right_side in ((self._labels[0], False), (self._labels[1], True)):
             w = fm.horizontalAdvance(text) + 12
             h = fm.height() + 6
             bx = x + 8 if right_side else x - 8 - w
-            box = QRectF(bx, top + 8, w, h)
+            if bx < left or bx + w > right:
+                continue
+            boxes.append((text, QRectF(bx, top + 8, w, h)))
+        return boxes
+
+    def paint_split_labels(self, p: QPainter, x: float, top: float, left: float,
+                           right: float) -> None:
+        font = QFont(self.font())
+        font.setBold(True)
+        p.setFont(font)
+        for text, box in self.split_label_boxes(x, top, left, right):
             p.setPen(Qt.PenStyle.NoPen)
             p.setBrush(QColor(0, 0, 0, 140))
             p.drawRoundedRect(box, 4, 4)

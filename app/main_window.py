@@ -1555,9 +1555,10 @@ class MainWindow(QMainWindow):
                 text += f" · using {self._prior_words(result['prior'])}"
             if fit.compass_decided:  # found in a cold cell of the dial: say why, and the warm
                 map_az, map_el = m.best()
-                text += (f" · the compass heading chose it among suns the shadows fit alike; "
-                         f"they alone fit best near {map_az:.0f}°, {map_el:.0f}° (the warm "
-                         "area of the dial)")
+                # (A user trial read "fit alike" against "fit best" as a contradiction.)
+                text += (f" · the shadows fit many suns almost as well and the compass heading "
+                         f"chose this one; the shadows alone fit best near {map_az:.0f}°, "
+                         f"{map_el:.0f}° (the warm area of the dial)")
         else:
             why = {
                 "too-small": "This photo is too small or too narrow for its shadows to tell "

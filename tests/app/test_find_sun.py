@@ -66,7 +66,8 @@ def test_a_sun_the_compass_chose_says_where_the_shadows_alone_point(window, phot
     window.find_sun()
     settle()
     text = window.stage_label.text()
-    assert text.startswith("Sun found") and "the compass heading chose it" in text
+    assert text.startswith("Sun found") and "the compass heading chose this one" in text
+    assert "fit many suns almost as well" in text
     assert "near 200°, 36° (the warm area of the dial)" in text
 
 

@@ -1087,9 +1087,9 @@ def find_sun(
                 # and without the prior, is cold there (the pool sample: found 1 deg from its
                 # listed sun, in the map's coldest cell).
                 map_az, map_el = amap.best()
-                note += (f"; the compass heading decided between suns the shadows fit alike (the "
-                         f"shadows alone fit best near azimuth {map_az:.0f}°, elevation "
-                         f"{map_el:.0f}°: the warm area of the map)")
+                note += (f"; the shadows fit many suns almost as well and the compass heading "
+                         f"chose this one (the shadows alone fit best near azimuth "
+                         f"{map_az:.0f}°, elevation {map_el:.0f}°: the warm area of the map)")
     else:
         if legible < 1.0 and (legible < 0.5 or clarity * peak * strength >= CONFIDENT):
             h, w = session.image_srgb.shape[:2]
