@@ -352,13 +352,83 @@ def plan_batch(
                                          from_sun=from_sun, sun_source=source, to_sun=to_sun,
                                          warnings=list(entry.warnings)))
             else:
+                how = "not by a batch"
+                if entry is not None:  # against the record's kind (its sun's --from unused)
+                    now = (settings_for_source(job, options, None)
+                           if f'"from_sun": "{FROM_SUN_NOT_USED}"' in entry.settings
+                           else job.settings)
+                    how = settings_changed(entry.settings, now) or "with other settings"
                 results.append(JobResult(
                     str(image), str(output), "stale",
-                    "the output exists, made with other settings or not by a batch "
-                    "(use --force to redo it)"))
+                    f"the output exists, made {how} (use --force to redo it)"))
             continue
         jobs.append(job)
     return jobs, results
+
+
+#: :func:`settings_changed`: each recorded setting in the words a user gave it, in this order.
+_SETTING_WORDS = {
+    "kind": "the kind of batch", "to_sun": "--to", "job_to_sun": "the targets CSV's new sun",
+    "job_from_sun": "the targets CSV's original sun", "from_sun": "--from",
+    "sources": "--sources", "sweep": "--sweep", "day": "--day", "frames": "--frames",
+    "easing": "--easing", "fps": "--fps", "size": "--size", "fmt": "--format",
+    "preset": "--preset", "mode": "--mode", "exposure": "--exposure", "daylight": "the light",
+    "depth_model": "--depth-model", "use_phone_depth": "the phone's depth",
+    "photo": "the photo", "project": "the photo's project",
+}
+
+
+def _said(key: str, value: Any) -> str:
+    """One recorded setting's value as a user wrote it."""
+    if value is None:
+        return "none"
+    if key in ("to_sun", "from_sun", "job_to_sun", "job_from_sun") and isinstance(value, list):
+        return ",".join(f"{v:g}" for v in value)
+    if key == "sweep" and isinstance(value, list):
+        return ":".join(",".join(f"{v:g}" for v in sun) for sun in value)
+    if key == "sources" and isinstance(value, list):
+        return ",".join(str(v) for v in value)
+    if key == "daylight":
+        return "kept" if value is False else "the new sun's"
+    if key == "exposure":
+        return str(value)
+    return str(value) if isinstance(value, str | int | float | bool) else "another"
+
+
+def settings_changed(old: str, new: str) -> str:
+    """What differs between two records' settings (:func:`job_settings`), in words: ``"with
+    --to 90,30 (now 180,20)"``; ``"with another photo"`` for a changed file; ``""`` when they
+    cannot be read or do not differ.
+
+    Example:
+        >>> opts = BatchOptions(to_sun=(90.0, 30.0))
+        >>> job = BatchJob("a.jpg", "out/a.jpg")
+        >>> a = job_settings(job, opts)
+        >>> settings_changed(a, job_settings(job, replace(opts, to_sun=(180.0, 20.0))))
+        'with --to 90,30 (now 180,20)'
+    """
+    try:
+        was, now = json.loads(old), json.loads(new)
+    except (TypeError, ValueError):
+        return ""
+    if not isinstance(was, dict) or not isinstance(now, dict):
+        return ""
+    keys = [k for k in _SETTING_WORDS if k in was or k in now]
+    keys += sorted(k for k in set(was) | set(now) if k not in _SETTING_WORDS)
+    said = []
+    for key in keys:
+        a, b = was.get(key), now.get(key)
+        if a == b:
+            continue
+        name = _SETTING_WORDS.get(key, key)
+        if key in ("photo", "project", "depth_model"):  # a file: changed, not a value
+            said.append(f"with another version of {name}" if a and b else
+                        f"{'without' if not a else 'with'} {name}")
+        else:
+            said.append(f"with {name} {_said(key, a)} (now {_said(key, b)})")
+    if len(said) > 3:
+        said = [*said[:3], f"{len(said) - 3} more"]
+    return "; ".join(said)
 
 
 #: :func:`job_settings`: the options each kind of batch reads (the rest cannot change its output).

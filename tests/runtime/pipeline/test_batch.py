@@ -122,6 +122,13 @@ def test_a_rerun_with_other_settings_keeps_the_outputs_and_says_so(
     err = capsys.readouterr().err
     assert "0 done, 0 skipped (already done), 2 kept from other settings" in err
     assert "use --force to redo them" in err.strip().splitlines()[-1]
+    # Each photo's line says what was different, from the record (a user trial: "other
+    # settings" said too little).
+    assert main([*args[:-1], "--to", "180,20"]) == 2
+    kept = [line for line in capsys.readouterr().err.splitlines() if ": kept: " in line]
+    assert len(kept) == 2 and all(line.endswith(
+        "the output exists, made with --to 90,30 (now 180,20) (use --force to redo it)")
+        for line in kept)
     assert _mtimes(out) == before  # nothing overwritten
     assert main([*args, "--to", "90,30"]) == 0  # the first settings: done already
     assert main([*args, "--to", "180,20", "--force"]) == 0
@@ -791,3 +798,24 @@ def test_relights_warnings_are_in_the_batchs_lines_summary_and_report(
     err = capsys.readouterr().err
     assert "tiny.png: skipped" in err and "8 x 8 pixels" in err and "plain.png" not in err
     assert json.loads(report.read_text())["with_warnings"] == 2
+
+
+def test_what_changed_is_said_in_the_options_words(tmp_path: Path) -> None:
+    """A kept output's line names what differs from its record, as the options are written
+    (at most three, then how many more); unreadable records say nothing more."""
+    from outcast_core.runtime.pipeline.batch import job_settings, settings_changed
+
+    photo = tmp_path / "a.jpg"
+    _photo(photo, 0)
+    job = BatchJob(str(photo), str(tmp_path / "out" / "a.jpg"))
+    base = BatchOptions(to_sun=(90.0, 30.0), preset="fast")
+    old = job_settings(job, base)
+    assert settings_changed(old, old) == ""
+    assert settings_changed(old, "not json") == "" and settings_changed("[1]", old) == ""
+    other = dataclasses.replace(base, to_sun=(-90.0, 30.0), preset="accurate", fmt="png",
+                                mode="classic", exposure="metered")
+    said = settings_changed(old, job_settings(job, other))
+    assert said == ("with --to 90,30 (now 270,30); with --format jpg (now png); "
+                    "with --preset fast (now accurate); 2 more")
+    _photo(photo, 1)  # the photo itself replaced
+    assert settings_changed(old, job_settings(job, base)) == "with another version of the photo"
