@@ -312,7 +312,11 @@ def run_batch_command(args: argparse.Namespace) -> int:
         data = {REPORT_MARKER: 1, "input_folder": str(Path(args.folder).expanduser().resolve()),
                 "output_folder": str(out_dir.resolve()), "options": dict(vars(options)),
                 "counts": counts, "with_warnings": len(warned), "seconds": round(seconds, 2),
-                "results": [vars(r) for r in results]}
+                # Paths as the folders are given: absolute (the image's was relative when the
+                # folder was, beside an absolute input_folder: a user trial).
+                "results": [{**vars(r), "image": str(Path(r.image).expanduser().resolve()),
+                             "output": str(Path(r.output).expanduser().resolve())}
+                            for r in results]}
         # (checked again: a file that appeared meanwhile is not replaced)
         force = args.force or _our_report(args.report, Path(args.folder), out_dir)
         with atomic_output(Path(args.report).expanduser(), force=force) as tmp:

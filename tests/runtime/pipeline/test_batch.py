@@ -819,3 +819,20 @@ def test_what_changed_is_said_in_the_options_words(tmp_path: Path) -> None:
                     "with --preset fast (now accurate); 2 more")
     _photo(photo, 1)  # the photo itself replaced
     assert settings_changed(old, job_settings(job, base)) == "with another version of the photo"
+
+
+def test_the_reports_paths_are_absolute_for_relative_folders(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Given relative folders, the report's photos and outputs are absolute, as its
+    ``input_folder`` is (a user trial found them mixed)."""
+    monkeypatch.chdir(tmp_path)
+    Path("in").mkdir()
+    _photo(Path("in") / "p.png", 0)
+    assert main(["batch", "in", "-o", "out", "--from", "200,40", "--to", "90,30", "--mode",
+                 "classic", "--preset", "fast", "--report", "r.json", "-q"]) == 0
+    data = json.loads(Path("r.json").read_text())
+    (r,) = data["results"]
+    assert r["image"] == str(tmp_path.resolve() / "in" / "p.png")
+    assert r["output"] == str(tmp_path.resolve() / "out" / "p.jpg")
+    assert data["input_folder"] == str(tmp_path.resolve() / "in")
