@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from dataclasses import replace
@@ -258,7 +259,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
     if total == 0:
         raise ValueError(f"no photos in '{args.folder}' (expected JPEG, PNG, TIFF, WebP, HEIC "
                          "or BMP files)")
-    others = other_files(args.folder)
+    others = other_files(args.folder, exclude=[args.targets, args.report])
     if others and not args.quiet:  # (a user trial: notes.txt went unmentioned)
         names = ", ".join(p.name for p in others[:3]) + (
             f" and {len(others) - 3} more" if len(others) > 3 else "")
@@ -314,9 +315,10 @@ def run_batch_command(args: argparse.Namespace) -> int:
                 "counts": counts, "with_warnings": len(warned), "seconds": round(seconds, 2),
                 # Paths as the folders are given: absolute (the image's was relative when the
                 # folder was, beside an absolute input_folder: a user trial).
-                "results": [{**vars(r), "image": str(Path(r.image).expanduser().resolve()),
-                             "output": str(Path(r.output).expanduser().resolve())}
-                            for r in results]}
+                # (no expanduser: the folders were expanded, and a photo named "~trip.jpg"
+                # in "." is no home folder)
+                "results": [{**vars(r), "image": os.path.abspath(r.image),
+                             "output": os.path.abspath(r.output)} for r in results]}
         # (checked again: a file that appeared meanwhile is not replaced)
         force = args.force or _our_report(args.report, Path(args.folder), out_dir)
         with atomic_output(Path(args.report).expanduser(), force=force) as tmp:

@@ -448,9 +448,10 @@ def cmd_shadow(args: argparse.Namespace) -> int:
 
 def _original_sun(args: argparse.Namespace, session, loaded,
                   given: np.ndarray | None) -> np.ndarray:
-    """The photo's original sun for ``relight`` and ``deshadow``: ``--from`` (``given``), else,
-    as the app and ``outcast batch`` take it, the sun the photo shows, else its EXIF sun (GPS,
-    capture time and compass heading, in the camera's frame); said on stderr. Raises
+    """The photo's original sun for ``relight`` and ``deshadow``: ``--from`` (``given``), else
+    the sun the photo shows, else its EXIF sun (GPS, capture time and compass heading, in the
+    camera's frame), as the app's "Sun from EXIF" and ``outcast batch``'s ``exif`` source take
+    it (a project file's sun is ``outcast batch``'s); said on stderr. Raises
     :class:`CliError` when the photo has neither."""
     if given is not None:
         return given

@@ -285,9 +285,11 @@ def dark_frames_note(session: Any, samples: list[SunSample]) -> str:
     share = float(np.mean(frame)) / max(float(np.mean(session.image_srgb)), 1e-6)
     if share >= DARK_FRAME_SHARE:
         return ""
-    return (f"the lowest sun's frames (elevation {max(low.elevation, 0.0):.0f} deg) come out at "
-            f"about {100.0 * share:.0f} % of the photo's brightness, its exposure kept; "
-            "--exposure metered meters each frame as a camera would")
+    where = ("at the horizon" if low.elevation < 1.0 else
+             f"at elevation {low.elevation:.0f} deg")  # (rendered no lower than the horizon)
+    return (f"the lowest sun's frames ({where}) come out at about {100.0 * share:.0f} % of the "
+            "photo's brightness, its exposure kept; --exposure metered meters each frame as a "
+            "camera would")
 
 
 def check_timelapse_output(args: argparse.Namespace) -> None:

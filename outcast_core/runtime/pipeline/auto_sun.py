@@ -1072,8 +1072,8 @@ def find_sun(
         if look is not None and amap.at(cam_az, cam_el) < COLD_ON_MAP and (
                 prior is None or prior.azimuth is None):
             # The map is the shadows' alone: say what moved the sun off its warm area.
-            note += ("; the photo's look chose it among suns its shadows fit almost alike "
-                     "(the map shows the shadows' agreement alone)")
+            note += ("; its shadows fit many suns almost as well and the photo's look chose "
+                     "this one (the map shows the shadows' agreement alone)")
         if prior is not None:
             note += "; " + (prior.description or f"elevation {prior.elevation:.0f}° from EXIF")
         if prior is not None and prior.azimuth is not None:

@@ -204,10 +204,12 @@ def list_photos(folder: str | os.PathLike[str]) -> list[Path]:
                   and p.suffix.lower() in PHOTO_SUFFIXES)
 
 
-def other_files(folder: str | os.PathLike[str]) -> list[Path]:
+def other_files(folder: str | os.PathLike[str],
+                exclude: Sequence[str | os.PathLike[str] | None] = ()) -> list[Path]:
     """The files directly in ``folder`` that a batch leaves alone, sorted by name: not photos
-    (:func:`list_photos`), not hidden (a batch's own record is), not the photos' project files
-    (``NAME.outcast.json``).
+    (:func:`list_photos`), not hidden, not the photos' project files (``NAME.outcast.json``),
+    nor one of ``exclude`` (the batch's own targets CSV and report; None and ``""`` are
+    ignored).
 
     Example:
         >>> import tempfile
@@ -218,9 +220,10 @@ def other_files(folder: str | os.PathLike[str]) -> list[Path]:
         ['notes.txt']
     """
     photos = set(list_photos(folder))
+    own = {os.path.abspath(Path(p).expanduser()) for p in exclude if p}
     return sorted(p for p in Path(folder).iterdir()
                   if p.is_file() and p not in photos and not p.name.startswith(".")
-                  and not p.name.endswith(PROJECT_SUFFIX))
+                  and not p.name.endswith(PROJECT_SUFFIX) and os.path.abspath(p) not in own)
 
 
 def _parse_sun(az: str, el: str, where: str) -> Sun:
@@ -352,15 +355,16 @@ def plan_batch(
                                          from_sun=from_sun, sun_source=source, to_sun=to_sun,
                                          warnings=list(entry.warnings)))
             else:
-                how = "not by a batch"
+                how = "is not in the output folder's batch record"
                 if entry is not None:  # against the record's kind (its sun's --from unused)
                     now = (settings_for_source(job, options, None)
-                           if f'"from_sun": "{FROM_SUN_NOT_USED}"' in entry.settings
+                           if _recorded(entry.settings).get("from_sun") == FROM_SUN_NOT_USED
                            else job.settings)
-                    how = settings_changed(entry.settings, now) or "with other settings"
+                    how = "was made " + (settings_changed(entry.settings, now)
+                                         or "with other settings")
                 results.append(JobResult(
                     str(image), str(output), "stale",
-                    f"the output exists, made {how} (use --force to redo it)"))
+                    f"the output exists and {how}; use --force to redo it"))
             continue
         jobs.append(job)
     return jobs, results
@@ -378,40 +382,53 @@ _SETTING_WORDS = {
 }
 
 
+#: :func:`job_settings` leaves these out at their defaults (records made before them match).
+_SETTING_DEFAULTS = {"exposure": "photo", "daylight": True}
+
+
+def _recorded(settings: str) -> dict[str, Any]:
+    """A record's settings (:func:`job_settings`) as a dict, its left-out defaults filled in;
+    ``{}`` when they cannot be read."""
+    try:
+        keys = json.loads(settings)
+    except (TypeError, ValueError):
+        return {}
+    return {**_SETTING_DEFAULTS, **keys} if isinstance(keys, dict) else {}
+
+
 def _said(key: str, value: Any) -> str:
     """One recorded setting's value as a user wrote it."""
     if value is None:
         return "none"
+    if key == "daylight":
+        return "the photo's" if value is False else "the new sun's"
+    if isinstance(value, bool):
+        return "on" if value else "off"
     if key in ("to_sun", "from_sun", "job_to_sun", "job_from_sun") and isinstance(value, list):
         return ",".join(f"{v:g}" for v in value)
     if key == "sweep" and isinstance(value, list):
         return ":".join(",".join(f"{v:g}" for v in sun) for sun in value)
     if key == "sources" and isinstance(value, list):
         return ",".join(str(v) for v in value)
-    if key == "daylight":
-        return "kept" if value is False else "the new sun's"
-    if key == "exposure":
-        return str(value)
     return str(value) if isinstance(value, str | int | float | bool) else "another"
 
 
 def settings_changed(old: str, new: str) -> str:
     """What differs between two records' settings (:func:`job_settings`), in words: ``"with
-    --to 90,30 (now 180,20)"``; ``"with another photo"`` for a changed file; ``""`` when they
-    cannot be read or do not differ.
+    --to 90,30 instead of 180,20"``; ``"with another version of the photo"`` for a changed
+    file; ``""`` when they cannot be read or do not differ.
 
     Example:
         >>> opts = BatchOptions(to_sun=(90.0, 30.0))
         >>> job = BatchJob("a.jpg", "out/a.jpg")
         >>> a = job_settings(job, opts)
         >>> settings_changed(a, job_settings(job, replace(opts, to_sun=(180.0, 20.0))))
-        'with --to 90,30 (now 180,20)'
+        'with --to 90,30 instead of 180,20'
+        >>> settings_changed(a, job_settings(job, replace(opts, exposure="metered")))
+        'with --exposure photo instead of metered'
     """
-    try:
-        was, now = json.loads(old), json.loads(new)
-    except (TypeError, ValueError):
-        return ""
-    if not isinstance(was, dict) or not isinstance(now, dict):
+    was, now = _recorded(old), _recorded(new)
+    if not was or not now:
         return ""
     keys = [k for k in _SETTING_WORDS if k in was or k in now]
     keys += sorted(k for k in set(was) | set(now) if k not in _SETTING_WORDS)
@@ -421,13 +438,15 @@ def settings_changed(old: str, new: str) -> str:
         if a == b:
             continue
         name = _SETTING_WORDS.get(key, key)
-        if key in ("photo", "project", "depth_model"):  # a file: changed, not a value
+        if key == "daylight":
+            said.append(f"with {_said(key, a)} light instead of {_said(key, b)}")
+        elif key in ("photo", "project", "depth_model"):  # a file: changed, not a value
             said.append(f"with another version of {name}" if a and b else
                         f"{'without' if not a else 'with'} {name}")
         else:
-            said.append(f"with {name} {_said(key, a)} (now {_said(key, b)})")
+            said.append(f"with {name} {_said(key, a)} instead of {_said(key, b)}")
     if len(said) > 3:
-        said = [*said[:3], f"{len(said) - 3} more"]
+        said = [*said[:3], f"{len(said) - 3} more differences"]
     return "; ".join(said)
 
 

@@ -927,24 +927,26 @@ class RelightSession:
         (:meth:`lifted_shadows` for a photo found at the working size), upsampled bilinearly
         to the photo's size, as the lift's gain is. Needs :meth:`set_original_sun`.
         """
-        lifted = self._detail_lifted()
+        d = self.found_shadows_detail()
+        lifted = self._detail_lifted(d)
         full = self.full_image_srgb
         assert full is not None
         if lifted.shape != full.shape[:2]:
             lifted = resize(lifted, full.shape[:2])
         return np.clip(lifted, 0.0, 1.0).astype(np.float32)
 
-    def _detail_lifted(self) -> np.ndarray:
-        """:func:`~outcast_core.runtime.pipeline.photo_shadows.lift_probability` at
-        :meth:`found_shadows_detail`'s size (:meth:`lifted_shadows` when that is the working
-        size): made once per ``S_o`` for the full-size de-shadow and its mask."""
-        d = self.found_shadows_detail()
-        if d["image"] is self.image_srgb:  # found at the working size: lifted there already
-            return self.lifted_shadows()
+    def _detail_lifted(self, d: dict[str, Any]) -> np.ndarray:
+        """:func:`~outcast_core.runtime.pipeline.photo_shadows.lift_probability` of ``d``
+        (:meth:`found_shadows_detail`'s arrays, as the caller holds them; :meth:`lifted_shadows`
+        when found at the working size): made once per ``S_o`` for the full-size de-shadow and
+        its mask. A ``d`` that another ``S_o`` has replaced meanwhile is lifted for the caller
+        and not kept, so a lift never goes with another ``S_o``'s probability."""
         with self._lock:
-            if d is not self._detail:  # another S_o since: made for the caller's, not kept
+            if d is not self._detail:
                 return lift_probability(d["image"], d["probability"], d["excluded"],
                                         marked=d["marked"])
+            if d["image"] is self.image_srgb:  # found at the working size: lifted there
+                return self.lifted_shadows()
             if self._detail_lift is None:
                 self._detail_lift = lift_probability(d["image"], d["probability"],
                                                      d["excluded"], marked=d["marked"])
@@ -1035,7 +1037,7 @@ class RelightSession:
             else:
                 out = self._in_photo_colours(
                     deshadow(d["image"], d["probability"], d["excluded"], marked=d["marked"],
-                             lifted=self._detail_lifted()))
+                             lifted=self._detail_lifted(d)))
             full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out,
                                                sky=d["sky"])
         self._time("deshadow_full", t0)

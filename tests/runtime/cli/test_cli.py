@@ -89,6 +89,17 @@ def test_without_from_the_photos_exif_sun_is_the_original(
     np.testing.assert_array_equal(read_image(derived).image_srgb, read_image(given).image_srgb)
 
 
+def test_without_from_a_sun_in_the_photo_is_the_original(tmp_path: Path, capsys) -> None:
+    """The ski-slope sample shows its sun (its compass is 129 degrees off): ``deshadow``
+    without ``--from`` takes the sun in the photo, as ``outcast sun`` finds it."""
+    sample = Path(__file__).resolve().parents[3] / "samples" / "exif_005_es_skislope.jpg"
+    out = tmp_path / "d.jpg"
+    assert main(["deshadow", str(sample), "--preset", "fast", "-o", str(out)]) == 0
+    said = capsys.readouterr().err
+    assert "original sun: azimuth 354." in said and "the sun in the photo" in said
+    assert "EXIF" not in said.split("original sun:")[1].splitlines()[0] and out.exists()
+
+
 def test_argument_errors_are_one_line(capsys) -> None:
     """argparse printed its usage block before the error (11-14 lines; a user trial)."""
     for argv in (["relight", "x.jpg", "--from", "1,2", "--to", "3,4", "--exposure", "bogus",

@@ -127,8 +127,8 @@ def test_a_rerun_with_other_settings_keeps_the_outputs_and_says_so(
     assert main([*args[:-1], "--to", "180,20"]) == 2
     kept = [line for line in capsys.readouterr().err.splitlines() if ": kept: " in line]
     assert len(kept) == 2 and all(line.endswith(
-        "the output exists, made with --to 90,30 (now 180,20) (use --force to redo it)")
-        for line in kept)
+        "the output exists and was made with --to 90,30 instead of 180,20; use --force to "
+        "redo it") for line in kept)
     assert _mtimes(out) == before  # nothing overwritten
     assert main([*args, "--to", "90,30"]) == 0  # the first settings: done already
     assert main([*args, "--to", "180,20", "--force"]) == 0
@@ -815,8 +815,11 @@ def test_what_changed_is_said_in_the_options_words(tmp_path: Path) -> None:
     other = dataclasses.replace(base, to_sun=(-90.0, 30.0), preset="accurate", fmt="png",
                                 mode="classic", exposure="metered")
     said = settings_changed(old, job_settings(job, other))
-    assert said == ("with --to 90,30 (now 270,30); with --format jpg (now png); "
-                    "with --preset fast (now accurate); 2 more")
+    assert said == ("with --to 90,30 instead of 270,30; with --format jpg instead of png; "
+                    "with --preset fast instead of accurate; 2 more differences")
+    light = dataclasses.replace(base, keep_light=True)
+    assert settings_changed(old, job_settings(job, light)) == (
+        "with the new sun's light instead of the photo's")
     _photo(photo, 1)  # the photo itself replaced
     assert settings_changed(old, job_settings(job, base)) == "with another version of the photo"
 
@@ -836,3 +839,17 @@ def test_the_reports_paths_are_absolute_for_relative_folders(
     assert r["image"] == str(tmp_path.resolve() / "in" / "p.png")
     assert r["output"] == str(tmp_path.resolve() / "out" / "p.jpg")
     assert data["input_folder"] == str(tmp_path.resolve() / "in")
+
+
+def test_the_batchs_own_files_in_its_folder_are_not_called_other_files(tmp_path: Path) -> None:
+    """A targets CSV or a report kept in the photos' folder is the batch's own, not a file
+    it passed over."""
+    from outcast_core.runtime.pipeline.batch import other_files
+
+    _photo(tmp_path / "p.png", 0)
+    for name in ("targets.csv", "report.json", "notes.txt", "p.outcast.json"):
+        (tmp_path / name).write_text("x")
+    assert [p.name for p in other_files(tmp_path)] == ["notes.txt", "report.json",
+                                                       "targets.csv"]
+    assert [p.name for p in other_files(tmp_path, exclude=[
+        str(tmp_path / "targets.csv"), tmp_path / "report.json", None, ""])] == ["notes.txt"]

@@ -214,6 +214,16 @@ def test_the_lift_probability_is_made_once_per_size(tmp_path: Path,
     with pytest.raises(ValueError, match="lift probability"):
         deshadow(s.image_srgb, s.shadow_probability, s.sky, lifted=mask)
 
+    # Found shadows another S_o replaced meanwhile (a correction while an export runs): their
+    # lift is their own, and it is not kept for the new S_o.
+    old = s.found_shadows_detail()
+    s.set_shadow_edits([ps.ShadowEdit(0.5, 0.6, shadow=False)])
+    assert s.found_shadows_detail() is not old
+    np.testing.assert_array_equal(
+        s._detail_lifted(old),
+        real(old["image"], old["probability"], old["excluded"], marked=old["marked"]))
+    assert s._detail_lift is None
+
 
 def test_cli_deshadow(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     img, depth = _session_inputs(tmp_path)

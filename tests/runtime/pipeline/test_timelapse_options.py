@@ -161,8 +161,9 @@ def test_a_dark_dusk_is_said_with_what_to_do() -> None:
     day = [SunSample(90.0, 2.0), SunSample(180.0, 60.0), SunSample(270.0, -0.5)]
     note = dark_frames_note(session(0.1), day)
     assert "about 20 % of the photo's brightness" in note and "--exposure metered" in note
-    assert "elevation 0 deg" in note  # the lowest sun, rendered at the horizon
+    assert "(at the horizon)" in note  # the lowest sun, rendered at the horizon
     assert asked[-1][1] == pytest.approx(0.0, abs=0.05)  # (y down: the horizon's sun)
+    assert "(at elevation 12 deg)" in dark_frames_note(session(0.1), [SunSample(0.0, 12.0)])
     assert dark_frames_note(session(0.5 * DARK_FRAME_SHARE + 0.01), day) == ""
     n = len(asked)
     assert dark_frames_note(session(0.1, "metered"), day) == "" and len(asked) == n
