@@ -57,6 +57,11 @@ SIZE_CHOICES = (
     ("4k", "4K"),
     ("full", "Full resolution"),
 )
+#: Added to the frame's caption when its preview is dark with the photo's exposure kept
+#: (:data:`~outcast_core.runtime.pipeline.timelapse.DARK_FRAME_SHARE`): a day's first and last
+#: frames came out near black, unexplained (a user trial).
+DARK_FRAME_WORDS = (" · dark with the photo's exposure kept: step 2's \u201cMeter the new "
+                    "light\u201d meters each frame")
 #: Frames of the short export the estimate times (spread evenly along the path), one fewer
 #: above :data:`ESTIMATE_LARGE_MP` megapixels a frame.
 ESTIMATE_FRAMES = 4
@@ -355,6 +360,7 @@ class TimelapseDialog(QDialog):
         self.preview.setToolTip("A quick preview at a small size; the export is drawn at the "
                                 "size chosen under Output")
         self._preview_pixmap: QPixmap | None = None
+        self._caption = ""  # the shown frame's caption, before what its preview says
 
         # ---- export row
         self.progress = QProgressBar(self)
@@ -746,10 +752,10 @@ class TimelapseDialog(QDialog):
         # The real sun is given against the horizon and the camera's heading (its frame: the
         # photo's tilt); a sweep in the dial's (the camera's) angles.
         frame = " above the horizon" if any(s.tilt) and s.elevation >= 0 else ""
-        self.caption.setText(
-            f"Frame {index + 1}/{len(self._samples)}{when} · azimuth {s.azimuth:.1f}°, "
-            f"elevation {s.elevation:.1f}°{frame}{below} · quick preview"
-        )
+        self._caption = (f"Frame {index + 1}/{len(self._samples)}{when} · azimuth "
+                         f"{s.azimuth:.1f}°, elevation {s.elevation:.1f}°{frame}{below} · quick "
+                         "preview")
+        self.caption.setText(self._caption)
         session = self.main.session
         if session is None or session.original_sun is None or not self.isVisible():
             return  # (hidden: drawn when shown; a closed dialog's frame, redrawn after a
@@ -763,8 +769,12 @@ class TimelapseDialog(QDialog):
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)
             session.daylight = daylight  # (in the worker: MainWindow.set_daylight)
-            return {"index": index, "image": display.to_uint8_rgb(
-                session.relight(w, preview=True, exposure=exposure))}
+            relit = session.relight(w, preview=True, exposure=exposure)
+            # A dark frame with the photo's exposure kept (dawn, dusk) is said with what to
+            # do, as the command line says it.
+            dark = (exposure == "photo" and session.image_srgb is not None
+                    and tl.brightness_share(session.image_srgb, relit) < tl.DARK_FRAME_SHARE)
+            return {"index": index, "image": display.to_uint8_rgb(relit), "dark": dark}
 
         self.main.runner.submit("tl_preview", job, "Rendering time-lapse frame")
 
@@ -891,6 +901,8 @@ class TimelapseDialog(QDialog):
             if result["index"] == self.scrubber.value():
                 self._preview_pixmap = QPixmap.fromImage(qimage_from_array(result["image"]))
                 self._show_preview()
+                self.caption.setText(self._caption + (DARK_FRAME_WORDS if result.get("dark")
+                                                      else ""))
             return
         if channel == "tl_estimate":
             if result["key"] == self._timing_key:

@@ -317,3 +317,33 @@ def test_the_dialogs_frames_and_bar_leave_the_users_status_alone(window, photo, 
     settle()
     assert "time-lapse frame" not in window.stage_label.text()
     assert window.stage_label.text() == said
+
+
+def test_a_dark_frame_says_to_meter_the_new_light(window, photo, settle, monkeypatch):
+    """A day's first and last frames came out near black with the photo's exposure kept, and
+    nothing said why (a user trial): a dark preview frame's caption names step 2's "Meter the
+    new light"; metered, or a bright frame, it says nothing of it."""
+    from app.timelapse_dialog import DARK_FRAME_WORDS
+
+    _relight(window, photo, settle)
+    shares: list[float] = []
+
+    def share(photo_srgb, frame_srgb) -> float:
+        shares.append(level)
+        return level
+
+    monkeypatch.setattr(tl, "brightness_share", share)
+    level = 0.2
+    dialog = _timelapse(window, 3)
+    settle()
+    assert shares and dialog.caption.text().endswith(DARK_FRAME_WORDS)
+    assert dialog.caption.text().startswith("Frame 1/3")
+    window.relight_panel.meter_check.setChecked(True)  # the frame is drawn again, metered
+    settle()
+    assert "Meter the new light" not in dialog.caption.text()
+    window.relight_panel.meter_check.setChecked(False)
+    level = 0.9
+    dialog.scrubber.setValue(1)
+    settle()
+    assert dialog.caption.text().startswith("Frame 2/3")
+    assert "Meter the new light" not in dialog.caption.text()

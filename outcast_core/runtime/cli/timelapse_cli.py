@@ -14,8 +14,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from outcast_core.runtime.cli.main import (
     ProgressLine,
     add_exposure_option,
@@ -27,6 +25,7 @@ from outcast_core.runtime.cli.main import (
 )
 from outcast_core.runtime.geometry.camera import sun_vector
 from outcast_core.runtime.pipeline.timelapse import (
+    DARK_FRAME_SHARE,
     DEFAULT_FPS,
     DEFAULT_FRAME_SIZE,
     EASINGS,
@@ -35,6 +34,7 @@ from outcast_core.runtime.pipeline.timelapse import (
     MAX_FPS,
     MIN_FPS,
     SunSample,
+    brightness_share,
     format_from_path,
     frame_shape,
     frames_folder_problem,
@@ -268,12 +268,6 @@ def _samples_from_args(
     return samples
 
 
-#: :func:`dark_frames_note`: a frame whose mean (sRGB) is below this share of the photo's is
-#: called dark (the pool sample relit at the horizon: 0.24, the field path's 0.42; at 20
-#: degrees 0.41 and 0.81).
-DARK_FRAME_SHARE = 0.5
-
-
 def dark_frames_note(session: Any, samples: list[SunSample]) -> str:
     """What to say before rendering when the lowest sun's frame comes out dark with the photo's
     exposure kept (a day's first and last frames near black: a user trial), measured on that
@@ -281,8 +275,7 @@ def dark_frames_note(session: Any, samples: list[SunSample]) -> str:
     if session.exposure != "photo" or not samples:
         return ""
     low = min(samples, key=lambda s: s.elevation)
-    frame = session.relight(sun_vectors([low])[0])
-    share = float(np.mean(frame)) / max(float(np.mean(session.image_srgb)), 1e-6)
+    share = brightness_share(session.image_srgb, session.relight(sun_vectors([low])[0]))
     if share >= DARK_FRAME_SHARE:
         return ""
     where = ("at the horizon" if low.elevation < 1.0 else

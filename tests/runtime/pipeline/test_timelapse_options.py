@@ -146,8 +146,8 @@ def test_a_dark_dusk_is_said_with_what_to_do() -> None:
     below half the photo's brightness, the note says so and names ``--exposure metered``."""
     from types import SimpleNamespace
 
-    from outcast_core.runtime.cli.timelapse_cli import DARK_FRAME_SHARE, dark_frames_note
-    from outcast_core.runtime.pipeline.timelapse import SunSample
+    from outcast_core.runtime.cli.timelapse_cli import dark_frames_note
+    from outcast_core.runtime.pipeline.timelapse import DARK_FRAME_SHARE, SunSample
 
     photo = np.full((8, 8, 3), 0.5, np.float32)
     asked: list[np.ndarray] = []
