@@ -573,7 +573,7 @@ def test_the_photos_look_weighs_the_suns_without_overruling_clear_shadows(
     az, el = pulled.map.best()
     assert _angle(sun_vector(az, el), true) <= 25.0
     if pulled.found:
-        assert "the photo's look chose it" in pulled.note
+        assert "the photo's look chose this one" in pulled.note
     # With an EXIF elevation the ring is weighed by the look too (in the tilted frame).
     ring = find_sun(session, prior=SunPrior(55.0), pitch_roll=(5.0, 0.0))
     assert abs(ring.true_elevation - 55.0) <= 10.0
