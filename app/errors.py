@@ -185,6 +185,8 @@ def depth_file_problem(path: str | os.PathLike[str]) -> str | None:
     """
     p = Path(path)
     ext = p.suffix.lower()
+    if p.is_dir():  # (a folder named like a photo was "a .jpg file": a user trial)
+        return f"'{p.name}' is a folder, not a depth map"
     if ext not in DEPTH_EXTENSIONS:
         kind = f"a {ext} file" if ext else "a file without an extension"
         return f"'{p.name}' is {kind}, not a depth map"

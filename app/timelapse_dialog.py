@@ -263,6 +263,8 @@ class TimelapseDialog(QDialog):
         self.date_edit = QDateEdit(self)
         self.date_edit.setCalendarPopup(True)
         self.date_edit.setDisplayFormat("yyyy-MM-dd")
+        last = tl.LAST_DAY  # (the calendar's last day has no sunset to look for after it)
+        self.date_edit.setMaximumDate(QDate(last.year, last.month, last.day))
         self.lat_box = QDoubleSpinBox(self)
         self.lat_box.setRange(-90.0, 90.0)
         self.lat_box.setDecimals(5)
@@ -727,8 +729,12 @@ class TimelapseDialog(QDialog):
         if when.tzinfo is None:
             offset = self.offset_box.value()
         sun = self.main.original_sun
-        return tl.solve_heading(when, lat, lon, sun.azimuth, offset,
-                                original_elevation=sun.elevation, tilt=self.main.camera_tilt[:2])
+        try:
+            return tl.solve_heading(when, lat, lon, sun.azimuth, offset,
+                                    original_elevation=sun.elevation,
+                                    tilt=self.main.camera_tilt[:2])
+        except ValueError:  # the sun below the horizon at the EXIF time: no heading from it
+            return None
 
     def solve_heading(self) -> float | None:
         heading = self._solved_heading()

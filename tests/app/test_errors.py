@@ -126,3 +126,14 @@ def test_each_kind_of_unopenable_file_gets_its_own_advice(tmp_path) -> None:
     assert _open_message(tmp_path / "a.gif").todo.startswith("Choose a JPEG")
     (tmp_path / "empty.png").write_bytes(b"")
     assert "damaged or cut short" in _open_message(tmp_path / "empty.png").todo
+
+
+def test_a_folder_picked_as_a_depth_map_is_called_a_folder(tmp_path) -> None:
+    """A folder named like a photo was "a .jpg file, not a depth map" (a user trial)."""
+    from app.errors import depth_file_problem
+
+    (tmp_path / "adir.jpg").mkdir()
+    (tmp_path / "d.npy").mkdir()
+    assert depth_file_problem(tmp_path / "adir.jpg") == "'adir.jpg' is a folder, not a depth map"
+    assert depth_file_problem(tmp_path / "d.npy") == "'d.npy' is a folder, not a depth map"
+    assert depth_file_problem(tmp_path / "p.jpg") == "'p.jpg' is a .jpg file, not a depth map"

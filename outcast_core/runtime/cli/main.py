@@ -91,7 +91,12 @@ def parse_vector(text: str) -> np.ndarray:
         v = [float(p) for p in parts]
     except ValueError as exc:
         raise ValueError(f"expected X,Y,Z (camera space, toward the sun), got {text!r}") from exc
-    return normalize_sun(v)
+    w = normalize_sun(v)
+    if w[1] > 0.0:  # y points down: below the (camera's) horizon, refused as --sun's is
+        raise ValueError(f"expected a sun at or above the horizon (Y <= 0: y points down), got "
+                         f"{text!r}: OutCast renders sunlight and the shadows it casts, not "
+                         "twilight")
+    return w
 
 
 def _sun_from_args(args: argparse.Namespace) -> np.ndarray:

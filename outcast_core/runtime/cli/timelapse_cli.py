@@ -249,11 +249,18 @@ def _samples_from_args(
         print(f"{words}: the real sun is turned into its frame", file=sys.stderr)
     heading = args.heading
     if heading is None:
-        heading = solve_heading(exif.capture_time, lat, lon, args.from_sun[0], args.utc_offset,
-                                original_elevation=args.from_sun[1], tilt=(pitch, roll))
+        try:
+            heading = solve_heading(exif.capture_time, lat, lon, args.from_sun[0],
+                                    args.utc_offset, original_elevation=args.from_sun[1],
+                                    tilt=(pitch, roll))
+            said = f"camera heading solved from the photo's time and GPS: {heading:.1f} deg"
+        except ValueError as exc:  # a night-time EXIF clock: the compass, else the user
+            heading = getattr(exif, "heading_deg", None)
+            if heading is None:
+                raise ValueError(f"{exc}: give --heading DEG") from None
+            said = f"{exc}; the EXIF compass heading is taken: {heading:.1f} deg"
         if not quiet:
-            print(f"camera heading solved from the photo's time and GPS: {heading:.1f} deg",
-                  file=sys.stderr)
+            print(said, file=sys.stderr)
     frames = 48 if args.frames is None else args.frames
     samples = real_sun_path(args.date, lat, lon, heading, frames, args.start, args.end,
                             args.utc_offset, (pitch, roll))

@@ -1090,7 +1090,13 @@ def _render_timelapse(session: Any, loaded: Any, sun: Sun, job: BatchJob,
         when, lat, lon = exif.capture_time, exif.latitude, exif.longitude
         if when is None or lat is None or lon is None:
             raise ValueError("the capture day's sun path needs the photo's EXIF GPS and time")
-        heading = tl.solve_heading(when, lat, lon, sun[0], original_elevation=sun[1], tilt=tilt)
+        try:
+            heading = tl.solve_heading(when, lat, lon, sun[0], original_elevation=sun[1],
+                                       tilt=tilt)
+        except ValueError:  # a night-time EXIF clock: the compass, else the job says why
+            heading = getattr(exif, "heading_deg", None)
+            if heading is None:
+                raise
         samples = tl.real_sun_path(when.date(), lat, lon, heading, options.frames, tilt=tilt)
     tl.render_timelapse(session, samples, job.output, fps=options.fps, size=options.size,
                         force=options.force)

@@ -354,8 +354,18 @@ def solve_heading(
 
     Returns:
         Heading in degrees clockwise from true north, in [0, 360).
+
+    Raises:
+        ValueError: the sun was below the horizon at ``capture_time`` (a camera clock or time
+            zone that is wrong: a heading from that sun's azimuth would be made up; a user
+            trial's night-time copy of the pool sample solved 135.7 degrees, its compass
+            163.7).
     """
-    true_az, _ = true_sun_position(capture_time, latitude, longitude, utc_offset_hours)
+    true_az, el = true_sun_position(capture_time, latitude, longitude, utc_offset_hours)
+    if el <= 0:
+        raise ValueError(f"the sun was {-el + 0.0:.1f}° below the horizon at the photo's EXIF "
+                         "time and place (check the camera's clock and time zone), so the "
+                         "camera heading cannot be solved from the aligned sun")
     azimuth = original_azimuth
     if any(tilt):
         if original_elevation is None:
@@ -395,6 +405,11 @@ def daylight_range(
     return rise, sset
 
 
+#: :func:`real_sun_path`'s first and last days (a day either side is looked at).
+FIRST_DAY = dt.date.min + dt.timedelta(days=1)
+LAST_DAY = dt.date.max - dt.timedelta(days=1)
+
+
 def real_sun_path(
     day: dt.date,
     latitude: float,
@@ -421,10 +436,16 @@ def real_sun_path(
 
     Returns:
         ``frames`` samples with ``time`` and ``true_azimuth`` set, at the horizon's angles.
+
+    Raises:
+        ValueError: among others, a day at the very end of the calendar (the first or last
+            day Python dates have: sunrise and sunset are looked for a day either side).
     """
     frames = _check_frames(frames)
     if frames < 2:
         raise ValueError(f"expected at least 2 frames for a sun path, got {frames}")
+    if not FIRST_DAY <= day <= LAST_DAY:  # (an OverflowError's traceback: a user trial)
+        raise ValueError(f"expected a date from {FIRST_DAY} to {LAST_DAY}, got {day}")
     heading = _check_angle("heading", heading)
     tilt = (_check_angle("pitch", tilt[0], -90.0, 90.0), _check_angle("roll", tilt[1]))
     offset = default_utc_offset(longitude) if utc_offset_hours is None else float(utc_offset_hours)

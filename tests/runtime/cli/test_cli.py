@@ -35,6 +35,14 @@ def test_parse_angles() -> None:
         parse_azel("10,95")
     with pytest.raises(ValueError):
         parse_vector("0,0,0")
+    # A sun below the horizon is refused as --sun's is (a user trial's 0,1,0 cast shadows
+    # from under the ground); on the horizon and huge components are suns.
+    with pytest.raises(ValueError, match="at or above the horizon"):
+        parse_vector("0,1,0")
+    with pytest.raises(ValueError, match="at or above the horizon"):
+        parse_vector("1,0.01,0")
+    np.testing.assert_allclose(parse_vector("1,0,0"), [1, 0, 0])
+    np.testing.assert_allclose(parse_vector("1e308,-1e308,0"), [0.5**0.5, -(0.5**0.5), 0])
 
 
 def test_shadow_writes_16bit_png(photo: Path, depth_file: Path, tmp_path: Path) -> None:

@@ -463,3 +463,40 @@ def test_cli_end_to_end_writes_and_refuses_overwrite(tmp_path):
     assert main(argv) == 2  # exists: refused without --force
     assert out.stat().st_mtime_ns == stamp
     assert main([*argv, "--force"]) == 0
+
+
+def test_the_calendars_ends_are_refused_in_one_line() -> None:
+    """``--date 0001-01-01`` or ``9999-12-31`` ended in an OverflowError's traceback inside
+    the sunrise search (a user trial): the first and last days are refused as a value, the
+    ones inside them work."""
+    from outcast_core.runtime.pipeline.timelapse import FIRST_DAY, LAST_DAY, real_sun_path
+
+    for day in (dt.date.min, dt.date.max):
+        with pytest.raises(ValueError, match="expected a date from 0001-01-02 to 9999-12-30"):
+            real_sun_path(day, 7.8, 98.3, 164.0, 3, utc_offset_hours=7.0)
+    for day in (FIRST_DAY, LAST_DAY):
+        assert len(real_sun_path(day, 7.8, 98.3, 164.0, 3, utc_offset_hours=7.0)) == 3
+
+
+def test_a_night_time_exif_clock_solves_no_heading(capsys) -> None:
+    """A copy of the pool sample with its capture time moved to 02:00 solved a heading of
+    135.7 degrees from a sun 60 degrees below the horizon, in silence (a user trial; its
+    compass says 163.7): no heading is solved from a sun below the horizon; the command line
+    takes the EXIF compass heading then, saying so, or asks for ``--heading``."""
+    night = dt.datetime(2019, 8, 21, 19, 0, tzinfo=dt.UTC)  # 02:00 local
+    with pytest.raises(ValueError, match=r"the sun was 60\.\d° below the horizon"):
+        tl.solve_heading(night, _Exif.latitude, _Exif.longitude, 273.0)
+    args = _parse(["timelapse", "x.jpg", "--from", "273,67", "--date", "2019-08-21",
+                   "--frames", "3", "-o", "o.mp4"])
+
+    class Night(_Exif):
+        capture_time = night
+        heading_deg = 163.7
+
+    samples = _samples_from_args(args, Night())
+    assert all(s.azimuth == pytest.approx((s.true_azimuth - 163.7) % 360.0) for s in samples)
+    assert "the EXIF compass heading is taken: 163.7 deg" in capsys.readouterr().err
+    Night.heading_deg = None
+    with pytest.raises(ValueError, match="cannot be solved from the aligned sun: give "
+                                         "--heading DEG"):
+        _samples_from_args(args, Night())
