@@ -806,7 +806,14 @@ def check_folder_writable(folder: Path, what: str) -> None:
         with tempfile.TemporaryFile(dir=folder):
             pass
     except OSError as exc:
-        raise CliError(f"{what}: folder '{folder}' is not writable "
+        import errno
+
+        if isinstance(exc, PermissionError) or exc.errno == errno.EROFS:
+            raise CliError(f"{what}: folder '{folder}' is not writable "
+                           f"({exc.strerror or exc})") from exc
+        # Not a permission (a system folder such as /proc: "No such file or directory"): the
+        # folder exists, so "not writable (No such file ...)" read as a contradiction.
+        raise CliError(f"{what}: no file can be made in folder '{folder}' "
                        f"({exc.strerror or exc})") from exc
 
 

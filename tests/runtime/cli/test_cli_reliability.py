@@ -479,3 +479,27 @@ def test_png_frames_go_into_a_folder_holding_only_a_file_managers_files(photo, t
                  "2", "--size", "working", "-o", str(folder), "--preset", "fast"]) == 0
     assert sorted(p.name for p in folder.iterdir()) == [".DS_Store", "frame_0001.png",
                                                         "frame_0002.png"]
+
+
+def test_a_folder_that_takes_no_file_is_not_called_unwritable(tmp_path, monkeypatch) -> None:
+    """``-o /proc/x.jpg`` said "folder '/proc' is not writable (No such file or directory)"
+    (a user trial): a permission is "not writable"; any other refusal says no file can be made
+    there, with the system's reason."""
+    import errno
+    import tempfile
+
+    from outcast_core.runtime.cli.main import CliError, check_folder_writable
+
+    def refuse(exc: OSError):
+        def temporary_file(*args, **kwargs):
+            raise exc
+        return temporary_file
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", refuse(FileNotFoundError(
+        errno.ENOENT, "No such file or directory")))
+    with pytest.raises(CliError, match=r"no file can be made in folder '.*' \(No such file"):
+        check_folder_writable(tmp_path, "cannot write 'x.jpg'")
+    monkeypatch.setattr(tempfile, "TemporaryFile", refuse(PermissionError(
+        errno.EACCES, "Permission denied")))
+    with pytest.raises(CliError, match=r"is not writable \(Permission denied\)"):
+        check_folder_writable(tmp_path, "cannot write 'x.jpg'")
