@@ -241,6 +241,12 @@ def _line(r: JobResult, index: int, total: int) -> str:
     return f"{head} -> {Path(r.output).name} ({_suns(r)}; {r.seconds:.1f} s){_warned(r)}"
 
 
+def _few(paths: list[Path]) -> str:
+    """The first three names of ``paths``, and how many more."""
+    return ", ".join(p.name for p in paths[:3]) + (
+        f" and {len(paths) - 3} more" if len(paths) > 3 else "")
+
+
 def _warned(r: JobResult) -> str:
     """A done or skipped result's warnings, to end its line (``outcast relight`` says them for
     one photo; a batch said nothing: a user trial), or ``""``."""
@@ -261,11 +267,15 @@ def run_batch_command(args: argparse.Namespace) -> int:
                          "or BMP files)")
     others = other_files(args.folder, exclude=[args.targets, args.report])
     if others and not args.quiet:  # (a user trial: notes.txt went unmentioned)
-        names = ", ".join(p.name for p in others[:3]) + (
-            f" and {len(others) - 3} more" if len(others) > 3 else "")
         said = ("1 file is not a photo and was" if len(others) == 1
                 else f"{len(others)} files are not photos and were")
-        print(f"outcast batch: note: {said} left alone: {names}", file=sys.stderr)
+        print(f"outcast batch: note: {said} left alone: {_few(others)}", file=sys.stderr)
+    folders = sorted(p for p in Path(args.folder).expanduser().iterdir()
+                     if p.is_dir() and not p.name.startswith("."))
+    if folders and not args.quiet:  # (a robustness trial: a sub-folder went unmentioned)
+        said = ("1 sub-folder is" if len(folders) == 1 else f"{len(folders)} sub-folders are")
+        print(f"outcast batch: note: {said} not looked into (photos directly in the folder "
+              f"only): {_few(folders)}", file=sys.stderr)
     if options.kind == "relight" and options.to_sun is None and targets is None and jobs:
         print("outcast batch: note: no --to or --targets: each photo's project gives the new "
               "sun", file=sys.stderr)

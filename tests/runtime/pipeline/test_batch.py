@@ -87,6 +87,7 @@ def test_folder_with_a_corrupt_photo_is_done_and_resumable(
     assert "Traceback" not in err
     # A file that is not a photo is named, not passed over in silence (a user trial).
     assert "outcast batch: note: 1 file is not a photo and was left alone: notes.txt\n" in err
+    assert "sub-folder" not in err
 
     before = _mtimes(out)
     del before[RECORD_NAME]  # the record may be rewritten; the outputs may not
@@ -853,3 +854,16 @@ def test_the_batchs_own_files_in_its_folder_are_not_called_other_files(tmp_path:
                                                        "targets.csv"]
     assert [p.name for p in other_files(tmp_path, exclude=[
         str(tmp_path / "targets.csv"), tmp_path / "report.json", None, ""])] == ["notes.txt"]
+
+
+def test_sub_folders_are_said_not_to_be_looked_into(folder: Path, tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """A folder inside the photos' folder (even one named like a photo) was passed over in
+    silence (a robustness trial): a note names it; photos are taken directly in the folder."""
+    for name in ("raw", "sub.jpg", ".cache"):
+        (folder / name).mkdir()
+    main(["batch", str(folder), "-o", str(tmp_path / "o"), "--from", "200,40", "--to", "90,30",
+          "--mode", "classic", "--preset", "fast", "--workers", "1"])
+    err = capsys.readouterr().err
+    assert ("outcast batch: note: 2 sub-folders are not looked into (photos directly in the "
+            "folder only): raw, sub.jpg\n") in err
