@@ -57,6 +57,8 @@ SIZE_CHOICES = (
     ("4k", "4K"),
     ("full", "Full resolution"),
 )
+#: The heading's "From photo" button when it can solve one.
+SOLVE_TIP = "Solve the heading from the aligned sun and the photo's capture time and GPS"
 #: Added to the frame's caption when its preview is dark with the photo's exposure kept
 #: (:data:`~outcast_core.runtime.pipeline.timelapse.DARK_FRAME_SHARE`): a day's first and last
 #: frames came out near black, unexplained (a user trial).
@@ -274,9 +276,7 @@ class TimelapseDialog(QDialog):
         self.heading_box = _angle_box(0.0, 359.9, 180.0, wrap=True)
         self.heading_box.setToolTip("Compass direction the camera faces (0 = north, 90 = east)")
         self.solve_button = QPushButton("From photo", self)
-        self.solve_button.setToolTip(
-            "Solve the heading from the aligned sun and the photo's capture time and GPS"
-        )
+        self.solve_button.setToolTip(SOLVE_TIP)
         self.solve_button.clicked.connect(self.solve_heading)
         self.daylight_check = QCheckBox("Sunrise to sunset", self)
         self.daylight_check.setChecked(True)
@@ -492,7 +492,16 @@ class TimelapseDialog(QDialog):
             "Place and date from the photo's EXIF." if gps else
             "The photo has no GPS position: enter the place."
         )  # fmt: skip
-        self.solve_button.setEnabled(self._solved_heading() is not None)
+        solvable = self._solved_heading() is not None
+        self.solve_button.setEnabled(solvable)
+        # Off: say why (a night-time EXIF clock's sun is below the horizon: a robustness trial).
+        night = tl.sun_below_horizon_at_capture(exif) if exif is not None else None
+        self.solve_button.setToolTip(
+            SOLVE_TIP if solvable else
+            f"Off: {night}, so the heading cannot be solved from the aligned sun (check the "
+            "camera's clock and time zone)" if night else
+            "Off: the heading is solved from the photo's EXIF capture time and GPS, and this "
+            "photo has not both")
         self.main.set_timelapse_settings(self.settings(), shown=True)
         self._settings_changed()
 

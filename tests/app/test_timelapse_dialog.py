@@ -347,3 +347,30 @@ def test_a_dark_frame_says_to_meter_the_new_light(window, photo, settle, monkeyp
     settle()
     assert dialog.caption.text().startswith("Frame 2/3")
     assert "Meter the new light" not in dialog.caption.text()
+
+
+def test_from_photo_says_why_it_is_off_for_a_night_time_clock(window, photo, settle):
+    """A photo whose EXIF time puts the sun below the horizon solves no heading (a
+    robustness trial's night-time copy solved one 28 degrees off): "From photo" is off, and
+    its tooltip says why; with a daytime clock it is on."""
+    import datetime as dt
+    from dataclasses import replace
+
+    from app.timelapse_dialog import SOLVE_TIP
+
+    _relight(window, photo, settle)
+    exif = window.loaded.exif
+    night = dt.datetime(2019, 8, 21, 19, 0, tzinfo=dt.UTC)  # 02:00 at the pool
+    window.loaded = replace(window.loaded, exif=replace(exif, latitude=7.83, longitude=98.3,
+                                                        capture_time=night))
+    dialog = window.open_timelapse()
+    settle()
+    assert not dialog.solve_button.isEnabled()
+    assert dialog.solve_button.toolTip().startswith("Off: the sun was 60.")
+    assert "check the camera's clock and time zone" in dialog.solve_button.toolTip()
+    dialog.close()
+    day = dt.datetime(2019, 8, 21, 3, 57, tzinfo=dt.UTC)
+    window.loaded = replace(window.loaded, exif=replace(window.loaded.exif, capture_time=day))
+    dialog = window.open_timelapse()
+    settle()
+    assert dialog.solve_button.isEnabled() and dialog.solve_button.toolTip() == SOLVE_TIP

@@ -867,3 +867,41 @@ def test_sub_folders_are_said_not_to_be_looked_into(folder: Path, tmp_path: Path
     err = capsys.readouterr().err
     assert ("outcast batch: note: 2 sub-folders are not looked into (photos directly in the "
             "folder only): raw, sub.jpg\n") in err
+
+
+def _night_copy(path: Path, compass: bool) -> Path:
+    """The small EXIF sample with its capture time at 02:00 (the sun far below the horizon),
+    with or without its compass heading."""
+    with Image.open(SAMPLE) as im:
+        exif = im.getexif()
+        exif[306] = "2019:08:21 02:00:00"
+        exif.get_ifd(0x8769)[36867] = "2019:08:21 02:00:00"
+        gps = exif.get_ifd(0x8825)
+        gps[7], gps[29] = (19.0, 0.0, 0.0), "2019:08:20"  # the GPS clock's UTC alike
+        if not compass:
+            gps.pop(17, None)  # GPSImgDirection
+        im.resize((80, 60)).save(path, exif=exif)
+    return path
+
+
+def test_a_day_of_a_night_time_clock_takes_the_compass_or_fails(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """No heading is solved from a sun below the horizon (a robustness trial): a photo whose
+    EXIF time is at night renders its day at its compass heading, and without one it fails
+    with the reason."""
+    d = tmp_path / "in"
+    d.mkdir()
+    _night_copy(d / "compass.jpg", compass=True)
+    _night_copy(d / "none.jpg", compass=False)
+    assert read_image(d / "compass.jpg").exif.heading_deg is not None
+    assert read_image(d / "none.jpg").exif.heading_deg is None
+    out = tmp_path / "out"
+    assert main(["batch", str(d), "-o", str(out), "--day", "--frames", "2", "--size",
+                 "working", "--from", "273,67", "--sources", "given", "--mode", "classic",
+                 "--preset", "fast", "--workers", "1"]) == 2
+    err = capsys.readouterr().err
+    failed = [line for line in err.splitlines() if ": failed: " in line]
+    assert len(failed) == 1 and "none.jpg" in failed[0]
+    assert "below the horizon at the photo's EXIF time" in failed[0]
+    assert (out / "compass.mp4").exists() and not (out / "none.mp4").exists()
