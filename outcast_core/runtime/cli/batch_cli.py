@@ -276,6 +276,12 @@ def run_batch_command(args: argparse.Namespace) -> int:
         said = ("1 sub-folder is" if len(folders) == 1 else f"{len(folders)} sub-folders are")
         print(f"outcast batch: note: {said} not looked into (photos directly in the folder "
               f"only): {_few(folders)}", file=sys.stderr)
+    if options.day and options.exposure != "metered" and jobs and not args.quiet:
+        # (as `outcast timelapse` measures and says for one photo: a user trial's day had
+        # near-black first and last frames; here once, not measured per photo)
+        print("outcast batch: note: a day's first and last frames, the sun at the horizon, come "
+              "out dark where the photo's exposure is kept (a project's \"Meter the new "
+              "light\" meters them); --exposure metered meters every frame", file=sys.stderr)
     if options.kind == "relight" and options.to_sun is None and targets is None and jobs:
         print("outcast batch: note: no --to or --targets: each photo's project gives the new "
               "sun", file=sys.stderr)

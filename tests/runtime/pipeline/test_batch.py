@@ -905,3 +905,9 @@ def test_a_day_of_a_night_time_clock_takes_the_compass_or_fails(
     assert len(failed) == 1 and "none.jpg" in failed[0]
     assert "below the horizon at the photo's EXIF time" in failed[0]
     assert (out / "compass.mp4").exists() and not (out / "none.mp4").exists()
+    # A day's dark dawn and dusk are said once, with what to do; metered, not.
+    assert err.count("come out dark where the photo's exposure is kept") == 1
+    assert main(["batch", str(d), "-o", str(tmp_path / "m"), "--day", "--frames", "2",
+                 "--size", "working", "--from", "273,67", "--sources", "given", "--mode",
+                 "classic", "--preset", "fast", "--exposure", "metered"]) == 2
+    assert "come out dark" not in capsys.readouterr().err
