@@ -139,6 +139,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     shadow_edit_limit,
     shadow_edit_strokes,
 )
+from outcast_core.runtime.pipeline.relight import EXPOSURE_HINT_FACTOR
 from outcast_core.runtime.pipeline.session import elongation_note
 
 APP_NAME = "OutCast"
@@ -2824,9 +2825,6 @@ __all__ = ["MainWindow", "VIEW_CHOICES"]
 #: outcomes (one past its last cancellation point still writes its file) before going on.
 STOP_WAIT_S = 10.0
 
-#: :func:`exposure_hint`: a relit photo this many times darker or brighter than the photo (at
-#: the photo's exposure) gets the hint to meter the new light.
-EXPOSURE_HINT_FACTOR = 2.0
 
 
 def photo_file_notes(loaded: Any) -> list[str]:

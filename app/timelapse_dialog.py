@@ -46,6 +46,7 @@ from app.errors import message_for
 from app.state import Step, Sun, TimelapseSettings
 from app.workers import JobCancelledError, JobContext
 from outcast_core.runtime.pipeline import timelapse as tl
+from outcast_core.runtime.pipeline.relight import EXPOSURE_HINT_FACTOR, exposure_level
 
 if TYPE_CHECKING:
     from app.main_window import MainWindow
@@ -59,9 +60,10 @@ SIZE_CHOICES = (
 )
 #: The heading's "From photo" button when it can solve one.
 SOLVE_TIP = "Solve the heading from the aligned sun and the photo's capture time and GPS"
-#: Added to the frame's caption when its preview is dark with the photo's exposure kept
-#: (:data:`~outcast_core.runtime.pipeline.timelapse.DARK_FRAME_SHARE`): a day's first and last
-#: frames came out near black, unexplained (a user trial).
+#: Added to the frame's caption when its preview is dark with the photo's exposure kept (the
+#: status line's hint: :data:`~outcast_core.runtime.pipeline.relight.EXPOSURE_HINT_FACTOR`
+#: times darker): a day's first and last frames came out near black, unexplained (a user
+#: trial).
 DARK_FRAME_WORDS = (" · dark with the photo's exposure kept: step 2's \u201cMeter the new "
                     "light\u201d meters each frame")
 #: Frames of the short export the estimate times (spread evenly along the path), one fewer
@@ -788,7 +790,7 @@ class TimelapseDialog(QDialog):
             # A dark frame with the photo's exposure kept (dawn, dusk) is said with what to
             # do, as the command line says it.
             dark = (exposure == "photo" and session.image_srgb is not None
-                    and tl.brightness_share(session.image_srgb, relit) < tl.DARK_FRAME_SHARE)
+                    and exposure_level(session.image_srgb, relit) * EXPOSURE_HINT_FACTOR < 1.0)
             return {"index": index, "image": display.to_uint8_rgb(relit), "dark": dark}
 
         self.main.runner.submit("tl_preview", job, "Rendering time-lapse frame")

@@ -332,7 +332,7 @@ def test_a_dark_frame_says_to_meter_the_new_light(window, photo, settle, monkeyp
         shares.append(level)
         return level
 
-    monkeypatch.setattr(tl, "brightness_share", share)
+    monkeypatch.setattr("app.timelapse_dialog.exposure_level", share)
     level = 0.2
     dialog = _timelapse(window, 3)
     settle()

@@ -25,7 +25,6 @@ from outcast_core.runtime.cli.main import (
 )
 from outcast_core.runtime.geometry.camera import sun_vector
 from outcast_core.runtime.pipeline.timelapse import (
-    DARK_FRAME_SHARE,
     DEFAULT_FPS,
     DEFAULT_FRAME_SIZE,
     EASINGS,
@@ -34,7 +33,6 @@ from outcast_core.runtime.pipeline.timelapse import (
     MAX_FPS,
     MIN_FPS,
     SunSample,
-    brightness_share,
     format_from_path,
     frame_shape,
     frames_folder_problem,
@@ -277,18 +275,22 @@ def _samples_from_args(
 
 def dark_frames_note(session: Any, samples: list[SunSample]) -> str:
     """What to say before rendering when the lowest sun's frame comes out dark with the photo's
-    exposure kept (a day's first and last frames near black: a user trial), measured on that
-    frame at the working size; ``""`` when it does not, or the exposure is metered."""
+    exposure kept (a day's first and last frames near black: a user trial): its level as a
+    camera's meter reads it (:func:`~outcast_core.runtime.pipeline.relight.exposure_level`,
+    working size), below the app's hint (:data:`~outcast_core.runtime.pipeline.relight.
+    EXPOSURE_HINT_FACTOR` times darker); ``""`` when it is not, or the exposure is metered."""
+    from outcast_core.runtime.pipeline.relight import EXPOSURE_HINT_FACTOR, exposure_level
+
     if session.exposure != "photo" or not samples:
         return ""
     low = min(samples, key=lambda s: s.elevation)
-    share = brightness_share(session.image_srgb, session.relight(sun_vectors([low])[0]))
-    if share >= DARK_FRAME_SHARE:
+    level = exposure_level(session.image_srgb, session.relight(sun_vectors([low])[0]))
+    if level * EXPOSURE_HINT_FACTOR > 1.0:
         return ""
     where = ("at the horizon" if low.elevation < 1.0 else
              f"at elevation {low.elevation:.0f} deg")  # (rendered no lower than the horizon)
-    return (f"the lowest sun's frames ({where}) come out at about {100.0 * share:.0f} % of the "
-            "photo's brightness, its exposure kept; --exposure metered meters each frame as a "
+    return (f"the lowest sun's frames ({where}) come out {1.0 / max(level, 1e-6):.1f}x darker "
+            "than the photo, its exposure kept; --exposure metered meters each frame as a "
             "camera would")
 
 

@@ -56,11 +56,6 @@ MAX_FPS = 60.0
 VIDEO_SUFFIXES = {".mp4": "mp4", ".m4v": "mp4", ".gif": "gif", ".webp": "webp"}
 #: Suns below this elevation are lifted to it for rendering (a sun under the ground casts nonsense).
 MIN_RENDER_ELEVATION = 0.5
-#: A frame whose mean (sRGB) is below this share of the photo's is dark
-#: (:func:`brightness_share`; the pool sample relit at the horizon with the photo's exposure:
-#: 0.24, the field path's 0.42; at 20 degrees 0.41 and 0.81): the command line and the app's
-#: time-lapse dialog then name the metered exposure.
-DARK_FRAME_SHARE = 0.5
 #: Frame sizes: the working size of the preset (fastest), video sizes by their shorter side
 #: (720p: 720 px, so a 4:3 landscape photo gives 960 x 720), or the photo's full size. A size
 #: is never larger than the photo.
@@ -464,19 +459,6 @@ def real_sun_path(
         true_az, el = true_sun_position(when, latitude, longitude)
         samples.append(SunSample(relative_azimuth(true_az, heading), el, when, true_az, tilt))
     return samples
-
-
-def brightness_share(photo_srgb: np.ndarray, frame_srgb: np.ndarray) -> float:
-    """A frame's mean (sRGB, any size and dtype scale alike) over the photo's: below
-    :data:`DARK_FRAME_SHARE` the frame is dark.
-
-    Example:
-        >>> photo = np.full((4, 4, 3), 0.5, np.float32)
-        >>> brightness_share(photo, photo * 0.2)
-        0.2
-    """
-    photo = float(np.mean(photo_srgb))
-    return round(float(np.mean(frame_srgb)) / max(photo, 1e-6), 6)
 
 
 def sun_vectors(

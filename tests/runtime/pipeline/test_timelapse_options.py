@@ -142,29 +142,33 @@ def test_sigterm_leaves_no_partial_files(photo, tmp_path, name) -> None:
 
 def test_a_dark_dusk_is_said_with_what_to_do() -> None:
     """A day's first and last frames came out near black with the photo's exposure kept, and
-    nothing said why (a user trial): the lowest sun's frame is measured before rendering and,
-    below half the photo's brightness, the note says so and names ``--exposure metered``."""
+    nothing said why (a user trial): the lowest sun's frame is metered before rendering and,
+    as dark as the app's status line hints at, the note says so and names ``--exposure
+    metered``."""
     from types import SimpleNamespace
 
     from outcast_core.runtime.cli.timelapse_cli import dark_frames_note
-    from outcast_core.runtime.pipeline.timelapse import DARK_FRAME_SHARE, SunSample
+    from outcast_core.runtime.geometry.colour import linear_to_srgb
+    from outcast_core.runtime.pipeline.relight import EXPOSURE_HINT_FACTOR
+    from outcast_core.runtime.pipeline.timelapse import SunSample
 
-    photo = np.full((8, 8, 3), 0.5, np.float32)
+    photo = np.full((8, 8, 3), linear_to_srgb(np.float32(0.2)), np.float32)
     asked: list[np.ndarray] = []
 
     def session(level: float, exposure: str = "photo") -> SimpleNamespace:
+        """A session whose relit frames are ``level`` times the photo's linear light."""
         def relight(w: np.ndarray) -> np.ndarray:
             asked.append(w)
-            return np.full_like(photo, level)
+            return np.full_like(photo, linear_to_srgb(np.float32(0.2 * level)))
         return SimpleNamespace(exposure=exposure, image_srgb=photo, relight=relight)
 
     day = [SunSample(90.0, 2.0), SunSample(180.0, 60.0), SunSample(270.0, -0.5)]
     note = dark_frames_note(session(0.1), day)
-    assert "about 20 % of the photo's brightness" in note and "--exposure metered" in note
+    assert "come out 10.0x darker than the photo" in note and "--exposure metered" in note
     assert "(at the horizon)" in note  # the lowest sun, rendered at the horizon
     assert asked[-1][1] == pytest.approx(0.0, abs=0.05)  # (y down: the horizon's sun)
     assert "(at elevation 12 deg)" in dark_frames_note(session(0.1), [SunSample(0.0, 12.0)])
-    assert dark_frames_note(session(0.5 * DARK_FRAME_SHARE + 0.01), day) == ""
+    assert dark_frames_note(session(1.05 / EXPOSURE_HINT_FACTOR), day) == ""
     n = len(asked)
     assert dark_frames_note(session(0.1, "metered"), day) == "" and len(asked) == n
     assert dark_frames_note(session(0.1), []) == ""
