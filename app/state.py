@@ -24,14 +24,7 @@ from enum import Enum
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from outcast_core.runtime.io.photo_identity import (  # noqa: F401 (the app's names for them)
-    FINGERPRINT_CELLS,
-    FINGERPRINT_SAMPLES,
-    FINGERPRINT_TOLERANCE,
-    PhotoIdentity,
-    fingerprint_distance,
-    photo_fingerprint,
-)
+from outcast_core.runtime.io.photo_identity import PhotoIdentity
 
 if TYPE_CHECKING:
 

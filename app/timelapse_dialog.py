@@ -365,6 +365,7 @@ class TimelapseDialog(QDialog):
                                 "size chosen under Output")
         self._preview_pixmap: QPixmap | None = None
         self._caption = ""  # the shown frame's caption, before what its preview says
+        self._unsolved = ""  # why _solved_heading gave None, when it can say
 
         # ---- export row
         self.progress = QProgressBar(self)
@@ -494,14 +495,12 @@ class TimelapseDialog(QDialog):
             "Place and date from the photo's EXIF." if gps else
             "The photo has no GPS position: enter the place."
         )  # fmt: skip
-        solvable = self._solved_heading() is not None
+        solvable = self._solved_heading() is not None  # (and _unsolved says why not)
         self.solve_button.setEnabled(solvable)
         # Off: say why (a night-time EXIF clock's sun is below the horizon: a robustness trial).
-        night = tl.sun_below_horizon_at_capture(exif) if exif is not None else None
         self.solve_button.setToolTip(
             SOLVE_TIP if solvable else
-            f"Off: {night}, so the heading cannot be solved from the aligned sun (check the "
-            "camera's clock and time zone)" if night else
+            f"Off: {self._unsolved}" if self._unsolved else
             "Off: the heading is solved from the photo's EXIF capture time and GPS, and this "
             "photo has not both")
         self.main.set_timelapse_settings(self.settings(), shown=True)
@@ -731,6 +730,9 @@ class TimelapseDialog(QDialog):
 
     # ------------------------------------------------------------------ heading
     def _solved_heading(self) -> float | None:
+        """The heading solved from the aligned sun and the photo's EXIF time and GPS, or None
+        (:attr:`_unsolved` then says why, when it is the sun below the horizon then)."""
+        self._unsolved = ""
         exif = getattr(self.main.loaded, "exif", None)
         when = getattr(exif, "capture_time", None)
         lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
@@ -744,7 +746,8 @@ class TimelapseDialog(QDialog):
             return tl.solve_heading(when, lat, lon, sun.azimuth, offset,
                                     original_elevation=sun.elevation,
                                     tilt=self.main.camera_tilt[:2])
-        except ValueError:  # the sun below the horizon at the EXIF time: no heading from it
+        except tl.SunBelowHorizonError as exc:  # a night-time EXIF clock: none from it
+            self._unsolved = str(exc)
             return None
 
     def solve_heading(self) -> float | None:

@@ -16,7 +16,7 @@ direction of :func:`direction_bins` (a Fibonacci lattice over the whole sphere o
 directions: a tilted camera sees suns below its own horizontal). The target is a von
 Mises-Fisher kernel about the true sun over those directions (:func:`soft_target`); the
 distribution at any direction is the same kernel's mixture of the bins
-(:func:`~outcast_core.runtime.pipeline.sun_prior.direction_log_likelihood`).
+(:meth:`~outcast_core.runtime.pipeline.sun_look.SunLook.likelihood`).
 
 Shape:
     image ``(B, 3, H, W)`` (sRGB in [0, 1], ``H, W`` multiples of 16) -> ``(B, K)`` logits.
@@ -24,20 +24,18 @@ Shape:
 
 from __future__ import annotations
 
-import math
-
 import torch
 import torch.nn.functional as F  # noqa: N812  (the universal torch idiom)
 from torch import nn
 
 from outcast_core.nets.blocks import conv_block
-from outcast_core.runtime.pipeline.sun_look import direction_bins
+from outcast_core.runtime.pipeline.sun_look import DEFAULT_BINS, DEFAULT_KAPPA, direction_bins
 
-#: Number of direction bins (mean spacing about 11 degrees).
-BINS = 320
+#: Number of direction bins (mean spacing about 11 degrees): the runtime reader's.
+BINS = DEFAULT_BINS
 #: Concentration of the von Mises-Fisher kernel of the targets and of the runtime's mixture
-#: (``1 / sigma^2`` with ``sigma`` 8 degrees).
-KAPPA = 1.0 / math.radians(8.0) ** 2
+#: (``1 / sigma^2`` with ``sigma`` 8 degrees): the runtime reader's.
+KAPPA = DEFAULT_KAPPA
 
 
 def soft_target(sun: torch.Tensor, bins: torch.Tensor, kappa: float = KAPPA) -> torch.Tensor:

@@ -32,6 +32,7 @@ from outcast_core.runtime.pipeline.timelapse import (
     FRAME_SIZES,
     MAX_FPS,
     MIN_FPS,
+    SunBelowHorizonError,
     SunSample,
     format_from_path,
     frame_shape,
@@ -252,7 +253,7 @@ def _samples_from_args(
                                     args.utc_offset, original_elevation=args.from_sun[1],
                                     tilt=(pitch, roll))
             said = f"camera heading solved from the photo's time and GPS: {heading:.1f} deg"
-        except ValueError as exc:  # a night-time EXIF clock: the compass, else the user
+        except SunBelowHorizonError as exc:  # a night-time EXIF clock: the compass, else ask
             heading = getattr(exif, "heading_deg", None)
             if heading is None:
                 raise ValueError(f"{exc}: give --heading DEG") from None

@@ -967,7 +967,8 @@ def find_sun(
     def bias(pts: Sequence[tuple[float, float]]) -> np.ndarray:
         """The compass heading's soft pull (:attr:`SunPrior.azimuth_weight`), less the photo's
         look's (:func:`look_term`)."""
-        out = -look_term(frame.vectors(pts))
+        # (no vectors made for a look that is off: the default)
+        out = -look_term(frame.vectors(pts)) if look is not None else np.zeros(len(pts))
         if prior is None or prior.azimuth is None or not pts:
             return out
         dev = np.radians(np.array([a for a, _ in pts]) - prior.azimuth)
@@ -1108,7 +1109,8 @@ def find_sun(
         else:
             note = (f"{why}: its sun cannot be told from them (confidence {confidence:.2f}); "
                     "set it by eye")
-    look_error = str(getattr(session, "sun_look_error", "") or "")
+    look_error = str(getattr(session, "sun_look_error", "") or "") if look is not None or (
+        LOOK_WEIGHT > 0) else ""
     if look_error:  # an optional model that failed: said, and the shadows alone decided
         note += f"; {look_error}"
     true_el = float(best_e) if prior is not None else float(cam_el)

@@ -1093,7 +1093,8 @@ def _render_timelapse(session: Any, loaded: Any, sun: Sun, job: BatchJob,
         try:
             heading = tl.solve_heading(when, lat, lon, sun[0], original_elevation=sun[1],
                                        tilt=tilt)
-        except ValueError:  # a night-time EXIF clock: the compass, else the job says why
+        except tl.SunBelowHorizonError:  # a night-time EXIF clock: the compass, else the
+            # job says why
             heading = getattr(exif, "heading_deg", None)
             if heading is None:
                 raise

@@ -353,8 +353,6 @@ class RelightSession:
         #: (the search for the sun then weighs its suns by it); not in the classic mode, which
         #: uses no learned network but ``Z``.
         self.use_sun_look = mode != "classic"
-        #: Why :meth:`sun_look` gave None although a ``sun`` model is there ("": it did not).
-        self.sun_look_error = ""
         self.full_image_srgb: np.ndarray | None = None
         self.greyscale = False
         self._given_depth: np.ndarray | None = None
@@ -527,6 +525,10 @@ class RelightSession:
         self._up: np.ndarray | None = None
         self._photo_tilt: tuple[float, float, str] | None = None
         self._sun_look: SunLook | None = None
+        #: Why :meth:`sun_look` gave None for this photo although a ``sun`` model is there
+        #: ("": it did not); per photo, as its reading (a review: one failure silenced ``D``
+        #: for every later photo, and its note stayed on their fits).
+        self.sun_look_error = ""
         self.image_srgb: np.ndarray | None = None
         self.camera: Camera | None = None
         self.depth: np.ndarray | None = None

@@ -325,6 +325,11 @@ def true_sun_position(
     return float(astral.sun.azimuth(obs, moment)), float(astral.sun.elevation(obs, moment))
 
 
+class SunBelowHorizonError(ValueError):
+    """:func:`solve_heading`'s sun was below the horizon at the photo's time: no heading can be
+    solved from it (the one error its callers answer with the EXIF compass)."""
+
+
 def solve_heading(
     capture_time: dt.datetime,
     latitude: float,
@@ -351,16 +356,18 @@ def solve_heading(
         Heading in degrees clockwise from true north, in [0, 360).
 
     Raises:
-        ValueError: the sun was below the horizon at ``capture_time`` (a camera clock or time
-            zone that is wrong: a heading from that sun's azimuth would be made up; a user
-            trial's night-time copy of the pool sample solved 135.7 degrees, its compass
-            163.7).
+        SunBelowHorizonError: the sun was below the horizon at ``capture_time`` (a camera
+            clock or time zone that is wrong: a heading from that sun's azimuth would be made
+            up; a user trial's night-time copy of the pool sample solved 135.7 degrees, its
+            compass 163.7). Callers fall back on the compass for this error only.
+        ValueError: an angle out of range, or a tilt without ``original_elevation``.
     """
     true_az, el = true_sun_position(capture_time, latitude, longitude, utc_offset_hours)
     if el <= 0:
-        raise ValueError(f"the sun was {-el + 0.0:.1f}° below the horizon at the photo's EXIF "
-                         "time and place (check the camera's clock and time zone), so the "
-                         "camera heading cannot be solved from the aligned sun")
+        raise SunBelowHorizonError(
+            f"the sun was {-el + 0.0:.1f}° below the horizon at the photo's EXIF time and place "
+            "(check the camera's clock and time zone), so the camera heading cannot be solved "
+            "from the aligned sun")
     azimuth = original_azimuth
     if any(tilt):
         if original_elevation is None:

@@ -484,8 +484,13 @@ def test_a_night_time_exif_clock_solves_no_heading(capsys) -> None:
     compass says 163.7): no heading is solved from a sun below the horizon; the command line
     takes the EXIF compass heading then, saying so, or asks for ``--heading``."""
     night = dt.datetime(2019, 8, 21, 19, 0, tzinfo=dt.UTC)  # 02:00 local
-    with pytest.raises(ValueError, match=r"the sun was 60\.\d° below the horizon"):
+    with pytest.raises(tl.SunBelowHorizonError, match=r"the sun was 60\.\d° below the horizon"):
         tl.solve_heading(night, _Exif.latitude, _Exif.longitude, 273.0)
+    # Its own error: another (a tilt without the sun's elevation) is no reason for the compass.
+    with pytest.raises(ValueError, match="elevation with a camera tilt") as info:
+        tl.solve_heading(_Exif.capture_time, _Exif.latitude, _Exif.longitude, 273.0,
+                         tilt=(-10.0, 0.0))
+    assert not isinstance(info.value, tl.SunBelowHorizonError)
     args = _parse(["timelapse", "x.jpg", "--from", "273,67", "--date", "2019-08-21",
                    "--frames", "3", "-o", "o.mp4"])
 
