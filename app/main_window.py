@@ -932,14 +932,18 @@ class MainWindow(QMainWindow):
         )
 
     def _shortcuts(self) -> None:
+        # Quit's key is the platform's (none on some): said only where it has one.
+        quit_key = self.act_quit.shortcut().toString(QKeySequence.SequenceFormat.NativeText)
         QMessageBox.information(
             self,
             "Keyboard shortcuts",
             "Sun dial (click it first): arrow keys move the sun 1°, Shift 10°, Ctrl 0.1°.\n"
-            "Ctrl+O open · Ctrl+S save project · Ctrl+Return confirm the sun · Ctrl+E export still"
-            " · Ctrl+Shift+E export shadows removed · Ctrl+T time-lapse\n"
-            "Canvas: mouse wheel zooms, drag pans, double-click or Ctrl+0 fits, Ctrl+1 actual "
-            "pixels.\n"
+            "Ctrl+O open · Ctrl+S save project · Ctrl+F find the sun (again to cancel) · "
+            "Ctrl+Return confirm the sun · Ctrl+E export still · Ctrl+Shift+E export shadows "
+            "removed · Ctrl+T time-lapse · Ctrl+Z undo · Ctrl+Shift+Z or Ctrl+Y redo"
+            f"{f' · {quit_key} quit' if quit_key else ''}\n"
+            "Canvas: mouse wheel or Ctrl++ / Ctrl+- zooms, drag pans, double-click or Ctrl+0 "
+            "fits, Ctrl+1 actual pixels.\n"
             "Step 2, Shadows found / removed: \"Not a shadow\" or \"Mark shadow\", then click a "
             "region of the photo or drag to paint (the middle button pans); [ and ] shrink and "
             "grow the brush; Esc ends the tool.",

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Set up OutCast on a fresh machine: system libraries Qt needs, then the package with the
-# training/test extras (torch pinned to the CPU build 2.13.0). Idempotent and quick when done.
+# training/test extras (torch pinned to 2.13.0: the CPU build where pip's configuration offers it;
+# README.md, "Quick start"). Idempotent and quick when done.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

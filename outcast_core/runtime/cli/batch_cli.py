@@ -129,7 +129,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    help="redo photos whose output exists (and replace a --report file that is "
                         "not this batch's)")
     p.add_argument("-q", "--quiet", action="store_true",
-                   help="print only failures and warnings")
+                   help="print only failures and warnings (and then the summary line)")
     p.set_defaults(func=run_batch_command, check_output=check_batch_output)
     return p
 

@@ -1,6 +1,7 @@
 """The ``outcast`` command line.
 
-Runtime commands (``shadow``, ``relight``, ``depth``, ``timelapse``) import only the runtime.
+Runtime commands (``shadow``, ``relight``, ``deshadow``, ``depth``, ``sun``, ``timelapse``,
+``batch``, ``models``, ``eval real``) import only the runtime.
 Commands of the training side (``data``, ``train``, ``export``, ``eval``) are registered from their
 packages only when those import (they need torch / mitsuba, installed with ``.[dev]``).
 Errors exit with status 2 and one readable line on stderr, never a traceback.
@@ -38,7 +39,7 @@ OPTIONAL_COMMANDS: list[tuple[str, str]] = [
     ("outcast_core.eval.cli", "register"),
 ]
 
-#: Working resolution for ``outcast shadow`` / ``depth`` unless ``--size`` says otherwise.
+#: Every runtime command's ``--preset`` default (its working resolution and march length).
 DEFAULT_CLI_PRESET = "balanced"
 
 

@@ -32,6 +32,7 @@ from outcast_core.runtime.pipeline.timelapse import (
     FRAME_SIZES,
     MAX_FPS,
     MIN_FPS,
+    MIN_RENDER_ELEVATION,
     SunBelowHorizonError,
     SunSample,
     format_from_path,
@@ -95,7 +96,8 @@ def sweep_ends(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
 
 
 #: ``--sweep``'s help: the rule for an end below the horizon.
-SWEEP_HELP = "an end may be below the horizon (those frames render with the sun at the horizon)"
+SWEEP_HELP = ("an end may be below the horizon (those frames render with the sun just above "
+              f"it, at {MIN_RENDER_ELEVATION:g} deg)")
 
 
 def _number(lo: float, hi: float, what: str) -> Callable[[str], float]:
@@ -164,7 +166,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--sweep", type=sweep_ends, metavar="AZ1,EL1:AZ2,EL2",
                    help=f"sweep the sun A -> B; {SWEEP_HELP}")
     p.add_argument("--frames", type=frame_count, default=None,
-                   help=f"frame count, 2..{MAX_FRAMES} (sweep: required)")
+                   help=f"frame count, 2..{MAX_FRAMES} (--sweep: required; --date: default 48)")
     p.add_argument("--easing", choices=EASINGS, default="ease-in-out")
     p.add_argument("--date", type=_date, metavar="YYYY-MM-DD", help="real sun path of this day")
     p.add_argument("--lat", type=_number(-90.0, 90.0, "a latitude"),
