@@ -101,6 +101,33 @@ def describe_change(before: EditState, after: EditState) -> str:
     return "Change"
 
 
+#: How the save question names the parts of :class:`EditState` (confirming is the original
+#: sun's; the two fields of the original sun are one part).
+_PART_WORDS = (
+    ("step", "the original sun"), ("align_sun", "the original sun"),
+    ("original_sun", "the original sun"), ("target_sun", "the new sun"),
+    ("preset", "the quality"), ("depth_path", "the depth map"),
+    ("heading", "the camera heading"), ("exposure", "the exposure"), ("daylight", "the light"),
+    ("shadow_edits", "the corrections of the found shadows"),
+)
+
+
+def changed_parts(before: EditState, after: EditState) -> list[str]:
+    """The parts of the session that differ between ``before`` and ``after``, in words, once
+    each, in the order the app's steps show them (the save question says what it would drop).
+
+    Example:
+        >>> a = EditState("relight", (10.0, 30.0), (10.0, 30.0), (90.0, 30.0), "fast")
+        >>> changed_parts(a, replace(a, target_sun=(95.0, 30.0), preset="accurate"))
+        ['the new sun', 'the quality']
+    """
+    words: list[str] = []
+    for name, word in _PART_WORDS:
+        if getattr(before, name) != getattr(after, name) and word not in words:
+            words.append(word)
+    return words
+
+
 def shadow_edit_text(edits: tuple[ShadowEdit, ...]) -> str:
     """The Edit-menu label of a change of the shadow corrections to ``edits`` (a click or a
     brush stroke added to the end, or all cleared): "Mark shadow", "Not a shadow" (a click),

@@ -1,4 +1,5 @@
-"""What to ask before the work on screen goes away: quitting, or opening another photo (Qt-free).
+"""What to ask before the work on screen goes away: quitting, or opening another photo, or a
+file about to be replaced (Qt-free).
 
 Two things can be lost: an export that is still running (the worker is killed on quit, and a new
 photo would wait behind it), and edits not saved in the project file. :func:`leave_questions`
@@ -8,13 +9,15 @@ lists the questions in the order to ask them; the window shows each one and acts
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 #: Answers that go ahead (the export is stopped / the project saved / the edits dropped).
 STOP, SAVE, DISCARD = "stop", "save", "discard"
 #: Answers that keep everything as it is and abandon the quit or open.
 KEEP, CANCEL = "keep", "cancel"
-#: The answer that replaces a project file this window did not open or save.
+#: The answer that replaces a project file this window did not open or save, or an export's
+#: file whose name the app completed.
 REPLACE = "replace"
 #: The one answer to a notice.
 OK = "ok"
@@ -59,7 +62,8 @@ class RunningExport:
 
 
 def leave_questions(
-    action: str, exports: list[RunningExport], unsaved: bool, project_name: str
+    action: str, exports: list[RunningExport], unsaved: bool, project_name: str,
+    parts: Sequence[str] = (),
 ) -> list[Question]:
     """The questions to ask before ``action``.
 
@@ -68,6 +72,9 @@ def leave_questions(
         exports: exports running or waiting in the worker.
         unsaved: whether there are edits not saved in the project file.
         project_name: the project file's name, for the save question.
+        parts: what is not saved, in words ("the new sun", ...), for the save question; ``()``
+            when not known (it then says "the changes you made"; a user trial's question
+            named every kind of setting, the depth map and heading it never touched too).
 
     Returns:
         Zero, one or two questions: the running export first, then unsaved changes.
@@ -75,6 +82,8 @@ def leave_questions(
     Example:
         >>> [q.title for q in leave_questions("quit", [RunningExport("a.mp4", 0.4)], True, "a")]
         ['An export is still running', 'Save the changes to this photo?']
+        >>> leave_questions("open", [], True, "a", ["the new sun", "the quality"])[0].text
+        'Your changes to the new sun and the quality are not saved.'
     """
     if action not in ("quit", "open"):
         raise ValueError(f"expected action 'quit' or 'open', got {action!r}")
@@ -107,9 +116,8 @@ def leave_questions(
         questions.append(
             Question(
                 title="Save the changes to this photo?",
-                text=("The suns, quality, depth map, camera heading, exposure, light, "
-                      "corrections of the found shadows and time-lapse settings you chose are "
-                      "not saved."),
+                text=(f"Your changes to {_joined(parts)} are not saved." if parts
+                      else "The changes you made to this photo are not saved."),
                 detail=f"Save them in {project_name} to continue later, or drop them.",
                 choices=(
                     Choice(SAVE, "Save project", "accept"),
@@ -121,6 +129,11 @@ def leave_questions(
             )
         )
     return questions
+
+
+def _joined(words: Sequence[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return words[0] if len(words) == 1 else f"{', '.join(words[:-1])} and {words[-1]}"
 
 
 def finished_before_stop_notice(paths: list[str]) -> Question:
@@ -141,6 +154,52 @@ def finished_before_stop_notice(paths: list[str]) -> Question:
         default=OK,
         escape=OK,
     )
+
+
+def replace_file_question(path: str) -> Question:
+    """Asked when an export's name, typed without its extension, was completed by the app and
+    the completed name exists: the save dialog asked only about the name as typed (a user
+    trial's "tl" replaced tl.mp4 without a word).
+
+    Example:
+        >>> q = replace_file_question("/photos/tl.mp4")
+        >>> q.text, [c.key for c in q.choices], q.default
+        ('tl.mp4 already exists. Replace it?', ['replace', 'cancel'], 'cancel')
+    """
+    return Question(
+        title="Replace the file?",
+        text=f"{os.path.basename(path)} already exists. Replace it?",
+        detail=f"{path}\nChoose Cancel to keep it, then export under another name.",
+        choices=(
+            Choice(REPLACE, "Replace it", "destructive"),
+            Choice(CANCEL, "Cancel", "reject"),
+        ),
+        default=CANCEL,
+        escape=CANCEL,
+    )
+
+
+def with_filter_extension(path: str, name_filter: str) -> str:
+    """``path`` as a save dialog returned it, with the first extension of the chosen file type
+    (``name_filter``, as ``"PNG image (*.png)"``) added when the name has none (a user trial's
+    "mine" was refused as a name without an extension); a name with an extension, or a filter
+    without one (a folder's ``(*)``), leaves it as it is.
+
+    Example:
+        >>> with_filter_extension("/p/mine", "JPEG image (*.jpg *.jpeg)")
+        '/p/mine.jpg'
+        >>> with_filter_extension("/p/mine.tif", "PNG image (*.png)")
+        '/p/mine.tif'
+        >>> with_filter_extension("/p/frames", "Folder name (*)")
+        '/p/frames'
+    """
+    if os.path.splitext(os.path.basename(path))[1]:
+        return path
+    inside = name_filter[name_filter.find("(") + 1:name_filter.rfind(")")]
+    for pattern in inside.split():
+        if pattern.startswith("*.") and len(pattern) > 2:
+            return path + pattern[1:]
+    return path
 
 
 def replace_project_question(project_name: str, saved: str,

@@ -88,7 +88,7 @@ from app import display
 from app import sun_dial_math as dm
 from app.canvas import ImageCanvas, qimage_from_array
 from app.errors import DepthMapError, OwnFileError, depth_file_problem, message_for
-from app.history import EditCommand, EditState, shadow_edit_text
+from app.history import EditCommand, EditState, changed_parts, shadow_edit_text
 from app.leave_prompts import (
     CONTINUE,
     LOCATE,
@@ -101,7 +101,9 @@ from app.leave_prompts import (
     leave_questions,
     locate_photo_question,
     other_photo_question,
+    replace_file_question,
     replace_project_question,
+    with_filter_extension,
 )
 from app.panels import (
     BRUSH_DEFAULT,
@@ -560,9 +562,15 @@ class MainWindow(QMainWindow):
         self.act_undo = self.undo_stack.createUndoAction(self, "&Undo")
         self.act_undo.setShortcut(QKeySequence.StandardKey.Undo)
         self.act_redo = self.undo_stack.createRedoAction(self, "&Redo")
-        self.act_redo.setShortcuts(
-            [QKeySequence.StandardKey.Redo, QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")]
-        )
+        # The platform's redo key first, then the two others, each once: on X11 the platform's
+        # is Ctrl+Shift+Z, and the same key twice made Qt call it ambiguous and redo nothing
+        # (a user trial; offscreen, Ctrl+Y was the doubled one).
+        redo_keys: list[QKeySequence] = []
+        for key in (*QKeySequence.keyBindings(QKeySequence.StandardKey.Redo),
+                    QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")):
+            if not key.isEmpty() and key not in redo_keys:
+                redo_keys.append(key)
+        self.act_redo.setShortcuts(redo_keys)
         # While a brush stroke is painted, undo and redo cancel it and do nothing else (they
         # undid the step before and the stroke was still added on release, its redo lost).
         for act, step in ((self.act_undo, self.undo_stack.undo),
@@ -810,6 +818,22 @@ class MainWindow(QMainWindow):
         return not self.undo_stack.isClean() or (
             self._timelapse_baseline is not None
             and self.timelapse_settings != self._timelapse_baseline)
+
+    def unsaved_parts(self) -> list[str]:
+        """What :meth:`has_unsaved_changes` sees, in words (the save question's): the parts of
+        the edit state that differ from the saved (clean) one, and the time-lapse settings;
+        ``[]`` when the saved state cannot be reached by undo or redo (Qt dropped it)."""
+        stack, state = self.undo_stack, self.edit_state()
+        clean, now = stack.cleanIndex(), stack.index()
+        parts: list[str] = []
+        if state is not None and clean >= 0 and now != clean:
+            command = stack.command(clean if now > clean else clean - 1)
+            if isinstance(command, EditCommand):
+                parts = changed_parts(command.before if now > clean else command.after, state)
+        if (self._timelapse_baseline is not None
+                and self.timelapse_settings != self._timelapse_baseline):
+            parts.append("the time-lapse settings")
+        return parts
 
     def set_timelapse_settings(self, settings: TimelapseSettings, shown: bool = False) -> None:
         """The time-lapse dialog's settings, as they change; ``shown``: as it first shows them
@@ -2254,11 +2278,29 @@ class MainWindow(QMainWindow):
         stem = Path(self.image_path).stem
         az, el = self.relight_panel.sun_panel.sun()
         suggestion = str(Path(self.image_path).with_name(f"{stem}_relit_az{az:.0f}_el{el:.0f}.png"))
-        # The file dialog asks before replacing an existing file, so a confirmed name may be
-        # overwritten; nothing is ever replaced without that question.
-        path, _ = QFileDialog.getSaveFileName(self, "Export relit photo", suggestion, STILL_FILTERS)
+        path = self._ask_still_path("Export relit photo", suggestion)
         if path:
             self.export_still(path, force=True)
+
+    def _ask_still_path(self, title: str, suggestion: str) -> str | None:
+        """Where to write a still (None: cancelled). The file dialog asks before replacing an
+        existing file, so a confirmed name may be overwritten; a name typed without an
+        extension takes the chosen type's, asked about again when that file exists
+        (:meth:`may_write_completed`); nothing is ever replaced without a question."""
+        typed, chosen = QFileDialog.getSaveFileName(self, title, suggestion, STILL_FILTERS)
+        if not typed:
+            return None
+        path = with_filter_extension(typed, chosen or STILL_FILTERS.split(";;")[0])
+        return path if self.may_write_completed(typed, path) else None
+
+    def may_write_completed(self, typed: str, path: str) -> bool:
+        """Whether an export may write ``path``, the name ``typed`` in a save dialog with an
+        extension the app added: the dialog asked only about ``typed``, so an existing
+        ``path`` is replaced only when the user says so (:func:`~app.leave_prompts.
+        replace_file_question`)."""
+        if path == typed or not os.path.exists(path):
+            return True
+        return self.ask(replace_file_question(path)) == REPLACE
 
     def export_still(self, path: str, force: bool = False) -> int | None:
         """Relight at full resolution and write PNG, JPEG or 16-bit TIFF (atomic); a PNG of a
@@ -2289,10 +2331,7 @@ class MainWindow(QMainWindow):
             return
         stem = Path(self.image_path).stem
         suggestion = str(Path(self.image_path).with_name(f"{stem}_shadows_removed.png"))
-        # As for the still: the file dialog asks before replacing an existing file.
-        path, _ = QFileDialog.getSaveFileName(
-            self, "Export shadows removed", suggestion, STILL_FILTERS
-        )
+        path = self._ask_still_path("Export shadows removed", suggestion)  # as the still's
         if path:
             self.export_shadows_removed(path, force=True)
 
@@ -2774,7 +2813,8 @@ class MainWindow(QMainWindow):
                 else project_path_for(self.image_path).name if self.image_path else "")
         self._commit_typed_fields()
         questions = leave_questions(
-            action, self.running_exports(), self.has_unsaved_changes(), name
+            action, self.running_exports(), self.has_unsaved_changes(), name,
+            self.unsaved_parts(),
         )
         asked = {i for i, ch, _ in self.runner.active() if ch in EXPORT_CHANNELS}
         # Every question first, then what the answers say: "Stop export" followed by Cancel

@@ -831,13 +831,16 @@ class TimelapseDialog(QDialog):
         stem = Path(self.main.image_path).stem or "timelapse"
         ext = "" if fmt == "png" else f".{fmt}"
         suggestion = str(Path(self.main.image_path).with_name(f"{stem}_timelapse{ext}"))
-        path, _ = QFileDialog.getSaveFileName(self, "Export time-lapse", suggestion, filt)
-        if not path:
+        typed, _ = QFileDialog.getSaveFileName(self, "Export time-lapse", suggestion, filt)
+        if not typed:
             return
-        if fmt != "png" and not path.lower().endswith(ext):
+        path = typed
+        if fmt != "png" and not path.lower().endswith(ext):  # the format chosen in this dialog
             path += ext
-        # The save dialog has asked before replacing an existing file.
-        self.export(path, force=True)
+        # The save dialog has asked before replacing the name typed; the main window asks
+        # about a name this dialog completed.
+        if self.main.may_write_completed(typed, path):
+            self.export(path, force=True)
 
     def export(self, path: str, force: bool = False) -> int | None:
         """Render the path's frames and write them; progress and cancel in this dialog."""

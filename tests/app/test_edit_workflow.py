@@ -885,3 +885,113 @@ def test_keyboard_shortcuts_box_lists_every_shortcut_of_the_menus(window, monkey
             named += 1
             assert any(k in text for k in keys), f"{act.text()!r} ({keys}) is not in the box"
     assert named >= 10, "the menus' shortcuts were not read"
+
+
+# ------------------------------------------------------------- redo's keys, each one once (X11)
+def test_redo_keys_are_each_bound_once_and_redo(qtbot, window, photo, settle):
+    """Ctrl+Shift+Z and Ctrl+Y both redo. Redo's keys were the platform's plus both of them, so
+    one was bound twice (Ctrl+Shift+Z on X11, Ctrl+Y offscreen), and Qt called that key
+    ambiguous and redid nothing (a user trial on X11)."""
+    keys = [k.toString() for k in window.act_redo.shortcuts()]
+    assert len(keys) == len(set(keys)), keys
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    panel = window.relight_panel.sun_panel
+    _type_sun(panel, 220.0, 25.0)
+    settle()
+    canvas = window.canvas
+    window.activateWindow()
+    canvas.setFocus()
+    for key, mods in ((Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier
+                       | Qt.KeyboardModifier.ShiftModifier),
+                      (Qt.Key.Key_Y, Qt.KeyboardModifier.ControlModifier)):
+        qtbot.keyClick(canvas, Qt.Key.Key_Z, Qt.KeyboardModifier.ControlModifier)
+        settle()
+        assert panel.sun()[1] != pytest.approx(25.0)  # undone
+        qtbot.keyClick(canvas, key, mods)
+        settle()
+        assert panel.sun() == pytest.approx((220.0, 25.0)), f"{key} did not redo"
+
+
+# --------------------------------------------- a name typed without its extension (user trial)
+def test_a_time_lapse_name_completed_by_the_app_is_not_replaced_unasked(
+        window, photo, settle, tmp_path, monkeypatch, leave_answers):
+    """"tl" typed in the time-lapse's save dialog (MP4 chosen) is written as tl.mp4; the
+    dialog asked only about "tl", so an existing tl.mp4 is replaced only when the user says so
+    (a user trial's was replaced without a word)."""
+    from PySide6.QtWidgets import QFileDialog
+
+    from app.leave_prompts import CANCEL, REPLACE
+    from tests.app.test_main_window import _timelapse
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    dialog = _timelapse(window, 3)
+    kept = tmp_path / "tl.mp4"
+    kept.write_bytes(b"the user's video")
+    monkeypatch.setattr(QFileDialog, "getSaveFileName",
+                        staticmethod(lambda *a, **k: (str(tmp_path / "tl"), a[3])))
+    leave_answers.script.append(CANCEL)
+    dialog.export_dialog()
+    settle()
+    assert leave_answers.asked[-1].text == "tl.mp4 already exists. Replace it?"
+    assert kept.read_bytes() == b"the user's video" and dialog.last_result != "finished"
+    leave_answers.script.append(REPLACE)
+    dialog.export_dialog()
+    settle()
+    assert dialog.last_result == "finished" and kept.read_bytes() != b"the user's video"
+
+
+def test_a_still_name_without_an_extension_takes_the_chosen_type(
+        window, photo, settle, tmp_path, monkeypatch, errors, leave_answers):
+    """"mine" with JPEG chosen is written as mine.jpg (a user trial's was refused as a name
+    without an extension); an existing mine.jpg is asked about first."""
+    from PySide6.QtWidgets import QFileDialog
+
+    from app.leave_prompts import CANCEL
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    monkeypatch.setattr(QFileDialog, "getSaveFileName",
+                        staticmethod(lambda *a, **k: (str(tmp_path / "mine"),
+                                                      "JPEG image (*.jpg *.jpeg)")))
+    window.act_export.trigger()
+    settle()
+    out = tmp_path / "mine.jpg"
+    assert errors == [] and out.read_bytes()[:2] == b"\xff\xd8"  # a JPEG
+    asked = len(leave_answers.asked)
+    before = out.stat().st_mtime_ns
+    leave_answers.script.append(CANCEL)
+    window.act_export.trigger()
+    settle()
+    assert len(leave_answers.asked) == asked + 1 and out.stat().st_mtime_ns == before
+
+
+# --------------------------------------------------- the save question says what it would drop
+def test_the_save_question_names_only_what_changed_since_the_save(window, photo, settle,
+                                                                  leave_answers):
+    """A user trial changed the new sun and the quality, and the question named the depth map
+    and camera heading too: it names what differs from the saved state, undone steps
+    included, whichever side of the save they are."""
+    from app.leave_prompts import CANCEL
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    window.save_project()
+    _type_sun(window.relight_panel.sun_panel, 200.0, 30.0)
+    settle()
+    leave_answers.script.append(CANCEL)
+    assert window.close() is False
+    assert leave_answers.asked[-1].text == "Your changes to the new sun are not saved."
+    window.set_preset("balanced" if window.edit_state().preset == "fast" else "fast")
+    settle()
+    leave_answers.script.append(CANCEL)
+    assert window.close() is False
+    assert (leave_answers.asked[-1].text
+            == "Your changes to the new sun and the quality are not saved.")
+    window.save_project()
+    window.undo_stack.undo()  # the quality back: behind the saved state
+    settle()
+    leave_answers.script.append(CANCEL)
+    assert window.close() is False
+    assert leave_answers.asked[-1].text == "Your changes to the quality are not saved."
