@@ -166,10 +166,17 @@ def replace_file_question(path: str) -> Question:
         >>> q.text, [c.key for c in q.choices], q.default
         ('tl.mp4 already exists. Replace it?', ['replace', 'cancel'], 'cancel')
     """
+    return _replace_question("Replace the file?",
+                             f"{os.path.basename(path)} already exists. Replace it?",
+                             f"{path}\nChoose Cancel to keep it, then export under another name.")
+
+
+def _replace_question(title: str, text: str, detail: str) -> Question:
+    """"Replace it" or Cancel (the default: nothing is replaced on Enter or Esc)."""
     return Question(
-        title="Replace the file?",
-        text=f"{os.path.basename(path)} already exists. Replace it?",
-        detail=f"{path}\nChoose Cancel to keep it, then export under another name.",
+        title=title,
+        text=text,
+        detail=detail,
         choices=(
             Choice(REPLACE, "Replace it", "destructive"),
             Choice(CANCEL, "Cancel", "reject"),
@@ -230,17 +237,7 @@ def replace_project_question(project_name: str, saved: str,
         text = f"{project_name} already holds a project of this photo (saved {saved})."
         detail = ("You opened the photo on its own, so saving replaces the suns and settings "
                   "kept there. Open the project file instead to continue that work.")
-    return Question(
-        title=title,
-        text=text,
-        detail=detail,
-        choices=(
-            Choice(REPLACE, "Replace it", "destructive"),
-            Choice(CANCEL, "Cancel", "reject"),
-        ),
-        default=CANCEL,
-        escape=CANCEL,
-    )
+    return _replace_question(title, text, detail)
 
 
 def locate_photo_question(project_name: str, photo_path: str) -> Question:
