@@ -2297,8 +2297,8 @@ class MainWindow(QMainWindow):
         """Whether an export may write ``path``, the name ``typed`` in a save dialog with an
         extension the app added: the dialog asked only about ``typed``, so an existing
         ``path`` is replaced only when the user says so (:func:`~app.leave_prompts.
-        replace_file_question`)."""
-        if path == typed or not os.path.exists(path):
+        replace_file_question`). The photo itself is not asked about: the export refuses it."""
+        if path == typed or not os.path.exists(path) or self.own_file_error(path) is not None:
             return True
         return self.ask(replace_file_question(path)) == REPLACE
 

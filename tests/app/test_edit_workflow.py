@@ -965,6 +965,15 @@ def test_a_still_name_without_an_extension_takes_the_chosen_type(
     window.act_export.trigger()
     settle()
     assert len(leave_answers.asked) == asked + 1 and out.stat().st_mtime_ns == before
+    # The photo's own name completed (scene -> scene.jpg): refused as ever, nothing asked.
+    photo_bytes = Path(photo).read_bytes()
+    monkeypatch.setattr(QFileDialog, "getSaveFileName",
+                        staticmethod(lambda *a, **k: (str(Path(photo).with_suffix("")),
+                                                      "JPEG image (*.jpg *.jpeg)")))
+    window.act_export.trigger()
+    settle()
+    assert len(leave_answers.asked) == asked + 1 and len(errors) == 1
+    assert Path(photo).read_bytes() == photo_bytes
 
 
 # --------------------------------------------------- the save question says what it would drop
