@@ -189,6 +189,19 @@ BRUSH_COLOURS = {"shadow": QColor(255, 60, 200), "not_shadow": QColor(150, 235, 
 BRUSH_SOFTNESS = {"shadow": 0.5 * STROKE_FEATHER, "not_shadow": 0.0}
 
 
+def _same_sun(a: tuple[float, float], b: tuple[float, float], tol: float = 0.01) -> bool:
+    """Whether two dial suns (azimuth, elevation in degrees) are the same within ``tol``
+    degrees each (below the dial's finest nudge, 0.1: a search's sun came back from its
+    search 1e-14 off the EXIF sun the dial stood at, and was recorded as a move).
+
+    Example:
+        >>> _same_sun((359.999, 40.0), (0.0, 40.0)), _same_sun((10.0, 40.0), (10.1, 40.0))
+        (True, False)
+    """
+    d_az = abs((a[0] - b[0] + 180.0) % 360.0 - 180.0)
+    return d_az <= tol and abs(a[1] - b[1]) <= tol
+
+
 def _timings(session: Any) -> dict[str, float]:
     return dict(getattr(session, "timings", {}) or {})
 
@@ -397,6 +410,13 @@ class MainWindow(QMainWindow):
         # the photo just opened: what was found in it must not flash by).
         self._held_message = ""
         self._load_notice = ""  # the warning above the photo after loading (file, depth)
+        #: Sun searches started: a result whose number is not the last is not applied (the
+        #: sun was confirmed meanwhile: a user trial's confirm was followed by the search's
+        #: sun moving the dial and recording a step-1 move after it).
+        self._searches = 0
+        #: The dial's sun the search notice speaks of (it goes when the dial leaves it: undo,
+        #: redo, a drag), or None when the notice is advice that holds anywhere.
+        self._notice_sun: tuple[float, float] | None = None
         #: What the command line says of the photo's file (photo_file_notes), kept for the
         #: status bar's "Photo notes" in every step.
         self._file_notes: list[str] = []
@@ -1543,12 +1563,14 @@ class MainWindow(QMainWindow):
         prior = self.exif_prior()
         load = self._loads
         tilt = self.camera_tilt
+        self._searches += 1
+        search = self._searches
 
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.pipeline.auto_sun import find_sun
 
             fit = find_sun(session, prior=prior, pitch_roll=tilt, progress=ctx.progress)
-            return {"fit": fit, "prior": prior, "load": load,
+            return {"fit": fit, "prior": prior, "load": load, "search": search,
                     "timings": {**_timings(session), "find_sun": fit.seconds}}
 
         self.align_panel.set_finding(True)
@@ -1559,16 +1581,22 @@ class MainWindow(QMainWindow):
         self.align_panel.set_finding(False)
         if result.get("load", self._loads) != self._loads:
             return  # found for a photo that has been replaced since
+        if result.get("search", self._searches) != self._searches or self.step is not Step.ALIGN:
+            return  # the sun was confirmed while it searched: the confirmed one stands
         self.sun_fit = fit
         m = fit.map
-        self.align_panel.sun_panel.dial.set_heat_map(
-            m.azimuths.tolist(), m.elevations.tolist(), m.normalised().tolist())
-        if self.step is not Step.ALIGN:
-            return
+        dial = self.align_panel.sun_panel.dial
         if fit.found or fit.source == SOURCE_EXIF:
-            self.align_panel.sun_panel.set_sun(fit.azimuth, fit.elevation)
-            self.request_shadow(fit.azimuth, fit.elevation, preview=False)
-            self._record(text="Find sun")
+            dial.set_heat_map(m.azimuths.tolist(), m.elevations.tolist(),
+                              m.normalised().tolist())
+        else:  # no sun fits: a map stretched to its full range would point at noise
+            dial.set_heat_map(None)
+        if fit.found or fit.source == SOURCE_EXIF:
+            if not _same_sun(self.align_panel.sun_panel.sun(), (fit.azimuth, fit.elevation)):
+                # (a search that lands where the dial stands changes nothing: no undo step)
+                self.align_panel.sun_panel.set_sun(fit.azimuth, fit.elevation)
+                self.request_shadow(fit.azimuth, fit.elevation, preview=False)
+                self._record(text="Find sun")
             # The dial's angles (the camera's frame) only: the EXIF's own are the horizon's.
             text = (f"Sun found: azimuth {fit.azimuth:.1f}°, elevation {fit.elevation:.1f}°, "
                     f"confidence {fit.confidence:.2f}")
@@ -1595,7 +1623,7 @@ class MainWindow(QMainWindow):
                 "no-clear-shadows": "No clear shadows in this photo",
             }.get(fit.unfound, "No sun makes the predicted shadows fit the photo's (rough depth?)")
             text = (f"{why}: its sun cannot be told from them (confidence "
-                    f"{fit.confidence:.2f}). Set it by eye; the dial shows where suns fit best.")
+                    f"{fit.confidence:.2f}). Set it by eye.")
             prior = result.get("prior")
             if prior is not None:  # the EXIF's time and place still give the elevation
                 from outcast_core.runtime.pipeline.auto_sun import at_true_elevation
@@ -1625,12 +1653,21 @@ class MainWindow(QMainWindow):
                 notice = (f"The photo's shadows put the sun {off:.0f}° away from where {whose} "
                           "puts it: the heading may be wrong (\"Sun from photo's EXIF\" puts "
                           "the sun there; correct the Camera heading box).")
-        self._show_search_notice(notice)
+        found = fit.found or fit.source == SOURCE_EXIF
+        self._show_search_notice(notice, (fit.azimuth, fit.elevation) if found else None)
 
-    def _show_search_notice(self, notice: str) -> None:
+    def _show_search_notice(self, notice: str, sun: tuple[float, float] | None = None) -> None:
         """Step 1's notice above the photo: what Find sun said (``""``: nothing, or no longer
-        true), over the load's warning (the file, the depth source), which stays."""
+        true), over the load's warning (the file, the depth source), which stays. ``sun``: the
+        found sun the notice speaks of; it goes when the dial leaves that sun
+        (:meth:`_drop_stale_search_notice`: a user trial's undo of Find sun left it)."""
+        self._notice_sun = sun if notice else None
         self.align_panel.show_notice("\n\n".join(t for t in (notice, self._load_notice) if t))
+
+    def _drop_stale_search_notice(self, az: float, el: float) -> None:
+        """Take down the search's notice about a found sun once the dial stands elsewhere."""
+        if self._notice_sun is not None and not _same_sun(self._notice_sun, (az, el)):
+            self._show_search_notice("")
 
     def _prior_words(self, prior: Any) -> str:
         """Where an EXIF prior comes from, in words without its angles (those are the
@@ -1772,6 +1809,7 @@ class MainWindow(QMainWindow):
             return None
         if az is None or el is None:
             az, el = self.align_panel.sun_panel.sun()
+        self._drop_stale_search_notice(az, el)  # every move of step 1's sun comes here
 
         def job(ctx: JobContext) -> dict[str, Any]:
             w = sun_vector(az, el)
@@ -1799,6 +1837,9 @@ class MainWindow(QMainWindow):
         if session is None:
             return
         az, el = self.align_panel.sun_panel.sun()
+        if self.finding_sun():  # the sun on the dial is the one confirmed, not the search's
+            self._searches += 1
+            self.runner.cancel("find_sun")
         # A new sun chosen in step 2 survives a re-alignment of the original sun.
         keep_target = keep_target or self.original_sun is not None
         current = self.edit_state()

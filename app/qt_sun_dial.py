@@ -63,6 +63,11 @@ LABEL_GAP = 6.0
 FOCUS_RING_WIDTH = 2.0
 #: The direction labels by azimuth.
 DIRECTION_LABELS = {0: "front", 90: "right", 180: "behind", 270: "left"}
+#: The dial's tooltip, and what it adds while a heat map shows.
+DIAL_TIP = ("Drag the sun: around = azimuth, rim to centre = elevation.\n"
+            "Arrow keys nudge 1°, Shift 10°, Ctrl 0.1°.")
+HEAT_MAP_TIP = ("Coloured cells (Find sun): suns whose predicted shadows agree with the "
+                "photo's; the more opaque and red, the better. Uncoloured: a poor fit.")
 #: The elevation rings (their dashed circles and labels).
 RING_ELEVATIONS = (30.0, 60.0)
 #: A capped shadow ruler (longer than the disc) ends this far inside the rim, in an arrowhead
@@ -107,10 +112,7 @@ class QtSunDial(QWidget):
         self.setMinimumSize(150, 150)
         self.setMaximumHeight(300)
         self.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Preferred)
-        self.setToolTip(
-            "Drag the sun: around = azimuth, rim to centre = elevation.\n"
-            "Arrow keys nudge 1°, Shift 10°, Ctrl 0.1°."
-        )
+        self.setToolTip(DIAL_TIP)
         self.setAccessibleName("Sun dial")
 
     # ------------------------------------------------------------------ state
@@ -174,10 +176,16 @@ class QtSunDial(QWidget):
                                  f"{len(rows)} rows")
             self._heat = dm.heat_cells(azimuths, elevations)
             self._heat_values = rows
+        self._show_heat_tip()
         self.update()
 
     def has_heat_map(self) -> bool:
         return bool(self._heat)
+
+    def _show_heat_tip(self) -> None:
+        """The tooltip says what the heat map is while one shows (a user trial found nothing
+        on screen that explained the coloured cells)."""
+        self.setToolTip(DIAL_TIP + ("\n" + HEAT_MAP_TIP if self._heat else ""))
 
     def set_prior_elevation(self, elevation: float | None) -> None:
         """A dashed ring at the elevation the photo's time and place give (None hides it)."""

@@ -84,7 +84,9 @@ def test_no_clear_shadows_is_said_and_the_sun_stays(window, photo, settle, monke
     assert window.undo_stack.count() == count
     assert "No clear shadows" in window.stage_label.text()
     assert window.align_panel.notice.isVisibleTo(window)
-    assert panel.dial.has_heat_map()
+    # No map: stretched to its full range it pointed at noise, and the words no longer say
+    # "the dial shows where suns fit best" (a user trial followed it the wrong way).
+    assert not panel.dial.has_heat_map() and "fit best" not in window.stage_label.text()
     # The message follows the fit's reason, not its note's words.
     for unfound, words in (("too-small", "too small or too narrow"),
                            ("no-fit", "No sun makes the predicted shadows fit")):
@@ -536,3 +538,92 @@ def test_the_exif_button_s_tooltip_follows_its_note(window, settle):
     assert button.toolTip().startswith("No compass heading in the photo's EXIF")
     _load(window, os.path.join(ROOT, "samples", "exif_003_th_pool.jpg"), settle)
     assert button.isEnabled() and button.toolTip() == EXIF_BUTTON_TIP
+
+
+def test_confirming_while_the_search_runs_keeps_the_confirmed_sun(qtbot, window, photo, settle,
+                                                                 monkeypatch):
+    """A user trial confirmed while Find sun ran: step 2 opened with the dial's sun, then the
+    search's sun moved step 1's dial and a "Find sun" step was recorded after the confirm.
+    Confirming cancels the search; a result that arrives anyway is not applied."""
+    _load(window, photo, settle)
+    started = []
+
+    def slow(session, **kw):
+        started.append(True)
+        time.sleep(0.4)  # finishes even when cancelled: its progress is never asked
+        return _fit(200.0, 30.0)
+
+    monkeypatch.setattr(auto_sun, "find_sun", slow)
+    panel = window.align_panel.sun_panel
+    confirmed = panel.sun()
+    window.toggle_find_sun()
+    qtbot.waitUntil(lambda: bool(started), timeout=5000)
+    window.act_confirm.trigger()
+    settle()
+    assert window.step is Step.RELIGHT
+    assert window.original_sun.as_tuple() == pytest.approx(confirmed)
+    assert panel.sun() == pytest.approx(confirmed)  # step 1's dial too
+    assert window.undo_stack.undoText() == "Confirm original sun"
+    assert "Sun found" not in window.stage_label.text()
+    assert not panel.dial.has_heat_map()
+
+
+def test_a_search_that_lands_where_the_sun_stands_records_nothing(window, photo, settle,
+                                                                 monkeypatch):
+    """The EXIF sun came back from the search 1e-14 degrees off the dial's and was recorded as
+    a "Find sun" move: the photo was marked unsaved for nothing (a user trial)."""
+    _load(window, photo, settle)
+    panel = window.align_panel.sun_panel
+    az, el = panel.sun()
+    count = window.undo_stack.count()
+    fit = dataclasses.replace(_fit(az, el + 1e-12), source=auto_sun.SOURCE_EXIF)
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)
+    window.find_sun()
+    settle()
+    assert window.undo_stack.count() == count and not window.has_unsaved_changes()
+
+
+def test_the_search_notice_goes_when_the_sun_leaves_the_found_one(window, photo, settle,
+                                                                 monkeypatch):
+    """A notice about the found sun (here: the compass chose it) stayed above the photo after
+    Undo of Find sun and after the sun was moved by hand (a user trial)."""
+    _load(window, photo, settle)
+    notice = window.align_panel.notice
+    loaded = notice.text()
+    fit = dataclasses.replace(_fit(0.0, 8.0), compass_decided=True)
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)
+    window.find_sun()
+    settle()
+    assert "the compass heading chose this one" in notice.text()
+    window.undo_stack.undo()
+    settle()
+    assert notice.text() == loaded
+    window.undo_stack.redo()  # the found sun again: its notice is not said again (the status is)
+    settle()
+    window.find_sun()
+    settle()
+    assert "the compass heading chose this one" in notice.text()
+    window.request_shadow(30.0, 40.0)  # as a drag's end does
+    settle()
+    assert notice.text() == loaded
+    # Advice that holds anywhere on the dial stays while the user follows it.
+    fit = dataclasses.replace(_fit(10.0, 60.0, found=False), unfound="no-fit")
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)
+    window.find_sun()
+    settle()
+    said = notice.text()
+    window.request_shadow(50.0, 40.0)
+    settle()
+    assert notice.text() == said != loaded
+
+
+def test_the_dial_says_what_the_heat_map_is(window, photo, settle, monkeypatch):
+    _load(window, photo, settle)
+    dial = window.align_panel.sun_panel.dial
+    assert "Coloured cells" not in dial.toolTip()
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: _fit(200.0, 30.0))
+    window.find_sun()
+    settle()
+    assert "Coloured cells" in dial.toolTip()
+    dial.set_heat_map(None)
+    assert "Coloured cells" not in dial.toolTip()

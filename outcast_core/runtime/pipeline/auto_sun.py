@@ -588,10 +588,15 @@ class _Frame:
 
 def ground_plane_tilt(session: Any) -> tuple[float, float, str]:
     """Camera ``(pitch, roll, source)`` in degrees from the fitted ground plane; level without
-    one (or with one tilted more than :data:`MAX_PLANE_TILT`)."""
+    one (or with one tilted more than :data:`MAX_PLANE_TILT`), or when the working image is
+    too small or narrow to read (:func:`legibility` below 1): a user trial's 64 x 48 copy of
+    the pool sample was "pitched 21.8 degrees down" (the full photo: no plane), which moved
+    its EXIF sun 37 degrees."""
     from outcast_core.runtime.pipeline.depth_post import fit_ground_plane
 
     level = (0.0, 0.0, "level (no ground plane)")
+    if legibility(np.shape(session.depth)) < 1.0:
+        return level
     try:
         plane = fit_ground_plane(session.depth, session.sky, session.camera)
     except ValueError:

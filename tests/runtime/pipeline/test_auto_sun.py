@@ -9,6 +9,7 @@ import re
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import pytest
 
@@ -178,6 +179,13 @@ def test_camera_tilt_sources() -> None:
                      depth=np.where(depth > 0, depth, np.inf).astype(np.float32))
     pitch, roll, source = camera_tilt(ground, None)
     assert source == "ground plane" and (pitch, roll) == pytest.approx((-20.0, 5.0), abs=0.5)
+    # The same scene as a 48 x 64 thumbnail is too small to read a plane in (a user trial's
+    # 64 x 48 copy of the pool sample was "pitched 21.8 degrees down"; the photo: no plane).
+    small = cv2.resize(depth, (64, 48), interpolation=cv2.INTER_NEAREST)
+    thumb = RelightSession(mode="classic", preset="fast")
+    thumb.set_image(np.full((48, 64, 3), 0.5, np.float32), fov_deg=60.0,
+                    depth=np.where(small > 0, small, np.inf).astype(np.float32))
+    assert camera_tilt(thumb, None) == (0.0, 0.0, "level (no ground plane)")
     pose = CameraPose(pitch=-8.5, roll=2.0, source="XMP GPano")
     assert camera_tilt(s, pose) == (-8.5, 2.0, "XMP GPano")
     for bad in [(1.0,), (1.0, 2.0, "x", 4.0), (float("nan"), 0.0)]:
