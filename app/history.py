@@ -101,8 +101,8 @@ def describe_change(before: EditState, after: EditState) -> str:
     return "Change"
 
 
-#: How the save question names the parts of :class:`EditState` (confirming is the original
-#: sun's; the two fields of the original sun are one part).
+#: How the save question names the parts of :class:`EditState` (``step``, ``align_sun`` and
+#: ``original_sun`` are all the original sun's: one part).
 _PART_WORDS = (
     ("step", "the original sun"), ("align_sun", "the original sun"),
     ("original_sun", "the original sun"), ("target_sun", "the new sun"),
@@ -114,7 +114,7 @@ _PART_WORDS = (
 
 def changed_parts(before: EditState, after: EditState) -> list[str]:
     """The parts of the session that differ between ``before`` and ``after``, in words, once
-    each, in the order the app's steps show them (the save question says what it would drop).
+    each, the suns first (the save question says what it would drop).
 
     Example:
         >>> a = EditState("relight", (10.0, 30.0), (10.0, 30.0), (90.0, 30.0), "fast")

@@ -186,29 +186,6 @@ def _replace_question(title: str, text: str, detail: str) -> Question:
     )
 
 
-def with_filter_extension(path: str, name_filter: str) -> str:
-    """``path`` as a save dialog returned it, with the first extension of the chosen file type
-    (``name_filter``, as ``"PNG image (*.png)"``) added when the name has none (a user trial's
-    "mine" was refused as a name without an extension); a name with an extension, or a filter
-    without one (a folder's ``(*)``), leaves it as it is.
-
-    Example:
-        >>> with_filter_extension("/p/mine", "JPEG image (*.jpg *.jpeg)")
-        '/p/mine.jpg'
-        >>> with_filter_extension("/p/mine.tif", "PNG image (*.png)")
-        '/p/mine.tif'
-        >>> with_filter_extension("/p/frames", "Folder name (*)")
-        '/p/frames'
-    """
-    if os.path.splitext(os.path.basename(path))[1]:
-        return path
-    inside = name_filter[name_filter.find("(") + 1:name_filter.rfind(")")]
-    for pattern in inside.split():
-        if pattern.startswith("*.") and len(pattern) > 2:
-            return path + pattern[1:]
-    return path
-
-
 def replace_project_question(project_name: str, saved: str,
                              other_photo: str | None = None) -> Question:
     """Asked before saving over a project file this window neither opened nor saved (the

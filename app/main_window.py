@@ -103,7 +103,6 @@ from app.leave_prompts import (
     other_photo_question,
     replace_file_question,
     replace_project_question,
-    with_filter_extension,
 )
 from app.panels import (
     BRUSH_DEFAULT,
@@ -128,6 +127,7 @@ from app.state import (
     load_project,
     project_path_for,
     save_project,
+    with_filter_extension,
 )
 from app.workers import JobContext, TaskRunner
 from outcast_core.runtime.geometry.camera import cosine_term, sun_angles, sun_vector
@@ -189,17 +189,9 @@ BRUSH_COLOURS = {"shadow": QColor(255, 60, 200), "not_shadow": QColor(150, 235, 
 BRUSH_SOFTNESS = {"shadow": 0.5 * STROKE_FEATHER, "not_shadow": 0.0}
 
 
-def _same_sun(a: tuple[float, float], b: tuple[float, float], tol: float = 0.01) -> bool:
-    """Whether two dial suns (azimuth, elevation in degrees) are the same within ``tol``
-    degrees each (below the dial's finest nudge, 0.1: a search's sun came back from its
-    search 1e-14 off the EXIF sun the dial stood at, and was recorded as a move).
-
-    Example:
-        >>> _same_sun((359.999, 40.0), (0.0, 40.0)), _same_sun((10.0, 40.0), (10.1, 40.0))
-        (True, False)
-    """
-    d_az = abs((a[0] - b[0] + 180.0) % 360.0 - 180.0)
-    return d_az <= tol and abs(a[1] - b[1]) <= tol
+#: Degrees off the EXIF elevation's ring at which Find sun's "turn the sun around the ring"
+#: notice goes (a hand on the dial does not stay on the ring exactly).
+RING_NOTICE_TOL = 2.0
 
 
 def _timings(session: Any) -> dict[str, float]:
@@ -415,8 +407,9 @@ class MainWindow(QMainWindow):
         #: sun moving the dial and recording a step-1 move after it).
         self._searches = 0
         #: The dial's sun the search notice speaks of (it goes when the dial leaves it: undo,
-        #: redo, a drag), or None when the notice is advice that holds anywhere.
-        self._notice_sun: tuple[float, float] | None = None
+        #: redo, a drag; azimuth None: any azimuth at that elevation), or None when the notice
+        #: is advice that holds anywhere.
+        self._notice_sun: tuple[float | None, float] | None = None
         #: What the command line says of the photo's file (photo_file_notes), kept for the
         #: status bar's "Photo notes" in every step.
         self._file_notes: list[str] = []
@@ -841,8 +834,10 @@ class MainWindow(QMainWindow):
 
     def unsaved_parts(self) -> list[str]:
         """What :meth:`has_unsaved_changes` sees, in words (the save question's): the parts of
-        the edit state that differ from the saved (clean) one, and the time-lapse settings;
-        ``[]`` when the saved state cannot be reached by undo or redo (Qt dropped it)."""
+        the edit state that differ from the saved (clean) one, and the time-lapse settings.
+        Without an edit-state part when the saved state cannot be reached by undo or redo (Qt
+        dropped it) or the edits cancel out (a move there and back); ``[]``: the question's
+        general words."""
         stack, state = self.undo_stack, self.edit_state()
         clean, now = stack.cleanIndex(), stack.index()
         parts: list[str] = []
@@ -1546,9 +1541,17 @@ class MainWindow(QMainWindow):
     def toggle_find_sun(self) -> None:
         """Start finding the sun, or cancel the search that runs."""
         if self.finding_sun():
-            self.runner.cancel("find_sun")
+            self._cancel_find_sun()
             return
         self.find_sun()
+
+    def _cancel_find_sun(self) -> None:
+        """Cancel the sun search; a result already on its way is not applied (its number is
+        no longer the last), and the button says "Find sun" again at once (a search dropped
+        before it started sends no "cancelled")."""
+        self._searches += 1
+        self.runner.cancel("find_sun")
+        self.align_panel.set_finding(False)
 
     def finding_sun(self) -> bool:
         """Whether a sun search is waiting or running."""
@@ -1558,8 +1561,9 @@ class MainWindow(QMainWindow):
         """Search for the photo's sun in the worker (progress in the status bar, cancellable);
         the result moves the sun (undoable) and shows the agreement on the dial."""
         session = self.session
-        if session is None or self.step is not Step.ALIGN:
-            return None
+        if (session is None or self.step is not Step.ALIGN
+                or any(ch == "confirm" for _, ch, _ in self.runner.active())):
+            return None  # (a confirm on its way: the step is about to change)
         prior = self.exif_prior()
         load = self._loads
         tilt = self.camera_tilt
@@ -1586,13 +1590,15 @@ class MainWindow(QMainWindow):
         self.sun_fit = fit
         m = fit.map
         dial = self.align_panel.sun_panel.dial
-        if fit.found or fit.source == SOURCE_EXIF:
+        if fit.found:
             dial.set_heat_map(m.azimuths.tolist(), m.elevations.tolist(),
                               m.normalised().tolist())
-        else:  # no sun fits: a map stretched to its full range would point at noise
-            dial.set_heat_map(None)
-        if fit.found or fit.source == SOURCE_EXIF:
-            if not _same_sun(self.align_panel.sun_panel.sun(), (fit.azimuth, fit.elevation)):
+        else:  # no sun fits (the EXIF's placed or not): a map stretched to its full range
+            dial.set_heat_map(None)  # would point at noise
+        placed = fit.found or fit.source == SOURCE_EXIF  # the dial goes to the fit's sun
+        notice_sun: tuple[float | None, float] | None = None
+        if placed:
+            if not dm.same_sun(self.align_panel.sun_panel.sun(), (fit.azimuth, fit.elevation)):
                 # (a search that lands where the dial stands changes nothing: no undo step)
                 self.align_panel.sun_panel.set_sun(fit.azimuth, fit.elevation)
                 self.request_shadow(fit.azimuth, fit.elevation, preview=False)
@@ -1631,9 +1637,12 @@ class MainWindow(QMainWindow):
                 az, el = at_true_elevation(*self.align_panel.sun_panel.sun(), prior.elevation,
                                            self.camera_tilt[:2])
                 el = dm.clamp_elevation(el)
-                self.align_panel.sun_panel.set_sun(az, el)
-                self.request_shadow(az, el, preview=False)
-                self._record(text="Sun elevation from EXIF")
+                if not dm.same_sun(self.align_panel.sun_panel.sun(), (az, el)):
+                    self.align_panel.sun_panel.set_sun(az, el)
+                    self.request_shadow(az, el, preview=False)
+                    self._record(text="Sun elevation from EXIF")
+                # "Turn it around the ring": any azimuth at this height above the horizon.
+                notice_sun = (None, self._above_horizon(az, el))
                 tilt = self.tilt_note()
                 where = (f"{el:.1f}° on the dial: {prior.elevation:.1f}° above the true "
                          f"horizon, from the photo's time and place, for a {tilt};" if tilt
@@ -1642,32 +1651,47 @@ class MainWindow(QMainWindow):
                          "the shadows fit.")
         self.stage_label.setText(text)
         self._held_message = text if self.runner.busy(background=False) else ""
-        notice = (text if not (fit.found or fit.source == SOURCE_EXIF) or fit.compass_decided
-                  else "")
+        notice = text if not placed or fit.compass_decided else ""
         prior = result.get("prior")
         if not notice and prior is not None and prior.azimuth is not None:
-            off = abs((fit.azimuth - prior.azimuth + 180.0) % 360.0 - 180.0)
+            off = dm.azimuth_gap(fit.azimuth, prior.azimuth)
             if off > 45.0:
                 whose = ("the heading you typed" if self.user_heading is not None
                          else "the EXIF compass heading")
                 notice = (f"The photo's shadows put the sun {off:.0f}° away from where {whose} "
                           "puts it: the heading may be wrong (\"Sun from photo's EXIF\" puts "
                           "the sun there; correct the Camera heading box).")
-        found = fit.found or fit.source == SOURCE_EXIF
-        self._show_search_notice(notice, (fit.azimuth, fit.elevation) if found else None)
+        self._show_search_notice(notice, (fit.azimuth, fit.elevation) if placed else notice_sun)
 
-    def _show_search_notice(self, notice: str, sun: tuple[float, float] | None = None) -> None:
+    def _show_search_notice(self, notice: str,
+                            sun: tuple[float | None, float] | None = None) -> None:
         """Step 1's notice above the photo: what Find sun said (``""``: nothing, or no longer
         true), over the load's warning (the file, the depth source), which stays. ``sun``: the
-        found sun the notice speaks of; it goes when the dial leaves that sun
-        (:meth:`_drop_stale_search_notice`: a user trial's undo of Find sun left it)."""
+        sun the notice speaks of (azimuth None: the elevation it set, the sun to be turned
+        round that ring); it goes when the dial leaves it (:meth:`_drop_stale_search_notice`:
+        a user trial's undo of Find sun left it); None: advice that holds anywhere."""
         self._notice_sun = sun if notice else None
         self.align_panel.show_notice("\n\n".join(t for t in (notice, self._load_notice) if t))
 
     def _drop_stale_search_notice(self, az: float, el: float) -> None:
-        """Take down the search's notice about a found sun once the dial stands elsewhere."""
-        if self._notice_sun is not None and not _same_sun(self._notice_sun, (az, el)):
+        """Take down the search's notice about a found sun once the dial stands elsewhere (a
+        ring's notice: once the sun is :data:`RING_NOTICE_TOL` off the ring, which a tilted
+        camera sees at changing dial elevations; turning the sun round it by hand, as the
+        notice says to, keeps it)."""
+        said = self._notice_sun
+        if said is None:
+            return
+        if said[0] is None:
+            stays = dm.same_sun(said, (az, self._above_horizon(az, el)), tol=RING_NOTICE_TOL)
+        else:
+            stays = dm.same_sun(said, (az, el))
+        if not stays:
             self._show_search_notice("")
+
+    def _above_horizon(self, az: float, el: float) -> float:
+        """A dial sun's elevation above the true horizon (the camera's tilt taken off)."""
+        pitch, roll = self.camera_tilt[:2]
+        return float(sun_angles(sun_vector(az, el), pitch, roll)[1])
 
     def _prior_words(self, prior: Any) -> str:
         """Where an EXIF prior comes from, in words without its angles (those are the
@@ -1838,8 +1862,7 @@ class MainWindow(QMainWindow):
             return
         az, el = self.align_panel.sun_panel.sun()
         if self.finding_sun():  # the sun on the dial is the one confirmed, not the search's
-            self._searches += 1
-            self.runner.cancel("find_sun")
+            self._cancel_find_sun()
         # A new sun chosen in step 2 survives a re-alignment of the original sun.
         keep_target = keep_target or self.original_sun is not None
         current = self.edit_state()
@@ -2331,7 +2354,10 @@ class MainWindow(QMainWindow):
         typed, chosen = QFileDialog.getSaveFileName(self, title, suggestion, STILL_FILTERS)
         if not typed:
             return None
-        path = with_filter_extension(typed, chosen or STILL_FILTERS.split(";;")[0])
+        from outcast_core.runtime.io.imageio import WRITE_EXTENSIONS
+
+        path = with_filter_extension(typed, chosen or STILL_FILTERS.split(";;")[0],
+                                     WRITE_EXTENSIONS)
         return path if self.may_write_completed(typed, path) else None
 
     def may_write_completed(self, typed: str, path: str) -> bool:

@@ -67,7 +67,7 @@ DIRECTION_LABELS = {0: "front", 90: "right", 180: "behind", 270: "left"}
 DIAL_TIP = ("Drag the sun: around = azimuth, rim to centre = elevation.\n"
             "Arrow keys nudge 1°, Shift 10°, Ctrl 0.1°.")
 HEAT_MAP_TIP = ("Coloured cells (Find sun): suns whose predicted shadows agree with the "
-                "photo's; the more opaque and red, the better. Uncoloured: a poor fit.")
+                "photo's better than a typical sun's; the more opaque and red, the better.")
 #: The elevation rings (their dashed circles and labels).
 RING_ELEVATIONS = (30.0, 60.0)
 #: A capped shadow ruler (longer than the disc) ends this far inside the rim, in an arrowhead

@@ -41,6 +41,7 @@ def run_self_test(photo: str, output: str, preset: str = "fast",
     """
     from PySide6.QtCore import QSettings
 
+    from app import sun_dial_math as dm
     from app.main_window import MainWindow, process_until_idle
     from app.state import Step
     from outcast_core.runtime.io.models import ModelRegistry
@@ -62,9 +63,7 @@ def run_self_test(photo: str, output: str, preset: str = "fast",
             window.use_exif_sun()
             process_until_idle(window, timeout)
             shown = window.align_panel.sun_panel.sun()
-            if abs((shown[0] - sun[0] + 180.0) % 360.0 - 180.0) > 0.5 or abs(
-                shown[1] - sun[1]
-            ) > 0.5:
+            if not dm.same_sun(shown, sun, tol=0.5):
                 raise RuntimeError(f"the dial shows {shown}, not the EXIF sun {sun}")
             window.confirm_original_sun()
             process_until_idle(window, timeout)

@@ -19,6 +19,7 @@ import datetime as dt
 import json
 import math
 import os
+from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
 from enum import Enum
 from pathlib import Path
@@ -396,6 +397,36 @@ def _iso(v: Any, parse: Any, what: str, name: str) -> None:
             parse(v)
         except ValueError as exc:
             raise ValueError(f"{name}: expected {what}, got {v!r}") from exc
+
+
+def with_filter_extension(path: str, name_filter: str, accepted: Iterable[str]) -> str:
+    """``path`` as a save dialog returned it, with the chosen file type's extension (the first
+    of ``name_filter``, as ``"PNG image (*.png)"``) added unless its own is one of ``accepted``
+    (lower case, with the dot): a user trial's "mine" was refused as a name without an
+    extension, and "v1.2" or "mine." would have been too. A filter without an extension (a
+    folder's ``(*)``) leaves the name as it is.
+
+    Example:
+        >>> with_filter_extension("/p/mine", "JPEG image (*.jpg *.jpeg)", {".jpg", ".png"})
+        '/p/mine.jpg'
+        >>> with_filter_extension("/p/v1.2", "PNG image (*.png)", {".png", ".tif"})
+        '/p/v1.2.png'
+        >>> with_filter_extension("/p/mine.", "PNG image (*.png)", {".png"})
+        '/p/mine.png'
+        >>> with_filter_extension("/p/MINE.TIF", "PNG image (*.png)", {".png", ".tif"})
+        '/p/MINE.TIF'
+        >>> with_filter_extension("/p/frames", "Folder name (*)", ())
+        '/p/frames'
+    """
+    inside = name_filter[name_filter.find("(") + 1:name_filter.rfind(")")]
+    ext = next((p[1:] for p in inside.split() if p.startswith("*.") and len(p) > 2), "")
+    if not ext:
+        return path
+    if os.path.basename(path).endswith("."):
+        path = path[:-1]
+    if os.path.splitext(os.path.basename(path))[1].lower() in set(accepted):
+        return path
+    return path + ext
 
 
 def project_path_for(image_path: str | os.PathLike[str]) -> Path:

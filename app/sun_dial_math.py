@@ -33,6 +33,31 @@ def wrap_azimuth(azimuth: float) -> float:
     return 0.0 if a >= 360.0 else a
 
 
+def azimuth_gap(a: float, b: float) -> float:
+    """The angle between two azimuths in degrees, the short way round (0-180).
+
+    Example:
+        >>> azimuth_gap(350.0, 10.0), azimuth_gap(90.0, 300.0)
+        (20.0, 150.0)
+    """
+    return abs((a - b + 180.0) % 360.0 - 180.0)
+
+
+def same_sun(a: tuple[float | None, float], b: tuple[float, float], tol: float = 0.01) -> bool:
+    """Whether two dial suns (azimuth, elevation in degrees) are the same within ``tol``
+    degrees each (below the dial's finest nudge, 0.1: a search's sun came back 1e-14 off the
+    EXIF sun the dial stood at, and was recorded as a move). ``a``'s azimuth None: any.
+
+    Example:
+        >>> same_sun((359.999, 40.0), (0.0, 40.0)), same_sun((10.0, 40.0), (10.1, 40.0))
+        (True, False)
+        >>> same_sun((None, 40.0), (200.0, 40.0))
+        True
+    """
+    return ((a[0] is None or azimuth_gap(a[0], b[0]) <= tol)
+            and abs(a[1] - b[1]) <= tol)
+
+
 def clamp_elevation(elevation: float) -> float:
     """Elevation clamped to the dial's range [0, 90]."""
     if not math.isfinite(elevation):

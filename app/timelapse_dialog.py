@@ -43,7 +43,7 @@ from PySide6.QtWidgets import (
 from app import display
 from app.canvas import qimage_from_array
 from app.errors import message_for
-from app.state import Step, Sun, TimelapseSettings
+from app.state import Step, Sun, TimelapseSettings, with_filter_extension
 from app.workers import JobCancelledError, JobContext
 from outcast_core.runtime.pipeline import timelapse as tl
 from outcast_core.runtime.pipeline.relight import EXPOSURE_HINT_FACTOR, exposure_level
@@ -834,9 +834,10 @@ class TimelapseDialog(QDialog):
         typed, _ = QFileDialog.getSaveFileName(self, "Export time-lapse", suggestion, filt)
         if not typed:
             return
-        path = typed
-        if fmt != "png" and not path.lower().endswith(ext):  # the format chosen in this dialog
-            path += ext
+        # The format chosen in this dialog: its extension, unless the name has one of its own
+        # ("tl.m4v" for MP4; "tl.gif" for MP4 becomes "tl.gif.mp4").
+        path = with_filter_extension(typed, filt, (s for s, f in tl.VIDEO_SUFFIXES.items()
+                                                   if f == fmt))
         # The save dialog has asked before replacing the name typed; the main window asks
         # about a name this dialog completed.
         if self.main.may_write_completed(typed, path):

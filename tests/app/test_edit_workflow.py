@@ -866,7 +866,10 @@ def test_a_step_merges_only_into_a_step_of_the_same_field_that_follows_on() -> N
 # ------------------------------------------------------- the Keyboard shortcuts box (F1) lists all
 def test_keyboard_shortcuts_box_lists_every_shortcut_of_the_menus(window, monkeypatch):
     """Help > Keyboard shortcuts names every key of the menus' actions (a doc audit found Find
-    sun, undo and redo missing from it), in the platform's words."""
+    sun, undo and redo missing from it), each as a whole key ("Ctrl+S" is not found inside
+    "Ctrl+Shift+E")."""
+    import re
+
     from PySide6.QtGui import QKeySequence
     from PySide6.QtWidgets import QMessageBox
 
@@ -883,7 +886,8 @@ def test_keyboard_shortcuts_box_lists_every_shortcut_of_the_menus(window, monkey
             if not keys or keys == ["F1"]:  # (the box's own key)
                 continue
             named += 1
-            assert any(k in text for k in keys), f"{act.text()!r} ({keys}) is not in the box"
+            assert any(re.search(rf"(?<![\w+]){re.escape(k)}(?![\w+])", text) for k in keys), \
+                f"{act.text()!r} ({keys}) is not in the box"
     assert named >= 10, "the menus' shortcuts were not read"
 
 
@@ -1004,3 +1008,12 @@ def test_the_save_question_names_only_what_changed_since_the_save(window, photo,
     leave_answers.script.append(CANCEL)
     assert window.close() is False
     assert leave_answers.asked[-1].text == "Your changes to the quality are not saved."
+
+
+def test_the_save_question_has_words_for_every_part_of_the_edit_state():
+    """A field added to EditState without words would go unnamed in the save question."""
+    from dataclasses import fields
+
+    from app.history import _PART_WORDS, EditState
+
+    assert {name for name, _ in _PART_WORDS} == {f.name for f in fields(EditState)}

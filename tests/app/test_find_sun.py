@@ -603,7 +603,8 @@ def test_the_search_notice_goes_when_the_sun_leaves_the_found_one(window, photo,
     window.find_sun()
     settle()
     assert "the compass heading chose this one" in notice.text()
-    window.request_shadow(30.0, 40.0)  # as a drag's end does
+    window.align_panel.sun_panel.set_sun(30.0, 40.0)  # moved on the dial,
+    window.request_shadow(preview=False)  # its overlay asked for, as a drag's end does
     settle()
     assert notice.text() == loaded
     # Advice that holds anywhere on the dial stays while the user follows it.
@@ -612,7 +613,8 @@ def test_the_search_notice_goes_when_the_sun_leaves_the_found_one(window, photo,
     window.find_sun()
     settle()
     said = notice.text()
-    window.request_shadow(50.0, 40.0)
+    window.align_panel.sun_panel.set_sun(50.0, 40.0)
+    window.request_shadow(preview=False)
     settle()
     assert notice.text() == said != loaded
 
@@ -627,3 +629,67 @@ def test_the_dial_says_what_the_heat_map_is(window, photo, settle, monkeypatch):
     assert "Coloured cells" in dial.toolTip()
     dial.set_heat_map(None)
     assert "Coloured cells" not in dial.toolTip()
+
+
+def test_a_cancelled_search_s_late_result_is_not_applied(qtbot, window, photo, settle,
+                                                         monkeypatch):
+    """Cancel (the button again) while the search finishes: its result, already on its way,
+    does not move the sun nor record a step, and the button reads "Find sun" at once (a
+    review: only a confirm had stopped a late result)."""
+    _load(window, photo, settle)
+    started = []
+
+    def slow(session, **kw):
+        started.append(True)
+        time.sleep(0.4)  # never asks its progress: cancelling cannot stop it
+        return _fit(200.0, 30.0)
+
+    monkeypatch.setattr(auto_sun, "find_sun", slow)
+    panel = window.align_panel.sun_panel
+    before, count = panel.sun(), window.undo_stack.count()
+    window.toggle_find_sun()
+    qtbot.waitUntil(lambda: bool(started), timeout=5000)
+    window.toggle_find_sun()  # cancel
+    assert window.align_panel.find_button.text() == "Find sun from shadows"
+    settle()
+    assert panel.sun() == pytest.approx(before) and window.undo_stack.count() == count
+    assert not panel.dial.has_heat_map()
+
+
+def test_the_ring_notice_stays_while_the_sun_is_turned_round_the_ring(window, settle,
+                                                                      monkeypatch):
+    """With GPS and time, "no sun fits" sets the EXIF elevation and says to turn the sun
+    around the ring: turning it keeps the notice; leaving the ring (an undo) takes it down."""
+    _load(window, os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg"), settle)
+    notice = window.align_panel.notice
+    loaded = notice.text()
+    fit = dataclasses.replace(_fit(10.0, 60.0, found=False), unfound="no-fit")
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)
+    panel = window.align_panel.sun_panel
+    panel.set_sun(200.0, 70.0)  # off the ring, so the search moves it
+    window._record()
+    window.find_sun()
+    settle()
+    assert "around the ring" in notice.text()
+    az, el = panel.sun()
+    panel.set_sun((az + 40.0) % 360.0, el + 0.5)  # turned round it by hand
+    window.request_shadow(preview=False)
+    settle()
+    assert "around the ring" in notice.text()
+    panel.set_sun(az, 70.0)
+    window.request_shadow(preview=False)
+    settle()
+    assert notice.text() == loaded
+
+
+def test_find_sun_waits_out_a_confirm_on_its_way(window, photo, settle, monkeypatch):
+    """Ctrl+F right after Ctrl+Return (the confirm's job not done, step 1 still showing)
+    starts no search: its result would be thrown away in step 2 (a review)."""
+    _load(window, photo, settle)
+    calls = []
+    monkeypatch.setattr(auto_sun, "find_sun",
+                        lambda session, **kw: calls.append(1) or _fit(200.0, 30.0))
+    window.act_confirm.trigger()
+    assert window.find_sun() is None
+    settle()
+    assert window.step is Step.RELIGHT and calls == []

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from outcast_core.runtime.cli.main import (
+    DEFAULT_CLI_PRESET,
     add_exposure_option,
     add_light_option,
     int_in,
@@ -110,7 +111,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                         "sun's height (--no-keep-light: the new sun's daylight); either "
                         "overrides the photos' projects (default: what the photo's project "
                         "says, else the new sun's daylight)", overrides=True)
-    p.add_argument("--preset", choices=["fast", "balanced", "accurate"], default="balanced",
+    p.add_argument("--preset", choices=["fast", "balanced", "accurate"], default=DEFAULT_CLI_PRESET,
                    help="speed/accuracy preset")
     p.add_argument("--mode", choices=["auto", "learned", "classic"], default="auto",
                    help="learned networks (default when installed) or Direct + physics")

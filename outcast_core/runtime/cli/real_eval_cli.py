@@ -14,7 +14,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from outcast_core.runtime.cli.main import CliError, add_exposure_option, names_in
+from outcast_core.runtime.cli.main import (
+    DEFAULT_CLI_PRESET,
+    CliError,
+    add_exposure_option,
+    names_in,
+)
 from outcast_core.runtime.pipeline.session import PRESETS
 
 
@@ -31,7 +36,7 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     )
     p.add_argument("folder", metavar="DIR", help="folder of NAME_image.* and NAME_mask.png")
     p.add_argument("--preset", type=names_in(tuple(PRESETS), "presets"),
-                   default=("balanced",),
+                   default=(DEFAULT_CLI_PRESET,),
                    help="preset, or several separated by commas (fast,balanced,accurate) to "
                    "measure the speed/accuracy trade")
     p.add_argument("--mode", choices=["auto", "learned", "classic"], default="auto",

@@ -182,6 +182,12 @@ SHADING_WEIGHT = 0.5
 #: and a 600 x 4000 strip were "found" with confidence 1.0).
 LEGIBLE_LOW = 24
 LEGIBLE_HIGH = 64
+#: Shorter side (working pixels) under which no ground plane is fitted for the camera's tilt
+#: (:func:`ground_plane_tilt`): too few rows of depth to hold one. A user trial's 64 x 48
+#: copy of the pool sample was "pitched 21.8 degrees down", which moved its EXIF sun 37
+#: degrees; copies 96 x 72 and 112 x 84 were pitched 14.8 degrees, while 128 x 96, 160 x 120,
+#: 200 x 150 and the photo itself have no plane (the fast preset, classic and learned alike).
+PLANE_MIN_SIDE = 96
 #: The photo's look (``D``, :meth:`~outcast_core.runtime.pipeline.session.RelightSession.sun_look`)
 #: in the ranking: each sun's score gains ``LOOK_WEIGHT * log(max(likelihood, LOOK_FLOOR))``
 #: (likelihood 1 at ``D``'s peak), so a sun the look rules out loses at most
@@ -588,14 +594,13 @@ class _Frame:
 
 def ground_plane_tilt(session: Any) -> tuple[float, float, str]:
     """Camera ``(pitch, roll, source)`` in degrees from the fitted ground plane; level without
-    one (or with one tilted more than :data:`MAX_PLANE_TILT`), or when the working image is
-    too small or narrow to read (:func:`legibility` below 1): a user trial's 64 x 48 copy of
-    the pool sample was "pitched 21.8 degrees down" (the full photo: no plane), which moved
-    its EXIF sun 37 degrees."""
+    one (or with one tilted more than :data:`MAX_PLANE_TILT`), or when the working image's
+    shorter side is under :data:`PLANE_MIN_SIDE` pixels."""
     from outcast_core.runtime.pipeline.depth_post import fit_ground_plane
 
     level = (0.0, 0.0, "level (no ground plane)")
-    if legibility(np.shape(session.depth)) < 1.0:
+    image = getattr(session, "image_srgb", None)
+    if image is not None and min(np.shape(image)[:2]) < PLANE_MIN_SIDE:
         return level
     try:
         plane = fit_ground_plane(session.depth, session.sky, session.camera)
