@@ -101,6 +101,7 @@ class ImageCanvas(QWidget):
         self._after: QImage | None = None
         self._overlay: QImage | None = None
         self._overlay_opacity = 0.6
+        self._overlay_least = 0.0
         self._split: float | None = None
         self._labels = ("Before", "After")
         self._zoom = 1.0
@@ -170,13 +171,18 @@ class ImageCanvas(QWidget):
         self.after_updates += 1
         self.update()
 
-    def set_overlay(self, image: QImage | None) -> None:
+    def set_overlay(self, image: QImage | None, least_opacity: float = 0.0) -> None:
+        """Draw ``image`` over the photo at the overlay opacity, or at ``least_opacity`` where
+        that is higher (step 2's found shadows: the view is the tint, and step 1's opacity
+        slider at 0 left it blank with no control in step 2: a user trial)."""
         self._overlay = image
+        self._overlay_least = float(min(1.0, max(0.0, least_opacity)))
         self.overlay_updates += 1
         self.update()
 
     def overlay_opacity(self) -> float:
-        return self._overlay_opacity
+        """The opacity the overlay is drawn at (the slider's, or the overlay's least)."""
+        return max(self._overlay_opacity, self._overlay_least)
 
     def set_overlay_opacity(self, opacity: float) -> None:
         self._overlay_opacity = float(min(1.0, max(0.0, opacity)))
@@ -381,10 +387,11 @@ class ImageCanvas(QWidget):
         p.drawImage(rect, shown, QRectF(shown.rect()))
 
     def paint_overlay(self, p: QPainter, rect: QRectF) -> None:
-        if self._overlay is None or self._overlay_opacity <= 0.0:
+        opacity = self.overlay_opacity()
+        if self._overlay is None or opacity <= 0.0:
             return
         p.save()
-        p.setOpacity(self._overlay_opacity)
+        p.setOpacity(opacity)
         p.drawImage(rect, self._overlay)
         p.restore()
 

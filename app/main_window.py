@@ -189,6 +189,8 @@ BRUSH_COLOURS = {"shadow": QColor(255, 60, 200), "not_shadow": QColor(150, 235, 
 BRUSH_SOFTNESS = {"shadow": 0.5 * STROKE_FEATHER, "not_shadow": 0.0}
 
 
+#: The least opacity of step 2's "Shadows found" tint, whatever step 1's overlay slider says.
+FOUND_LEAST_OPACITY = 0.4
 #: Degrees off the EXIF elevation's ring at which Find sun's "turn the sun around the ring"
 #: notice goes (a hand on the dial does not stay on the ring exactly).
 RING_NOTICE_TOL = 2.0
@@ -429,6 +431,10 @@ class MainWindow(QMainWindow):
         #: found-shadows job says if they changed nothing.
         self._edit_just_added = 0
         self._edit_note = ""  # said after "Ready" when the last correction changed nothing
+        #: The redo steps a correction replaced (:meth:`_restore_redo`), and whether they are
+        #: being put back (their undo shows nothing).
+        self._redo_before_edit: list[tuple[EditState, EditState, str]] = []
+        self._applying_redo_back = False
         #: The correction just made in "Shadows removed", to bring into view once it is shown
         #: and changed something (:meth:`_show_correction_side`).
         self._edit_to_show: tuple[ShadowEdit, ...] = ()
@@ -901,7 +907,7 @@ class MainWindow(QMainWindow):
 
     def apply_edit_state(self, state: EditState) -> None:
         """Show ``state``: preset, depth, both suns and the step (undo/redo; records nothing)."""
-        if self.session is None:
+        if self.session is None or self._applying_redo_back:  # (states never shown)
             return
         self._edit_state = state
         if state.depth_path != self.depth_path:  # re-run the light-independent stages
@@ -2016,6 +2022,12 @@ class MainWindow(QMainWindow):
             self.set_shadow_edits((*self.shadow_edits, *new))
         finally:
             self._edit_just_added = 0
+        # What redo offered: this step replaces it, and gives it back if it changed nothing
+        # (:meth:`_drop_idle_edit`; a user trial's idle click lost the redo of a correction).
+        stack = self.undo_stack
+        redo = [stack.command(i) for i in range(stack.index(), stack.count())]
+        self._redo_before_edit = [(c.before, c.after, c.text()) for c in redo
+                                  if isinstance(c, EditCommand)]
         self._record(text=shadow_edit_text(self.shadow_edits))
         return True
 
@@ -2058,7 +2070,25 @@ class MainWindow(QMainWindow):
         self._edit_state = before
         self._show_shadow_edits(before.shadow_edits)
         self._deshadow_key = self._deshadow_key_now()  # the images shown are the same
+        self._restore_redo(before)
         self._update_title()
+
+    def _restore_redo(self, now: EditState) -> None:
+        """Put back the redo steps the idle click or stroke replaced (its push dropped them):
+        pushed as done (their first redo does nothing), then undone without being shown, so
+        the stack stands where it stood, with them to redo."""
+        saved, self._redo_before_edit = self._redo_before_edit, []
+        stack = self.undo_stack
+        if not saved or saved[0][0] != now or stack.index() != stack.count():
+            return
+        for before, after, text in saved:
+            stack.push(EditCommand(self, before, after, text))  # (never merged: no step_of)
+        self._applying_redo_back = True
+        try:
+            for _ in saved:
+                stack.undo()
+        finally:
+            self._applying_redo_back = False
 
     def clear_shadow_edits(self) -> None:
         """Take back every correction of the found shadows (one undo step)."""
@@ -2255,7 +2285,7 @@ class MainWindow(QMainWindow):
         else:
             self.canvas.set_after(None)
             self.canvas.set_split(None)
-            self.canvas.set_overlay(overlay)
+            self.canvas.set_overlay(overlay, least_opacity=FOUND_LEAST_OPACITY)
 
     def _photo_as_base(self) -> None:
         """The photo back as the canvas's image (after a buffer view), keeping the zoom when

@@ -194,6 +194,28 @@ def test_a_correction_that_changes_nothing_is_said(qtbot, window, photo, settle)
     assert len(window.shadow_edits) == 1 and window.undo_stack.count() == count + 1
 
 
+def test_a_correction_that_changes_nothing_keeps_what_redo_offered(qtbot, window, photo,
+                                                                   settle):
+    """A useful click undone, then a click on lit ground: the idle click is taken back, and
+    the first one can still be redone (its push had dropped the redo step: a user trial)."""
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    done = window.shadow_edits
+    assert len(done) == 1
+    window.undo_stack.undo()
+    settle()
+    assert window.shadow_edits == () and window.undo_stack.redoText() == "Not a shadow"
+    _click(qtbot, window, 0.85, 0.9)  # lit ground: changes nothing
+    settle()
+    assert "no found shadow there" in window.stage_label.text()
+    assert window.shadow_edits == () and window.undo_stack.redoText() == "Not a shadow"
+    window.undo_stack.redo()
+    settle()
+    assert window.shadow_edits == done
+
+
 def test_undo_and_redo_restore_the_edits_and_the_image(qtbot, window, photo, settle):
     _shadows_view(window, photo, settle)
     first = window.canvas.overlay()
@@ -1040,3 +1062,21 @@ def test_shadows_found_shows_what_the_de_shadow_lifts(window, photo, settle) -> 
     expected = np.round(255 * np.where(window.session.sky, 0.0, lifted)).astype(int)
     assert np.abs(alpha - expected).max() <= 1
     assert np.abs(alpha - np.round(255 * window.session.shadow_probability)).max() > 10
+
+
+def test_the_found_shadows_show_with_step_1_s_overlay_at_zero(window, photo, settle):
+    """Step 1's overlay slider at 0 left step 2's "Shadows found" blank, with no control there
+    to bring it back (a user trial): the found tint has a least opacity; step 1's overlay
+    keeps the slider's."""
+    from app.main_window import FOUND_LEAST_OPACITY
+
+    _load(window, photo, settle)
+    window.align_panel.opacity_slider.setValue(0)
+    _confirm(window, settle)
+    window.relight_panel.set_view("shadows_found")
+    settle()
+    assert window.canvas.overlay() is not None
+    assert window.canvas.overlay_opacity() == pytest.approx(FOUND_LEAST_OPACITY)
+    window.back_to_align()
+    settle()
+    assert window.canvas.overlay_opacity() == 0.0

@@ -77,6 +77,10 @@ fit. Checked from the header, before any pixel is decoded."""
 READ_FORMATS = frozenset({"JPEG", "MPO", "PNG", "TIFF", "WEBP", "HEIF", "BMP"})
 """Pillow format names :func:`read_image` accepts."""
 
+#: zlib level of written PNG photos: a 27-megapixel photo took 11.1 s at 6 (PIL's default),
+#: 4.2 s at 3 for a file 5 % larger (26.8 / 28.2 MB), 3.0 s at 1 (30.0 MB); a user trial's
+#: "Shadows removed" export sat at "writing 80 %" for 11 s.
+PNG_COMPRESS_LEVEL = 3
 WRITE_EXTENSIONS = {
     ".png": "PNG",
     ".jpg": "JPEG",
@@ -1101,7 +1105,7 @@ def write_image(
             elif fmt == "WEBP":
                 kwargs.update(quality=int(quality), lossless=int(quality) == 100, method=4)
             elif fmt == "PNG":
-                kwargs.update(compress_level=6)
+                kwargs.update(compress_level=PNG_COMPRESS_LEVEL)
             elif fmt == "TIFF":
                 kwargs.update(compression="tiff_deflate")
             im.save(tmp, format=fmt, **kwargs)
