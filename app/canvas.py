@@ -197,6 +197,10 @@ class ImageCanvas(QWidget):
     def split(self) -> float | None:
         return self._split
 
+    def split_labels(self) -> tuple[str, str]:
+        """The split's labels (left, right side)."""
+        return self._labels
+
     def set_click_tool(self, on: bool) -> None:
         """Turn the click tool on or off: a crosshair and the brush's circle over the image; a
         click there emits :attr:`image_clicked`, a drag :attr:`stroke_painted`."""

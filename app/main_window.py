@@ -2226,7 +2226,20 @@ class MainWindow(QMainWindow):
         words = "Removing the photo's shadows" if with_image else "Finding the photo's shadows"
         job_id = self.runner.submit("relight", job, words)
         self._deshadow_job = (key, with_image, job_id)
+        if with_image:
+            self._label_pending_removal()
         return job_id
+
+    def _label_pending_removal(self) -> None:
+        """Until the de-shadowed photo comes, the split's label says what the canvas still
+        shows: a user trial read the relit photo as "Shadows removed" for the 8 s a 27 MP
+        photo took (its result puts the view's own labels back)."""
+        if self.canvas.after() is None or self.canvas.split() is None:
+            return
+        kept = self._deshadow_images[0] if self._deshadow_images is not None else None
+        shown = ("Shadows removed · updating…" if self.canvas.after() is kept
+                 else f"{self._after_label} · removing shadows…")
+        self.canvas.set_split(self.canvas.split(), ("Original", shown))
 
     def _deshadow_key_now(self) -> tuple[Any, ...] | None:
         """What the deshadow views' images depend on: the session, the original sun, the preset

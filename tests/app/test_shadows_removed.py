@@ -130,6 +130,18 @@ def test_view_runs_off_the_ui_thread(qtbot, window, photo, settle, monkeypatch):
     assert len(ticks) >= 15 and max(b - a for a, b in zip(ticks, ticks[1:], strict=False)) < 0.3
 
 
+def test_the_split_says_what_shows_while_shadows_are_removed(window, photo, settle,
+                                                             monkeypatch):
+    """Until the de-shadowed photo comes, the relit photo still shown is labelled so (a user
+    trial read it as "Shadows removed" for 8 s on a 27 MP photo); then the view's label."""
+    _relight_step(window, photo, settle)
+    _slow_deshadow(monkeypatch, window.session, 0.3, [])
+    window.relight_panel.set_view("shadows_removed")
+    assert window.canvas.split_labels() == ("Original", "Relit · removing shadows…")
+    settle()
+    assert window.canvas.split_labels() == ("Original", "Shadows removed")
+
+
 def test_a_new_original_sun_or_preset_recomputes_the_view(window, photo, settle):
     _relight_step(window, photo, settle)
     window.relight_panel.set_view("shadows_found")
