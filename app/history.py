@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Protocol
 
 from PySide6.QtGui import QUndoCommand
 
+from app.sun_dial_math import same_sun
+
 if TYPE_CHECKING:
     from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
 
@@ -99,6 +101,26 @@ def describe_change(before: EditState, after: EditState) -> str:
     if before.target_sun != after.target_sun:
         return "Move new sun"
     return "Change"
+
+
+def same_edit_state(a: EditState, b: EditState, tol: float = 1e-6) -> bool:
+    """Whether ``a`` and ``b`` are the same edit: equal, their suns within ``tol`` degrees
+    (a found sun came back 1e-14 off the EXIF sun the dial stood at, through a vector round
+    trip, and was recorded as a move that marked the photo unsaved: a user trial).
+
+    Example:
+        >>> a = EditState("align", (10.0, 30.0), None, (90.0, 30.0), "fast")
+        >>> same_edit_state(a, replace(a, align_sun=(10.0, 30.0 + 1e-12)))
+        True
+        >>> same_edit_state(a, replace(a, align_sun=(10.1, 30.0)))
+        False
+    """
+    def near(x: SunPair | None, y: SunPair | None) -> bool:
+        return x == y or (x is not None and y is not None and same_sun(x, y, tol))
+
+    suns = ("align_sun", "original_sun", "target_sun")
+    return (all(near(getattr(a, n), getattr(b, n)) for n in suns)
+            and replace(a, **{n: getattr(b, n) for n in suns}) == b)
 
 
 #: How the save question names the parts of :class:`EditState` (``step``, ``align_sun`` and

@@ -88,7 +88,13 @@ from app import display
 from app import sun_dial_math as dm
 from app.canvas import ImageCanvas, qimage_from_array
 from app.errors import DepthMapError, OwnFileError, depth_file_problem, message_for
-from app.history import EditCommand, EditState, changed_parts, shadow_edit_text
+from app.history import (
+    EditCommand,
+    EditState,
+    changed_parts,
+    same_edit_state,
+    shadow_edit_text,
+)
 from app.leave_prompts import (
     CONTINUE,
     LOCATE,
@@ -893,7 +899,7 @@ class MainWindow(QMainWindow):
             return
         after = after if after is not None else self.edit_state()
         before, self._edit_state = self._edit_state, after
-        if before is None or after is None or before == after:
+        if before is None or after is None or same_edit_state(before, after):
             return
         self.undo_stack.push(EditCommand(self, before, after, text, step_of=step_of))
 
@@ -1604,11 +1610,9 @@ class MainWindow(QMainWindow):
         placed = fit.found or fit.source == SOURCE_EXIF  # the dial goes to the fit's sun
         notice_sun: tuple[float | None, float] | None = None
         if placed:
-            if not dm.same_sun(self.align_panel.sun_panel.sun(), (fit.azimuth, fit.elevation)):
-                # (a search that lands where the dial stands changes nothing: no undo step)
-                self.align_panel.sun_panel.set_sun(fit.azimuth, fit.elevation)
-                self.request_shadow(fit.azimuth, fit.elevation, preview=False)
-                self._record(text="Find sun")
+            self.align_panel.sun_panel.set_sun(fit.azimuth, fit.elevation)
+            self.request_shadow(fit.azimuth, fit.elevation, preview=False)
+            self._record(text="Find sun")
             # The dial's angles (the camera's frame) only: the EXIF's own are the horizon's.
             text = (f"Sun found: azimuth {fit.azimuth:.1f}°, elevation {fit.elevation:.1f}°, "
                     f"confidence {fit.confidence:.2f}")
@@ -1643,10 +1647,9 @@ class MainWindow(QMainWindow):
                 az, el = at_true_elevation(*self.align_panel.sun_panel.sun(), prior.elevation,
                                            self.camera_tilt[:2])
                 el = dm.clamp_elevation(el)
-                if not dm.same_sun(self.align_panel.sun_panel.sun(), (az, el)):
-                    self.align_panel.sun_panel.set_sun(az, el)
-                    self.request_shadow(az, el, preview=False)
-                    self._record(text="Sun elevation from EXIF")
+                self.align_panel.sun_panel.set_sun(az, el)
+                self.request_shadow(az, el, preview=False)
+                self._record(text="Sun elevation from EXIF")
                 # "Turn it around the ring": any azimuth at this height above the horizon.
                 notice_sun = (None, self._above_horizon(az, el))
                 tilt = self.tilt_note()
