@@ -2758,6 +2758,10 @@ class MainWindow(QMainWindow):
             # ("Exporting time-lapse: timelapse" said the stage twice: a user trial)
             same = stage.lower().replace("-", "") in base.lower().replace("-", "")
             self.stage_label.setText(base if same else f"{base}: {stage}")
+        elif channel == "relight":  # removing the photo's shadows at full size (seconds on
+            # a large photo; no stages to count): a busy bar, hidden when the window is idle
+            self.progress_bar.setRange(0, 0)
+            self.progress_bar.show()
         if channel == "tl_export" and self._timelapse_dialog is not None:
             self._timelapse_dialog.on_export_progress(fraction)
 
