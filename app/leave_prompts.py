@@ -84,17 +84,18 @@ def leave_questions(
         ['An export is still running', 'Save the changes to this photo?']
         >>> leave_questions("open", [], True, "a", ["the new sun", "the quality"])[0].text
         'Your changes to the new sun and the quality are not saved.'
+        >>> leave_questions("quit", [RunningExport("a.mp4", 0.4)], True, "a", ["the new sun"]
+        ...                 )[1].text  # (the export's name once replaced the changes)
+        'Your changes to the new sun are not saved.'
     """
     if action not in ("quit", "open"):
         raise ValueError(f"expected action 'quit' or 'open', got {action!r}")
     verb = "Quit" if action == "quit" else "Open"
     questions = []
     if exports:
-        parts = []
-        for e in exports:
-            done = f" ({100 * e.fraction:.0f} % done)" if e.fraction is not None else ""
-            parts.append(f"{e.name}{done}")
-        names = ", ".join(parts)
+        names = ", ".join(
+            e.name + (f" ({100 * e.fraction:.0f} % done)" if e.fraction is not None else "")
+            for e in exports)
         then = "quit" if action == "quit" else "open the other photo"
         questions.append(
             Question(
