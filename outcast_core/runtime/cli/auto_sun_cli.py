@@ -74,16 +74,17 @@ def cmd_sun(args: argparse.Namespace) -> int:
         out["exif_camera_azimuth"], out["exif_camera_elevation"] = (
             (None, None) if seen_as is None else (round(seen_as[0], 2), round(seen_as[1], 2)))
         out["camera_heading"] = None if seen_heading is None else round(seen_heading, 2)
+        out["note"] = note_for_the_cli(fit, prior)
         print(json.dumps(out, indent=2, ensure_ascii=False))
         if not sure:  # as without --json: a script's log says why there is no sun
-            print(f"outcast sun: {fit.note}", file=sys.stderr)
+            print(f"outcast sun: {out['note']}", file=sys.stderr)
         return 0 if sure else NO_SUN_STATUS
     if sure:
         heading = "" if seen_heading is None else f"  camera heading {seen_heading:.1f}"
         print(f"azimuth {fit.azimuth:.1f}  elevation {fit.elevation:.1f}  "
               f"confidence {fit.confidence:.2f}{heading}")
     else:
-        print(f"outcast sun: {fit.note}", file=sys.stderr)  # said even with -q
+        print(f"outcast sun: {note_for_the_cli(fit, prior)}", file=sys.stderr)  # even with -q
     said = note_for_the_cli(fit, prior) if sure else (
         f"best guess: azimuth {fit.azimuth:.1f}, elevation {fit.elevation:.1f}")
     _say(args, f"{said} · source: {fit.source} · depth: {session.depth_source} · "
@@ -92,8 +93,10 @@ def cmd_sun(args: argparse.Namespace) -> int:
 
 
 #: :attr:`SunFit.note`'s words for the app's dial (the heat map), which the command line does
-#: not show.
+#: not show, and for setting the sun there by hand, with what the command line says instead.
 _MAP_WORDS = ": the warm area of the map)"
+_BY_EYE = ("set it by eye", "give it by hand (--from AZ,EL: where its shadows point from, as "
+                            "outcast shadow --sun draws them)")
 
 
 def _exif_sun_in_camera_frame(fit: Any, prior: Any) -> tuple[float, float] | None:
@@ -111,14 +114,15 @@ def note_for_the_cli(fit: Any, prior: Any) -> str:
     """:attr:`~outcast_core.runtime.pipeline.auto_sun.SunFit.note` in the command line's words.
 
     The note is written for the app: "the warm area of the map" is its dial's heat map, which
-    the command line does not show, so it is left out. For a tilted camera the printed sun is
+    the command line does not show, so it is left out, and a sun set "by eye" on the dial is
+    one given with ``--from`` here. For a tilted camera the printed sun is
     in the camera's frame and the EXIF sun the note names is against the horizon (a user trial
     read "120.2 41.0" and "azimuth 122°, elevation 39°" as two answers): the note says so, with
     the EXIF sun in the camera's frame beside it.
     """
     from outcast_core.runtime.pipeline.auto_sun import describe_tilt, is_tilted
 
-    note = fit.note.replace(_MAP_WORDS, ")")
+    note = fit.note.replace(_MAP_WORDS, ")").replace(*_BY_EYE)
     if prior is None or not prior.description or not is_tilted(fit.pitch, fit.roll):
         return note
     tilt = describe_tilt(fit.pitch, fit.roll, fit.pose_source or "assumed")

@@ -142,6 +142,11 @@ def _options(args: argparse.Namespace) -> BatchOptions:
                          f"{args.fmt!r}")
     if args.sources == ("given",) and args.from_sun is None:
         raise ValueError("expected --from AZ,EL with --sources given")
+    if kind != "relight" and args.to_sun is not None:
+        # (a user trial's --to beside --deshadow and --sweep was ignored without a word)
+        what = {"deshadow": "--deshadow", "timelapse": "--sweep" if args.sweep else "--day"}
+        raise ValueError(f"--to is the new sun of a relighting; {what[kind]} takes none "
+                         f"(leave out --to, or {what[kind]} to relight)")
     return BatchOptions(
         kind=kind, sources=args.sources, from_sun=args.from_sun, to_sun=args.to_sun,
         fmt=args.fmt, preset=args.preset, mode=args.mode, depth_model=args.depth_model,
@@ -341,7 +346,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
         with atomic_output(Path(args.report).expanduser(), force=force) as tmp:
             tmp.write_text(json.dumps(data, indent=2, default=list) + "\n", encoding="utf-8")
     if not args.quiet or counts["failed"] or counts["stale"] or warned:
-        stale = f"{counts['stale']} kept from other settings, " if counts["stale"] else ""
+        stale = f"{counts['stale']} kept (made otherwise), " if counts["stale"] else ""
         new = sum(r.status == "done" for r in warned)
         print(f"{counts['done']} done{f' ({new} with warnings)' if new else ''}, "
               f"{counts['skipped']} skipped (already done), {stale}"
@@ -351,9 +356,11 @@ def run_batch_command(args: argparse.Namespace) -> int:
               f"warning (see their lines): {_names(warned)}", file=sys.stderr)
     if counts["stale"]:
         kept = _names([r for r in results if r.status == "stale"])
-        print(f"outcast batch: error: {counts['stale']} of {total} outputs exist from other "
-              f"settings and were kept, not redone: {kept} (use --force to redo them)",
-              file=sys.stderr)
+        # (with other settings, or not by a batch at all: a user trial's own file was said
+        # to be "from other settings"; each photo's line says which)
+        print(f"outcast batch: error: {counts['stale']} of {total} outputs exist, made "
+              f"otherwise than this batch would make them, and were kept, not redone: {kept} "
+              "(use --force to redo them)", file=sys.stderr)
     if counts["failed"]:
         print(f"outcast batch: error: {counts['failed']} of {total} photos failed: "
               f"{_names([r for r in results if r.status == 'failed'])}", file=sys.stderr)

@@ -68,6 +68,23 @@ BELOW_HORIZON = (
 def parse_azel(text: str) -> np.ndarray:
     """``"AZ,EL"`` in degrees (elevation 0-90: a sun below the horizon is refused) -> camera-space
     unit sun vector."""
+    return sun_vector(*azel_angles(text))
+
+
+def sun_option(text: str) -> str:
+    """An argparse type for a still's sun (``--from``, ``--to``, ``--sun``): the text, checked
+    by :func:`azel_angles`, so that a bad value is refused naming its flag (as ``outcast
+    batch`` and ``timelapse`` refuse theirs)."""
+    try:
+        azel_angles(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def azel_angles(text: str) -> tuple[float, float]:
+    """``"AZ,EL"`` in degrees -> ``(az, el)``: a finite azimuth (any: 400 is 40) and an
+    elevation from 0 to 90 (a sun below the horizon is refused); ValueError otherwise."""
     parts = text.split(",")
     if len(parts) != 2:
         raise ValueError(f"expected AZ,EL in degrees (e.g. 135,40), got {text!r}")
@@ -80,7 +97,7 @@ def parse_azel(text: str) -> np.ndarray:
     if not (math.isfinite(az) and math.isfinite(el)) or el > 90.0:
         raise ValueError(f"expected AZ,EL with a finite azimuth and an elevation from 0 (the "
                          f"horizon) to 90 (overhead), got {text!r}")
-    return sun_vector(az, el)
+    return az, el
 
 
 def parse_vector(text: str) -> np.ndarray:
@@ -606,7 +623,7 @@ def build_parser(
     )
     p.add_argument("image")
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--sun", help="AZ,EL in degrees relative to the camera")
+    g.add_argument("--sun", type=sun_option, help="AZ,EL in degrees relative to the camera")
     g.add_argument("--sun-dir", help="X,Y,Z camera-space vector toward the sun "
                                      "(write --sun-dir=-X,Y,Z when X is negative)")
     p.add_argument("--mode", choices=["auto", "direct", "learned"], default="auto",
@@ -621,10 +638,11 @@ def build_parser(
 
     p = sub.add_parser("relight", help="relight a photo from its original sun to a new one")
     p.add_argument("image")
-    p.add_argument("--from", dest="from_sun", metavar="AZ,EL",
+    p.add_argument("--from", dest="from_sun", metavar="AZ,EL", type=sun_option,
                    help="the photo's original sun (default: the sun in the photo, else its "
                         "EXIF sun from GPS, time and compass heading)")
-    p.add_argument("--to", dest="to_sun", required=True, metavar="AZ,EL", help="the new sun")
+    p.add_argument("--to", dest="to_sun", required=True, metavar="AZ,EL", type=sun_option,
+                   help="the new sun")
     p.add_argument("--mode", choices=["auto", "physics", "learned"], default="auto",
                    help="learned relighting (default when installed) or physics ratios")
     p.add_argument("--refine", choices=["photo", "learned"], default="photo",
@@ -641,7 +659,7 @@ def build_parser(
 
     p = sub.add_parser("deshadow", help="lift the photo's own shadows (found at its sun)")
     p.add_argument("image")
-    p.add_argument("--from", dest="from_sun", metavar="AZ,EL",
+    p.add_argument("--from", dest="from_sun", metavar="AZ,EL", type=sun_option,
                    help="the photo's sun (the shadows are found where it can cast them; "
                         "default: the sun in the photo, else its EXIF sun from GPS, time and "
                         "compass heading)")
@@ -760,11 +778,12 @@ def check_output_path(
         FileExistsError: the file exists and ``force`` is False.
     """
     path = Path(output).expanduser()
+    if path.is_dir() and not folder_ok:  # (said first: "-o out/" has no extension either)
+        raise CliError(f"cannot write '{output}': it is a folder; give a file name in it "
+                       f"(e.g. {path / 'output'}{(extensions or ('.png',))[0]})")
     if extensions is not None and path.suffix.lower() not in extensions:
         raise CliError(f"cannot write '{output}': expected an extension in "
                        f"{', '.join(extensions)}, got '{path.suffix}'")
-    if path.is_dir() and not folder_ok:
-        raise CliError(f"cannot write '{output}': it is a folder")
     if path.exists() and not path.is_dir() and not path.is_file():
         raise CliError(f"cannot write '{output}': it is not a regular file (a device or pipe)")
     from outcast_core.runtime.io.imageio import same_file

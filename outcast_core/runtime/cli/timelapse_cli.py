@@ -73,12 +73,12 @@ def _angles(text: str) -> tuple[float, float]:
 def sun_pair(text: str) -> tuple[float, float]:
     """An argparse type for a still's sun (``--from``, ``--to``): ``AZ,EL`` at or above the
     horizon, as ``outcast relight`` takes it (``outcast batch`` takes the same)."""
-    from outcast_core.runtime.cli.main import BELOW_HORIZON
+    from outcast_core.runtime.cli.main import azel_angles
 
-    az, el = _angles(text)
-    if el < 0.0:
-        raise argparse.ArgumentTypeError(BELOW_HORIZON.format(text=text))
-    return az, el
+    try:
+        return azel_angles(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def sweep_ends(text: str) -> tuple[tuple[float, float], tuple[float, float]]:

@@ -168,6 +168,10 @@ def test_session_fov_zero_is_not_the_default() -> None:
         (["shadow", "--sun", "90,30"], "afile/s.png", "is a file, not a folder"),
         (["shadow", "--sun", "90,30"], "afile/deeper/s.png", "is a file, not a folder"),
         (["relight", "--from", "90,30", "--to", "200,40"], "folder.png", "it is a folder"),
+        # (a user trial's "-o out/" was told of a missing extension)
+        (["relight", "--from", "90,30", "--to", "200,40"], "folder.png/", "it is a folder; "
+         "give a file name in it"),
+        (["deshadow", "--from", "90,30"], "afolder", "it is a folder; give a file name in it"),
     ],
 )
 def test_bad_outputs_are_refused_before_the_work(photo, tmp_path, capsys, no_work, monkeypatch,
@@ -177,6 +181,7 @@ def test_bad_outputs_are_refused_before_the_work(photo, tmp_path, capsys, no_wor
     (tmp_path / "exists.npy").write_bytes(b"old")
     (tmp_path / "afile").write_text("a file")
     (tmp_path / "folder.png").mkdir()
+    (tmp_path / "afolder").mkdir()
     before = sorted(p.name for p in tmp_path.iterdir())
     assert main([command[0], str(photo), *command[1:], "-o", name]) == 2
     _one_line_error(capsys, fragment)

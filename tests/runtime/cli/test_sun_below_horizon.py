@@ -93,6 +93,47 @@ def test_batch_refuses_a_still_sun_below_the_horizon(option, capsys):
     assert "above the horizon" in capsys.readouterr().err
 
 
+#: Each command's still sun flags (parsing only).
+_STILL_SUNS = [
+    (["relight", "p.jpg", "--to", "90,30", "-o", "o.jpg"], "--from"),
+    (["relight", "p.jpg", "--from", "90,30", "-o", "o.jpg"], "--to"),
+    (["deshadow", "p.jpg", "-o", "o.jpg"], "--from"),
+    (["shadow", "p.jpg", "-o", "o.png"], "--sun"),
+    (["batch", "photos", "-o", "out"], "--to"),
+    (["batch", "photos", "-o", "out"], "--from"),
+    (["timelapse", "p.jpg", "--sweep", "0,10:90,20", "--frames", "2", "-o", "o.gif"],
+     "--from"),
+]
+
+
+@pytest.mark.parametrize(("argv", "option"), _STILL_SUNS)
+@pytest.mark.parametrize("bad", ["120,95", "abc", "90;30"])
+def test_every_still_sun_is_refused_one_way_naming_its_flag(argv, option, bad, capsys):
+    """A user trial: relight's bad --from said only "expected AZ,EL ..." (which flag?), while
+    batch named its flag and said "[-90, 90]" for an elevation of 95 whose -5 it then refused
+    too. Now every command refuses a still's sun by one rule, naming the flag."""
+    parser = build_parser()
+    with pytest.raises(SystemExit) as exc:
+        parser.parse_args([*argv, option, bad])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f"argument {option}: expected AZ,EL" in err and repr(bad) in err
+    if bad == "120,95":
+        assert "from 0 (the horizon) to 90 (overhead)" in err
+
+
+def test_batch_refuses_a_new_sun_where_it_makes_no_relighting(tmp_path, capsys):
+    """A user trial: ``--to`` beside ``--deshadow`` or ``--sweep`` was ignored without a word."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for what in (["--deshadow"], ["--sweep", "0,10:90,40", "--frames", "2"], ["--day"]):
+        assert _exit_code(["batch", str(photos), "-o", str(tmp_path / "out"), *what,
+                           "--to", "90,30"]) == 2
+        err = capsys.readouterr().err
+        assert f"--to is the new sun of a relighting; {what[0]} takes none" in err
+        assert not (tmp_path / "out").exists()
+
+
 # ------------------------------------------------------------------ a photo taken at night
 def _photo_at(path, when: str, offset: str | None = "+07:00"):
     """A small photo whose EXIF places it at Phuket (the pool sample's GPS) at ``when``

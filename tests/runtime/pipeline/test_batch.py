@@ -121,7 +121,7 @@ def test_a_rerun_with_other_settings_keeps_the_outputs_and_says_so(
     before = _mtimes(out)
     assert main([*args, "--to", "180,20"]) == 2  # another sun: not "already done"
     err = capsys.readouterr().err
-    assert "0 done, 0 skipped (already done), 2 kept from other settings" in err
+    assert "0 done, 0 skipped (already done), 2 kept (made otherwise)" in err
     assert "use --force to redo them" in err.strip().splitlines()[-1]
     # Each photo's line says what was different, from the record (a user trial: "other
     # settings" said too little).
@@ -156,11 +156,11 @@ def test_adding_from_redoes_only_the_photos_it_gives_a_sun(
     before = _mtimes(out)
     assert main([*args, "--from", "120,39"]) == 0
     err = capsys.readouterr().err
-    assert "1 done, 1 skipped (already done)" in err and "kept from other settings" not in err
+    assert "1 done, 1 skipped (already done)" in err and "kept (made otherwise)" not in err
     assert _mtimes(out)["exif.jpg"] == before["exif.jpg"]
     assert main([*args, "--from", "200,20"]) == 2  # the plain photo's sun came from --from
     err = capsys.readouterr().err
-    assert "1 kept from other settings" in err and "plain.png" in err.strip().splitlines()[-1]
+    assert "1 kept (made otherwise)" in err and "plain.png" in err.strip().splitlines()[-1]
 
 
 def test_from_counts_for_an_output_only_when_it_could_decide_its_sun() -> None:
@@ -368,7 +368,7 @@ def test_batch_takes_the_projects_light_unless_told(
     # A rerun after the light was changed is other settings (kept until --force); unchanged, done.
     capsys.readouterr()
     assert main([*args, "-o", str(tmp_path / "day")]) == 2
-    assert "other settings" in capsys.readouterr().err
+    assert "made otherwise" in capsys.readouterr().err
     assert main([*args, "-o", str(tmp_path / "kept")]) == 0
     assert seen == [True, False, False, True]
     for bad in ("off", None):  # null too: the app refuses it
