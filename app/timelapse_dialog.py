@@ -361,6 +361,10 @@ class TimelapseDialog(QDialog):
         self.caption = QLabel("", self)
         self.caption.setWordWrap(True)  # a long caption (a sun below the horizon) must not
         self.caption.setMinimumWidth(1)  # widen the dialog when the day's page is shown
+        # Room for three lines, so the preview does not jump in height as a caption wraps
+        # from two lines to three while scrubbing (a user trial).
+        self.caption.setMinimumHeight(3 * self.caption.fontMetrics().lineSpacing())
+        self.caption.setAlignment(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop)
         self.preview.setToolTip("A quick preview at a small size; the export is drawn at the "
                                 "size chosen under Output")
         self._preview_pixmap: QPixmap | None = None
@@ -915,6 +919,10 @@ class TimelapseDialog(QDialog):
         self._exporting = on
         self.export_button.setEnabled(not on and bool(self._samples))
         self.cancel_button.setEnabled(on)
+        if not on and self.progress.value() < self.progress.maximum():
+            # Stopped short (cancelled or failed): no "0 %" under "nothing was written" (a
+            # user trial); a finished export keeps its "100 %".
+            self.progress.setTextVisible(False)
 
     # ---- called by the main window (GUI thread)
     def on_export_progress(self, fraction: float) -> None:

@@ -233,7 +233,7 @@ def test_timelapse_export_decodes(qtbot, window, photo, settle, errors, tmp_path
         frames = [f.to_ndarray(format="rgb24") for f in c.decode(video=0)]
     assert len(frames) == 5
     assert frames[0].shape == (96, 128, 3)
-    assert dialog.progress.value() == 100
+    assert dialog.progress.value() == 100 and dialog.progress.isTextVisible()
 
 
 def test_timelapse_cancel_leaves_no_file(qtbot, window, photo, settle, tmp_path, monkeypatch):
@@ -267,6 +267,9 @@ def test_timelapse_cancel_leaves_no_file(qtbot, window, photo, settle, tmp_path,
     assert not out.exists()
     assert set(os.listdir(tmp_path)) == before  # no temp file either
     assert dialog.export_button.isEnabled() and not dialog.cancel_button.isEnabled()
+    # No "0 %" under "nothing was written" (a user trial).
+    assert dialog.status.text() == "Export cancelled; nothing was written."
+    assert not dialog.progress.isTextVisible()
 
 
 def test_corrupt_file_shows_error_and_app_survives(qtbot, window, photo, settle, errors, tmp_path):
