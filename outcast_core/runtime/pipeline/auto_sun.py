@@ -197,6 +197,13 @@ PLANE_MIN_SIDE = 96
 #: found sun's overlay worse (``models/EVAL.md``, twelfth session), so no ``sun.onnx`` ships.
 LOOK_WEIGHT = 0.0
 LOOK_FLOOR = 1e-3
+#: :func:`find_sun` rules out a sun whose disc (:data:`HIDDEN_SUN_DEG` of radius) would stand
+#: wholly on the photo's open sky when the photo shows no sun there
+#: (:func:`open_sky_suns`): such a sun's score loses this much (agreements lie in [0, 1]).
+HIDDEN_SUN_PENALTY = 1.0
+#: The radius (degrees) of the sun's bright disc and inner glare that a photo of a clear sky
+#: would show (a camera's sun core is 2.5 degrees, its glare further).
+HIDDEN_SUN_DEG = 2.5
 #: Camera tilts (degrees) from the fitted ground plane beyond which it is not trusted.
 MAX_PLANE_TILT = 25.0
 
@@ -592,6 +599,41 @@ class _Frame:
         return np.stack([self.vector(a, e) for a, e in points]) if points else np.zeros((0, 3))
 
 
+def open_sky_suns(session: Any, vectors: np.ndarray) -> np.ndarray:
+    """Which camera-space suns (``N x 3``) would stand in the photo's open sky, their disc of
+    :data:`HIDDEN_SUN_DEG` inside the frame and on the sky mask all round, where a photo
+    that shows no sun (``session.sun_seen`` None) says the sun is not (bool, ``N``; all False
+    when the photo shows one, or has no sky).
+
+    Example:
+        >>> from types import SimpleNamespace
+        >>> from outcast_core.runtime.geometry.camera import Camera
+        >>> sky = np.zeros((48, 64), bool); sky[:20] = True
+        >>> s = SimpleNamespace(sky=sky, camera=Camera.from_fov(48, 64, 60.0), sun_seen=None)
+        >>> open_sky_suns(s, np.array([[0.0, -0.3, 1.0], [0.0, 0.2, 1.0], [0.0, -0.3, -1.0]]))
+        array([ True, False, False])
+    """
+    v = np.asarray(vectors, np.float64).reshape(-1, 3)
+    out = np.zeros(len(v), bool)
+    sky = getattr(session, "sky", None)
+    if getattr(session, "sun_seen", None) is not None or sky is None or not np.any(sky):
+        return out
+    cam = session.camera
+    r = max(1, round(cam.focal * math.tan(math.radians(HIDDEN_SUN_DEG))))
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)
+    # Wholly sky: the mask eroded by the disc, the frame's edge counting as not sky.
+    open_sky = cv2.erode(np.asarray(sky, np.uint8), disc, borderType=cv2.BORDER_CONSTANT,
+                         borderValue=0) > 0
+    ahead = v[:, 2] > 1e-9
+    z = np.where(ahead, v[:, 2], 1.0)
+    u = np.floor(cam.focal * v[:, 0] / z + cam.cx)
+    w = np.floor(cam.focal * v[:, 1] / z + cam.cy)
+    inside = ahead & (u >= 0) & (u < open_sky.shape[1]) & (w >= 0) & (w < open_sky.shape[0])
+    idx = np.flatnonzero(inside)
+    out[idx] = open_sky[w[idx].astype(int), u[idx].astype(int)]
+    return out
+
+
 def ground_plane_tilt(session: Any) -> tuple[float, float, str]:
     """Camera ``(pitch, roll, source)`` in degrees from the fitted ground plane; level without
     one (or with one tilted more than :data:`MAX_PLANE_TILT`), or when the working image's
@@ -974,6 +1016,11 @@ def find_sun(
             return np.zeros(len(vectors))
         return LOOK_WEIGHT * np.log(np.maximum(look.likelihood(vectors), LOOK_FLOOR))
 
+    def hidden(vectors: np.ndarray) -> np.ndarray:
+        """:data:`HIDDEN_SUN_PENALTY` for suns the photo's open sky would show
+        (:func:`open_sky_suns`)."""
+        return HIDDEN_SUN_PENALTY * open_sky_suns(session, vectors)
+
     def bias(pts: Sequence[tuple[float, float]]) -> np.ndarray:
         """The compass heading's soft pull (:attr:`SunPrior.azimuth_weight`), less the photo's
         look's (:func:`look_term`)."""
@@ -1041,6 +1088,12 @@ def find_sun(
     # -- the last candidates at the session's working size, as the overlay is drawn and scored
     #    (the shadow network's result depends on the size; cached there for the overlay)
     check("checking the best suns", 0.85, "refine" if FINE_PATTERNS else "dome")
+    # The sky's veto (:func:`hidden`) on the last candidates only: in every stage it moved the
+    # search's seeds on two dev photos, one of them out of the sweep's 0.03 (EVAL.md,
+    # fifteenth session).
+    points_left = list(cand)
+    vetoed = dict(zip(points_left, hidden(frame.vectors(points_left)).tolist(), strict=True))
+    cand = {p: c - vetoed[p] for p, c in cand.items()}
     ranked = sorted(cand, key=lambda p: -cand[p])
     finalists = [ranked[i] for i in _peaks(ranked, np.array([cand[p] for p in ranked]), frame,
                                            FINAL_CANDIDATES, 2.0)]
@@ -1053,7 +1106,7 @@ def find_sun(
                           y_full)
         finals.append((a, e, float(ag[0]), float(sh[0])))
         evaluations += 1
-    pull = dict(zip(finalists, bias(finalists).tolist(), strict=True))
+    pull = {p: b + vetoed[p] for p, b in zip(finalists, bias(finalists).tolist(), strict=True)}
     finals.sort(key=lambda t: -(float(ranking(np.array([t[2]]), np.array([t[3]]), measure)[0])
                                 - pull[(t[0], t[1])]))
     best_a, best_e, best_score, best_shading = finals[0]
@@ -1065,7 +1118,9 @@ def find_sun(
     strength = float(np.clip((best_score - WEAK_AGREEMENT)
                              / (STRONG_AGREEMENT - WEAK_AGREEMENT), 0.0, 1.0))
     legible = legibility(session.image_srgb.shape[:2])
-    confidence = float(clarity * peak * strength * legible)
+    # Every sun the shadows fit is one the photo's open sky would show: none is the sun.
+    in_open_sky = vetoed[(best_a, best_e)] > 0
+    confidence = 0.0 if in_open_sky else float(clarity * peak * strength * legible)
     found = confidence >= CONFIDENT
     source = "shadows"
     if prior is not None:
@@ -1110,6 +1165,11 @@ def find_sun(
         elif clarity < CONFIDENT:
             unfound = "no-clear-shadows"
             why = "no clear shadows in the photo"
+        elif in_open_sky:
+            unfound = "no-fit"
+            why = ("the suns the photo's shadows fit best would stand in its open sky, which "
+                   "shows no sun (the depth may be too rough: try a depth map or another "
+                   "depth model)")
         else:
             unfound = "no-fit"
             why = ("no sun makes the predicted shadows fit the photo's (the depth may be too "

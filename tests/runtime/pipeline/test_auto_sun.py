@@ -220,6 +220,8 @@ def test_cli_sun_says_no_shadows_and_errors_in_one_line(
     assert main([*args, "-q"]) == 3  # no answer: not a sun, not an error
     said = capsys.readouterr()
     assert said.out == "" and said.err.startswith("outcast sun: no clear shadows in the photo")
+    # In the command line's words: no dial to set the sun on "by eye" (a user trial).
+    assert "by eye" not in said.err and "give it by hand (--from AZ,EL" in said.err
     assert main([*args, "--json"]) == 3
     said = capsys.readouterr()
     out = json.loads(said.out)
@@ -609,3 +611,62 @@ def test_a_sun_model_that_cannot_be_used_leaves_the_shadows_to_decide(
     monkeypatch.setattr(auto_sun, "LOOK_WEIGHT", 0.03)
     fit = find_sun(session)
     assert _angle(fit.w, w) <= 6.0 and "could not be used" in fit.note
+
+
+def test_a_sun_the_photos_open_sky_would_show_is_ruled_out(monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    """A sun whose disc would stand on the photo's open sky, in a photo that shows no sun, is
+    not where the sun is (a user trial's field path was "found" at 340, 8 with confidence
+    0.79: a sun in the middle of its clear sky). The search's last candidates rank such suns
+    last, on the dome and on an EXIF ring."""
+    true = sun_vector(150.0, 40.0)
+    session = _session(_photo_lit_by(true))
+    assert _angle(find_sun(session).w, true) <= 6.0
+
+    def near(_session: Any, v: np.ndarray) -> np.ndarray:  # within 20 degrees of the sun
+        return np.asarray(v, np.float64).reshape(-1, 3) @ true > math.cos(math.radians(20.0))
+
+    monkeypatch.setattr(auto_sun, "open_sky_suns", near)
+    assert _angle(find_sun(session).w, true) > 20.0
+    ring = find_sun(session, prior=SunPrior(40.0), pitch_roll=(0.0, 0.0))
+    assert _angle(ring.w, true) > 20.0
+    # Every sun the shadows fit stands in the open sky: no sun is found, and the note says why.
+    monkeypatch.setattr(auto_sun, "open_sky_suns", lambda _s, v: np.ones(len(v), bool))
+    fit = find_sun(session)
+    assert not fit.found and fit.confidence == 0.0 and fit.unfound == "no-fit"
+    assert "would stand in its open sky, which shows no sun" in fit.note
+
+
+def test_open_sky_suns_needs_the_whole_disc_on_a_sky_that_shows_no_sun() -> None:
+    from types import SimpleNamespace
+
+    from outcast_core.runtime.pipeline.auto_sun import HIDDEN_SUN_DEG, open_sky_suns
+
+    cam = Camera.from_fov(H, W, 60.0)
+    sky = np.zeros((H, W), bool)
+    sky[:30] = True  # the top 30 rows: open sky
+    sky[10:20, 40:50] = False  # a tree in it
+    session = SimpleNamespace(sky=sky, camera=cam, sun_seen=None)
+
+    def toward(u: float, v: float) -> np.ndarray:
+        d = np.array([(u - cam.cx) / cam.focal, (v - cam.cy) / cam.focal, 1.0])
+        return d / np.linalg.norm(d)
+
+    r = cam.focal * math.tan(math.radians(HIDDEN_SUN_DEG))
+    suns = np.array([
+        toward(20, 12),  # open sky all round
+        toward(45, 15),  # behind the tree
+        toward(45, 15 + 5 + r + 0.5),  # below the tree, its disc clear of it
+        toward(20, 29),  # on the horizon: the disc reaches the ground
+        toward(1, 12),  # at the frame's edge: the disc leaves the frame
+        toward(20, 60),  # on the ground
+        -toward(20, 12),  # behind the camera
+    ])
+    np.testing.assert_array_equal(open_sky_suns(session, suns),
+                                  [True, False, True, False, False, False, False])
+    # A photo that shows its sun rules nothing out (the sun it shows is the sun); nor does a
+    # photo without sky.
+    assert not open_sky_suns(SimpleNamespace(sky=sky, camera=cam, sun_seen=object()),
+                             suns).any()
+    assert not open_sky_suns(SimpleNamespace(sky=np.zeros_like(sky), camera=cam,
+                                             sun_seen=None), suns).any()
