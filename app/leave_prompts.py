@@ -63,7 +63,7 @@ class RunningExport:
 
 def leave_questions(
     action: str, exports: list[RunningExport], unsaved: bool, project_name: str,
-    parts: Sequence[str] = (),
+    changes: Sequence[str] = (),
 ) -> list[Question]:
     """The questions to ask before ``action``.
 
@@ -72,7 +72,7 @@ def leave_questions(
         exports: exports running or waiting in the worker.
         unsaved: whether there are edits not saved in the project file.
         project_name: the project file's name, for the save question.
-        parts: what is not saved, in words ("the new sun", ...), for the save question; ``()``
+        changes: what is not saved, in words ("the new sun", ...), for the save question; ``()``
             when not known (it then says "the changes you made"; a user trial's question
             named every kind of setting, the depth map and heading it never touched too).
 
@@ -117,7 +117,7 @@ def leave_questions(
         questions.append(
             Question(
                 title="Save the changes to this photo?",
-                text=(f"Your changes to {_joined(parts)} are not saved." if parts
+                text=(f"Your changes to {_joined(changes)} are not saved." if changes
                       else "The changes you made to this photo are not saved."),
                 detail=f"Save them in {project_name} to continue later, or drop them.",
                 choices=(

@@ -1637,6 +1637,8 @@ class MainWindow(QMainWindow):
                 "too-small": "This photo is too small or too narrow for its shadows to tell "
                              "the sun",
                 "no-clear-shadows": "No clear shadows in this photo",
+                "open-sky": "The suns its shadows fit best would stand in the photo's open "
+                            "sky, which shows no sun (rough depth?)",
             }.get(fit.unfound, "No sun makes the predicted shadows fit the photo's (rough depth?)")
             text = (f"{why}: its sun cannot be told from them (confidence "
                     f"{fit.confidence:.2f}). Set it by eye.")
@@ -2758,8 +2760,9 @@ class MainWindow(QMainWindow):
             # ("Exporting time-lapse: timelapse" said the stage twice: a user trial)
             same = stage.lower().replace("-", "") in base.lower().replace("-", "")
             self.stage_label.setText(base if same else f"{base}: {stage}")
-        elif channel == "relight":  # removing the photo's shadows at full size (seconds on
-            # a large photo; no stages to count): a busy bar, hidden when the window is idle
+        elif self._deshadow_job is not None and job_id == self._deshadow_job[2]:
+            # Removing the photo's shadows at full size (seconds on a large photo; no stages to
+            # count): a busy bar, hidden when the window is idle or the next job starts
             self.progress_bar.setRange(0, 0)
             self.progress_bar.show()
         if channel == "tl_export" and self._timelapse_dialog is not None:

@@ -915,14 +915,17 @@ class TimelapseDialog(QDialog):
             self.status.setText("Cancelling…")
             self.main.runner.cancel("tl_export")
 
-    def _set_exporting(self, on: bool) -> None:
+    def _set_exporting(self, on: bool, finished: bool = False) -> None:
+        """An export starts or ends; one that stopped short (cancelled or failed) leaves no
+        percentage under "nothing was written" (a user trial saw "0 %"), a finished one its
+        "100 %"."""
         self._exporting = on
         self.export_button.setEnabled(not on and bool(self._samples))
         self.cancel_button.setEnabled(on)
-        if not on and self.progress.value() < self.progress.maximum():
-            # Stopped short (cancelled or failed): no "0 %" under "nothing was written" (a
-            # user trial); a finished export keeps its "100 %".
-            self.progress.setTextVisible(False)
+        if not on:
+            self.progress.setTextVisible(finished)
+            if finished:
+                self.progress.setValue(self.progress.maximum())
 
     # ---- called by the main window (GUI thread)
     def on_export_progress(self, fraction: float) -> None:
@@ -947,8 +950,7 @@ class TimelapseDialog(QDialog):
             return
         # An export done: how long these settings take from now on.
         self._timings[result["key"]] = result["timing"]
-        self._set_exporting(False)
-        self.progress.setValue(100)
+        self._set_exporting(False, finished=True)
         self.last_export = result["path"]
         self.last_result = "finished"
         self.status.setText(f"Saved {result['frames']} frames to {result['path']}")

@@ -25,12 +25,12 @@ from outcast_core.runtime.cli.main import (
     add_light_option,
     int_in,
     names_in,
+    sun_pair,
 )
 from outcast_core.runtime.cli.timelapse_cli import (
     SWEEP_HELP,
     fps_value,
     frame_count,
-    sun_pair,
     sweep_ends,
 )
 from outcast_core.runtime.pipeline.batch import (
@@ -146,7 +146,7 @@ def _options(args: argparse.Namespace) -> BatchOptions:
         # (a user trial's --to beside --deshadow and --sweep was ignored without a word)
         what = {"deshadow": "--deshadow", "timelapse": "--sweep" if args.sweep else "--day"}
         raise ValueError(f"--to is the new sun of a relighting; {what[kind]} takes none "
-                         f"(leave out --to, or {what[kind]} to relight)")
+                         f"(leave out --to, or leave out {what[kind]} to relight)")
     return BatchOptions(
         kind=kind, sources=args.sources, from_sun=args.from_sun, to_sun=args.to_sun,
         fmt=args.fmt, preset=args.preset, mode=args.mode, depth_model=args.depth_model,

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import os
 import re
 import signal
 import sys
@@ -71,15 +72,22 @@ def parse_azel(text: str) -> np.ndarray:
     return sun_vector(*azel_angles(text))
 
 
-def sun_option(text: str) -> str:
-    """An argparse type for a still's sun (``--from``, ``--to``, ``--sun``): the text, checked
-    by :func:`azel_angles`, so that a bad value is refused naming its flag (as ``outcast
-    batch`` and ``timelapse`` refuse theirs)."""
+def sun_pair(text: str) -> tuple[float, float]:
+    """The argparse type of every command's still sun (``--from``, ``--to``, ``--sun``):
+    ``(az, el)`` by :func:`azel_angles`, so that a bad value is refused naming its flag, by one
+    rule in every command."""
     try:
-        azel_angles(text)
+        return azel_angles(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
-    return text
+
+
+def sun_dir_option(text: str) -> np.ndarray:
+    """``--sun-dir``'s argparse type: :func:`parse_vector`, refused naming the flag."""
+    try:
+        return parse_vector(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def azel_angles(text: str) -> tuple[float, float]:
@@ -119,8 +127,8 @@ def parse_vector(text: str) -> np.ndarray:
 
 def _sun_from_args(args: argparse.Namespace) -> np.ndarray:
     if args.sun is not None:
-        return parse_azel(args.sun)
-    return parse_vector(args.sun_dir)
+        return sun_vector(*args.sun)
+    return args.sun_dir
 
 
 def _load(path: str, max_pixels: int | None = None, **kw):  # -> LoadedImage
@@ -499,8 +507,8 @@ def _original_sun(args: argparse.Namespace, session, loaded,
 def cmd_relight(args: argparse.Namespace) -> int:
     from outcast_core.runtime.io.imageio import output_bit_depth, write_image
 
-    w_from = None if args.from_sun is None else parse_azel(args.from_sun)
-    w_to = parse_azel(args.to_sun)
+    w_from = None if args.from_sun is None else sun_vector(*args.from_sun)
+    w_to = sun_vector(*args.to_sun)
     loaded = _load(args.image, keep_uint8=True)  # 8-bit photos stay 8-bit end to end
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     session = _make_session(args, shadow_mode=args.shadows, relight_mode=args.mode)
@@ -524,7 +532,7 @@ def cmd_relight(args: argparse.Namespace) -> int:
 def cmd_deshadow(args: argparse.Namespace) -> int:
     from outcast_core.runtime.io.imageio import output_bit_depth, write_image, write_shadow_png
 
-    w_from = None if args.from_sun is None else parse_azel(args.from_sun)
+    w_from = None if args.from_sun is None else sun_vector(*args.from_sun)
     if args.mask:  # the main output is checked before the work by _check_output
         check_output_path(args.mask, extensions=(".png",), force=args.force,
                           inputs=[args.image, args.depth], outputs=[args.output])
@@ -623,8 +631,9 @@ def build_parser(
     )
     p.add_argument("image")
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--sun", type=sun_option, help="AZ,EL in degrees relative to the camera")
-    g.add_argument("--sun-dir", help="X,Y,Z camera-space vector toward the sun "
+    g.add_argument("--sun", type=sun_pair, help="AZ,EL in degrees relative to the camera")
+    g.add_argument("--sun-dir", type=sun_dir_option,
+                   help="X,Y,Z camera-space vector toward the sun "
                                      "(write --sun-dir=-X,Y,Z when X is negative)")
     p.add_argument("--mode", choices=["auto", "direct", "learned"], default="auto",
                    help="learned S network (default when installed) or Direct ray marching")
@@ -638,10 +647,10 @@ def build_parser(
 
     p = sub.add_parser("relight", help="relight a photo from its original sun to a new one")
     p.add_argument("image")
-    p.add_argument("--from", dest="from_sun", metavar="AZ,EL", type=sun_option,
+    p.add_argument("--from", dest="from_sun", metavar="AZ,EL", type=sun_pair,
                    help="the photo's original sun (default: the sun in the photo, else its "
                         "EXIF sun from GPS, time and compass heading)")
-    p.add_argument("--to", dest="to_sun", required=True, metavar="AZ,EL", type=sun_option,
+    p.add_argument("--to", dest="to_sun", required=True, metavar="AZ,EL", type=sun_pair,
                    help="the new sun")
     p.add_argument("--mode", choices=["auto", "physics", "learned"], default="auto",
                    help="learned relighting (default when installed) or physics ratios")
@@ -659,7 +668,7 @@ def build_parser(
 
     p = sub.add_parser("deshadow", help="lift the photo's own shadows (found at its sun)")
     p.add_argument("image")
-    p.add_argument("--from", dest="from_sun", metavar="AZ,EL", type=sun_option,
+    p.add_argument("--from", dest="from_sun", metavar="AZ,EL", type=sun_pair,
                    help="the photo's sun (the shadows are found where it can cast them; "
                         "default: the sun in the photo, else its EXIF sun from GPS, time and "
                         "compass heading)")
@@ -778,9 +787,12 @@ def check_output_path(
         FileExistsError: the file exists and ``force`` is False.
     """
     path = Path(output).expanduser()
-    if path.is_dir() and not folder_ok:  # (said first: "-o out/" has no extension either)
-        raise CliError(f"cannot write '{output}': it is a folder; give a file name in it "
-                       f"(e.g. {path / 'output'}{(extensions or ('.png',))[0]})")
+    named_folder = output.endswith(("/", os.sep)) or path.is_dir()
+    if named_folder and not folder_ok:  # (said first: "-o out/" has no extension either)
+        example = f" (e.g. {path / 'output'}{extensions[0]})" if extensions else ""
+        raise CliError(f"cannot write '{output}': it "
+                       f"{'is' if path.is_dir() else 'names'} a folder; give a file name in "
+                       f"it{example}")
     if extensions is not None and path.suffix.lower() not in extensions:
         raise CliError(f"cannot write '{output}': expected an extension in "
                        f"{', '.join(extensions)}, got '{path.suffix}'")

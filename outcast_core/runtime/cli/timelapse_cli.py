@@ -22,6 +22,7 @@ from outcast_core.runtime.cli.main import (
     add_shadow_edit_options,
     int_in,
     say_unused_shadow_edits,
+    sun_pair,
 )
 from outcast_core.runtime.geometry.camera import sun_vector
 from outcast_core.runtime.pipeline.timelapse import (
@@ -70,24 +71,14 @@ def _angles(text: str) -> tuple[float, float]:
     return az, el
 
 
-def sun_pair(text: str) -> tuple[float, float]:
-    """An argparse type for a still's sun (``--from``, ``--to``): ``AZ,EL`` at or above the
-    horizon, as ``outcast relight`` takes it (``outcast batch`` takes the same)."""
-    from outcast_core.runtime.cli.main import azel_angles
-
-    try:
-        return azel_angles(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
 def sweep_ends(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
     """An argparse type for ``--sweep AZ1,EL1:AZ2,EL2`` (``outcast batch`` takes the same).
 
     An end may be below the horizon (elevation down to -90): a sweep is a sun path, and the
     frames where it dips below the horizon render with the sun at the horizon
     (:data:`~outcast_core.runtime.pipeline.timelapse.MIN_RENDER_ELEVATION`), like a real day's
-    sunrise and sunset. Only a still's sun (:func:`sun_pair`) must be at or above it.
+    sunrise and sunset. Only a still's sun (:func:`~outcast_core.runtime.cli.main.sun_pair`)
+    must be at or above it.
     """
     parts = text.split(":")
     if len(parts) != 2:

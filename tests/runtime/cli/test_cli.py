@@ -231,7 +231,7 @@ def test_negative_azimuths_are_values_not_options() -> None:
                     "--frames=-3"]
     args = build_parser().parse_args(join_negative_values(
         ["relight", "p.jpg", "--from", "-90,30", "--to", "-45.5,10", "-o", "o.jpg"]))
-    assert (args.from_sun, args.to_sun) == ("-90,30", "-45.5,10")
+    assert (args.from_sun, args.to_sun) == ((-90.0, 30.0), (-45.5, 10.0))
     assert join_negative_values(["relight", "--", "-1"]) == ["relight", "--", "-1"]
 
 

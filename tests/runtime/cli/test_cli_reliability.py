@@ -172,6 +172,7 @@ def test_session_fov_zero_is_not_the_default() -> None:
         (["relight", "--from", "90,30", "--to", "200,40"], "folder.png/", "it is a folder; "
          "give a file name in it"),
         (["deshadow", "--from", "90,30"], "afolder", "it is a folder; give a file name in it"),
+        (["shadow", "--sun", "90,30"], "nosuch/", "it names a folder; give a file name in it"),
     ],
 )
 def test_bad_outputs_are_refused_before_the_work(photo, tmp_path, capsys, no_work, monkeypatch,
