@@ -89,7 +89,8 @@ def test_no_clear_shadows_is_said_and_the_sun_stays(window, photo, settle, monke
     assert not panel.dial.has_heat_map() and "fit best" not in window.stage_label.text()
     # The message follows the fit's reason, not its note's words.
     for unfound, words in (("too-small", "too small or too narrow"),
-                           ("no-fit", "No sun makes the predicted shadows fit")):
+                           ("no-fit", "No sun makes the predicted shadows fit"),
+                           ("open-sky", "would stand in the photo's open sky")):
         fit = dataclasses.replace(_fit(10.0, 60.0, found=False), unfound=unfound)
         monkeypatch.setattr(auto_sun, "find_sun", lambda session, fit=fit, **kw: fit)
         window.find_sun()

@@ -177,7 +177,9 @@ def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
         "Lab change on the sky when neither sun's centre is in frame (both relightings keep "
         "the photo's sky; a sun whose disc reaches into the frame is drawn there, fading in); "
         "new shade = median log-luminance change where the new sun newly shadows, over the "
-        "photo's own shade/lit log ratio (1: as dark as the photo's own shadows); "
+        "photo's own shade/lit log ratio (1: as dark as the photo's own shadows), (colour) = "
+        "the distance between the chromaticity shift (log R/G, log B/G) it gives there and "
+        "the photo's own shade's against its lit ring (0: the photo's shade colour); "
         "old shade = the relit photo's log-luminance ratio between the lit ring outside each "
         "marked shadow and the shadow, where the new sun lights both, over the photo's own "
         "(0: the old shadow is gone, 1: unchanged); detail = the standard deviation of log "
@@ -202,7 +204,8 @@ def render_trade(reports: dict[str, Any]) -> str:
     """One row per preset: the mean figures beside the time per photo."""
     lines = ["| Preset | Overlay BER | Opposite | S_o BER | Otsu | Shuffled / swept (own) | "
              "Sky claim | "
-             "De-shadow in / out | Relit chroma / sky / new shade / old shade / detail | "
+             "De-shadow in / out | Relit chroma / sky / new shade (colour) / old shade / "
+             "detail | "
              "s / photo |",
              "|---|---|---|---|---|---|---|---|---|---|"]
 
@@ -217,7 +220,8 @@ def render_trade(reports: dict[str, Any]) -> str:
                      f"{f(m, 'refined_ber')} | {f(m, 'otsu_ber')} | {f(m, 'shuffled_ber')} / "
                      f"{f(m, 'swept_shuffled_ber')} ({f(m, 'swept_own_ber')}) | "
                      f"{f(m, 'sky_claim')} | {ds} | {f(m, 'relit_chroma', 2)} / "
-                     f"{f(m, 'relit_sky', 2)} / {f(m, 'new_shade', 2)} / "
+                     f"{f(m, 'relit_sky', 2)} / {f(m, 'new_shade', 2)} "
+                     f"({f(m, 'shade_colour', 2)}) / "
                      f"{f(m, 'old_shade', 2)} / {f(m, 'relit_detail', 2)} | "
                      f"{f(m, 'seconds', 2)} |")
     return "\n".join(lines)

@@ -39,6 +39,20 @@ def luminance(radiance_lin: np.ndarray) -> np.ndarray:
     return x @ LUMA_709
 
 
+def log_chromaticity(radiance_lin: np.ndarray, eps: float = 1e-4) -> np.ndarray:
+    """``(log R/G, log B/G)`` of linear RGB (``... x 3 -> ... x 2``, float32), each channel
+    offset by ``eps``: a change of the light's colour moves every material's by the same
+    amount (the shade's shift, :data:`~outcast_core.runtime.pipeline.photo_shadows.
+    SKY_SHADE_SHIFT`).
+
+    Example:
+        >>> [round(float(c), 3) for c in log_chromaticity(np.array([0.2, 0.4, 0.8]), eps=0.0)]
+        [-0.693, 0.693]
+    """
+    lg = np.log(np.asarray(radiance_lin, np.float32) + np.float32(eps))
+    return np.stack([lg[..., 0] - lg[..., 1], lg[..., 2] - lg[..., 1]], axis=-1)
+
+
 #: :func:`is_greyscale`: the largest channel spread (sRGB) of a grey pixel (JPEG's chroma
 #: noise) and the share of pixels that must be grey; and the spread of a coloured pixel, of
 #: which a black-and-white photo has at most :data:`COLOUR_SHARE` (a red coat in a misty photo

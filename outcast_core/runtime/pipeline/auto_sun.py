@@ -107,11 +107,13 @@ from outcast_core.runtime.geometry.camera import (
     Camera,
     network_depth,
     normals_from_depth,
+    project,
     sun_angles,
     sun_vector,
 )
 from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
 from outcast_core.runtime.pipeline.photo_shadows import photo_shadow_probability, without_texture
+from outcast_core.runtime.pipeline.relight import SUN_CORE_DEG, sun_core_px
 
 #: The overlay's threshold: ``S`` below it is a predicted shadow (as ``real_eval``).
 SHADOW_THRESHOLD = 0.15
@@ -173,7 +175,7 @@ SOURCE_EXIF = "EXIF"
 SOURCE_SUN_IN_FRAME = "sun in the frame"
 #: :attr:`SunFit.unfound`: the photo is too small or narrow for its shadows, it has no clear
 #: shadows, or no sun's predicted shadows fit them.
-UNFOUND_REASONS = ("too-small", "no-clear-shadows", "no-fit")
+UNFOUND_REASONS = ("too-small", "no-clear-shadows", "no-fit", "open-sky")
 MEASURE = "mask"
 SHADING_WEIGHT = 0.5
 #: Shorter side (pixels of the working image, where shadows are read) below which / from which
@@ -199,11 +201,15 @@ LOOK_WEIGHT = 0.0
 LOOK_FLOOR = 1e-3
 #: :func:`find_sun` rules out a sun whose disc (:data:`HIDDEN_SUN_DEG` of radius) would stand
 #: wholly on the photo's open sky when the photo shows no sun there
-#: (:func:`open_sky_suns`): such a sun's score loses this much (agreements lie in [0, 1]).
-HIDDEN_SUN_PENALTY = 1.0
-#: The radius (degrees) of the sun's bright disc and inner glare that a photo of a clear sky
-#: would show (a camera's sun core is 2.5 degrees, its glare further).
-HIDDEN_SUN_DEG = 2.5
+#: (:func:`open_sky_suns`): such a sun's score loses this much (more than any score spans:
+#: agreements and correlations lie in [-1, 1]).
+HIDDEN_SUN_PENALTY = 10.0
+#: The radius (degrees) of the sun's bright disc that a photo of a clear sky would show: a
+#: camera's clipped core (its glare reaches further).
+HIDDEN_SUN_DEG = SUN_CORE_DEG
+#: :func:`open_sky_suns`: a sky at least this bright in every channel (sRGB) where a sun
+#: would stand may hide it in haze or thin cloud, and rules nothing out.
+HAZE_LEVEL = 0.95
 #: Camera tilts (degrees) from the fitted ground plane beyond which it is not trusted.
 MAX_PLANE_TILT = 25.0
 
@@ -342,7 +348,9 @@ class SunFit:
             (:data:`SOURCE_EXIF`, :data:`SOURCE_SUN_IN_FRAME`).
         note: one line for the user.
         unfound: why the shadows could not tell the sun (:data:`UNFOUND_REASONS`:
-            ``"too-small"``, ``"no-clear-shadows"``, ``"no-fit"``), or ``""`` when they could;
+            ``"too-small"``, ``"no-clear-shadows"``, ``"no-fit"``, ``"open-sky"``: every sun
+            they fit would stand in the photo's open sky, which shows none), or ``""`` when
+            they could;
             for choosing what to tell the user without reading :attr:`note`'s words.
         map: the coarse agreement map (the dial's heat map).
         candidates: ``(azimuth, elevation, agreement)`` of the last candidates, best first
@@ -603,13 +611,16 @@ def open_sky_suns(session: Any, vectors: np.ndarray) -> np.ndarray:
     """Which camera-space suns (``N x 3``) would stand in the photo's open sky, their disc of
     :data:`HIDDEN_SUN_DEG` inside the frame and on the sky mask all round, where a photo
     that shows no sun (``session.sun_seen`` None) says the sun is not (bool, ``N``; all False
-    when the photo shows one, or has no sky).
+    when the photo shows one, or has no sky). Not where the sky at the disc's centre is near
+    white (:data:`HAZE_LEVEL`): a sun in haze or thin cloud may go unseen there.
 
     Example:
         >>> from types import SimpleNamespace
         >>> from outcast_core.runtime.geometry.camera import Camera
         >>> sky = np.zeros((48, 64), bool); sky[:20] = True
-        >>> s = SimpleNamespace(sky=sky, camera=Camera.from_fov(48, 64, 60.0), sun_seen=None)
+        >>> img = np.full((48, 64, 3), 0.5, np.float32)
+        >>> s = SimpleNamespace(sky=sky, camera=Camera.from_fov(48, 64, 60.0), sun_seen=None,
+        ...                     image_srgb=img)
         >>> open_sky_suns(s, np.array([[0.0, -0.3, 1.0], [0.0, 0.2, 1.0], [0.0, -0.3, -1.0]]))
         array([ True, False, False])
     """
@@ -619,18 +630,19 @@ def open_sky_suns(session: Any, vectors: np.ndarray) -> np.ndarray:
     if getattr(session, "sun_seen", None) is not None or sky is None or not np.any(sky):
         return out
     cam = session.camera
-    r = max(1, round(cam.focal * math.tan(math.radians(HIDDEN_SUN_DEG))))
+    r = max(1, round(sun_core_px(cam.focal, HIDDEN_SUN_DEG)))
     disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)
     # Wholly sky: the mask eroded by the disc, the frame's edge counting as not sky.
     open_sky = cv2.erode(np.asarray(sky, np.uint8), disc, borderType=cv2.BORDER_CONSTANT,
                          borderValue=0) > 0
-    ahead = v[:, 2] > 1e-9
-    z = np.where(ahead, v[:, 2], 1.0)
-    u = np.floor(cam.focal * v[:, 0] / z + cam.cx)
-    w = np.floor(cam.focal * v[:, 1] / z + cam.cy)
-    inside = ahead & (u >= 0) & (u < open_sky.shape[1]) & (w >= 0) & (w < open_sky.shape[0])
+    u, w = project(v, cam)  # NaN behind the camera
+    ok = np.isfinite(u) & np.isfinite(w)
+    u, w = np.where(ok, np.floor(u), -1.0), np.where(ok, np.floor(w), -1.0)
+    inside = ok & (u >= 0) & (u < open_sky.shape[1]) & (w >= 0) & (w < open_sky.shape[0])
     idx = np.flatnonzero(inside)
-    out[idx] = open_sky[w[idx].astype(int), u[idx].astype(int)]
+    rows, cols = w[idx].astype(int), u[idx].astype(int)
+    hazy = np.asarray(session.image_srgb)[rows, cols].min(axis=-1) >= HAZE_LEVEL
+    out[idx] = open_sky[rows, cols] & ~hazy
     return out
 
 
@@ -1166,7 +1178,7 @@ def find_sun(
             unfound = "no-clear-shadows"
             why = "no clear shadows in the photo"
         elif in_open_sky:
-            unfound = "no-fit"
+            unfound = "open-sky"
             why = ("the suns the photo's shadows fit best would stand in its open sky, which "
                    "shows no sun (the depth may be too rough: try a depth map or another "
                    "depth model)")

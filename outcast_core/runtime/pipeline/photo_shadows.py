@@ -93,6 +93,7 @@ from outcast_core.runtime.geometry.colour import (
     LUMA_709,
     linear_to_lab,
     linear_to_srgb,
+    log_chromaticity,
     luminance,
     srgb_to_linear,
 )
@@ -275,6 +276,49 @@ def near_predicted_shadow(prior_shadow: np.ndarray, sky: np.ndarray, radius: flo
     return np.clip(gate * 2.0, 0.0, 1.0).astype(np.float32)
 
 
+def shadow_edge_bands(shadow: np.ndarray, where: np.ndarray, ring: float,
+                      edge_only: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """A shadow mask's inside (2 px in from its edge; with ``edge_only``, no further in than
+    the ring's width) and the ring just outside it (from 3 px to ``ring`` of the longer side,
+    at least 6 px, out), both within ``where`` (``H x W`` bool each): a shadow's surface and
+    the lit surface next to it, mostly one material."""
+    m = np.asarray(shadow, np.uint8)
+    r = max(6, round(ring * max(m.shape)))
+    ellipse = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)
+    gap = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
+    inner = (cv2.erode(m, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0) & where
+    if edge_only:
+        inner &= ~(cv2.erode(m, ellipse) > 0)
+    outer = (cv2.dilate(m, ellipse) > 0) & ~(cv2.dilate(m, gap) > 0) & where
+    return inner, outer
+
+
+#: :func:`photo_shade_shift`: the ring (fraction of the longer side) round the found shadows,
+#: the least pixels on each side, and how far along the clear sky's shift the estimate may go.
+SHIFT_RING = 0.02
+SHIFT_MIN_PIXELS = 50
+SHIFT_RANGE = (0.0, 1.5)
+
+
+def photo_shade_shift(image_srgb: np.ndarray, found: np.ndarray, surface: np.ndarray
+                      ) -> tuple[float, float]:
+    """The photo's own shade's chromaticity shift ``(log R/G, log B/G)`` against the lit
+    surface next to it: the median inside its found shadows near their edge minus that of
+    the lit ring round them (:func:`shadow_edge_bands`), taken along the clear sky's shift
+    (:data:`SKY_SHADE_SHIFT`) and kept within :data:`SHIFT_RANGE` of it (a white balance moves
+    lit and shade alike; shade is never warmer than its lit surface in daylight, and what
+    points elsewhere is the found shadows' materials). :data:`SKY_SHADE_SHIFT` itself when
+    either side has fewer than :data:`SHIFT_MIN_PIXELS` pixels."""
+    inner, ring = shadow_edge_bands(found, surface, SHIFT_RING, edge_only=True)
+    if min(int(inner.sum()), int(ring.sum())) < SHIFT_MIN_PIXELS:
+        return SKY_SHADE_SHIFT
+    chroma = log_chromaticity(srgb_to_linear(np.clip(image_srgb, 0.0, 1.0)), 1e-3)
+    d = np.median(chroma[inner], axis=0) - np.median(chroma[ring], axis=0)
+    sky = np.asarray(SKY_SHADE_SHIFT, np.float64)
+    t = float(np.clip(d @ sky / (sky @ sky), *SHIFT_RANGE))
+    return (float(t * sky[0]), float(t * sky[1]))
+
+
 def same_material(image_srgb: np.ndarray, probability: np.ndarray, surface: np.ndarray,
                   shift: tuple[float, float] = SHADE_SHIFT) -> np.ndarray:
     """How well each pixel's chromaticity matches the lit surface around it (``H x W`` in
@@ -290,8 +334,7 @@ def same_material(image_srgb: np.ndarray, probability: np.ndarray, surface: np.n
     """
     lin = srgb_to_linear(image_srgb)
     side = max(probability.shape)
-    log_c = np.log(cv2.GaussianBlur(lin, (0, 0), max(0.5, side / 384.0)) + 1e-4)
-    chroma = np.stack([log_c[..., 0] - log_c[..., 1], log_c[..., 2] - log_c[..., 1]], -1)
+    chroma = log_chromaticity(cv2.GaussianBlur(lin, (0, 0), max(0.5, side / 384.0)))
     w = ((1.0 - probability) ** 2 * surface).astype(np.float32)
     sigma = max(1.0, RATIO_SIGMA * side)
     n = wide_blur(w, sigma)

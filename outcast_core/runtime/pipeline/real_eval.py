@@ -39,6 +39,13 @@ photo and on average (DESIGN.md, "Real photographs: how we measure"):
   (``S_o`` above 0.5, ``S_n`` below the overlay's threshold), as the median change of log
   luminance there over the photo's own shade (the median log luminance of its found shadows
   minus that of its lit surface): 1 is as dark as the photo's own shadows, 0 unchanged;
+* ``shade_colour``: whether that new shade has the colour of the photo's own: the distance
+  (log units) between the chromaticity shift ``(log R/G, log B/G)`` the relighting gives the
+  surface the new sun newly shadows (relit over the photo, the median there) and the shift of
+  the photo's own shade, the median inside the human-marked shadows (within
+  :data:`OLD_SHADE_RING` of their edge) minus that of the lit ring just outside them. 0 is
+  the photo's own shade colour; daylight shade is bluer than the lit surface, by ``log
+  B/R`` 0.67 on the dev photos' medians (added 2026-12-02, fifteenth session);
 * ``old_shade``: how much of the photo's own shadows stays in that relit photo where the new
   sun lights them: the log luminance ratio between the lit ring just outside the human-marked
   shadow (:data:`OLD_SHADE_RING` of the longer side) and the shadow itself, both where
@@ -71,7 +78,8 @@ import cv2
 import numpy as np
 
 from outcast_core.runtime.geometry.camera import sun_angles, sun_in_frame, sun_vector
-from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+from outcast_core.runtime.geometry.colour import log_chromaticity, luminance, srgb_to_linear
+from outcast_core.runtime.pipeline.photo_shadows import shadow_edge_bands
 
 #: Shadow images below this are "in shadow" (the overlay's display threshold).
 SHADOW_THRESHOLD = 0.15
@@ -207,6 +215,7 @@ class PhotoResult:
     relit_chroma: float | None = None
     relit_sky: float | None = None
     new_shade: float | None = None
+    shade_colour: float | None = None
     old_shade: float | None = None
     relit_detail: float | None = None
     depth_source: str = ""
@@ -334,6 +343,8 @@ def _relight_checks(session: Any, res: PhotoResult, az: float, el: float,
     h, w = image.shape[:2]
     marked = cv2.resize(truth.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST) > 0
     res.old_shade = old_shade_ratio(image, relit, marked, session.shadow(w_n), session.sky)
+    res.shade_colour = shade_colour_gap(image, relit, marked, session.original_shadow,
+                                        session.shadow(w_n), session.sky)
 
 
 def relit_check_sun(session: Any, az: float, el: float, turn: float = RELIGHT_TURN
@@ -384,6 +395,41 @@ def new_shade_ratio(
     return float(np.median((log_r - log_y)[newly]) / own)
 
 
+def shade_colour_gap(
+    image_srgb: np.ndarray, relit_srgb: np.ndarray, marked: np.ndarray, shadow_old: np.ndarray,
+    shadow_new: np.ndarray, sky: np.ndarray,
+) -> float | None:
+    """``shade_colour`` (module docstring); None when a photo has too few pixels of a kind or
+    its marked shadows no edge band against a lit ring.
+
+    Example:
+        >>> img = np.full((40, 40, 3), 0.8, np.float32); img[5:20, 5:20] = (0.2, 0.25, 0.3)
+        >>> m = np.zeros((40, 40), bool); m[5:20, 5:20] = True
+        >>> so = np.where(m, 0.0, 1.0).astype(np.float32)
+        >>> sn = so.copy(); sn[25:, :] = 0.0; sky = np.zeros((40, 40), bool)
+        >>> relit = img.copy(); relit[25:, :] = (0.2, 0.25, 0.3)  # the photo's shade colour
+        >>> round(shade_colour_gap(img, relit, m, so, sn, sky), 3)
+        0.0
+        >>> grey = img.copy(); grey[25:, :] = 0.25  # as dark, not as blue
+        >>> bool(shade_colour_gap(img, grey, m, so, sn, sky) > 0.3)
+        True
+    """
+    surface = ~np.asarray(sky, bool)
+    inner, ring = shadow_edge_bands(marked, surface, OLD_SHADE_RING, edge_only=True)
+    newly = surface & (np.asarray(shadow_old) > 0.5) & (np.asarray(shadow_new)
+                                                        < SHADOW_THRESHOLD)
+    if min(inner.sum(), ring.sum(), newly.sum()) < MIN_PIXELS:
+        return None
+
+    def chroma(x: np.ndarray) -> np.ndarray:
+        return log_chromaticity(srgb_to_linear(np.clip(np.asarray(x, np.float32), 0, 1)), 1e-3)
+
+    c_photo, c_relit = chroma(image_srgb), chroma(relit_srgb)
+    own = np.median(c_photo[inner], axis=0) - np.median(c_photo[ring], axis=0)
+    new = np.median((c_relit - c_photo)[newly], axis=0)
+    return float(np.hypot(*(new - own)))
+
+
 def detail_ratio(image_srgb: np.ndarray, relit_srgb: np.ndarray,
                  where: np.ndarray) -> float | None:
     """``relit_detail`` (module docstring) over the pixels ``where``; None below
@@ -429,13 +475,8 @@ def old_shade_ratio(
         >>> round(old_shade_ratio(img, np.full_like(img, 0.8), m, lit, sky), 2)  # gone
         0.0
     """
-    marked = np.asarray(marked, np.uint8)
-    r = max(6, round(OLD_SHADE_RING * max(marked.shape)))  # beyond the 3 px gap
-    ellipse = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)
-    gap = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
     lit = (np.asarray(shadow_new) > LIT_BOTH) & ~np.asarray(sky, bool)
-    inner = (cv2.erode(marked, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (5, 5))) > 0) & lit
-    ring = (cv2.dilate(marked, ellipse) > 0) & ~(cv2.dilate(marked, gap) > 0) & lit
+    inner, ring = shadow_edge_bands(marked, lit, OLD_SHADE_RING)
     if min(inner.sum(), ring.sum()) < MIN_PIXELS:
         return None
 
@@ -518,7 +559,7 @@ SUMMARY_KEYS = ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuff
                 "swept_shuffled_ber", "swept_own_ber",
                 "sky_claim", "overlay_fraction", "shadow_fraction", "seconds",
                 "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky", "new_shade",
-                "old_shade", "relit_detail")
+                "shade_colour", "old_shade", "relit_detail")
 
 
 def summarize(results: Sequence[PhotoResult]) -> dict[str, float]:
@@ -634,7 +675,7 @@ def render_table(report: dict[str, Any]) -> str:
     """The per-photo results and their means as a Markdown table."""
     head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | "
             "Shuffled / swept (own) | Sky claim | De-shadow in / out | "
-            "Relit chroma / sky / new shade / old shade / detail | s |")
+            "Relit chroma / sky / new shade (colour) / old shade / detail | s |")
     lines = [head, "|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(v: Any, d: int = 3) -> str:
@@ -649,7 +690,8 @@ def render_table(report: dict[str, Any]) -> str:
             f"{f(r['otsu_ber'])} | {f(r['shuffled_ber'])} / {f(r.get('swept_shuffled_ber'))} "
             f"({f(r.get('swept_own_ber'))}) | "
             f"{f(r['sky_claim'])} | {ds} | "
-            f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} / {f(r.get('new_shade'), 2)} / "
+            f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} / {f(r.get('new_shade'), 2)} "
+            f"({f(r.get('shade_colour'), 2)}) / "
             f"{f(r.get('old_shade'), 2)} / {f(r.get('relit_detail'), 2)} | "
             f"{f(r['seconds'], 1)} |")
     m = report["mean"]
@@ -662,7 +704,8 @@ def render_table(report: dict[str, Any]) -> str:
         f"({f(m.get('swept_own_ber'))}) | "
         f"{f(m.get('sky_claim'))} | {ds} | "
         f"{f(m.get('relit_chroma'), 2)} / {f(m.get('relit_sky'), 2)} / "
-        f"{f(m.get('new_shade'), 2)} / {f(m.get('old_shade'), 2)} / "
+        f"{f(m.get('new_shade'), 2)} ({f(m.get('shade_colour'), 2)}) / "
+        f"{f(m.get('old_shade'), 2)} / "
         f"{f(m.get('relit_detail'), 2)} | {f(m.get('seconds'), 1)} |")
     return "\n".join(lines)
 

@@ -57,6 +57,7 @@ from outcast_core.runtime.pipeline.depth_post import postprocess_z, run_depth_mo
 from outcast_core.runtime.pipeline.photo_shadows import (
     LIT_FLOOR,
     PRIOR_RADIUS,
+    SKY_SHADE_SHIFT,
     ShadowEdit,
     apply_edit_masks,
     deshadow,
@@ -67,6 +68,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     material_guard,
     near_predicted_shadow,
     original_shadow_from_photo,
+    photo_shade_shift,
     photo_shadow_probability,
     shadow_edit_masks,
 )
@@ -324,6 +326,11 @@ class RelightSession:
         #: puts a shadow (:meth:`_lift_guard`), and no brighter than the de-shadowed photo
         #: relit by physics (:meth:`_lift_inputs`; measured in that docstring).
         self.lift_new_light = True
+        #: With the colour guard, learned relighting gives newly shadowed surfaces the photo's
+        #: colour turned by the shift of its own shade's colour
+        #: (:func:`~outcast_core.runtime.pipeline.relight.shaded_colour`,
+        #: :func:`~outcast_core.runtime.pipeline.photo_shadows.photo_shade_shift`).
+        self.shade_colour = True
         self._daylight = True
         self._tilt: tuple[float, float] | None = None
         self._photo_path: str | None = None
@@ -544,6 +551,8 @@ class RelightSession:
         self._shadow_cache = _LRU()
         self._relight_cache = _LRU()
         self._light: LightEstimate | None = None
+        #: The photo's shade colour shift (photo_shadows.photo_shade_shift), at its sun.
+        self._shade_shift: tuple[float, float] = SKY_SHADE_SHIFT
         self._deshadowed: np.ndarray | None = None
         self._lifted: np.ndarray | None = None
         #: Where the photo's own shadows are (``H x W`` in [0, 1]), set by set_original_sun().
@@ -867,6 +876,7 @@ class RelightSession:
         self.shadow_probability = prob
         # What the user calls "not a shadow" is no lit surface either (a dark material).
         self._light = estimate_light(srgb_to_linear(self.image_srgb), s, self._lift_excluded)
+        self._shade_shift = photo_shade_shift(self.image_srgb, prob > 0.5, ~self._lift_excluded)
         self._relight_cache.clear()
         self._deshadowed = None
         self._lifted = None
@@ -1340,7 +1350,10 @@ class RelightSession:
                                      anchor=self.exposure_anchor, detail=self.keep_detail,
                                      lift=lift, keep_old=keep_old, detail_cache=cache,
                                      physics_at=self._user_materials(s_o.shape),
-                                     daylight=daylight, **inputs)
+                                     daylight=daylight,
+                                     shade_shift=self._shade_shift if self.shade_colour
+                                     else None,
+                                     **inputs)
 
     def _user_materials(self, shape: tuple[int, int]) -> np.ndarray | None:
         """What the user marked "not a shadow" (dark materials), softened by a working pixel,

@@ -633,7 +633,7 @@ def test_a_sun_the_photos_open_sky_would_show_is_ruled_out(monkeypatch: pytest.M
     # Every sun the shadows fit stands in the open sky: no sun is found, and the note says why.
     monkeypatch.setattr(auto_sun, "open_sky_suns", lambda _s, v: np.ones(len(v), bool))
     fit = find_sun(session)
-    assert not fit.found and fit.confidence == 0.0 and fit.unfound == "no-fit"
+    assert not fit.found and fit.confidence == 0.0 and fit.unfound == "open-sky"
     assert "would stand in its open sky, which shows no sun" in fit.note
 
 
@@ -646,7 +646,9 @@ def test_open_sky_suns_needs_the_whole_disc_on_a_sky_that_shows_no_sun() -> None
     sky = np.zeros((H, W), bool)
     sky[:30] = True  # the top 30 rows: open sky
     sky[10:20, 40:50] = False  # a tree in it
-    session = SimpleNamespace(sky=sky, camera=cam, sun_seen=None)
+    image = np.full((H, W, 3), (0.45, 0.6, 0.9), np.float32)  # clear blue
+    image[:30, 60:] = 0.97  # haze on the right, near white
+    session = SimpleNamespace(sky=sky, camera=cam, sun_seen=None, image_srgb=image)
 
     def toward(u: float, v: float) -> np.ndarray:
         d = np.array([(u - cam.cx) / cam.focal, (v - cam.cy) / cam.focal, 1.0])
@@ -661,12 +663,13 @@ def test_open_sky_suns_needs_the_whole_disc_on_a_sky_that_shows_no_sun() -> None
         toward(1, 12),  # at the frame's edge: the disc leaves the frame
         toward(20, 60),  # on the ground
         -toward(20, 12),  # behind the camera
+        toward(75, 12),  # in the haze: a sun there may be hidden
     ])
     np.testing.assert_array_equal(open_sky_suns(session, suns),
-                                  [True, False, True, False, False, False, False])
+                                  [True, False, True, False, False, False, False, False])
     # A photo that shows its sun rules nothing out (the sun it shows is the sun); nor does a
     # photo without sky.
-    assert not open_sky_suns(SimpleNamespace(sky=sky, camera=cam, sun_seen=object()),
-                             suns).any()
+    assert not open_sky_suns(SimpleNamespace(sky=sky, camera=cam, sun_seen=object(),
+                                             image_srgb=image), suns).any()
     assert not open_sky_suns(SimpleNamespace(sky=np.zeros_like(sky), camera=cam,
-                                             sun_seen=None), suns).any()
+                                             sun_seen=None, image_srgb=image), suns).any()

@@ -469,3 +469,39 @@ def test_session_lift_expects_the_clear_sky_shade_colour(
     shifts.clear()
     s.deshadow()
     assert shifts == [("deshadow", ps.SHADE_SHIFT)]
+
+
+def test_the_photos_own_shade_shift_is_measured_at_its_shadows_edges() -> None:
+    """New shade takes the colour shift of the photo's own shade (the relighting's
+    ``shaded_colour``): measured between its found shadows and the lit ring round them, along
+    clear-sky shade's direction, within its range; the clear sky's shift without enough of
+    either; a warmer "shade" (a dark material) counts as none."""
+    from outcast_core.runtime.geometry.colour import linear_to_srgb
+    from outcast_core.runtime.pipeline.photo_shadows import (
+        SHIFT_RANGE,
+        SKY_SHADE_SHIFT,
+        photo_shade_shift,
+    )
+
+    sky_dir = np.asarray(SKY_SHADE_SHIFT)
+
+    def photo(t: float) -> tuple[np.ndarray, np.ndarray]:
+        lit = np.array([0.6, 0.45, 0.3], np.float32)  # linear, a warm paving
+        shade = 0.1 * lit * np.exp(np.array([t * sky_dir[0], 0.0, t * sky_dir[1]]))
+        lin = np.tile(lit, (60, 80, 1))
+        found = np.zeros((60, 80), bool)
+        found[15:45, 20:60] = True
+        lin[found] = shade
+        return linear_to_srgb(lin.astype(np.float32)), found
+
+    surface = np.ones((60, 80), bool)
+    for t in (0.0, 0.5, 1.0, 1.4):
+        image, found = photo(t)
+        got = np.asarray(photo_shade_shift(image, found, surface))
+        assert np.allclose(got, t * sky_dir, atol=0.02), (t, got)
+    image, found = photo(3.0)  # bluer than the range allows
+    assert np.allclose(photo_shade_shift(image, found, surface), SHIFT_RANGE[1] * sky_dir)
+    image, found = photo(-1.0)  # warmer than the lit surface: not the sky's shade
+    assert np.allclose(photo_shade_shift(image, found, surface), (0.0, 0.0))
+    image, found = photo(1.0)
+    assert photo_shade_shift(image, np.zeros_like(found), surface) == SKY_SHADE_SHIFT

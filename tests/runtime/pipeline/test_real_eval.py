@@ -243,6 +243,37 @@ def test_new_shade_ratio_compares_new_shadows_with_the_photos_own() -> None:
     assert new_shade_ratio(img, same, so, np.ones_like(sn), prob, sky) is None  # no new shadow
 
 
+def test_shade_colour_gap_compares_the_new_shades_colour_with_the_photos_own() -> None:
+    """0 when the new shade turns as the photo's own shade does against its lit ring; the
+    distance of the two chromaticity shifts otherwise; None without a new shadow, a marked
+    one, or its lit ring (the sky is neither)."""
+    from outcast_core.runtime.geometry.colour import log_chromaticity, srgb_to_linear
+    from outcast_core.runtime.pipeline.real_eval import shade_colour_gap
+
+    lit_colour, shade_colour = (0.8, 0.7, 0.55), (0.25, 0.25, 0.3)
+    img = np.full((60, 80, 3), lit_colour, np.float32)
+    img[10:30, 10:30] = shade_colour  # the photo's own (marked) shadow
+    marked = np.zeros((60, 80), bool)
+    marked[10:30, 10:30] = True
+    so = np.where(marked, 0.0, 0.9).astype(np.float32)
+    sn = so.copy()
+    sn[40:, 40:] = 0.0  # the new sun's shadow
+    sky = np.zeros((60, 80), bool)
+    same = img.copy()
+    same[40:, 40:] = shade_colour
+    assert shade_colour_gap(img, same, marked, so, sn, sky) == pytest.approx(0.0, abs=1e-4)
+    grey = img.copy()
+    grey[40:, 40:] = 0.25
+    want = np.hypot(*(log_chromaticity(srgb_to_linear(np.float32(shade_colour)), 1e-3)
+                      - log_chromaticity(srgb_to_linear(np.full(3, 0.25, np.float32)), 1e-3)))
+    assert shade_colour_gap(img, grey, marked, so, sn, sky) == pytest.approx(want, rel=1e-3)
+    assert shade_colour_gap(img, same, marked, so, so, sky) is None  # no new shadow
+    assert shade_colour_gap(img, same, np.zeros_like(marked), so, sn, sky) is None
+    all_sky = np.ones_like(sky)
+    all_sky[40:, 40:] = False  # only the new shadow is surface: no marked edge to compare
+    assert shade_colour_gap(img, same, marked, so, sn, all_sky) is None
+
+
 def test_old_shade_ratio_measures_the_old_shadow_left_where_the_new_sun_lights_it() -> None:
     from outcast_core.runtime.pipeline.real_eval import old_shade_ratio
 

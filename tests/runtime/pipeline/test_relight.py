@@ -472,6 +472,65 @@ def test_lifted_old_shadow_takes_the_lit_surroundings_colour() -> None:
     assert np.allclose(ab(coloured, material), ab(plain, material), atol=0.1)
 
 
+def test_new_shade_takes_the_skys_colour_and_nothing_else_moves() -> None:
+    """Where the new sun newly shadows a surface, the guarded relighting gives it the photo's
+    colour turned by the clear-sky shade shift, at the relit brightness: bluer than the lit
+    surface, whatever the relighting's own colour there (a neutral ``L`` gave the pool
+    sample's white shelf brownish-violet new shade). Surfaces lit by both suns, the photo's
+    own shade and the sky keep what the guards gave them before."""
+    from outcast_core.runtime.geometry.colour import luminance
+    from outcast_core.runtime.pipeline.photo_shadows import SKY_SHADE_SHIFT
+    from outcast_core.runtime.pipeline.relight import guard_learned_relight, shade_weight
+
+    h, w = 40, 60
+    image = np.full((h, w, 3), [0.8, 0.7, 0.55], np.float32)  # warm sunlit paving
+    image[:, :15] = [0.25, 0.24, 0.26]  # the photo's own shade
+    sky = np.zeros((h, w), bool)
+    sky[:6] = True
+    image[sky] = [0.5, 0.7, 0.95]
+    s_old = np.where(np.arange(w) < 15, 0.0, 0.9)[None].repeat(h, 0).astype(np.float32)
+    s_new = s_old.copy()
+    s_new[:, 40:] = 0.0  # the new sun's shadow on the right
+    s_old[sky] = s_new[sky] = 0.0
+    light = estimate_light(srgb_to_linear(image), s_old, sky)
+    relit = image.copy()
+    relit[:, 40:] = 0.3 * image[:, 40:]  # a relighting that darkens the new shade, no colour
+    kwargs = dict(keep_sky=True, floor=False, anchor=False, detail=False)
+    plain = guard_learned_relight(image, relit, s_old, s_new, sky, light, **kwargs)
+    shaded = guard_learned_relight(image, relit, s_old, s_new, sky, light,
+                                   shade_shift=SKY_SHADE_SHIFT, **kwargs)
+    lin_p, lin_s = srgb_to_linear(plain), srgb_to_linear(shaded)
+    new_shade = (slice(6, None), slice(44, None))
+    log_br = lambda x: np.log(x[..., 2] / x[..., 0])[new_shade].mean()  # noqa: E731
+    shift = SKY_SHADE_SHIFT[1] - SKY_SHADE_SHIFT[0]  # log B/R: 0.67
+    photo = log_br(srgb_to_linear(image))
+    assert abs(log_br(lin_p) - photo) < 0.2  # (0.3 x sRGB is not a pure change of intensity)
+    assert log_br(lin_s) - photo == pytest.approx(shift, abs=0.01)
+    np.testing.assert_allclose(luminance(lin_s)[new_shade], luminance(lin_p)[new_shade],
+                               rtol=0.02)
+    untouched = np.ones((h, w), bool)
+    untouched[6:, 40:] = False
+    np.testing.assert_allclose(shaded[untouched], plain[untouched], atol=1e-6)
+    # The weight: full in new shade, none where both light it or the photo was in shade.
+    weight = shade_weight(s_old, s_new)
+    assert weight[20, 50] == 1.0 and weight[20, 30] == 0.0 and weight[20, 5] == 0.0
+    # A soft new shadow's edge (S_n from 0.4 down to 0): the colour turns in step by step, with
+    # no seam where the weight starts (a review: it once jumped to the photo's colour there).
+    soft = s_old.copy()
+    soft[:, 15:] = np.linspace(0.4, 0.0, w - 15, dtype=np.float32)
+    violet = relit.copy()
+    violet[:, 15:] = [0.3, 0.3, 0.45]  # a relighting's own tint in the new shade
+
+    def steps(shift: tuple[float, float] | None) -> np.ndarray:  # log B/R along a row
+        out = srgb_to_linear(guard_learned_relight(image, violet, s_old, soft, sky, light,
+                                                   shade_shift=shift, **kwargs))
+        return np.log(out[20, 15:, 2] / out[20, 15:, 0])
+
+    turned, plain = steps(SKY_SHADE_SHIFT), steps(None)
+    assert np.abs(np.diff(turned)).max() <= np.abs(np.diff(plain)).max() + 1e-6
+    assert turned[-1] == pytest.approx(photo + shift, abs=0.01)  # full shade: the shift
+
+
 def test_the_sun_the_photo_showed_leaves_with_it() -> None:
     from outcast_core.runtime.pipeline.relight import remove_sun_glare
 
