@@ -1017,8 +1017,9 @@ def guard_learned_relight(
         if shade_shift is not None:  # (the new shadow as cast, not smoothed: its colour
             # stays off surfaces both suns light)
             shaded = np.where(np.asarray(sky, bool), np.float32(1.0), shadow_new)  # (no sky)
-            out = shaded_colour(image_srgb, out, shadow_old, shaded, shade_shift)
-            kept = np.clip(kept + shade_weight(shadow_old, shaded), 0.0, 1.0)
+            down = shade_weight(shadow_old, shaded)
+            out = shaded_colour(image_srgb, out, down, shade_shift)
+            kept = np.clip(kept + down, 0.0, 1.0)
     elif keep_sky:  # the photo's sky with or without the colour guard
         out = np.where(np.asarray(sky, bool)[..., None], np.asarray(image_srgb, np.float32), out)
     if gain is not None and (kept is not None or keep_sky):
@@ -1082,11 +1083,12 @@ def lifted_colour(relit_srgb: np.ndarray, weight: np.ndarray, lit_ab: np.ndarray
 SHADE_LEVEL = 0.15
 
 
-def shaded_colour(image_srgb: np.ndarray, relit_srgb: np.ndarray, shadow_old: np.ndarray,
-                  shadow_new: np.ndarray, shift: tuple[float, float]) -> np.ndarray:
-    """The relit photo where the new sun newly shadows a surface (:func:`shade_weight`) in the
-    photo's colour turned by the shade's chromaticity shift ``shift`` (``(log R/G, log B/G)``
-    of shade over lit), with the relit luminance.
+def shaded_colour(image_srgb: np.ndarray, relit_srgb: np.ndarray, weight: np.ndarray,
+                  shift: tuple[float, float]) -> np.ndarray:
+    """The relit photo where the new sun newly shadows a surface (``weight``, ``H x W`` in
+    [0, 1]: :func:`shade_weight`) in the photo's colour turned by the shade's chromaticity
+    shift ``shift`` (``(log R/G, log B/G)`` of shade over lit), with the relit luminance,
+    blended in by the weight.
 
     New shade is lit by the sky alone, so it is bluer than the lit surface, by one shift for
     every material (a change of the light's colour multiplies each channel). ``L`` and
@@ -1103,25 +1105,27 @@ def shaded_colour(image_srgb: np.ndarray, relit_srgb: np.ndarray, shadow_old: np
     Example:
         >>> img = np.full((4, 4, 3), 0.5, np.float32); relit = img * 0.4
         >>> so = np.ones((4, 4), np.float32); sn = so.copy(); sn[:, 2:] = 0.0
-        >>> out = shaded_colour(img, relit, so, sn, (-0.25, 0.42))
+        >>> out = shaded_colour(img, relit, shade_weight(so, sn), (-0.25, 0.42))
         >>> bool(np.allclose(out[:, :2], relit[:, :2]) and out[0, 3, 2] > out[0, 3, 0])
         True
     """
     relit = np.asarray(relit_srgb, np.float32)
-    w = shade_weight(shadow_old, shadow_new)
+    w = np.clip(np.asarray(weight, np.float32), 0.0, 1.0)
     if w.shape != relit.shape[:2]:
-        raise ValueError(f"expected shadow images of the image's size {relit.shape[:2]}, got "
+        raise ValueError(f"expected a weight of the image's size {relit.shape[:2]}, got "
                          f"{w.shape}")
     where = w > 0
     if not where.any():
         return relit
-    lin_r = srgb_to_linear(relit)
+    # Only those pixels change (the drag preview runs this on every frame): converted alone.
+    lin_r = srgb_to_linear(relit[where])
     tint = np.exp(np.array([shift[0], 0.0, shift[1]], np.float32))
     turned = srgb_to_linear(np.asarray(image_srgb, np.float32)[where]) * tint
-    turned *= (luminance(lin_r[where]) / np.maximum(luminance(turned), 1e-6))[:, None]
+    turned *= (luminance(lin_r) / np.maximum(luminance(turned), 1e-6))[:, None]
     k = w[where][:, None]  # blended in: no seam where the weight starts
-    lin_r[where] = np.clip(k * turned + (1.0 - k) * lin_r[where], 0.0, 1.0)
-    return linear_to_srgb(lin_r)
+    out = relit.copy()
+    out[where] = linear_to_srgb(np.clip(k * turned + (1.0 - k) * lin_r, 0.0, 1.0))
+    return out
 
 
 def shade_weight(shadow_old: np.ndarray, shadow_new: np.ndarray) -> np.ndarray:
