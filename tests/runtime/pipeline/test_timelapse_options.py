@@ -44,7 +44,7 @@ def _sweep(photo: Path, out: str, *extra: str) -> list[str]:
         (["--fps", "nan"], "frames per second"),
         (["--frames", "1000000000000"], "frame count"),
         (["--frames", "0"], "frame count"),
-        (["--from", "273,95"], "elevation in [-90, 90]"),
+        (["--from", "273,95"], "elevation from 0 (the horizon) to 90 (overhead)"),
         (["--from", "nan,30"], "finite azimuth"),
         (["--sweep", "90,20:270,100"], "elevation in [-90, 90]"),
         (["--lat", "91"], "latitude"),
