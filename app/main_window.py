@@ -2389,24 +2389,38 @@ class MainWindow(QMainWindow):
             return
         stem = Path(self.image_path).stem
         az, el = self.relight_panel.sun_panel.sun()
-        suggestion = str(Path(self.image_path).with_name(f"{stem}_relit_az{az:.0f}_el{el:.0f}.png"))
-        path = self._ask_still_path("Export relit photo", suggestion)
+        path = self._ask_still_path("Export relit photo", f"{stem}_relit_az{az:.0f}_el{el:.0f}")
         if path:
             self.export_still(path, force=True)
 
-    def _ask_still_path(self, title: str, suggestion: str) -> str | None:
-        """Where to write a still (None: cancelled). The file dialog asks before replacing an
-        existing file, so a confirmed name may be overwritten; a name typed without an
-        extension takes the chosen type's, asked about again when that file exists
-        (:meth:`may_write_completed`); nothing is ever replaced without a question."""
-        typed, chosen = QFileDialog.getSaveFileName(self, title, suggestion, STILL_FILTERS)
+    def _ask_still_path(self, title: str, name: str) -> str | None:
+        """Where to write a still named ``name`` (without its extension; None: cancelled). The
+        dialog opens in the folder of the last still exported, with its type (a user trial:
+        it always offered a PNG beside the photo), else beside the photo as a PNG. The file
+        dialog asks before replacing an existing file, so a confirmed name may be
+        overwritten; a name typed without an extension takes the chosen type's, asked about
+        again when that file exists (:meth:`may_write_completed`); nothing is ever replaced
+        without a question."""
+        filters = STILL_FILTERS.split(";;")
+        folder = str(self.settings.value("export_folder", "") or "")
+        if not folder or not os.path.isdir(folder):
+            folder = str(Path(self.image_path).parent)
+        kind = str(self.settings.value("export_filter", "") or "")
+        kind = kind if kind in filters else filters[0]
+        suffix = kind[kind.index("(*") + 2:].split()[0].rstrip(")")  # its first extension
+        typed, chosen = QFileDialog.getSaveFileName(
+            self, title, str(Path(folder) / f"{name}{suffix}"), STILL_FILTERS, kind)
         if not typed:
             return None
         from outcast_core.runtime.io.imageio import WRITE_EXTENSIONS
 
-        path = with_filter_extension(typed, chosen or STILL_FILTERS.split(";;")[0],
-                                     WRITE_EXTENSIONS)
-        return path if self.may_write_completed(typed, path) else None
+        path = with_filter_extension(typed, chosen or kind, WRITE_EXTENSIONS)
+        if not self.may_write_completed(typed, path):
+            return None
+        self.settings.setValue("export_folder", str(Path(path).parent))
+        self.settings.setValue("export_filter", next(
+            (f for f in filters if f"*{Path(path).suffix.lower()}" in f), kind))
+        return path
 
     def may_write_completed(self, typed: str, path: str) -> bool:
         """Whether an export may write ``path``, the name ``typed`` in a save dialog with an
@@ -2445,8 +2459,7 @@ class MainWindow(QMainWindow):
         if self.step is not Step.RELIGHT:
             return
         stem = Path(self.image_path).stem
-        suggestion = str(Path(self.image_path).with_name(f"{stem}_shadows_removed.png"))
-        path = self._ask_still_path("Export shadows removed", suggestion)  # as the still's
+        path = self._ask_still_path("Export shadows removed", f"{stem}_shadows_removed")
         if path:
             self.export_shadows_removed(path, force=True)
 

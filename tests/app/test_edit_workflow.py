@@ -1017,3 +1017,43 @@ def test_the_save_question_has_words_for_every_part_of_the_edit_state():
     from app.history import _PART_WORDS, EditState
 
     assert {name for name, _ in _PART_WORDS} == {f.name for f in fields(EditState)}
+
+
+def test_the_still_export_remembers_the_last_folder_and_type(
+        window, photo, settle, tmp_path, monkeypatch, errors):
+    """A user trial: the export dialog always offered a PNG beside the photo. It opens where
+    the last still went, with that type, for both kinds of still; a folder that has gone
+    away falls back to the photo's."""
+    from PySide6.QtWidgets import QFileDialog
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    asked: list[tuple[str, str]] = []
+    answer: list[str] = []
+
+    def fake_save(parent, title, suggestion, filters, selected="", *rest, **kw):
+        asked.append((suggestion, selected))
+        return (answer[0], "JPEG image (*.jpg *.jpeg)") if answer else ("", "")
+
+    monkeypatch.setattr(QFileDialog, "getSaveFileName", staticmethod(fake_save))
+    window.act_export.trigger()  # first: beside the photo, a PNG
+    settle()
+    stem = Path(photo).stem
+    assert Path(asked[0][0]).parent == Path(photo).parent
+    assert Path(asked[0][0]).name.startswith(f"{stem}_relit_") and asked[0][0].endswith(".png")
+    assert asked[0][1].startswith("PNG")
+    out = tmp_path / "exports"
+    out.mkdir()
+    answer.append(str(out / "mine"))  # typed without an extension, JPEG chosen
+    window.act_export.trigger()
+    settle()
+    assert errors == [] and (out / "mine.jpg").is_file()
+    answer.clear()
+    window.act_export_deshadow.trigger()  # then: that folder and that type
+    settle()
+    assert asked[-1] == (str(out / f"{stem}_shadows_removed.jpg"), "JPEG image (*.jpg *.jpeg)")
+    (out / "mine.jpg").unlink()
+    out.rmdir()
+    window.act_export.trigger()  # the folder is gone: the photo's, still as a JPEG
+    settle()
+    assert Path(asked[-1][0]).parent == Path(photo).parent and asked[-1][0].endswith(".jpg")
