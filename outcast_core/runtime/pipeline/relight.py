@@ -660,7 +660,7 @@ def shadow_contrast_floor(
     out = lin_r * (y / y_r)[..., None]
     # Newly shadowed: physics' colour (the photo's own shade colour, from its measured sun/sky
     # ratio per channel) at that luminance; the session's guards then give full new shade
-    # the photo's colour turned by clear-sky shade's shift instead (shaded_colour: the
+    # the photo's colour turned by its own shade's shift instead (shaded_colour: the
     # measured ratio gave new shade a fifth of the photos' own blue shift).
     if down.any():
         lin_p = srgb_to_linear(np.asarray(physics_srgb, np.float32))
