@@ -288,6 +288,14 @@ def run_batch_command(args: argparse.Namespace) -> int:
         print("outcast batch: note: a day's first and last frames, the sun at the horizon, come "
               "out dark where the photo's exposure is kept (a project's \"Meter the new "
               "light\" meters them); --exposure metered meters every frame", file=sys.stderr)
+    unused = sum(row["to_sun"] is not None for row in targets or ()) if (
+        options.kind != "relight") else 0
+    if unused and not args.quiet:  # (a user trial: they were ignored without a word)
+        what = "--deshadow" if options.kind == "deshadow" else (
+            "--sweep" if options.sweep else "--day")
+        print(f"outcast batch: note: {what} uses no new sun: the targets CSV's to_az, to_el "
+              f"of {unused} photo{'s' if unused != 1 else ''} are left unused (its photos, "
+              "original suns and output names are used)", file=sys.stderr)
     if options.kind == "relight" and options.to_sun is None and targets is None and jobs:
         print("outcast batch: note: no --to or --targets: each photo's project gives the new "
               "sun", file=sys.stderr)

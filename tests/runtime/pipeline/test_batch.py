@@ -446,6 +446,17 @@ def test_targets_csv(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None
     assert by_out["a_noon.png"]["sun_source"] == "csv"
     assert by_out["a_noon.png"]["to_sun"] == [270.0, 60.0]
     assert by_out["b.png"]["sun_source"] == "given"
+    # A de-shadow batch with the same table uses its photos, suns and names, and says that
+    # the new suns go unused (a user trial: they were ignored without a word).
+    good = tmp_path / "good.csv"
+    good.write_text("image,to_az,to_el,from_az,from_el,output\na.png,90,30,200,40,a_clean.png\n"
+                    "b.png,,,,,\n")
+    code = main(["batch", str(d), "-o", str(tmp_path / "clean"), "--targets", str(good),
+                 "--deshadow", "--from", "10,45", "--mode", "classic", "--preset", "fast"])
+    err = capsys.readouterr().err
+    assert code == 0 and (tmp_path / "clean" / "a_clean.png").is_file()
+    assert ("note: --deshadow uses no new sun: the targets CSV's to_az, to_el of 1 photo are "
+            "left unused") in err
 
     bad = tmp_path / "bad.csv"
     bad.write_text("photo,to_az\nx,1\n")
