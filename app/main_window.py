@@ -2407,9 +2407,8 @@ class MainWindow(QMainWindow):
             folder = str(Path(self.image_path).parent)
         kind = str(self.settings.value("export_filter", "") or "")
         kind = kind if kind in filters else filters[0]
-        suffix = kind[kind.index("(*") + 2:].split()[0].rstrip(")")  # its first extension
-        typed, chosen = QFileDialog.getSaveFileName(
-            self, title, str(Path(folder) / f"{name}{suffix}"), STILL_FILTERS, kind)
+        suggestion = with_filter_extension(str(Path(folder) / name), kind, ())
+        typed, chosen = QFileDialog.getSaveFileName(self, title, suggestion, STILL_FILTERS, kind)
         if not typed:
             return None
         from outcast_core.runtime.io.imageio import WRITE_EXTENSIONS

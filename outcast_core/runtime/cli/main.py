@@ -66,12 +66,6 @@ BELOW_HORIZON = (
 )
 
 
-def parse_azel(text: str) -> np.ndarray:
-    """``"AZ,EL"`` in degrees (elevation 0-90: a sun below the horizon is refused) -> camera-space
-    unit sun vector."""
-    return sun_vector(*azel_angles(text))
-
-
 def sun_pair(text: str) -> tuple[float, float]:
     """The argparse type of every command's still sun (``--from``, ``--to``, ``--sun``):
     ``(az, el)`` by :func:`azel_angles`, so that a bad value is refused naming its flag, by one

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from outcast_core.runtime.cli.main import main, parse_azel, parse_vector
+from outcast_core.runtime.cli.main import azel_angles, main, parse_vector
 from outcast_core.runtime.io.imageio import read_image, read_shadow_png, write_depth
 from tests.runtime.scenes import box_scene_depth
 
@@ -26,13 +26,13 @@ def depth_file(tmp_path: Path) -> Path:
 
 
 def test_parse_angles() -> None:
-    np.testing.assert_allclose(parse_azel("90,0"), [1, 0, 0], atol=1e-12)
+    assert azel_angles("90,0") == (90.0, 0.0) and azel_angles("400,30") == (400.0, 30.0)
     np.testing.assert_allclose(parse_vector("0,0,-2"), [0, 0, -1])
     for bad in ("90", "a,b", "10,95", "nan,10"):
         with pytest.raises(ValueError, match="AZ,EL"):
-            parse_azel(bad)
+            azel_angles(bad)
     with pytest.raises(ValueError, match=r"from 0 \(the horizon\) to 90"):  # not "[-90, 90]"
-        parse_azel("10,95")
+        azel_angles("10,95")
     with pytest.raises(ValueError):
         parse_vector("0,0,0")
     # A sun below the horizon is refused as --sun's is (a user trial's 0,1,0 cast shadows

@@ -16,14 +16,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from outcast_core.runtime.cli.main import build_parser, main, parse_azel
+from outcast_core.runtime.cli.main import azel_angles, build_parser, main
 from outcast_core.runtime.pipeline.timelapse import MIN_RENDER_ELEVATION, sun_vectors, sweep_path
 
 
-def test_parse_azel_refuses_a_sun_below_the_horizon():
-    np.testing.assert_allclose(parse_azel("90,0"), [1, 0, 0], atol=1e-12)  # the horizon is fine
+def test_azel_angles_refuses_a_sun_below_the_horizon():
+    assert azel_angles("90,0") == (90.0, 0.0)  # the horizon is fine
     with pytest.raises(ValueError, match="at or above the horizon.*not twilight"):
-        parse_azel("90,-10")
+        azel_angles("90,-10")
 
 
 def _exit_code(args: list[str]) -> int:

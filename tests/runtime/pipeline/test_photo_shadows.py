@@ -267,7 +267,7 @@ def test_cli_deshadow_mask_is_what_the_de_shadow_lifts(
     ``lifted_shadows`` for a photo found at the working size (200 px, fast),
     ``lift_probability`` at ``found_shadows_detail``'s size otherwise, upsampled bilinearly to
     the photo's size (``DETAIL_SIDE`` 200 for a 400 px photo)."""
-    from outcast_core.runtime.cli.main import parse_azel
+    from outcast_core.runtime.geometry.camera import sun_vector
     from outcast_core.runtime.pipeline import session as session_module
 
     monkeypatch.setattr(session_module, "DETAIL_SIDE", detail_side)
@@ -282,7 +282,7 @@ def test_cli_deshadow_mask_is_what_the_de_shadow_lifts(
     assert written.shape == (n, n)
     s = RelightSession(mode="classic", preset="fast")
     s.set_image(read_image(photo).image_srgb, depth=depth)
-    s.set_original_sun(parse_azel("45,35"))
+    s.set_original_sun(sun_vector(45.0, 35.0))
     d = s.found_shadows_detail()
     if n == 200:  # found and lifted at the working size: exactly what the app tints
         assert d["image"] is s.image_srgb
