@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from outcast_core.runtime.geometry.colour import (
+    LUMA_709,
     lab_to_linear,
     lightness,
     linear_to_lab,
@@ -98,6 +99,38 @@ def estimate_light(
         return LightEstimate(PRIOR_RATIO.copy(), False, n_lit, n_shd)
     ratio = np.clip(ratio, *RATIO_RANGE).astype(np.float32)
     return LightEstimate(ratio, True, n_lit, n_shd)
+
+
+def shade_coloured_light(light: LightEstimate, shift: tuple[float, float]) -> LightEstimate:
+    """``light`` whose full shade has the chromaticity shift ``shift`` (``(log R/G, log B/G)``
+    of shade against the lit surface, as :func:`~outcast_core.runtime.pipeline.photo_shadows.
+    photo_shade_shift` measures it on the photo), at the same strength.
+
+    Full shade over lit is ``1 / (1 + r)`` per channel, so its shift is ``(k_G - k_R, k_G -
+    k_B)`` with ``k = log(1 + r)``. The ratio :func:`estimate_light` measures from medians of
+    whatever the photo calls lit and shadowed carries those surfaces' colours as well as the
+    light's: on the 47 dev photos physics relighting gave new shade a fifth of the photos' own
+    blue shift, and on the pool sample a ratio bluer than red (``r`` 14.8 / 31.9 in R / B)
+    turned new shade brownish (``models/EVAL.md``, fifteenth and sixteenth sessions). Here
+    ``k``'s Rec. 709 luminance-weighted mean is kept (how much the sun outshines the sky) and
+    its colour set by ``shift``; the result is kept within :data:`RATIO_RANGE`.
+
+    Example:
+        >>> light = LightEstimate(np.array([9.0, 9.0, 9.0], np.float32), True, 100, 100)
+        >>> r = shade_coloured_light(light, (-0.25, 0.42)).ratio
+        >>> bool(r[0] > r[1] > r[2])  # a warm sun over a blue sky: shade turns blue
+        True
+        >>> k = np.log1p(r.astype(np.float64))
+        >>> bool(np.allclose([k[1] - k[0], k[1] - k[2]], [-0.25, 0.42], atol=1e-3))
+        True
+    """
+    k = np.log1p(np.clip(np.asarray(light.ratio, np.float64), *RATIO_RANGE))
+    w = LUMA_709.astype(np.float64)
+    d_r, d_b = (float(x) for x in shift)
+    k_g = float(w @ k) + w[0] * d_r + w[2] * d_b
+    ratio = np.clip(np.expm1(np.array([k_g - d_r, k_g, k_g - d_b])), *RATIO_RANGE)
+    return LightEstimate(ratio.astype(np.float32), light.measured, light.lit_pixels,
+                         light.shadow_pixels)
 
 
 def estimate_light_on_surfaces(

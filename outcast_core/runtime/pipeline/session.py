@@ -87,6 +87,7 @@ from outcast_core.runtime.pipeline.relight import (
     original_share,
     physics_relight,
     remove_sun_glare,
+    shade_coloured_light,
     shadow_toward_original,
     smooth_new_shadow,
     snap_shadow_to_photo,
@@ -329,7 +330,8 @@ class RelightSession:
         #: With the colour guard, learned relighting gives newly shadowed surfaces the photo's
         #: colour turned by the shift of its own shade's colour
         #: (:func:`~outcast_core.runtime.pipeline.relight.shaded_colour`,
-        #: :func:`~outcast_core.runtime.pipeline.photo_shadows.photo_shade_shift`).
+        #: :func:`~outcast_core.runtime.pipeline.photo_shadows.photo_shade_shift`); physics
+        #: relighting takes a light of that colour (:meth:`_relight_light`).
         self.shade_colour = True
         self._daylight = True
         self._tilt: tuple[float, float] | None = None
@@ -1059,6 +1061,16 @@ class RelightSession:
     def light_estimate(self) -> LightEstimate | None:
         return self._light
 
+    def _relight_light(self) -> LightEstimate | None:
+        """The light a relighting takes: the measured one (:attr:`light_estimate`), in
+        physics mode with :attr:`shade_colour` turned to the photo's own shade colour
+        (:func:`~outcast_core.runtime.pipeline.relight.shade_coloured_light`); the learned
+        relighting's guards give new shade that colour themselves (``shade_shift``)."""
+        light = self._light
+        if light is None or self.relight_mode == "learned" or not self.shade_colour:
+            return light
+        return shade_coloured_light(light, self._shade_shift)
+
     # ------------------------------------------------------------------ relighting
     def relight(self, w_new: Any, *, preview: bool = False,
                 exposure: str | None = None) -> np.ndarray:
@@ -1174,18 +1186,19 @@ class RelightSession:
         image = st["image"]
         up = self.horizon_up()
         change = self._daylight_change(self._daylight, self.original_sun, wv, up)
-        gain = self._daylight_gain(change, s_new, st["sky"], self._light, up, st["view_dirs"])
+        light = self._relight_light()
+        gain = self._daylight_gain(change, s_new, st["sky"], light, up, st["view_dirs"])
         if self.relight_mode == "learned":
             out = self.registry.load("relight", threads=PREVIEW_THREADS).run({
                 **st["feeds_l"], "shadow_new": s_new[None, None],
                 "sun_new": wv.astype(np.float32)[None],
             })
             relit = np.clip(_first(out)[0].transpose(1, 2, 0), 0.0, 1.0)
-            relit = self._guard(image, relit, st["shadow_old"], s_new, st["sky"], self._light,
+            relit = self._guard(image, relit, st["shadow_old"], s_new, st["sky"], light,
                                 keep_old=share, daylight=gain)
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
-                                    light=self._light, snap=False)
+                                    light=light, snap=False)
             if gain is not None:
                 relit = in_new_daylight(relit, gain)
         relit = self._finish(image, relit, share, st["sky"], self.sun_seen, st["camera"], wv,
@@ -1213,7 +1226,7 @@ class RelightSession:
             "image": self.image_srgb, "camera": self.camera, "sky": self.sky,
             "normals": self.normals, "view_dirs": self.view_dirs, "depth": self.depth,
             "sampler": self._sampler, "original_sun": self.original_sun,
-            "original_shadow": self.original_shadow, "light": self._light,
+            "original_shadow": self.original_shadow, "light": self._relight_light(),
             "original_geometry": self._original_geometry, "preset": self.preset,
             "sun_seen": self.sun_seen, "greyscale": self.greyscale, "exposure": self._exposure,
             "up": self.horizon_up(), "daylight": self._daylight,

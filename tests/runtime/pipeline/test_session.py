@@ -183,3 +183,64 @@ def test_a_sun_entering_the_frame_is_drawn_into_the_photos_sky(tmp_path, mode: s
     s.set_original_sun(sun_vector(20.0, 10.0))  # the photo's own sun in the frame, unseen
     assert sun_in_frame(s.original_sun, s.camera) and s.sun_seen is None
     assert s.relight(new)[v, u].min() < 0.95
+
+
+def test_physics_new_shade_takes_the_photos_own_shade_colour(tmp_path) -> None:
+    """In physics mode the light's colour is turned to the photo's own shade shift
+    (``relight.shade_coloured_light``), at the same strength: where the new sun newly shadows
+    the ground, the relit photo's colour moves as the photo's own shade differs from the lit
+    ground at its edge, not as the sun/sky ratio measured from the medians of everything lit
+    and shadowed says (an orange material in the sun, as the pool sample's facade, made it
+    warm, and new shade too blue); the learned guards' light and what ``light_estimate``
+    reports stay measured."""
+    from outcast_core.runtime.geometry.camera import sun_vector
+    from outcast_core.runtime.geometry.colour import linear_to_srgb, luminance, srgb_to_linear
+    from outcast_core.runtime.pipeline.photo_shadows import SKY_SHADE_SHIFT
+    from outcast_core.runtime.pipeline.relight import shade_coloured_light
+
+    image, depth = noisy_box_photo(5)
+    old, new = sun_vector(200.0, 40.0), sun_vector(120.0, 40.0)  # one elevation: no daylight
+
+    def session(img: np.ndarray, on: bool) -> RelightSession:
+        s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", preset="fast")
+        s.shade_colour = on
+        s.set_image(img, depth=depth, fov_deg=30.0)
+        s.set_original_sun(old)
+        return s
+
+    own = session(image, True).shadow(old) < 0.15  # the box's own shadow: dark and blue
+    image = image.copy()
+    tint = np.exp(np.float32([SKY_SHADE_SHIFT[0], 0.0, SKY_SHADE_SHIFT[1]]))
+    image[own] = linear_to_srgb(srgb_to_linear(image[own]) * 0.3 * tint)
+    far = np.zeros(own.shape, bool)
+    far[:, : own.shape[1] // 3] = True  # an orange material in the sun, away from the shadow
+    far &= ~own
+    image[far] = linear_to_srgb(np.clip(srgb_to_linear(image[far]) * np.float32([1.6, 1.0, 0.4]),
+                                        0.0, 1.0))
+    outs = {}
+    for on in (False, True):
+        s = session(image, on)
+        outs[on] = srgb_to_linear(s.relight(new))
+    fresh = (s.original_shadow > 0.5) & (s.shadow(new) < 0.05) & ~s.sky
+    assert fresh.sum() > 20
+    measured = s.light_estimate
+    turned = shade_coloured_light(measured, s._shade_shift)
+    assert s._relight_light().ratio.tolist() == turned.ratio.tolist()
+    k_m, k_t = np.log1p(measured.ratio), np.log1p(turned.ratio)
+    assert np.isclose(luminance(k_m), luminance(k_t), atol=1e-4)  # the same strength
+    d_r, d_b = s._shade_shift
+    assert k_t[0] - k_t[2] == pytest.approx(d_b - d_r, abs=1e-3)
+    photo = srgb_to_linear(image)
+    log_br = lambda x: np.log(x[..., 2] / x[..., 0])  # noqa: E731
+    lit = ~own & ~far & ~s.sky
+    own_shift = float(np.median(log_br(photo)[own]) - np.median(log_br(photo)[lit]))
+
+    def shift(out: np.ndarray) -> float:  # log B/R change from the photo, in new shade
+        return float(np.mean(log_br(out)[fresh] - log_br(photo)[fresh]))
+
+    assert abs(shift(outs[True]) - own_shift) < abs(shift(outs[False]) - own_shift) - 0.05
+    both_lit = (s.original_shadow > 0.5) & (s.shadow(new) > 0.5) & ~s.sky
+    np.testing.assert_allclose(luminance(outs[True])[both_lit], luminance(outs[False])[both_lit],
+                               rtol=0.1)
+    s.relight_mode = "learned"  # the guards give new shade the shift themselves
+    assert s._relight_light() is s.light_estimate
