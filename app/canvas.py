@@ -47,6 +47,9 @@ MAX_ZOOM = 16.0
 #: across its short side to this (a 1 x 4000 photo fitted at 19 % was a fifth of a pixel wide,
 #: invisible); any image at least this wide and high at the zoom keeps its aspect.
 MIN_SHOWN_PX = 8.0
+#: The before/after labels are drawn only where the photo is shown at least this many labels
+#: high (:meth:`ImageCanvas.split_label_boxes`).
+LABEL_ROOM = 3.0
 
 
 def shown_scale(zoom: float, width: int, height: int) -> tuple[float, float]:
@@ -415,7 +418,7 @@ class ImageCanvas(QWidget):
         top, bottom = max(rect.top(), 0.0), min(rect.bottom(), float(self.height()))
         p.drawLine(QPointF(x, top), QPointF(x, bottom))
         self.paint_split_labels(p, x, top, max(rect.left(), 0.0),
-                                min(rect.right(), float(self.width())))
+                                min(rect.right(), float(self.width())), bottom)
 
     def paint_brush(self, p: QPainter) -> None:
         """The stroke being painted (a translucent band the brush's width along the mouse's
@@ -452,14 +455,19 @@ class ImageCanvas(QWidget):
                     p.drawEllipse(self._hover, inner, inner)
         p.restore()
 
-    def split_label_boxes(self, x: float, top: float, left: float, right: float
-                          ) -> list[tuple[str, QRectF]]:
+    def split_label_boxes(self, x: float, top: float, left: float, right: float,
+                          bottom: float | None = None) -> list[tuple[str, QRectF]]:
         """The split's labels and their boxes beside the line at ``x``; a label whose side of
         the photo (``left`` .. ``right``: its visible part) is too narrow to hold it whole is
-        left out (at the split's end one showed as a cut-off sliver: a user trial)."""
+        left out (at the split's end one showed as a cut-off sliver: a user trial), and so
+        are both where the photo's visible height (``top`` .. ``bottom``) is less than
+        :data:`LABEL_ROOM` labels high (a 20:1 strip shown 47 px high was mostly label, a
+        user trial)."""
         font = QFont(self.font())
         font.setBold(True)
         fm = QFontMetrics(font)
+        if bottom is not None and bottom - top < LABEL_ROOM * (fm.height() + 6):
+            return []
         boxes = []
         for text, right_side in ((self._labels[0], False), (self._labels[1], True)):
             w = fm.horizontalAdvance(text) + 12
@@ -471,11 +479,11 @@ class ImageCanvas(QWidget):
         return boxes
 
     def paint_split_labels(self, p: QPainter, x: float, top: float, left: float,
-                           right: float) -> None:
+                           right: float, bottom: float | None = None) -> None:
         font = QFont(self.font())
         font.setBold(True)
         p.setFont(font)
-        for text, box in self.split_label_boxes(x, top, left, right):
+        for text, box in self.split_label_boxes(x, top, left, right, bottom):
             p.setPen(Qt.PenStyle.NoPen)
             p.setBrush(QColor(0, 0, 0, 140))
             p.drawRoundedRect(box, 4, 4)

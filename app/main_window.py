@@ -137,7 +137,7 @@ from app.state import (
 )
 from app.workers import JobContext, TaskRunner
 from outcast_core.runtime.geometry.camera import cosine_term, sun_angles, sun_vector
-from outcast_core.runtime.io.imageio import same_file
+from outcast_core.runtime.io.imageio import ImageReadError, read_image_size, same_file
 from outcast_core.runtime.io.models import ModelError
 from outcast_core.runtime.pipeline.auto_sun import SOURCE_EXIF, SOURCE_SUN_IN_FRAME
 from outcast_core.runtime.pipeline.batch import small_photo_note
@@ -713,7 +713,10 @@ class MainWindow(QMainWindow):
         self.photo_notes_button.setAccessibleName("Photo notes")
         self.photo_notes_button.clicked.connect(self.show_photo_notes)
         self.photo_notes_button.hide()
-        self.canvas.zoom_changed.connect(lambda z: self.zoom_label.setText(f"{z * 100:.0f} %"))
+        # "Zoom 44 %", not "44 %" alone: after the mode label it read as the depth model's
+        # share ("... depth: model 44 %", a user trial).
+        self.canvas.zoom_changed.connect(
+            lambda z: self.zoom_label.setText(f"Zoom {z * 100:.0f} %"))
         sb = self.statusBar()
         sb.addWidget(self.stage_label)  # as wide as its message, while the bar has room
         sb.addWidget(self.progress_bar)
@@ -1025,14 +1028,25 @@ class MainWindow(QMainWindow):
 
         With a running export or unsaved edits the user is asked first (and may say no).
         """
-        if self.image_path and not self.confirm_leave("open"):
-            return
+        # A file that cannot be opened is said before anything is asked: the save question
+        # came first, and only then "not an image file" (a user trial).
+        state = None
         if is_project_file(path):
             try:
                 state = load_project(path)
             except (OSError, ValueError) as exc:
                 self.show_error(exc, "project")
                 return
+        else:
+            try:
+                read_image_size(path)  # the header only: what cannot be a photo at all
+            except ImageReadError as exc:
+                self._drop_if_gone(path)
+                self.show_error(exc, "open")
+                return
+        if self.image_path and not self.confirm_leave("open"):
+            return
+        if state is not None:
             self.recent.add(path)
             self._save_recent()
             photo = state.image_path
@@ -1045,6 +1059,12 @@ class MainWindow(QMainWindow):
         else:
             self._opening_project_file = ""
             self.open_image(path)
+
+    def _drop_if_gone(self, path: str) -> None:
+        """A recent file that has gone away leaves the recent list."""
+        if path and not os.path.exists(path):
+            self.recent.remove(path)
+            self._save_recent()
 
     def locate_photo(self, project_path: str, project: ProjectState) -> str:
         """Ask where a project's missing photo is now ("Locate photo…", then a file dialog in
@@ -2852,10 +2872,7 @@ class MainWindow(QMainWindow):
         if channel == "load":
             self._pending_project = None
             self._pending_restore = self._pending_record_from = None
-            path = self._last_load[0] if self._last_load else ""
-            if path and not os.path.exists(path):  # a recent file that has gone away
-                self.recent.remove(path)
-                self._save_recent()
+            self._drop_if_gone(self._last_load[0] if self._last_load else "")
         if (channel in ("tl_export", "tl_preview", "tl_estimate")
                 and self._timelapse_dialog is not None):
             self._timelapse_dialog.on_job_failed(channel, exc)

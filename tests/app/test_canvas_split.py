@@ -9,13 +9,14 @@ import pytest
 from app.canvas import ImageCanvas, qimage_from_array
 
 
-def _drawn(qtbot, split: float, zoom: float | None = None) -> list[str]:
+def _drawn(qtbot, split: float, zoom: float | None = None,
+           shape: tuple[int, int] = (300, 400)) -> list[str]:
     canvas = ImageCanvas()
     qtbot.addWidget(canvas)
     canvas.resize(640, 480)
     canvas.show()
-    canvas.set_image(qimage_from_array(np.full((300, 400, 3), 90, np.uint8)))
-    canvas.set_after(qimage_from_array(np.full((300, 400, 3), 200, np.uint8)))
+    canvas.set_image(qimage_from_array(np.full((*shape, 3), 90, np.uint8)))
+    canvas.set_after(qimage_from_array(np.full((*shape, 3), 200, np.uint8)))
     if zoom is not None:
         canvas.set_zoom(zoom)
     canvas.set_split(split, ("Original", "Relit"))
@@ -46,3 +47,10 @@ def test_labels_keep_to_the_visible_part_of_a_zoomed_photo(qtbot) -> None:
     the photo runs off to the left)."""
     assert _drawn(qtbot, 0.5, zoom=4.0) == ["Original", "Relit"]
     assert _drawn(qtbot, 0.31, zoom=4.0) == ["Relit"]
+
+
+def test_a_strip_too_low_for_its_labels_shows_none(qtbot) -> None:
+    """A 20:1 photo fitted to the canvas is 32 px high: the labels would cover most of it (a
+    user trial), so neither is drawn; a 4:1 one (160 px) keeps both."""
+    assert _drawn(qtbot, 0.5, shape=(30, 600)) == []
+    assert _drawn(qtbot, 0.5, shape=(150, 600)) == ["Original", "Relit"]

@@ -286,6 +286,27 @@ def test_corrupt_file_shows_error_and_app_survives(qtbot, window, photo, settle,
     assert window.canvas.after() is not None
 
 
+def test_a_file_that_is_no_photo_is_said_before_the_save_question(window, photo, settle, errors,
+                                                                   leave_answers, tmp_path):
+    """With unsaved changes, opening an empty file or a text file says so at once and asks
+    nothing (the save question came first, then the error, a user trial); the work stays."""
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    assert window.has_unsaved_changes()
+    empty, text = tmp_path / "empty.jpg", tmp_path / "notes.png"
+    empty.write_bytes(b"")
+    text.write_text("not a photo at all\n")
+    for bad, why in ((empty, "empty"), (text, "not an image")):
+        window.open_path(str(bad))
+        settle()
+        assert errors[-1][0] == "Could not open the photo" and why in errors[-1][1]
+    assert leave_answers.asked == []
+    assert window.image_path == os.path.abspath(photo) and window.has_unsaved_changes()
+    window.open_path(photo)  # a real photo still asks first
+    settle()
+    assert len(leave_answers.asked) == 1
+
+
 def test_broken_model_shows_error_and_falls_back(window, photo, settle, errors, tmp_path,
                                                  monkeypatch):  # fmt: skip
     models = tmp_path / "models"
