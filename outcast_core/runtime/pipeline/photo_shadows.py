@@ -545,7 +545,9 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     fringe, dark dirt), its bright class only. The gain is that lit surface's mean log colour
     minus the marked shadow's own local mean (the shade's scale of :func:`deshadow_log_gain`,
     read on the marked pixels only), so the shadow ends at the level and colour of the lit
-    surface round it, its texture kept. The photo-wide statistics the unmarked lift reads
+    surface round it, its texture kept; a pixel further below that surface than the largest
+    lift takes its colour instead, in proportion (:func:`crushed_share`: the camera kept only
+    noise there). The photo-wide statistics the unmarked lift reads
     count every shadow the found probability missed as lit surface and every dark material
     found as shade: on the ski slope a marked snow shadow was lifted short of the snow (its
     outline left) and a thin one beside black pines past it, pale blue (user trials).
@@ -596,8 +598,98 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     gain = warm_lift(np.clip(lit - mu, 0.0, MAX_LIFT_LOG))
     excess = (mu - log_c) @ LUMA_709 - DARKER_MARGIN
     keep = np.exp(-0.5 * (np.maximum(excess, 0.0) / DARKER_WIDTH) ** 2)
+    # Crushed: what no lift can bring back (the camera kept noise, not colour) takes the lit
+    # surface's colour (a fill), in full from CRUSHED_FULL below it.
+    fill = np.where(weight > 0, crushed_share((lit - log_c) @ LUMA_709), 0.0)
+    if fill.any():
+        k = fill[..., None]
+        gain = (1.0 - k) * gain + k * (lit - log_c)
+        keep = keep + fill * (1.0 - keep)
     return (np.where((weight > 0)[..., None], gain, 0.0).astype(np.float32), top,
             keep.astype(np.float32), weight)
+
+
+#: :func:`marked_lift`: a marked pixel darker than the lit surface round it by more than the
+#: largest lift (:data:`MAX_LIFT_LOG`) is crushed shade, filled with that surface's colour in
+#: proportion as it is darker, in full from :data:`CRUSHED_FULL` (natural log) below it.
+CRUSHED_FULL = float(np.log(64.0))
+
+
+def crushed_share(below_lit: np.ndarray) -> np.ndarray:
+    """How much of a marked pixel is filled rather than lifted (``H x W`` float32 in [0, 1]),
+    from how far (natural log luminance) it is below the lit surface round it: 0 within
+    :data:`MAX_LIFT_LOG` (the lift brings it back with its texture), rising to 1 at
+    :data:`CRUSHED_FULL` (lifted further, its JPEG noise came out as blotches, blue where the
+    blue channel was noisiest: a dev photo's shadow marked in the app).
+
+    Example:
+        >>> share = crushed_share(np.log(np.array([4.0, 16.0, 32.0, 64.0, 400.0])))
+        >>> [round(float(v), 2) for v in share]
+        [0.0, 0.0, 0.5, 1.0, 1.0]
+    """
+    x = (np.asarray(below_lit, np.float32) - MAX_LIFT_LOG) / (CRUSHED_FULL - MAX_LIFT_LOG)
+    return np.clip(x, 0.0, 1.0).astype(np.float32)
+
+
+def keep_fills(full_srgb: np.ndarray, before_srgb: np.ndarray, after_srgb: np.ndarray,
+               where: np.ndarray | None = None) -> np.ndarray:
+    """An image made from a photo (de-shadowed or relit) brought to full resolution by its
+    gain (``full_srgb``, ``H x W x 3`` float32 or uint8), with what it filled rather than
+    lifted (:func:`filled_share`, from ``before_srgb`` to ``after_srgb``, ``h x w x 3`` sRGB)
+    taken from ``after_srgb`` upsampled: the full-size photo holds only noise there, which
+    the gain would multiply. Only the box round the filled pixels is upsampled (a
+    100-megapixel photo has no full-size copy made). ``where`` (``h x w`` in [0, 1], or
+    None: everywhere): where a fill may be (the session passes what the user marked as
+    shadow). Returns ``full_srgb``, changed in place where filled.
+
+    Example:
+        >>> before = np.full((8, 8, 3), 0.5, np.float32); before[2:6, 2:6] = 0.001
+        >>> after = np.full((8, 8, 3), 0.5, np.float32)
+        >>> full = np.full((16, 16, 3), 0.5, np.float32)
+        >>> full[4:12, 4:12] = before[2, 2] * (1 + 30 * np.random.default_rng(0).random((8, 8, 3)))
+        >>> out = keep_fills(full * (0.5 / 0.001), before, after)
+        >>> bool(np.allclose(out[6:10, 6:10], 0.5, atol=1e-3))
+        True
+    """
+    after = np.asarray(after_srgb, np.float32)
+    share = filled_share(before_srgb, after)
+    if where is not None:
+        share = share * np.clip(np.asarray(where, np.float32), 0.0, 1.0)
+    if not share.any():
+        return full_srgb
+    h, w = share.shape
+    big_h, big_w = full_srgb.shape[:2]
+    rows, cols = np.nonzero(share)
+    # The box, one small pixel wider each way (bilinear reaches that far), in full pixels.
+    r0, r1 = max(0, rows.min() - 1), min(h, rows.max() + 2)
+    c0, c1 = max(0, cols.min() - 1), min(w, cols.max() + 2)
+    fy, fx = big_h / h, big_w / w
+    R0, R1 = int(math.floor(r0 * fy)), min(big_h, int(math.ceil(r1 * fy)))
+    C0, C1 = int(math.floor(c0 * fx)), min(big_w, int(math.ceil(c1 * fx)))
+    # Pixel centres aligned: full pixel (Y, X) sits at small ((Y + 0.5) / fy - 0.5, ...).
+    ys = ((np.arange(R0, R1) + 0.5) / fy - 0.5).astype(np.float32)
+    xs = ((np.arange(C0, C1) + 0.5) / fx - 0.5).astype(np.float32)
+    map_x, map_y = np.meshgrid(xs, ys)
+    up = cv2.remap(after, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    k = cv2.remap(share, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    crop = full_srgb[R0:R1, C0:C1]
+    if crop.dtype == np.uint8:
+        c = crop.astype(np.float32) * np.float32(1.0 / 255.0)
+        c += k[..., None] * (up - c)
+        crop[...] = np.clip(np.rint(c * 255.0), 0, 255).astype(np.uint8)
+    else:
+        crop += k[..., None] * (up - crop)
+    return full_srgb
+
+
+def filled_share(before_srgb: np.ndarray, after_srgb: np.ndarray) -> np.ndarray:
+    """How much of each pixel an image made from a photo holds filled rather than lifted
+    (``H x W`` float32 in [0, 1]): :func:`crushed_share` of its log luminance gain from the
+    photo (``before_srgb``) to it (``after_srgb``), both ``H x W x 3`` sRGB; 0 wherever the
+    gain is within the largest lift."""
+    y0 = luminance(srgb_to_linear(np.clip(np.asarray(before_srgb, np.float32), 0.0, 1.0)))
+    y1 = luminance(srgb_to_linear(np.clip(np.asarray(after_srgb, np.float32), 0.0, 1.0)))
+    return crushed_share(np.log(y1 + _LOG_EPS) - np.log(y0 + _LOG_EPS))
 
 
 def deshadow_log_gain(
@@ -824,6 +916,15 @@ ADD_MAX_SHARE = 0.4
 #: stops darker than the lit surface), else the click was on lit ground and is refused.
 ADD_DARKER = 0.2
 ADD_RING = 0.02
+#: :class:`ShadowEdit` "a shadow" on a crushed point (within :data:`ADD_RANGE` of the floor):
+#: the fill reads luminance plus this share of the photo's lit level (the 75th percentile of
+#: its surface's luminance), which evens out what lies below it. Where the camera crushed a
+#: shadow (a toddler's shadow on sunlit pavement at 1/400 of it) JPEG noise spreads its log
+#: luminance over a stop, and a click took only a few pixels round the point; with the floor
+#: at 1/100 the core of that shadow spreads 0.24 (5-95 %) and the fill takes it whole, while
+#: the lit ground stays 4.3 above it (a dev photo). Applied to every click, it let one dev
+#: photo's click through that was refused before (S_o BER 0.18 -> 0.30; sixteenth session).
+ADD_FLOOR = 0.01
 #: :class:`ShadowEdit` "not a shadow": how far (fraction of the longer side) from the click a
 #: found shadow may be and still be the one meant (a click on a thin pole may miss it).
 PICK_RADIUS = 0.02
@@ -1136,14 +1237,43 @@ def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.
     if log_y is None:
         log_y = edit_luminance(image_srgb)
     log_y = np.ascontiguousarray(log_y, np.float32)  # read only (FLOODFILL_MASK_ONLY)
+    fill_y = log_y
+    if (~sky).any():  # a crushed point: camera noise under the floor is one level
+        floor = float(np.percentile(log_y[~sky], 75)) + math.log(ADD_FLOOR)
+        if log_y[row, col] < floor + ADD_RANGE:
+            fill_y = np.ascontiguousarray(np.logaddexp(log_y, np.float32(floor)), np.float32)
     mask = np.zeros((h + 2, w + 2), np.uint8)
     mask[1:-1, 1:-1] = sky  # the fill never crosses the sky
     flags = 8 | cv2.FLOODFILL_FIXED_RANGE | cv2.FLOODFILL_MASK_ONLY | (2 << 8)
-    cv2.floodFill(log_y, mask, (col, row), 0, ADD_RANGE, ADD_RANGE, flags)
+    cv2.floodFill(fill_y, mask, (col, row), 0, ADD_RANGE, ADD_RANGE, flags)
     region = _closed(mask[1:-1, 1:-1] == 2, max(1, round(EDIT_CLOSE * side))) & ~sky
     if not _darker_than_round(region, log_y, sky, float(np.median(log_y[region]))):
         return np.zeros((h, w), bool)
-    return region
+    return _with_penumbra(region, log_y, sky)
+
+
+#: :class:`ShadowEdit` "a shadow": how far (fraction of the longer side) a filled region grows
+#: into its penumbra: the pixels round it still darker than the lit surface beyond by
+#: :data:`ADD_DARKER`. Without it the soft edge of a deep shadow, outside the fill's range,
+#: stayed as a dark outline round the lifted shadow (a dev photo's crushed shadow marked).
+ADD_PENUMBRA = 1.0 / 192
+
+
+def _with_penumbra(region: np.ndarray, log_y: np.ndarray, sky: np.ndarray) -> np.ndarray:
+    """``region`` grown by :data:`ADD_PENUMBRA` into pixels darker than the surface round it
+    (the median over a ring :data:`ADD_RING` wide beyond that reach) by :data:`ADD_DARKER`."""
+    side = max(region.shape)
+    k = max(1, round(ADD_PENUMBRA * side))
+    reach = cv2.dilate(region.astype(np.uint8),
+                       cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2)) > 0
+    r = k + max(2, round(ADD_RING * side))
+    ring = cv2.dilate(region.astype(np.uint8),
+                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)) > 0
+    ring &= ~reach & ~sky
+    if not ring.any():
+        return region
+    dark = log_y < float(np.median(log_y[ring])) - ADD_DARKER
+    return region | (reach & dark & ~sky)
 
 
 def _found_object(found: np.ndarray, log_y: np.ndarray, row: int, col: int) -> np.ndarray:

@@ -37,7 +37,7 @@ from outcast_core.runtime.geometry.colour import (
     srgb_to_linear,
 )
 from outcast_core.runtime.pipeline.daylight import in_new_daylight
-from outcast_core.runtime.pipeline.photo_shadows import SKY_SHADE_SHIFT
+from outcast_core.runtime.pipeline.photo_shadows import SKY_SHADE_SHIFT, filled_share
 
 #: Clear-day sun/sky irradiance ratio per channel (R, G, B) when the photo cannot tell.
 PRIOR_RATIO = np.array([5.0, 4.0, 2.8], dtype=np.float32)
@@ -598,6 +598,7 @@ def shadow_contrast_floor(
     lift: bool = False,
     lift_guard: np.ndarray | None = None,
     lift_cap_srgb: np.ndarray | None = None,
+    lift_fill: np.ndarray | None = None,
 ) -> np.ndarray:
     """Darken a learned relighting's new shadows at least as much as physics does.
 
@@ -684,7 +685,10 @@ def shadow_contrast_floor(
         cap = np.asarray(lift_cap_srgb, np.float32)
         if cap.shape != relit.shape:
             raise ValueError(f"expected a lift cap of shape {relit.shape}, got {cap.shape}")
-        y_up = np.minimum(y_p, luminance(srgb_to_linear(cap)) + 1e-4)
+        y_cap = luminance(srgb_to_linear(cap)) + 1e-4
+        y_up = np.minimum(y_p, y_cap)
+        if lift_fill is not None:  # crushed shade the de-shadow filled: physics has no data
+            y_up = y_up + np.asarray(lift_fill, np.float32) * (y_cap - y_up)
     y = np.where(d > 0, np.maximum(y_r, y_up), np.minimum(y_r, y_p))
     up = lift_weight(s_old, s_new, lift_guard)
     down = np.maximum(-d, 0.0)
@@ -1032,8 +1036,11 @@ def guard_learned_relight(
                 cap = physics_relight(base_srgb, lit_old, s_new, sky, light=light, snap=False)
                 if gain is not None:
                     cap = in_new_daylight(cap, gain)
+                fill = filled_share(image_srgb, base_srgb)
             out = shadow_contrast_floor(image_srgb, out, physics, shadow_old, s_new, lift=lift,
-                                        lift_guard=lift_guard, lift_cap_srgb=cap)
+                                        lift_guard=lift_guard, lift_cap_srgb=cap,
+                                        lift_fill=fill if cap is not None and fill.any()
+                                        else None)
         if anchor:
             out = anchor_exposure(image_srgb, out, physics, shadow_old, s_new, sky)
     if held is not None and physics is not None:

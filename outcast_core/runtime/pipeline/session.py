@@ -62,6 +62,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     apply_edit_masks,
     deshadow,
     edit_masks_at,
+    keep_fills,
     lift_probability,
     lit_surface_colour,
     marked_weight,
@@ -1054,6 +1055,8 @@ class RelightSession:
                              lifted=self._detail_lifted(d)))
             full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out,
                                                sky=d["sky"])
+            if d["marked"] is not None:  # a marked crushed shadow: no noise x 400
+                full = keep_fills(full, d["image"], out, d["marked"])
         self._time("deshadow_full", t0)
         return full
 
@@ -1536,6 +1539,9 @@ class RelightSession:
         with self._lock:
             out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit,
                                               out_dtype=dtype, sky=self.sky)
+            marked = self._marked(self.sky)
+            if marked is not None:  # a marked crushed shadow lit: no noise x 400
+                out = keep_fills(out, self.image_srgb, relit, marked)
             out = self.without_old_sun_full(out, relit, w_new)
         self._time("full_resolution", t0)
         return out

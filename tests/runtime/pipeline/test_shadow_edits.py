@@ -1191,3 +1191,58 @@ def test_marked_lift_takes_a_speckled_mark_of_many_regions() -> None:
     got = marked_lift(log_c, p, usable, m)
     _assert_same_lift(got, _reference_marked_lift(log_c, p, usable, m))
     assert got is not None and (got[3][m > 0] > 0).mean() > 0.9
+
+
+def test_a_marked_crushed_shadow_is_taken_whole_and_filled_at_every_size() -> None:
+    """A shadow the camera crushed to noise (a toddler's shadow on sunlit pavement at 1/400 of
+    it, a dev photo): one "Mark shadow" click took a few pixels round the point (the noise
+    spread its log luminance past the fill's range) and the lift, capped at 16x, turned them
+    saturated blue. Now the click takes the shadow and its penumbra, and the de-shadow fills
+    it with the pavement's colour, at the working size and at full resolution, where the
+    photo's noise is not multiplied back in; relit, the same."""
+    from outcast_core.runtime.geometry.colour import linear_to_lab, srgb_to_linear
+
+    rng = np.random.default_rng(3)
+    big_h, big_w = 1200, 1600
+    pave = np.array([0.72, 0.66, 0.6], np.float32)
+    img = np.clip(pave * (1 + 0.04 * rng.standard_normal((big_h, big_w, 1))), 0, 1)
+    yy, xx = np.mgrid[0:big_h, 0:big_w]
+    core = ((yy - 800) / 120.0) ** 2 + ((xx - 700) / 420.0) ** 2 <= 1.0
+    edge = ((yy - 800) / 128.0) ** 2 + ((xx - 700) / 428.0) ** 2 <= 1.0
+    img[edge & ~core] *= 0.3  # the penumbra
+    noise = rng.integers(0, 4, (big_h, big_w, 3)) / 255.0  # JPEG's crushed shade: 0-3 / 255
+    img[core] = noise[core]
+    img = img.astype(np.float32)
+    depth = np.full((big_h, big_w), 10.0, np.float32)  # a wall facing the camera
+    s = RelightSession(preset="fast")
+    s.set_image(img, depth=depth)
+    s.set_original_sun((0.3, -0.5, -0.8))  # behind the camera: the wall is lit
+    s.set_shadow_edits([ShadowEdit(700 / big_w, 800 / big_h, True)])
+    work = s.image_srgb.shape[:2]
+    small = cv2.resize(edge.astype(np.uint8), (work[1], work[0]),
+                       interpolation=cv2.INTER_NEAREST) > 0
+    assert s._marked(s.sky)[small].mean() > 0.95  # the click took it whole
+
+    def gap(out: np.ndarray, inside: np.ndarray, lit: np.ndarray) -> tuple[float, float, float]:
+        lab = linear_to_lab(srgb_to_linear(np.clip(out, 0, 1)))
+        d = lab[inside].mean(axis=0) - lab[lit].mean(axis=0)
+        return float(abs(d[0])), float(np.hypot(d[1], d[2])), float(lab[inside][:, 0].std())
+
+    inner = cv2.erode(small.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    light = ~(cv2.dilate(small.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0)
+    d_l, d_ab, _ = gap(s.deshadow(), inner, light)
+    assert d_l < 6.0 and d_ab < 2.0  # the pavement's level and colour
+    full = s.deshadow_full()
+    assert full.shape == img.shape
+    inner_full = cv2.erode(core.astype(np.uint8), np.ones((31, 31), np.uint8)) > 0
+    light_full = ~(cv2.dilate(edge.astype(np.uint8), np.ones((41, 41), np.uint8)) > 0)
+    d_l, d_ab, spread = gap(full, inner_full, light_full)
+    lit_spread = float(linear_to_lab(srgb_to_linear(img))[light_full][:, 0].std())
+    assert d_l < 6.0 and d_ab < 2.0
+    assert spread < lit_spread + 1.0  # no noise multiplied back in
+    # Relit to a sun that lights the wall too: the marked shadow is gone there as well (the
+    # lift's ceiling is the filled photo, and physics, which has no data there, does not
+    # bound it), and its full-size pixels are not the photo's noise multiplied.
+    relit = s.relight_full((-0.3, -0.6, -0.7))
+    d_l, d_ab, spread = gap(relit, inner_full, light_full)
+    assert d_l < 6.0 and d_ab < 3.0 and spread < lit_spread + 1.0
