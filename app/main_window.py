@@ -137,7 +137,7 @@ from app.state import (
 )
 from app.workers import JobContext, TaskRunner
 from outcast_core.runtime.geometry.camera import cosine_term, sun_angles, sun_vector
-from outcast_core.runtime.io.imageio import ImageReadError, read_image_size, same_file
+from outcast_core.runtime.io.imageio import check_photo_file, same_file
 from outcast_core.runtime.io.models import ModelError
 from outcast_core.runtime.pipeline.auto_sun import SOURCE_EXIF, SOURCE_SUN_IN_FRAME
 from outcast_core.runtime.pipeline.batch import small_photo_note
@@ -1030,23 +1030,24 @@ class MainWindow(QMainWindow):
         """
         # A file that cannot be opened is said before anything is asked: the save question
         # came first, and only then "not an image file" (a user trial).
-        state = None
-        if is_project_file(path):
-            try:
+        project = is_project_file(path)
+        try:
+            if project:
+                load_project(path)
+            else:
+                check_photo_file(path)  # the first bytes and header: what cannot be a photo
+        except (OSError, ValueError) as exc:  # (ImageReadError is a ValueError)
+            self._drop_if_gone(path)
+            self.show_error(exc, "project" if project else "open")
+            return
+        if self.image_path and not self.confirm_leave("open"):
+            return
+        if project:
+            try:  # read again: "Save" may have just written this very project
                 state = load_project(path)
             except (OSError, ValueError) as exc:
                 self.show_error(exc, "project")
                 return
-        else:
-            try:
-                read_image_size(path)  # the header only: what cannot be a photo at all
-            except ImageReadError as exc:
-                self._drop_if_gone(path)
-                self.show_error(exc, "open")
-                return
-        if self.image_path and not self.confirm_leave("open"):
-            return
-        if state is not None:
             self.recent.add(path)
             self._save_recent()
             photo = state.image_path

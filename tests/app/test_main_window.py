@@ -300,11 +300,39 @@ def test_a_file_that_is_no_photo_is_said_before_the_save_question(window, photo,
         window.open_path(str(bad))
         settle()
         assert errors[-1][0] == "Could not open the photo" and why in errors[-1][1]
+    # A name the system refuses (too long) raised OSError past the check (a review).
+    window.open_path(str(tmp_path / ("a" * 300 + ".jpg")))
+    settle()
+    assert errors[-1][0] == "Could not open the photo"
     assert leave_answers.asked == []
     assert window.image_path == os.path.abspath(photo) and window.has_unsaved_changes()
     window.open_path(photo)  # a real photo still asks first
     settle()
     assert len(leave_answers.asked) == 1
+
+
+def test_reopening_the_project_and_saving_first_opens_what_was_saved(window, photo, settle,
+                                                                      leave_answers):
+    """With unsaved changes, reopening the same project and answering "Save project" opens
+    what was just saved, not what the file held before (a review: the file was read before
+    the question, so the window showed the old state, clean, and a later save wrote it
+    back)."""
+    from app.leave_prompts import SAVE
+
+    _load(window, photo, settle)
+    window.align_panel.sun_panel.set_sun(100.0, 35.0)
+    _confirm(window, settle)
+    saved = window.save_project()
+    assert load_project(saved).preset == "fast"
+    window.set_preset("balanced")
+    settle()
+    assert window.has_unsaved_changes()
+    leave_answers.script.append(SAVE)
+    window.open_path(saved)
+    settle()
+    assert len(leave_answers.asked) == 1
+    assert load_project(saved).preset == "balanced"
+    assert window.preset == "balanced" and not window.has_unsaved_changes()
 
 
 def test_broken_model_shows_error_and_falls_back(window, photo, settle, errors, tmp_path,

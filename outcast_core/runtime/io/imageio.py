@@ -343,6 +343,31 @@ def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
     return _upright_size(stored, orientation)
 
 
+def check_photo_file(path: str | os.PathLike[str]) -> None:
+    """Refuse a file that cannot be a photo, from its first bytes and header only (format and
+    pixel count; no EXIF, no pixels): quick enough for a window to call before it asks
+    anything (:func:`read_image_size` reads a PNG's chunks looking for EXIF, most of a big
+    file).
+
+    Raises:
+        ImageReadError: as :func:`read_image`, for what the header shows.
+    """
+    path = Path(path)
+    try:
+        _check_input_file(path)
+        with _open_pil(path) as im:
+            fmt = im.format or "unknown"
+            if fmt not in READ_FORMATS:
+                raise ImageReadError(
+                    f"cannot read image '{path}': unsupported format {fmt}; expected "
+                    f"{_READABLE_NAMES}", ImageReadReason.UNSUPPORTED_FORMAT)
+            _check_pixel_count(path, *im.size)
+    except ImageReadError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - Pillow raises many types for broken headers
+        raise _error_for(exc, path, f"cannot read image '{path}'") from exc
+
+
 def _starts_like_a_photo(path: Path) -> bool:
     """Whether the file starts as a JPEG, PNG, TIFF, WebP, HEIF or BMP file does.
 

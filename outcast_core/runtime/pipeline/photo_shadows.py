@@ -545,16 +545,19 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     fringe, dark dirt), its bright class only. The gain is that lit surface's mean log colour
     minus the marked shadow's own local mean (the shade's scale of :func:`deshadow_log_gain`,
     read on the marked pixels only), so the shadow ends at the level and colour of the lit
-    surface round it, its texture kept; a pixel further below that surface than the largest
-    lift takes its colour instead, in proportion (:func:`crushed_share`: the camera kept only
-    noise there). The photo-wide statistics the unmarked lift reads
+    surface round it, its texture kept; where the marked shadow itself (its local mean) lies
+    further below that surface than the largest lift, its pixels take that surface's colour
+    instead, in proportion (:func:`crushed_share`: the camera kept only noise there), while a
+    dark object inside a shadow that is not crushed keeps the darker-than-shade guard. The
+    photo-wide statistics the unmarked lift reads
     count every shadow the found probability missed as lit surface and every dark material
     found as shade: on the ski slope a marked snow shadow was lifted short of the snow (its
     outline left) and a thin one beside black pines past it, pale blue (user trials).
 
     Returns:
         ``(gain, top, keep, weight)``: the log gain (``H x W x 3``, at most
-        :data:`MAX_LIFT_LOG`, no cooler than neutral: :func:`warm_lift`), the log luminance
+        :data:`MAX_LIFT_LOG`, no cooler than neutral: :func:`warm_lift`; in a crushed shadow,
+        blended toward the gain that gives the pixel the lit surface's colour), the log luminance
         a lifted pixel may reach (``H x W``: :data:`MARKED_TOP` percentile of that lit
         surface), how much a pixel is lifted as shade, not as a darker
         material inside the mark (``H x W``: darker than the marked shadow round it by more
@@ -598,9 +601,11 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     gain = warm_lift(np.clip(lit - mu, 0.0, MAX_LIFT_LOG))
     excess = (mu - log_c) @ LUMA_709 - DARKER_MARGIN
     keep = np.exp(-0.5 * (np.maximum(excess, 0.0) / DARKER_WIDTH) ** 2)
-    # Crushed: what no lift can bring back (the camera kept noise, not colour) takes the lit
-    # surface's colour (a fill), in full from CRUSHED_FULL below it.
-    fill = np.where(weight > 0, crushed_share((lit - log_c) @ LUMA_709), 0.0)
+    # Crushed: a marked shadow no lift can bring back (the camera kept noise, not colour)
+    # takes the lit surface's colour (a fill), in full from CRUSHED_FULL below it. Decided on
+    # the shadow's local level, not the pixel's: a black object inside a shadow that is not
+    # crushed stays dark (the guard above; a review found it painted over).
+    fill = np.where(weight > 0, crushed_share((lit - mu) @ LUMA_709), 0.0)
     if fill.any():
         k = fill[..., None]
         gain = (1.0 - k) * gain + k * (lit - log_c)
@@ -617,7 +622,7 @@ CRUSHED_FULL = float(np.log(64.0))
 
 def crushed_share(below_lit: np.ndarray) -> np.ndarray:
     """How much of a marked pixel is filled rather than lifted (``H x W`` float32 in [0, 1]),
-    from how far (natural log luminance) it is below the lit surface round it: 0 within
+    from how far (natural log luminance) its shadow is below the lit surface round it: 0 within
     :data:`MAX_LIFT_LOG` (the lift brings it back with its texture), rising to 1 at
     :data:`CRUSHED_FULL` (lifted further, its JPEG noise came out as blotches, blue where the
     blue channel was noisiest: a dev photo's shadow marked in the app).
@@ -637,8 +642,8 @@ def keep_fills(full_srgb: np.ndarray, before_srgb: np.ndarray, after_srgb: np.nd
     gain (``full_srgb``, ``H x W x 3`` float32 or uint8), with what it filled rather than
     lifted (:func:`filled_share`, from ``before_srgb`` to ``after_srgb``, ``h x w x 3`` sRGB)
     taken from ``after_srgb`` upsampled: the full-size photo holds only noise there, which
-    the gain would multiply. Only the box round the filled pixels is upsampled (a
-    100-megapixel photo has no full-size copy made). ``where`` (``h x w`` in [0, 1], or
+    the gain would multiply. Only boxes round the filled pixels are upsampled, in bands of
+    rows (a 100-megapixel photo has no full-size copy made). ``where`` (``h x w`` in [0, 1], or
     None: everywhere): where a fill may be (the session passes what the user marked as
     shadow). Returns ``full_srgb``, changed in place where filled.
 
@@ -659,27 +664,66 @@ def keep_fills(full_srgb: np.ndarray, before_srgb: np.ndarray, after_srgb: np.nd
         return full_srgb
     h, w = share.shape
     big_h, big_w = full_srgb.shape[:2]
-    rows, cols = np.nonzero(share)
-    # The box, one small pixel wider each way (bilinear reaches that far), in full pixels.
-    r0, r1 = max(0, rows.min() - 1), min(h, rows.max() + 2)
-    c0, c1 = max(0, cols.min() - 1), min(w, cols.max() + 2)
     fy, fx = big_h / h, big_w / w
-    R0, R1 = int(math.floor(r0 * fy)), min(big_h, int(math.ceil(r1 * fy)))
-    C0, C1 = int(math.floor(c0 * fx)), min(big_w, int(math.ceil(c1 * fx)))
-    # Pixel centres aligned: full pixel (Y, X) sits at small ((Y + 0.5) / fy - 0.5, ...).
-    ys = ((np.arange(R0, R1) + 0.5) / fy - 0.5).astype(np.float32)
-    xs = ((np.arange(C0, C1) + 0.5) / fx - 0.5).astype(np.float32)
-    map_x, map_y = np.meshgrid(xs, ys)
-    up = cv2.remap(after, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    k = cv2.remap(share, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    crop = full_srgb[R0:R1, C0:C1]
-    if crop.dtype == np.uint8:
-        c = crop.astype(np.float32) * np.float32(1.0 / 255.0)
-        c += k[..., None] * (up - c)
-        crop[...] = np.clip(np.rint(c * 255.0), 0, 255).astype(np.uint8)
-    else:
-        crop += k[..., None] * (up - crop)
+    for r0, r1, c0, c1 in _fill_boxes(share > 0):
+        # In full pixels; full pixel (Y, X) sits at small ((Y + 0.5) / fy - 0.5, ...).
+        R0, R1 = int(math.floor(r0 * fy)), min(big_h, int(math.ceil(r1 * fy)))
+        C0, C1 = int(math.floor(c0 * fx)), min(big_w, int(math.ceil(c1 * fx)))
+        xs_all = ((np.arange(C0, C1) + 0.5) / fx - 0.5).astype(np.float32)
+        for R in range(R0, R1, FILL_BAND):  # bands of rows, columns in remap's reach
+            ys = ((np.arange(R, min(R1, R + FILL_BAND)) + 0.5) / fy - 0.5).astype(np.float32)
+            for C in range(C0, C1, FILL_BAND_COLUMNS):
+                xs = xs_all[C - C0:C - C0 + FILL_BAND_COLUMNS]
+                map_x, map_y = np.meshgrid(xs, ys)
+                k = cv2.remap(share, map_x, map_y, cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_REPLICATE)
+                up = cv2.remap(after, map_x, map_y, cv2.INTER_LINEAR,
+                               borderMode=cv2.BORDER_REPLICATE)
+                crop = full_srgb[R:R + len(ys), C:C + len(xs)]
+                if crop.dtype == np.uint8:
+                    c = crop.astype(np.float32) * np.float32(1.0 / 255.0)
+                    c += k[..., None] * (up - c)
+                    crop[...] = np.clip(np.rint(c * 255.0), 0, 255).astype(np.uint8)
+                else:
+                    crop += k[..., None] * (up - crop)
     return full_srgb
+
+
+#: :func:`keep_fills` works in bands of this many full-size rows and columns (OpenCV's remap
+#: takes fewer than 32767 a side), on at most :data:`FILL_MAX_BOXES` boxes (one round all of
+#: them beyond).
+FILL_BAND = 256
+FILL_BAND_COLUMNS = 8192
+FILL_MAX_BOXES = 32
+
+
+def _fill_boxes(filled: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """Boxes ``(r0, r1, c0, c1)`` (small pixels, end exclusive) that cover ``filled`` (``H x
+    W`` bool) one small pixel wider each way (bilinear reaches that far), without overlap
+    (overlapping ones merged): two marks in opposite corners make two boxes, not the frame."""
+    h, w = filled.shape
+    n, _, stats, _ = cv2.connectedComponentsWithStats(filled.astype(np.uint8), connectivity=8)
+    boxes = [(max(0, int(y) - 1), min(h, int(y + bh) + 1), max(0, int(x) - 1),
+              min(w, int(x + bw) + 1)) for x, y, bw, bh, _ in stats[1:]]
+    if len(boxes) > FILL_MAX_BOXES:
+        rows, cols = np.nonzero(filled)
+        return [(max(0, int(rows.min()) - 1), min(h, int(rows.max()) + 2),
+                 max(0, int(cols.min()) - 1), min(w, int(cols.max()) + 2))]
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(boxes)):
+            for j in range(i + 1, len(boxes)):
+                a, b = boxes[i], boxes[j]
+                if a[0] <= b[1] and b[0] <= a[1] and a[2] <= b[3] and b[2] <= a[3]:  # (or touch)
+                    boxes[i] = (min(a[0], b[0]), max(a[1], b[1]), min(a[2], b[2]),
+                                max(a[3], b[3]))
+                    del boxes[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return boxes
 
 
 def filled_share(before_srgb: np.ndarray, after_srgb: np.ndarray) -> np.ndarray:

@@ -651,6 +651,10 @@ def shadow_contrast_floor(
       would meet the synthetic criterion below (x1.776) but brightens what the photo's
       shadows wrongly include x1.38 instead of x1.11 (``models/EVAL.md``, late-night notes
       of 2026-11-30).
+    * ``lift_fill`` (``H x W`` in [0, 1], or None): where the ceiling's de-shadow filled a
+      crushed shadow the user marked (:func:`~outcast_core.runtime.pipeline.photo_shadows.
+      filled_share`), the lift may reach the ceiling itself: physics, which multiplies the
+      photo's noise there, does not bound it.
 
     Measured on 2026-11-30 (held-out synthetic views, true depth, ``python3
     scripts/eval_session_synthetic.py ~/.cache/outcast/data/test --max-views 40``, 480 pairs,
@@ -688,7 +692,10 @@ def shadow_contrast_floor(
         y_cap = luminance(srgb_to_linear(cap)) + 1e-4
         y_up = np.minimum(y_p, y_cap)
         if lift_fill is not None:  # crushed shade the de-shadow filled: physics has no data
-            y_up = y_up + np.asarray(lift_fill, np.float32) * (y_cap - y_up)
+            fill = np.asarray(lift_fill, np.float32)
+            if fill.shape != y_up.shape:
+                raise ValueError(f"expected a lift fill of shape {y_up.shape}, got {fill.shape}")
+            y_up = y_up + fill * (y_cap - y_up)
     y = np.where(d > 0, np.maximum(y_r, y_up), np.minimum(y_r, y_p))
     up = lift_weight(s_old, s_new, lift_guard)
     down = np.maximum(-d, 0.0)
@@ -705,6 +712,10 @@ def shadow_contrast_floor(
         out = (1.0 - k) * out + k * lin_p * (y / y_p)[..., None]
     return linear_to_srgb(out)
 
+
+#: :func:`shadow_contrast_floor`'s ``lift_fill``: shares of a filled pixel below this are 0 (an
+#: unmarked lift at exactly its largest gain rounds to about 3e-7, a review).
+FILL_MIN = 1e-3
 
 #: :func:`anchor_exposure`: shadow level above which a pixel is lit under a sun, and the least
 #: number of pixels lit under both suns that the anchor needs.
@@ -1030,17 +1041,19 @@ def guard_learned_relight(
             physics = in_new_daylight(physics, gain)
     if floor or anchor:
         if floor:
-            cap = None
+            cap = fill = None
             if lift and lift_base is not None:  # the de-shadowed photo relit by physics
                 base_srgb, lit_old = lift_base
                 cap = physics_relight(base_srgb, lit_old, s_new, sky, light=light, snap=False)
                 if gain is not None:
                     cap = in_new_daylight(cap, gain)
+                # What the de-shadow filled (only where the user marked a crushed shadow).
                 fill = filled_share(image_srgb, base_srgb)
+                fill = np.where(fill > FILL_MIN, fill, 0.0).astype(np.float32)
+                fill = fill if fill.any() else None
             out = shadow_contrast_floor(image_srgb, out, physics, shadow_old, s_new, lift=lift,
                                         lift_guard=lift_guard, lift_cap_srgb=cap,
-                                        lift_fill=fill if cap is not None and fill.any()
-                                        else None)
+                                        lift_fill=fill)
         if anchor:
             out = anchor_exposure(image_srgb, out, physics, shadow_old, s_new, sky)
     if held is not None and physics is not None:

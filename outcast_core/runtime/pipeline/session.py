@@ -967,6 +967,11 @@ class RelightSession:
                                                      d["excluded"], marked=d["marked"])
             return self._detail_lift
 
+    def marked_shadows(self) -> np.ndarray | None:
+        """How much the user's "Mark shadow" counts at each working-size pixel (``H x W``
+        float32 in [0, 1]), or None without such a mark."""
+        return None if self.sky is None else self._marked(self.sky)
+
     def _marked(self, sky: np.ndarray) -> np.ndarray | None:
         """How much the user's "Mark shadow" counts at each pixel (float32 in [0, 1],
         :func:`~outcast_core.runtime.pipeline.photo_shadows.marked_weight`: a stroke's edge
@@ -1539,7 +1544,7 @@ class RelightSession:
         with self._lock:
             out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit,
                                               out_dtype=dtype, sky=self.sky)
-            marked = self._marked(self.sky)
+            marked = self.marked_shadows()
             if marked is not None:  # a marked crushed shadow lit: no noise x 400
                 out = keep_fills(out, self.image_srgb, relit, marked)
             out = self.without_old_sun_full(out, relit, w_new)

@@ -1019,6 +1019,7 @@ def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray, np.ndarray], 
     size): moved onto the photo at the frame's size (its detail kept) with the banded 8-bit
     transfer, the photo resized to that size once, and a sun the photo shows taken out there
     too when the frame's sun leaves the frame (as a relit still)."""
+    from outcast_core.runtime.pipeline.photo_shadows import keep_fills
     from outcast_core.runtime.pipeline.relight import transfer_to_full_resolution
     from outcast_core.runtime.pipeline.session import resize
 
@@ -1031,9 +1032,12 @@ def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray, np.ndarray], 
         return lambda relit, _sun: resize(relit, shape)
     photo = full if shape == full.shape[:2] else resize(full, shape)  # once, uint8 if 8-bit
     sky = session.sky
+    marked = session.marked_shadows()  # a marked crushed shadow: filled, as in stills
 
     def make(relit: np.ndarray, sun: np.ndarray) -> np.ndarray:
         out = transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8, sky=sky)
+        if marked is not None:
+            out = keep_fills(out, work, relit, marked)
         return session.without_old_sun_full(out, relit, sun)
 
     return make

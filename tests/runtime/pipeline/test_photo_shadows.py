@@ -505,3 +505,42 @@ def test_the_photos_own_shade_shift_is_measured_at_its_shadows_edges() -> None:
     assert np.allclose(photo_shade_shift(image, found, surface), (0.0, 0.0))
     image, found = photo(1.0)
     assert photo_shade_shift(image, np.zeros_like(found), surface) == SKY_SHADE_SHIFT
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.uint8])
+def test_keep_fills_in_boxes_and_bands_is_the_whole_frame_blend(monkeypatch, dtype) -> None:
+    """``keep_fills`` upsamples only boxes round the filled pixels, in bands of rows and
+    columns (a review: one box round two marks in opposite corners was the whole frame, and a
+    100-megapixel photo got several GB of temporaries): the same pixels as blending the whole
+    frame at once, at a scale that is not a whole number, in 8 bits and in float."""
+    import cv2
+
+    from outcast_core.runtime.pipeline import photo_shadows as ps
+
+    monkeypatch.setattr(ps, "FILL_BAND", 7)
+    monkeypatch.setattr(ps, "FILL_BAND_COLUMNS", 11)
+    rng = np.random.default_rng(2)
+    h, w, big_h, big_w = 30, 40, 77, 101
+    before = rng.uniform(0.3, 0.8, (h, w, 3)).astype(np.float32)
+    before[2:8, 3:9] = 0.002  # two crushed marks, far apart
+    before[20:28, 30:38] = 0.002
+    after = rng.uniform(0.3, 0.8, (h, w, 3)).astype(np.float32)
+    full = rng.uniform(0.0, 1.0, (big_h, big_w, 3)).astype(np.float32)
+    if dtype == np.uint8:
+        full = np.rint(full * 255).astype(np.uint8)
+    share = ps.filled_share(before, after)
+    assert len(ps._fill_boxes(share > 0)) == 2
+    ys = ((np.arange(big_h) + 0.5) * h / big_h - 0.5).astype(np.float32)
+    xs = ((np.arange(big_w) + 0.5) * w / big_w - 0.5).astype(np.float32)
+    mx, my = np.meshgrid(xs, ys)
+    k = cv2.remap(share, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[..., None]
+    up = cv2.remap(after, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    base = full.astype(np.float32) / (255.0 if dtype == np.uint8 else 1.0)
+    want = base + k * (up - base)
+    got = ps.keep_fills(full.copy(), before, after)
+    if dtype == np.uint8:
+        want = np.clip(np.rint(want * 255.0), 0, 255).astype(np.uint8)
+        assert np.abs(got.astype(int) - want.astype(int)).max() <= 1
+    else:
+        np.testing.assert_allclose(got, want, atol=1e-5)
+    assert (got[k[..., 0] == 0] == full[k[..., 0] == 0]).all()  # nothing else touched

@@ -1246,3 +1246,33 @@ def test_a_marked_crushed_shadow_is_taken_whole_and_filled_at_every_size() -> No
     relit = s.relight_full((-0.3, -0.6, -0.7))
     d_l, d_ab, spread = gap(relit, inner_full, light_full)
     assert d_l < 6.0 and d_ab < 3.0 and spread < lit_spread + 1.0
+
+
+def test_a_black_object_in_a_marked_shadow_that_is_not_crushed_stays_black() -> None:
+    """The fill is for a shadow the camera crushed, decided on the shadow's own level: a black
+    bin inside a marked shadow 6x darker than the ground is more than 16x darker than the
+    ground itself, and was painted the ground's colour (a review); it stays dark while the
+    shadow round it is lifted."""
+    from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
+    from outcast_core.runtime.pipeline.photo_shadows import marked_weight
+
+    rng = np.random.default_rng(5)
+    ground = np.full((H, W, 3), 0.6, np.float32) * (1 + 0.02 * rng.standard_normal((H, W, 1)))
+    lin = srgb_to_linear(np.clip(ground, 0, 1).astype(np.float32))
+    shadow = np.zeros((H, W), bool)
+    shadow[30:80, 30:110] = True
+    bin_ = np.zeros((H, W), bool)
+    bin_[45:65, 60:75] = True
+    lin[shadow] /= 6.0
+    lin[bin_] = srgb_to_linear(np.float32(0.03))
+    img = linear_to_srgb(lin)
+    sky = np.zeros((H, W), bool)
+    p = photo_shadow_probability(img, sky)
+    added = shadow.astype(np.float32)  # the whole shadow, the bin in it (as a brush paints)
+    edited, not_shadow = apply_edit_masks(p, sky, added, np.zeros((H, W), bool))
+    out = deshadow(img, edited, sky | not_shadow, marked=marked_weight(added))
+    inner = shadow & ~(cv2.dilate(bin_.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0)
+    inner = cv2.erode(inner.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    assert abs(float(out[inner].mean()) - 0.6) < 0.06  # the shadow lifted to the ground
+    core = cv2.erode(bin_.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    assert float(out[core].mean()) < 0.2  # the bin still dark
