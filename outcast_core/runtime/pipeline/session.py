@@ -1214,6 +1214,9 @@ class RelightSession:
                              self.original_sun, None if change is None else change.sun)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
                                           threads=1)
+        marked = self._marked(st["sky"])
+        if marked is not None:  # a marked crushed shadow, filled as when the sun is let go
+            out = keep_fills(out, image, relit, marked)
         self._time("relight_preview", t1)
         return out.astype(np.float32) * np.float32(1.0 / 255.0)  # 8 bits: it is for the screen
 

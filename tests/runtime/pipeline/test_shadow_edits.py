@@ -1246,6 +1246,9 @@ def test_a_marked_crushed_shadow_is_taken_whole_and_filled_at_every_size() -> No
     relit = s.relight_full((-0.3, -0.6, -0.7))
     d_l, d_ab, spread = gap(relit, inner_full, light_full)
     assert d_l < 6.0 and d_ab < 3.0 and spread < lit_spread + 1.0
+    preview = s.relight((-0.3, -0.6, -0.7), preview=True)  # dragging: the same
+    d_l, d_ab, spread = gap(preview, inner, light)
+    assert d_l < 8.0 and d_ab < 3.0 and spread < lit_spread + 1.5
 
 
 def test_a_black_object_in_a_marked_shadow_that_is_not_crushed_stays_black() -> None:
