@@ -1249,6 +1249,13 @@ def test_a_marked_crushed_shadow_is_taken_whole_and_filled_at_every_size() -> No
     preview = s.relight((-0.3, -0.6, -0.7), preview=True)  # dragging: the same
     d_l, d_ab, spread = gap(preview, inner, light)
     assert d_l < 8.0 and d_ab < 3.0 and spread < lit_spread + 1.5
+    # Physics relighting too (it multiplied the noise: L* 11.7 against the wall's 68).
+    p = RelightSession(mode="classic", preset="fast")
+    p.set_image(img, depth=depth)
+    p.set_original_sun((0.3, -0.5, -0.8))
+    p.set_shadow_edits([ShadowEdit(700 / big_w, 800 / big_h, True)])
+    d_l, d_ab, spread = gap(p.relight_full((-0.3, -0.6, -0.7)), inner_full, light_full)
+    assert d_l < 6.0 and d_ab < 3.0 and spread < lit_spread + 1.0
 
 
 def test_a_black_object_in_a_marked_shadow_that_is_not_crushed_stays_black() -> None:
