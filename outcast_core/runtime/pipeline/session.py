@@ -1068,7 +1068,7 @@ class RelightSession:
             full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out,
                                                sky=d["sky"])
             if d["marked"] is not None:  # a marked crushed shadow: no noise x 400
-                full = keep_fills(full, d["image"], out, d["marked"])
+                full = keep_fills(full, d["image"], out, d["marked"], self.full_image_srgb)
         self._time("deshadow_full", t0)
         return full
 
@@ -1224,7 +1224,7 @@ class RelightSession:
                                           threads=1)
         marked = self._marked(st["sky"])
         if marked is not None:  # a marked crushed shadow, filled as when the sun is let go
-            out = keep_fills(out, image, relit, marked)
+            out = keep_fills(out, image, relit, marked, st["working_u8"])
         self._time("relight_preview", t1)
         return out.astype(np.float32) * np.float32(1.0 / 255.0)  # 8 bits: it is for the screen
 
@@ -1580,7 +1580,7 @@ class RelightSession:
                                               out_dtype=dtype, sky=self.sky)
             marked = self.marked_shadows()
             if marked is not None:  # a marked crushed shadow lit: no noise x 400
-                out = keep_fills(out, self.image_srgb, relit, marked)
+                out = keep_fills(out, self.image_srgb, relit, marked, self.full_image_srgb)
             out = self.without_old_sun_full(out, relit, w_new)
         self._time("full_resolution", t0)
         return out

@@ -1037,7 +1037,7 @@ def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray, np.ndarray], 
     def make(relit: np.ndarray, sun: np.ndarray) -> np.ndarray:
         out = transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8, sky=sky)
         if marked is not None:
-            out = keep_fills(out, work, relit, marked)
+            out = keep_fills(out, work, relit, marked, photo)
         return session.without_old_sun_full(out, relit, sun)
 
     return make
