@@ -356,12 +356,7 @@ def check_photo_file(path: str | os.PathLike[str]) -> None:
     try:
         _check_input_file(path)
         with _open_pil(path) as im:
-            fmt = im.format or "unknown"
-            if fmt not in READ_FORMATS:
-                raise ImageReadError(
-                    f"cannot read image '{path}': unsupported format {fmt}; expected "
-                    f"{_READABLE_NAMES}", ImageReadReason.UNSUPPORTED_FORMAT)
-            _check_pixel_count(path, *im.size)
+            _checked_format(im, path)
     except ImageReadError:
         raise
     except Exception as exc:  # noqa: BLE001 - Pillow raises many types for broken headers
@@ -505,6 +500,14 @@ def _checked_header(
 ) -> tuple[str, Image.Exif | None, bytes | None]:
     """An opened image's format, Exif and raw Exif bytes, with the format and the pixel count
     checked (:class:`ImageReadError` otherwise; :func:`_stored_size` gives its size)."""
+    fmt = _checked_format(im, path)
+    exif, exif_bytes = _exif_of(im, path)
+    return fmt, exif, exif_bytes
+
+
+def _checked_format(im: Image.Image, path: Path) -> str:
+    """An opened image's format, checked with its pixel count (:class:`ImageReadError`
+    otherwise)."""
     fmt = im.format or "unknown"
     if fmt not in READ_FORMATS:
         raise ImageReadError(
@@ -512,8 +515,7 @@ def _checked_header(
             ImageReadReason.UNSUPPORTED_FORMAT,
         )
     _check_pixel_count(path, *im.size)
-    exif, exif_bytes = _exif_of(im, path)
-    return fmt, exif, exif_bytes
+    return fmt
 
 
 def _check_input_file(path: Path) -> None:

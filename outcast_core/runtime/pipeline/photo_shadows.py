@@ -637,28 +637,27 @@ def crushed_share(below_lit: np.ndarray) -> np.ndarray:
 
 
 def keep_fills(full_srgb: np.ndarray, before_srgb: np.ndarray, after_srgb: np.ndarray,
-               where: np.ndarray | None = None, photo: np.ndarray | None = None
-               ) -> np.ndarray:
+               where: np.ndarray | None, photo: np.ndarray) -> np.ndarray:
     """An image made from a photo (de-shadowed or relit) brought to full resolution by its
     gain (``full_srgb``, ``H x W x 3`` float32 or uint8), with what it filled rather than
     lifted (:func:`filled_share`, from ``before_srgb`` to ``after_srgb``, ``h x w x 3`` sRGB)
     taken from ``after_srgb`` upsampled: the full-size photo holds only noise there, which
-    the gain would multiply. Only boxes round the filled pixels are upsampled, in bands of
-    rows (a 100-megapixel photo has no full-size copy made). ``where`` (``h x w`` in [0, 1], or
-    None: everywhere): where a fill may be (the session passes what the user marked as
-    shadow). ``photo`` (the photo at ``full_srgb``'s size, uint8 or float sRGB, or None):
-    near a fill, each full-size pixel is filled as far as the photo there is darker than the
-    fill (:data:`FILL_DARKER`), so the fill's edge is the photo's own, not the working
-    grid's steps blurred (a user trial: a 10 px staircase with a dark outline at 4000 px);
-    without it, as far as the fill reaches upsampled. Returns ``full_srgb``, changed in
-    place where filled.
+    the gain would multiply (:func:`~outcast_core.runtime.pipeline.relight.
+    transfer_to_full_resolution` calls it with its ``fills``). Only boxes round the filled
+    pixels are upsampled, in bands of rows (a 100-megapixel photo has no full-size copy
+    made). ``where`` (``h x w`` in [0, 1], or None: everywhere): where a fill may be (what
+    the user marked as shadow). ``photo`` (the photo at ``full_srgb``'s size, uint8 or float
+    sRGB): near a fill, each full-size pixel is filled as far as the photo there is darker
+    than the fill (:data:`FILL_DARKER`), so the fill's edge is the photo's own, not the
+    working grid's steps blurred (a user trial: a 10 px staircase with a dark outline at
+    4000 px). Returns ``full_srgb``, changed in place where filled.
 
     Example:
         >>> before = np.full((8, 8, 3), 0.5, np.float32); before[2:6, 2:6] = 0.001
         >>> after = np.full((8, 8, 3), 0.5, np.float32)
         >>> full = np.full((16, 16, 3), 0.5, np.float32)
         >>> full[4:12, 4:12] = before[2, 2] * (1 + 30 * np.random.default_rng(0).random((8, 8, 3)))
-        >>> out = keep_fills(full * (0.5 / 0.001), before, after)
+        >>> out = keep_fills(full * (0.5 / 0.001), before, after, None, full)
         >>> bool(np.allclose(out[6:10, 6:10], 0.5, atol=1e-3))
         True
     """
@@ -668,8 +667,8 @@ def keep_fills(full_srgb: np.ndarray, before_srgb: np.ndarray, after_srgb: np.nd
         share = share * np.clip(np.asarray(where, np.float32), 0.0, 1.0)
     if not share.any():
         return full_srgb
-    if photo is not None:  # a working pixel's reach round the fill; the photo says which
-        share = cv2.dilate(share, np.ones((3, 3), np.uint8))
+    share = cv2.dilate(share, np.ones((3, 3), np.uint8))  # a working pixel's reach round the
+    # fill; the photo says which of its pixels are filled
     h, w = share.shape
     big_h, big_w = full_srgb.shape[:2]
     fy, fx = big_h / h, big_w / w
@@ -688,16 +687,14 @@ def keep_fills(full_srgb: np.ndarray, before_srgb: np.ndarray, after_srgb: np.nd
                 up = cv2.remap(after, map_x, map_y, cv2.INTER_LINEAR,
                                borderMode=cv2.BORDER_REPLICATE)
                 crop = full_srgb[R:R + len(ys), C:C + len(xs)]
-                if photo is not None:
-                    own = np.asarray(photo[R:R + len(ys), C:C + len(xs)])
-                    own = (own.astype(np.float32) * np.float32(1.0 / 255.0)
-                           if own.dtype == np.uint8 else own.astype(np.float32))
-                    darker = (np.log(luminance(srgb_to_linear(np.clip(up, 0.0, 1.0)))
-                                     + _LOG_EPS)
-                              - np.log(luminance(srgb_to_linear(np.clip(own, 0.0, 1.0)))
-                                       + _LOG_EPS))
-                    lo, hi = (math.log(v) for v in FILL_DARKER)
-                    k = np.clip(4.0 * k, 0.0, 1.0) * np.clip((darker - lo) / (hi - lo), 0, 1)
+                own = np.asarray(photo[R:R + len(ys), C:C + len(xs)])
+                own = (own.astype(np.float32) * np.float32(1.0 / 255.0)
+                       if own.dtype == np.uint8 else own.astype(np.float32))
+                darker = (np.log(luminance(srgb_to_linear(np.clip(up, 0.0, 1.0))) + _LOG_EPS)
+                          - np.log(luminance(srgb_to_linear(np.clip(own, 0.0, 1.0)))
+                                   + _LOG_EPS))
+                lo, hi = (math.log(v) for v in FILL_DARKER)
+                k = np.clip(4.0 * k, 0.0, 1.0) * np.clip((darker - lo) / (hi - lo), 0.0, 1.0)
                 if crop.dtype == np.uint8:
                     c = crop.astype(np.float32) * np.float32(1.0 / 255.0)
                     c += k[..., None] * (up - c)

@@ -37,7 +37,7 @@ from outcast_core.runtime.geometry.colour import (
     srgb_to_linear,
 )
 from outcast_core.runtime.pipeline.daylight import in_new_daylight
-from outcast_core.runtime.pipeline.photo_shadows import SKY_SHADE_SHIFT, filled_share
+from outcast_core.runtime.pipeline.photo_shadows import SKY_SHADE_SHIFT, keep_fills
 
 #: Clear-day sun/sky irradiance ratio per channel (R, G, B) when the photo cannot tell.
 PRIOR_RATIO = np.array([5.0, 4.0, 2.8], dtype=np.float32)
@@ -215,6 +215,7 @@ def transfer_to_full_resolution(
     out_dtype: type | np.dtype = np.float32,
     threads: int | None = None,
     sky: np.ndarray | None = None,
+    fills: np.ndarray | None = None,
 ) -> np.ndarray:
     """Apply a working-resolution relighting to the full-resolution photo.
 
@@ -235,6 +236,10 @@ def transfer_to_full_resolution(
         threads: worker threads (default: the machine's cores, at most 4).
         sky: the working-size sky mask: along the skyline the sky keeps the sky's gain and
             the surface the surface's (:class:`~outcast_core.runtime.geometry.fullres.SkyGuide`).
+        fills: where the user marked shadows (working size, in [0, 1], or None): a crushed
+            one the relighting filled is taken from it upsampled, not from the photo's noise
+            multiplied by the gain (:func:`~outcast_core.runtime.pipeline.photo_shadows.
+            keep_fills`).
 
     Returns:
         ``H x W x 3`` sRGB of ``out_dtype``.
@@ -243,8 +248,11 @@ def transfer_to_full_resolution(
 
     gain = gain_map(np.asarray(work_before_srgb), np.asarray(work_after_srgb))  # h x w x 3
     guide = None if sky is None else SkyGuide(sky, np.asarray(work_before_srgb))
-    return apply_gain(full_srgb, gain, out_dtype=out_dtype, band_rows=band_rows, threads=threads,
-                      sky=guide)
+    out = apply_gain(full_srgb, gain, out_dtype=out_dtype, band_rows=band_rows, threads=threads,
+                     sky=guide)
+    if fills is not None:
+        out = keep_fills(out, work_before_srgb, work_after_srgb, fills, full_srgb)
+    return out
 
 
 #: :func:`keep_photo_colour`: shadow level above which a pixel counts as lit (soft over
@@ -960,6 +968,7 @@ def guard_learned_relight(
     physics_at: np.ndarray | None = None,
     daylight: np.ndarray | None = None,
     shade_shift: tuple[float, float] | None = None,
+    lift_fill: np.ndarray | None = None,
 ) -> np.ndarray:
     """A learned relighting with the real-photo guards the session turns on: first, with
     ``detail``, the photo's fine texture where no shadow changes (:func:`restore_detail`, from
@@ -1004,7 +1013,9 @@ def guard_learned_relight(
     gave the lift's), and the whole gain to a sky kept as the photo's. ``shade_shift`` (with
     ``colour``; None: off): where the new sun newly shadows a surface, its colour is the
     photo's turned by the light's change of colour (:func:`shaded_colour`), and the new
-    daylight's colour is given there as where the photo's colour is kept.
+    daylight's colour is given there as where the photo's colour is kept. ``lift_fill``:
+    :func:`shadow_contrast_floor`'s (the session's, where ``lift_base`` filled a crushed
+    shadow the user marked).
 
     Example:
         >>> img = np.full((8, 8, 3), 0.5, np.float32); ones = np.ones((8, 8), np.float32)
@@ -1041,19 +1052,15 @@ def guard_learned_relight(
             physics = in_new_daylight(physics, gain)
     if floor or anchor:
         if floor:
-            cap = fill = None
+            cap = None
             if lift and lift_base is not None:  # the de-shadowed photo relit by physics
                 base_srgb, lit_old = lift_base
                 cap = physics_relight(base_srgb, lit_old, s_new, sky, light=light, snap=False)
                 if gain is not None:
                     cap = in_new_daylight(cap, gain)
-                # What the de-shadow filled (only where the user marked a crushed shadow).
-                fill = filled_share(image_srgb, base_srgb)
-                fill = np.where(fill > FILL_MIN, fill, 0.0).astype(np.float32)
-                fill = fill if fill.any() else None
             out = shadow_contrast_floor(image_srgb, out, physics, shadow_old, s_new, lift=lift,
                                         lift_guard=lift_guard, lift_cap_srgb=cap,
-                                        lift_fill=fill)
+                                        lift_fill=lift_fill if cap is not None else None)
         if anchor:
             out = anchor_exposure(image_srgb, out, physics, shadow_old, s_new, sky)
     if held is not None and physics is not None:

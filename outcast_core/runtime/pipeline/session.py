@@ -68,7 +68,6 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     deshadow,
     edit_masks_at,
     filled_share,
-    keep_fills,
     lift_probability,
     lit_surface_colour,
     marked_weight,
@@ -1066,9 +1065,7 @@ class RelightSession:
                     deshadow(d["image"], d["probability"], d["excluded"], marked=d["marked"],
                              lifted=self._detail_lifted(d)))
             full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out,
-                                               sky=d["sky"])
-            if d["marked"] is not None:  # a marked crushed shadow: no noise x 400
-                full = keep_fills(full, d["image"], out, d["marked"], self.full_image_srgb)
+                                               sky=d["sky"], fills=d["marked"])
         self._time("deshadow_full", t0)
         return full
 
@@ -1214,17 +1211,14 @@ class RelightSession:
         else:
             relit = physics_relight(image, st["shadow_old"], s_new, st["sky"],
                                     light=light, snap=False)
-            relit = self._physics_fills(relit, image, s_new, st["sky"], light)
+            relit = self._physics_fills(relit, s_new, st["sky"], light)
             if gain is not None:
                 relit = in_new_daylight(relit, gain)
         relit = self._finish(image, relit, share, st["sky"], self.sun_seen, st["camera"], wv,
                              st["camera"].width / self.camera.width, exposure, self.greyscale,
                              self.original_sun, None if change is None else change.sun)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
-                                          threads=1)
-        marked = self._marked(st["sky"])
-        if marked is not None:  # a marked crushed shadow, filled as when the sun is let go
-            out = keep_fills(out, image, relit, marked, st["working_u8"])
+                                          threads=1, fills=self._marked(st["sky"]))
         self._time("relight_preview", t1)
         return out.astype(np.float32) * np.float32(1.0 / 255.0)  # 8 bits: it is for the screen
 
@@ -1283,7 +1277,7 @@ class RelightSession:
                               daylight=gain)
         else:
             img = physics_relight(image, s_o, s_new, inp["sky"], light=inp["light"], snap=False)
-            img = self._physics_fills(img, image, s_new, inp["sky"], inp["light"])
+            img = self._physics_fills(img, s_new, inp["sky"], inp["light"])
             if gain is not None:
                 img = in_new_daylight(img, gain)
         img = self._finish(image, img, share, inp["sky"], inp["sun_seen"], inp["camera"], wv,
@@ -1388,25 +1382,21 @@ class RelightSession:
                                      else None,
                                      **inputs)
 
-    def _physics_fills(self, relit: np.ndarray, image: np.ndarray, s_new: np.ndarray,
-                       sky: np.ndarray, light: LightEstimate) -> np.ndarray:
-        """Physics relighting (``relit``, of ``image`` at its size) where a crushed shadow the
-        user marked was filled (:func:`~outcast_core.runtime.pipeline.photo_shadows.
-        filled_share` of the lift's de-shadowed photo): the filled photo relit from the old
-        sun's lit level, as the learned relighting's lift ceiling is. Physics multiplies the
-        photo's noise there, so the marked shadow stayed black (a test wall: L* 11.7 against
-        68 round it, the learned relighting 64.7)."""
+    def _physics_fills(self, relit: np.ndarray, s_new: np.ndarray, sky: np.ndarray,
+                       light: LightEstimate) -> np.ndarray:
+        """Physics relighting (``relit``, at the size of ``sky``) where a crushed shadow the
+        user marked was filled (:meth:`_lift_inputs`' ``lift_fill``): the filled photo relit
+        from the old sun's lit level, as the learned relighting's lift ceiling is. Physics
+        multiplies the photo's noise there, so the marked shadow stayed black (a test wall:
+        L* 11.7 against 68 round it, the learned relighting 64.7)."""
         if self._marked(sky) is None:
             return relit
         inputs = self._lift_inputs(tuple(relit.shape[:2]))
-        if not inputs:
+        if not inputs or inputs["lift_fill"] is None:
             return relit
         base, lit_old = inputs["lift_base"]
-        fill = filled_share(image, base)
-        if not (fill > FILL_MIN).any():
-            return relit
         cap = physics_relight(base, lit_old, s_new, sky, light=light, snap=False)
-        k = np.where(fill > FILL_MIN, fill, 0.0)[..., None]
+        k = inputs["lift_fill"][..., None]
         out = (1.0 - k) * srgb_to_linear(relit) + k * srgb_to_linear(cap)
         return linear_to_srgb(out).astype(np.float32)
 
@@ -1452,19 +1442,29 @@ class RelightSession:
             lit_old = np.where(self.sky, 0.0, lit_old)
             guards["colour"] = lit_surface_colour(self.image_srgb, self.shadow_probability,
                                                   self._lift_excluded, LIFT_COLOUR_SIGMA)
-            # Last: a thread that finds "base" finds "colour" too.
+            # What the de-shadow filled: a crushed shadow the user marked (None elsewhere).
+            fill = None
+            if self._marked(self.sky) is not None:
+                fill = filled_share(self.image_srgb, base)
+                fill = np.where(fill > FILL_MIN, fill, 0.0).astype(np.float32)
+                fill = fill if fill.any() else None
+            guards["fill"] = fill
+            # Last: a thread that finds "base" finds "colour" and "fill" too.
             guards["base"] = (base.astype(np.float32), lit_old.astype(np.float32))
         key = ("base", tuple(shape))
         if key not in guards:
             base, lit_old = guards["base"]
-            colour = guards["colour"]
+            colour, fill = guards["colour"], guards["fill"]
             if base.shape[:2] != tuple(shape):
                 base = np.clip(resize(base, tuple(shape)), 0.0, 1.0)
                 lit_old = np.clip(resize(lit_old, tuple(shape)), 0.0, 1.0)
                 colour = resize(colour, tuple(shape))
-            guards[key] = (base, lit_old, colour)
-        base, lit_old, colour = guards[key]
-        return {"lift_guard": guard, "lift_base": (base, lit_old), "lift_colour": colour}
+                if fill is not None:
+                    fill = np.clip(resize(fill, tuple(shape)), 0.0, 1.0)
+            guards[key] = (base, lit_old, colour, fill)
+        base, lit_old, colour, fill = guards[key]
+        return {"lift_guard": guard, "lift_base": (base, lit_old), "lift_colour": colour,
+                "lift_fill": fill}
 
     def _lift_guard(self, shape: tuple[int, int]) -> np.ndarray | None:
         """Where a newly lit surface may be lifted to physics' brightness: the photo's found
@@ -1577,10 +1577,8 @@ class RelightSession:
         t0 = time.perf_counter()
         with self._lock:
             out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit,
-                                              out_dtype=dtype, sky=self.sky)
-            marked = self.marked_shadows()
-            if marked is not None:  # a marked crushed shadow lit: no noise x 400
-                out = keep_fills(out, self.image_srgb, relit, marked, self.full_image_srgb)
+                                              out_dtype=dtype, sky=self.sky,
+                                              fills=self.marked_shadows())
             out = self.without_old_sun_full(out, relit, w_new)
         self._time("full_resolution", t0)
         return out

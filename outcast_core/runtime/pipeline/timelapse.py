@@ -1019,7 +1019,6 @@ def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray, np.ndarray], 
     size): moved onto the photo at the frame's size (its detail kept) with the banded 8-bit
     transfer, the photo resized to that size once, and a sun the photo shows taken out there
     too when the frame's sun leaves the frame (as a relit still)."""
-    from outcast_core.runtime.pipeline.photo_shadows import keep_fills
     from outcast_core.runtime.pipeline.relight import transfer_to_full_resolution
     from outcast_core.runtime.pipeline.session import resize
 
@@ -1035,9 +1034,8 @@ def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray, np.ndarray], 
     marked = session.marked_shadows()  # a marked crushed shadow: filled, as in stills
 
     def make(relit: np.ndarray, sun: np.ndarray) -> np.ndarray:
-        out = transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8, sky=sky)
-        if marked is not None:
-            out = keep_fills(out, work, relit, marked, photo)
+        out = transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8, sky=sky,
+                                          fills=marked)
         return session.without_old_sun_full(out, relit, sun)
 
     return make

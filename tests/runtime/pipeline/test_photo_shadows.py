@@ -530,14 +530,17 @@ def test_keep_fills_in_boxes_and_bands_is_the_whole_frame_blend(monkeypatch, dty
         full = np.rint(full * 255).astype(np.uint8)
     share = ps.filled_share(before, after)
     assert len(ps._fill_boxes(share > 0)) == 2
+    share = cv2.dilate(share, np.ones((3, 3), np.uint8))  # (a working pixel's reach)
     ys = ((np.arange(big_h) + 0.5) * h / big_h - 0.5).astype(np.float32)
     xs = ((np.arange(big_w) + 0.5) * w / big_w - 0.5).astype(np.float32)
     mx, my = np.meshgrid(xs, ys)
     k = cv2.remap(share, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)[..., None]
+    k = np.clip(4.0 * k, 0.0, 1.0)  # a black photo: darker than every fill
     up = cv2.remap(after, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     base = full.astype(np.float32) / (255.0 if dtype == np.uint8 else 1.0)
     want = base + k * (up - base)
-    got = ps.keep_fills(full.copy(), before, after)
+    photo = np.zeros((big_h, big_w, 3), dtype)
+    got = ps.keep_fills(full.copy(), before, after, None, photo)
     if dtype == np.uint8:
         want = np.clip(np.rint(want * 255.0), 0, 255).astype(np.uint8)
         assert np.abs(got.astype(int) - want.astype(int)).max() <= 1
