@@ -1,12 +1,13 @@
 """Undo and redo: a Qt-free snapshot of what the user edits, and a thin ``QUndoCommand``.
 
-What is undoable: moving either sun (a drag counts once, on release; a key nudge or a typed value
-once each), confirming the original sun and going back to re-align it (the step), the quality
-preset, the depth map, the camera heading typed in step 1, step 2's exposure and light ("Keep
-the photo's light") and the user's corrections of the photo's found shadows (step 2's "Not a
-shadow" / "Mark shadow": a click, or a brush stroke, one step however many dabs it lays). View
-settings (overlay opacity, split, buffer view, zoom) are not; the time-lapse dialog's settings
-are not either, but they count as unsaved work (``MainWindow.has_unsaved_changes``).
+What is undoable: moving either sun (a drag counts once, on release; a key nudge or a typed
+value once each), confirming the original sun and going back to re-align it (the step), the
+quality preset, the depth map, the camera heading typed in step 1, step 2's exposure, light
+("Keep the photo's light") and relighting (learned or physics) and the user's corrections of the
+photo's found shadows (step 2's "Not a shadow" / "Mark shadow": a click, or a brush stroke, one
+step however many dabs it lays). View settings (overlay opacity, split, buffer view, zoom) are
+not; the time-lapse dialog's settings are not either, but they count as unsaved work
+(``MainWindow.has_unsaved_changes``).
 
 Each user action records ``EditState`` before and after; undo applies "before", redo "after".
 The window applies a state through one narrow method, :meth:`EditTarget.apply_edit_state`, so
@@ -27,6 +28,7 @@ from typing import TYPE_CHECKING, Protocol
 
 from PySide6.QtGui import QUndoCommand
 
+from app.state import RELIGHTINGS
 from app.sun_dial_math import same_sun
 
 if TYPE_CHECKING:
@@ -52,6 +54,8 @@ class EditState:
         exposure: ``"photo"`` (the photo's exposure kept) or ``"metered"`` (step 2).
         daylight: whether relit photos take the new sun's daylight (step 2's "Keep the
             photo's light" clear; ``RelightSession.daylight``).
+        relighting: ``"learned"`` or ``"physics"`` (step 2's "Relighting";
+            ``RelightSession.relight_mode``).
         shadow_edits: the user's corrections of the photo's found shadows, in order
             (:class:`~outcast_core.runtime.pipeline.photo_shadows.ShadowEdit`); ``()``: none.
     """
@@ -65,11 +69,15 @@ class EditState:
     heading: float | None = None
     exposure: str = "photo"
     daylight: bool = True
+    relighting: str = "learned"
     shadow_edits: tuple[ShadowEdit, ...] = ()
 
     def __post_init__(self) -> None:
         if self.step not in ("align", "relight"):
             raise ValueError(f"expected step 'align' or 'relight', got {self.step!r}")
+        if self.relighting not in RELIGHTINGS:
+            raise ValueError(f"expected relighting {' or '.join(RELIGHTINGS)}, got "
+                             f"{self.relighting!r}")
         if self.step == "relight" and self.original_sun is None:
             raise ValueError("expected an original sun in step 'relight', got None")
 
@@ -96,6 +104,8 @@ def describe_change(before: EditState, after: EditState) -> str:
         return "Meter the new light" if after.exposure == "metered" else "Keep the photo's exposure"
     if before.daylight != after.daylight:
         return "Take the new sun's daylight" if after.daylight else "Keep the photo's light"
+    if before.relighting != after.relighting:
+        return f"Relighting: {after.relighting.capitalize()}"
     if before.shadow_edits != after.shadow_edits:
         return shadow_edit_text(after.shadow_edits)
     if before.target_sun != after.target_sun:
@@ -130,6 +140,7 @@ _PART_WORDS = (
     ("original_sun", "the original sun"), ("target_sun", "the new sun"),
     ("preset", "the quality"), ("depth_path", "the depth map"),
     ("heading", "the camera heading"), ("exposure", "the exposure"), ("daylight", "the light"),
+    ("relighting", "the relighting"),
     ("shadow_edits", "the corrections of the found shadows"),
 )
 

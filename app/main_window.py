@@ -739,6 +739,7 @@ class MainWindow(QMainWindow):
         rp.split_slider.valueChanged.connect(self._on_split_changed)
         rp.exposure_changed.connect(self._on_exposure_changed)
         rp.daylight_changed.connect(self._on_daylight_changed)
+        rp.relighting_changed.connect(self._on_relighting_changed)
         self.canvas.split_dragged.connect(lambda f: rp.split_slider.setValue(round(f * 100)))
         rp.view_combo.currentIndexChanged.connect(self._on_view_changed)
         rp.export_still_clicked.connect(self.export_still_dialog)
@@ -889,6 +890,7 @@ class MainWindow(QMainWindow):
             heading=self.user_heading,
             exposure=self.relight_panel.exposure(),
             daylight=self.relight_panel.daylight(),
+            relighting=self.relight_panel.relighting(),
             shadow_edits=self.shadow_edits,
         )
 
@@ -929,15 +931,19 @@ class MainWindow(QMainWindow):
                 self._refresh_timelapse_preview()
             if state.heading != self.user_heading:
                 self.set_user_heading(state.heading)
-            # The exposure and the light: relit below, once; an open time-lapse's frame too
-            # (an undone exposure left it drawn at the other one: a review).
+            # The exposure, the light and the relighting: relit below, once; an open
+            # time-lapse's frame too (an undone exposure left it drawn at the other one: a
+            # review).
             exposure = state.exposure != self.relight_panel.exposure()
             daylight = state.daylight != self.relight_panel.daylight()
+            relighting = state.relighting != self.relight_panel.relighting()
             if exposure:
                 self.set_exposure(state.exposure, refresh=False)
             if daylight:
                 self.set_daylight(state.daylight, refresh=False)
-            if exposure or daylight:
+            if relighting:
+                self.set_relighting(state.relighting, refresh=False)
+            if exposure or daylight or relighting:
                 self._refresh_timelapse_preview()
             if state.preset != self.preset:
                 self.set_preset(state.preset)
@@ -967,6 +973,7 @@ class MainWindow(QMainWindow):
         project.heading = state.heading
         project.exposure = state.exposure
         project.daylight = state.daylight
+        project.relighting = state.relighting
         project.shadow_edits = state.shadow_edits
         relight = state.step == "relight" and state.original_sun is not None
         project.original_sun = Sun(*state.original_sun) if relight else None
@@ -1184,6 +1191,8 @@ class MainWindow(QMainWindow):
         self.session.exposure = self.relight_panel.exposure()
         # (a new session, no job holds it yet: its lock is not waited for)
         self.session.daylight = self.relight_panel.daylight()
+        if project is None:  # the default for another photo (a project's own: _apply_project)
+            self._show_relighting(restore.relighting if restore is not None else "learned")
         self.loaded = result["loaded"]
         self._set_camera_tilt(result.get("tilt", LEVEL_TILT))
         self.depth_path = result.get("depth_path", "")
@@ -1345,7 +1354,7 @@ class MainWindow(QMainWindow):
         if s is None:
             return ""
         shadow = "learned shadows" if s.shadow_mode == "learned" else "Direct shadows"
-        relight = "learned relighting" if s.relight_mode == "learned" else "physics relighting"
+        relight = f"{self.relight_panel.relighting()} relighting"  # (the jobs set it)
         depth = str(getattr(s, "depth_source", "?"))
         self.mode_label.setToolTip(f"{shadow} · {relight} · depth: {depth}")
         short = depth.split(" (")[0]
@@ -1534,6 +1543,44 @@ class MainWindow(QMainWindow):
             self.relight_panel.set_daylight(on)
         if refresh:
             self._relight_for_light()
+
+    @Slot(str)
+    def _on_relighting_changed(self, mode: str) -> None:
+        """Step 2's "Relighting" chosen: applied, and undoable."""
+        self.set_relighting(mode)
+        self._record()
+
+    def set_relighting(self, mode: str, refresh: bool = True) -> None:
+        """How relit photos are made (``RelightSession.relight_mode``: ``"learned"`` or
+        ``"physics"``): the choice; with ``refresh``, the relit view and an open time-lapse
+        preview are drawn again. As the light, jobs take the relighting shown when they are
+        asked for and set it on the session in the worker (:class:`~app.state.RelitLook`)."""
+        if not self.relight_panel.learned_available():  # (an undo past a model's failure)
+            mode = "physics"
+        if self.relight_panel.relighting() != mode:
+            self.relight_panel.set_relighting(mode)
+        self.mode_label.setText(self._mode_text())
+        if refresh:
+            self._relight_for_light()
+
+    def _show_relighting(self, mode: str) -> None:
+        """Step 2's relighting for a session just loaded (no job holds it): ``mode``, or
+        physics where the learned relighting cannot run (the choice says why), set on the
+        session and shown."""
+        session = self.session
+        assert session is not None
+        why_not = ""
+        if self.session_mode == "classic":
+            why_not = ("Not available: OutCast runs with Direct shadows and physics relighting "
+                       "(--classic, or a model that failed to load)")
+        elif not session.registry.available("relight"):
+            why_not = "Not available: the relighting model (models/relight.onnx) is not installed"
+        mode = "physics" if why_not else mode
+        self.relight_panel.set_learned_available(why_not)
+        self.relight_panel.set_relighting(mode)
+        if session.relight_mode != mode:
+            session.relight_mode = mode
+        self.mode_label.setText(self._mode_text())
 
     def _relight_for_light(self) -> None:
         """The exposure or the light changed: the relit view and an open time-lapse preview
@@ -1771,6 +1818,7 @@ class MainWindow(QMainWindow):
         self.session.exposure = project.exposure
         self.relight_panel.set_daylight(project.daylight)
         self.session.daylight = project.daylight  # (the session just loaded: no job holds it)
+        self._show_relighting(project.relighting)
         confirmed = project.original_sun is not None and not project.realigning
         if confirmed:
             self.align_panel.sun_panel.set_sun(*project.original_sun.as_tuple())
@@ -1903,11 +1951,13 @@ class MainWindow(QMainWindow):
             self._record(replace(current, step="relight", align_sun=(az, el),
                                  original_sun=(az, el), target_sun=target))  # fmt: skip
         edits = self.shadow_edits
+        look = self.relight_panel.look()
 
         def job(ctx: JobContext) -> dict[str, Any]:
             ctx.progress("refining", 0.1)
             session.set_shadow_edits(edits)  # (applied by set_original_sun)
             session.set_original_sun(sun_vector(az, el))
+            look.apply(session)  # the preview is made ready for its relighting
             session.prepare_relight_preview()  # so the first drag in step 2 is as quick
             return {"sun": (az, el), "keep_target": keep_target, "timings": _timings(session)}
 
@@ -2167,13 +2217,13 @@ class MainWindow(QMainWindow):
             return self.request_deshadow()
         if az is None or el is None:
             az, el = self.relight_panel.sun_panel.sun()
-        exposure = self.relight_panel.exposure()
-        daylight = self.relight_panel.daylight()
+        look = self.relight_panel.look()
+        exposure = look.exposure
         edits = self.shadow_edits
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)  # what lifts the photo's shadows
-            session.daylight = daylight  # (in the worker: set_daylight)
+            look.apply(session)  # (in the worker: set_daylight, set_relighting)
             w = sun_vector(az, el)
             if view == "output":
                 # While dragging: the working-size preview. On release: full resolution, so the
@@ -2460,14 +2510,13 @@ class MainWindow(QMainWindow):
         if session is None or self.step is not Step.RELIGHT:
             return None
         w = sun_vector(*self.relight_panel.sun_panel.sun())
-        exposure = self.relight_panel.exposure()  # as asked, whatever is ticked later
-        daylight = self.relight_panel.daylight()  # likewise
+        look = self.relight_panel.look()  # as asked, whatever is ticked later
         bits = output_bit_depth(path, getattr(self.loaded, "bit_depth", 8))
         dtype = np.float32 if bits == 16 else np.uint8
 
         def render() -> np.ndarray:
-            session.daylight = daylight  # (in the worker: set_daylight)
-            return session.relight_full(w, dtype=dtype, exposure=exposure)
+            look.apply(session)  # (in the worker: set_daylight, set_relighting)
+            return session.relight_full(w, dtype=dtype, exposure=look.exposure)
 
         return self._export_image(
             "export_still", path, force, render, "relighting at full resolution",
@@ -2669,6 +2718,7 @@ class MainWindow(QMainWindow):
             heading=self.user_heading,
             exposure=self.relight_panel.exposure(),
             daylight=self.relight_panel.daylight(),
+            relighting=self.relight_panel.relighting(),
             shadow_edits=self.shadow_edits,
         )
 
@@ -2898,7 +2948,11 @@ class MainWindow(QMainWindow):
             self.open_image(*self._last_load)
         elif self.image_path:
             state = self.edit_state()
-            self.open_image(self.image_path, project=self.project_state(), restore=state,
+            if state is not None:  # (physics relighting from now on)
+                state = replace(state, relighting="physics")
+            project = self.project_state()
+            project.relighting = "physics"
+            self.open_image(self.image_path, project=project, restore=state,
                             record_from=state)  # fmt: skip
 
     @Slot(int, str)

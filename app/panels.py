@@ -24,6 +24,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.qt_sun_dial import SunDialPanel
+from app.state import RelitLook
 from outcast_core.runtime.pipeline.photo_shadows import MAX_BRUSH_RADIUS
 
 VIEW_CHOICES = (
@@ -38,6 +39,20 @@ VIEW_CHOICES = (
 )
 
 #: Step 2's shadow-correction tools: key, button text, tooltip, status-bar hint while on.
+#: Step 2's "Relighting" (key: ``RelightSession.relight_mode``, text, tooltip), the default
+#: first.
+RELIGHTING_CHOICES = (
+    ("learned", "Learned",
+     "The relighting network, with guards that keep the photo's colours, texture and "
+     "exposure: measured best on real photographs (the default)"),
+    ("physics", "Physics",
+     "The photo times the change of light each pixel gets from the depth: old shadows lifted "
+     "and new ones darkened in full, but colours shift more where both suns light a surface "
+     "and the depth's relief can show as embossing"),
+)
+RELIGHTING_TIP = ("How the photo is relit: Learned (the default) keeps the photo's colours and "
+                  "texture; Physics follows the depth to the letter")
+
 SHADOW_TOOLS = (
     ("not_shadow", "Not a shadow",
      "Click an area marked as shadow that is not one (a dark object, foliage, a black car): "
@@ -309,6 +324,8 @@ class RelightPanel(QWidget):
     exposure_changed = Signal(str)  # "photo" or "metered"
     #: "Keep the photo's light" cleared (True: the new sun's daylight) or ticked (False).
     daylight_changed = Signal(bool)
+    #: "Relighting" chosen: ``"learned"`` or ``"physics"`` (``RelightSession.relight_mode``).
+    relighting_changed = Signal(str)
     #: The shadow-correction tool turned on (a key of :data:`SHADOW_TOOLS`) or off (``""``).
     shadow_tool_changed = Signal(str)
     clear_shadow_edits_clicked = Signal()
@@ -348,6 +365,14 @@ class RelightPanel(QWidget):
             "colour, is kept at every sun."
         )
         self.keep_light_check.toggled.connect(lambda on: self.daylight_changed.emit(not on))
+        self.relighting_combo = QComboBox(self)
+        for key, text, tip in RELIGHTING_CHOICES:
+            self.relighting_combo.addItem(text, key)
+            self.relighting_combo.setItemData(self.relighting_combo.count() - 1, tip,
+                                              Qt.ItemDataRole.ToolTipRole)
+        self.relighting_combo.setToolTip(RELIGHTING_TIP)
+        self.relighting_combo.currentIndexChanged.connect(
+            lambda _i: self.relighting_changed.emit(self.relighting()))
         self.export_button = QPushButton("Export still…", self)
         self.export_button.setToolTip("Save the relit photo at full resolution (Ctrl+E)")
         self.timelapse_button = QPushButton("Time-lapse…", self)
@@ -422,6 +447,7 @@ class RelightPanel(QWidget):
         light.addWidget(self.meter_check)
         light.addWidget(self.keep_light_check)
         form.addRow("Light", light)
+        form.addRow("Relighting", self.relighting_combo)
         form.setVerticalSpacing(4)
         buttons = QHBoxLayout()
         buttons.addWidget(self.export_button)
@@ -442,6 +468,7 @@ class RelightPanel(QWidget):
         sun = self.sun_panel
         chain_tab_order([sun.dial, sun.azimuth_box, sun.elevation_box, self.view_combo,
                          self.split_slider, self.meter_check, self.keep_light_check,
+                         self.relighting_combo,
                          *self.shadow_tool_buttons.values(), self.brush_box,
                          self.clear_shadow_edits_button, self.realign_button,
                          self.export_button, self.timelapse_button])
@@ -468,6 +495,31 @@ class RelightPanel(QWidget):
         self.keep_light_check.blockSignals(True)
         self.keep_light_check.setChecked(not on)
         self.keep_light_check.blockSignals(False)
+
+    def relighting(self) -> str:
+        """Step 2's relighting: ``"learned"`` or ``"physics"``."""
+        return str(self.relighting_combo.currentData())
+
+    def set_relighting(self, mode: str) -> None:
+        """Show ``mode`` without emitting :attr:`relighting_changed`."""
+        self.relighting_combo.blockSignals(True)
+        self.relighting_combo.setCurrentIndex(self.relighting_combo.findData(mode))
+        self.relighting_combo.blockSignals(False)
+
+    def set_learned_available(self, why_not: str) -> None:
+        """Offer the learned relighting, or grey it out saying ``why_not`` (not ``""``)."""
+        item = self.relighting_combo.model().item(self.relighting_combo.findData("learned"))
+        item.setEnabled(not why_not)
+        item.setToolTip(why_not or RELIGHTING_CHOICES[0][2])
+
+    def learned_available(self) -> bool:
+        """Whether the learned relighting may be chosen (:meth:`set_learned_available`)."""
+        item = self.relighting_combo.model().item(self.relighting_combo.findData("learned"))
+        return item.isEnabled()
+
+    def look(self) -> RelitLook:
+        """What a relighting takes from this panel as it is asked for."""
+        return RelitLook(self.exposure(), self.daylight(), self.relighting())
 
     def set_view(self, key: str) -> None:
         idx = self.view_combo.findData(key)

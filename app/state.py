@@ -1,12 +1,13 @@
 """Qt-free state of the app: steps, suns, time-lapse settings, project files, recent files, timings.
 
-Project files are JSON next to the photo (``photo.jpg`` -> ``photo.outcast.json``). They hold the
-image path (relative to the project file when possible), what identifies the photo (its pixel
-size and a fingerprint of its content, :class:`PhotoIdentity`: a project warns when the photo at
-its path is another one), the depth source, the original and target suns, the preset, view
-settings, the time-lapse settings, the exposure, the light (``daylight``: the new sun's
-daylight, or false for step 2's "Keep the photo's light"; ``RelightSession.daylight``) and the
-user's corrections of the photo's found shadows (``shadow_edits``, the runtime's format:
+Project files are JSON next to the photo (``photo.jpg`` -> ``photo.outcast.json``). They hold
+the image path (relative to the project file when possible), what identifies the photo (its
+pixel size and a fingerprint of its content, :class:`PhotoIdentity`: a project warns when the
+photo at its path is another one), the depth source, the original and target suns, the preset,
+view settings, the time-lapse settings, the exposure, the light (``daylight``: the new sun's
+daylight, or false for step 2's "Keep the photo's light"; ``RelightSession.daylight``), the
+relighting (``learned`` or ``physics``; ``RelightSession.relight_mode``) and the user's
+corrections of the photo's found shadows (``shadow_edits``, the runtime's format:
 :func:`~outcast_core.runtime.pipeline.photo_shadows.shadow_edits_to_json`).
 
 Keys added since version 1 are read with their defaults when missing, so older projects open
@@ -53,6 +54,8 @@ FRAME_SIZE_NAMES = ("working", "720p", "1080p", "4k", "full")
 #: Exposure modes of :data:`outcast_core.runtime.pipeline.relight.EXPOSURES` (a test keeps them
 #: equal).
 EXPOSURE_NAMES = ("photo", "metered")
+#: Step 2's relighting modes (``RelightSession.relight_mode``'s, "auto" resolved).
+RELIGHTINGS = ("learned", "physics")
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff", ".heic", ".heif", ".webp", ".bmp")
 
 
@@ -176,6 +179,24 @@ class TimelapseSettings:
         return cls(**known).validate()
 
 
+@dataclass(frozen=True)
+class RelitLook:
+    """What a relighting takes from step 2 when it is asked for (a job runs with these, not
+    with what is ticked by the time it runs): the exposure (:data:`EXPOSURE_NAMES`), the light
+    (``daylight``: the new sun's, or the photo's kept) and the relighting
+    (:data:`RELIGHTINGS`)."""
+
+    exposure: str = "photo"
+    daylight: bool = True
+    relighting: str = "learned"
+
+    def apply(self, session: Any) -> None:
+        """Set the light and the relighting on ``session`` (in the worker: the setters wait
+        for a relighting under way). The exposure is passed per call."""
+        session.daylight = self.daylight
+        session.relight_mode = self.relighting
+
+
 @dataclass
 class ProjectState:
     """Everything needed to reopen a session."""
@@ -206,6 +227,10 @@ class ProjectState:
     #: Whether relit photos take the new sun's daylight (step 2's "Keep the photo's light"
     #: clear; ``RelightSession.daylight``); a project saved before the setting: on.
     daylight: bool = True
+    #: Step 2's relighting (:data:`RELIGHTINGS`; ``RelightSession.relight_mode``); a project
+    #: saved before the choice: learned, the default then as now (physics where ``L`` is
+    #: missing, as then).
+    relighting: str = "learned"
     #: The user's corrections of the photo's found shadows, in order (step 2's "Not a shadow"
     #: / "Mark shadow" clicks); ``()`` (and a project saved before them): none.
     shadow_edits: tuple[ShadowEdit, ...] = ()
@@ -243,6 +268,7 @@ class ProjectState:
             "heading": self.heading,
             "exposure": self.exposure,
             "daylight": self.daylight,
+            "relighting": self.relighting,
             "shadow_edits": _shadow_edits_json(self.shadow_edits),
         }
 
@@ -265,6 +291,8 @@ class ProjectState:
             raise ValueError(f"preset: expected one of {PRESET_NAMES}, got {preset!r}")
         exposure = d.get("exposure", "photo")
         _choice(exposure, EXPOSURE_NAMES, "exposure")
+        relighting = d.get("relighting", "learned")
+        _choice(relighting, RELIGHTINGS, "relighting")
         view = d.get("buffer_view", "output")
         if not isinstance(view, str) or view not in BUFFER_VIEWS:
             raise ValueError(f"buffer_view: expected one of {BUFFER_VIEWS}, got {view!r}")
@@ -285,6 +313,7 @@ class ProjectState:
             heading=_heading(d.get("heading")),
             exposure=exposure,
             daylight=_flag(d.get("daylight", True), "daylight"),
+            relighting=relighting,
             shadow_edits=_shadow_edits(d.get("shadow_edits")),
         )
 

@@ -337,7 +337,7 @@ class TimelapseDialog(QDialog):
         )
         self.estimate_label = QLabel("", self)
         self.estimate_label.setWordWrap(True)
-        #: Timed exports: (photo load, preset, size, format, exposure, light) -> ExportTiming.
+        #: Timed exports: (photo load, preset, size, format, step 2's look) -> ExportTiming.
         self._timings: dict[tuple[Any, ...], ExportTiming] = {}
         self._untimed: set[tuple[Any, ...]] = set()  # settings whose timing failed
         #: The settings of the timing submitted last and not yet back (none twice at once).
@@ -578,11 +578,10 @@ class TimelapseDialog(QDialog):
 
     def _estimate_key(self) -> tuple[Any, ...]:
         """What an export's time depends on besides its number of frames: the photo as loaded
-        (and its depth), the preset, the frame size, the format, the exposure, the light (the
-        new sun's daylight or the photo's)."""
-        panel = self.main.relight_panel
+        (and its depth), the preset, the frame size, the format, and step 2's exposure, light
+        (the new sun's daylight or the photo's) and relighting (:class:`~app.state.RelitLook`)."""
         return (self.main.loads, self.main.preset, self.frame_shape(),
-                str(self.format_combo.currentData()), panel.exposure(), panel.daylight())
+                str(self.format_combo.currentData()), self.main.relight_panel.look())
 
     def estimate(self) -> float | None:
         """Estimated seconds to export the current path at the chosen size and format: from a
@@ -642,13 +641,14 @@ class TimelapseDialog(QDialog):
         k = min(n, ESTIMATE_FRAMES - (shape[0] * shape[1] > ESTIMATE_LARGE_MP * 1e6))
         picks = [self._samples[round((i + 1) * (n - 1) / (k + 1))] for i in range(k)]
         size, fmt, fps = self.size(), key[3], self.fps_box.value()
-        exposure, daylight, edits = key[4], key[5], self.main.shadow_edits
+        look, edits = key[4], self.main.shadow_edits
+        exposure = look.exposure
 
         def job(ctx: JobContext) -> dict[str, Any]:
             stamps: list[float] = []
             try:  # all of it: a failure is said for its settings, never timed again (a review)
                 session.set_shadow_edits(edits)  # as the export does
-                session.daylight = daylight
+                look.apply(session)
                 with tempfile.TemporaryDirectory(prefix="outcast-estimate-") as folder:
                     out = Path(folder) / ("frames" if fmt == "png" else f"estimate.{fmt}")
                     t0 = time.perf_counter()
@@ -786,13 +786,13 @@ class TimelapseDialog(QDialog):
             # change of quality, said "rendering time-lapse frame took …": a user trial)
         w = tl.sun_vectors([s])[0]
 
-        exposure = self.main.relight_panel.exposure()  # as the user sees it now
-        daylight = self.main.relight_panel.daylight()  # likewise the light
+        look = self.main.relight_panel.look()  # as the user sees it now
+        exposure = look.exposure
         edits = self.main.shadow_edits  # the photo's shadows as corrected now
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)
-            session.daylight = daylight  # (in the worker: MainWindow.set_daylight)
+            look.apply(session)  # (in the worker: MainWindow.set_daylight, set_relighting)
             relit = session.relight(w, preview=True, exposure=exposure)
             # A dark frame with the photo's exposure kept (dawn, dusk) is said with what to
             # do, as the command line says it.
@@ -869,14 +869,14 @@ class TimelapseDialog(QDialog):
         if problem:  # never empty a folder the user keeps other files in
             return self._refuse(IsADirectoryError(problem))
 
-        exposure = self.main.relight_panel.exposure()  # as asked, whatever is ticked later
-        daylight = self.main.relight_panel.daylight()  # likewise the light
+        look = self.main.relight_panel.look()  # as asked, whatever is chosen later
+        exposure = look.exposure
         edits = self.main.shadow_edits  # and the shadow corrections
         key = self._estimate_key()
 
         def job(ctx: JobContext) -> dict[str, Any]:
             session.set_shadow_edits(edits)
-            session.daylight = daylight  # the stream takes it as it starts
+            look.apply(session)  # the stream takes them as it starts
             t0 = time.perf_counter()
             out = tl.render_timelapse(
                 session, samples, path, fps=fps, size=size, fmt=fmt, force=force,

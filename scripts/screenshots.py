@@ -6,9 +6,9 @@ Usage:
 
 The photo is copied into the output folder first, so project files never land next to the
 samples. Screenshots: empty window, photo loaded, sun aligned, mid-drag preview, relit with the
-before/after split, the Edit menu (undo), the photo with its shadows removed and the shadows
-found, buffers grid, time-lapse dialog with its sizes, the prompt when quitting during an
-export, an error dialog.
+before/after split (learned, and physics relighting), the Edit menu (undo), the photo with its
+shadows removed and the shadows found, buffers grid, time-lapse dialog with its sizes, the
+prompt when quitting during an export, an error dialog.
 """
 
 from __future__ import annotations
@@ -104,6 +104,12 @@ def main(argv: list[str] | None = None) -> int:
     win.request_relight(preview=False)
     settle()
     shot(win, "05_relit_split.png")
+    combo = win.relight_panel.relighting_combo  # step 2's "Relighting": physics, and back
+    combo.setCurrentIndex(combo.findData("physics"))
+    settle()
+    shot(win, "05c_relit_physics.png")
+    combo.setCurrentIndex(combo.findData("learned"))
+    settle()
 
     # The Edit menu after a few edits: drawn onto the window where it pops up.
     win.relight_panel.sun_panel.azimuth_box.setValue(230.0)

@@ -228,6 +228,21 @@ def test_exposure_names_match_the_runtime_and_bad_ones_do_not_load(tmp_path):
         ProjectState.from_dict({**d, "exposure": "auto"})
 
 
+def test_the_relighting_is_saved_and_bad_ones_do_not_load():
+    """Step 2's "Relighting" travels in the project; a project saved before the choice opens
+    with the learned relighting (the default then too); the names are the session's."""
+    from app.state import RELIGHTINGS, ProjectState
+    from outcast_core.runtime.pipeline.session import RELIGHT_MODES
+
+    assert set(RELIGHTINGS) == set(RELIGHT_MODES) - {"auto"}
+    d = ProjectState(image_path="a.jpg", relighting="physics").to_dict()
+    assert ProjectState.from_dict(d).relighting == "physics"
+    del d["relighting"]
+    assert ProjectState.from_dict(d).relighting == "learned"
+    with pytest.raises(ValueError, match="relighting"):
+        ProjectState.from_dict({**d, "relighting": "auto"})
+
+
 def test_a_project_records_its_photo_s_size_and_fingerprint(tmp_path):
     """What tells a project's photo from another file under its name (a user trial's project
     laid its suns over another photo); older projects, without it, still load."""

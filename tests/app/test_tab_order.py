@@ -50,8 +50,8 @@ def test_step_1_tabs_in_screen_order(window):
 
 def test_tab_reaches_the_tools_from_the_light_boxes(qtbot, window, photo, settle):
     """With the tools shown (a view of the photo's shadows), Tab from the last light box goes
-    to "Not a shadow", then "Mark shadow"; from "Re-align" it goes to the footer's Export
-    still."""
+    to "Relighting", then "Not a shadow", then "Mark shadow"; from "Re-align" it goes to the
+    footer's Export still."""
     window.open_path(photo)
     settle()
     window.confirm_original_sun()
@@ -64,6 +64,8 @@ def test_tab_reaches_the_tools_from_the_light_boxes(qtbot, window, photo, settle
     rp.keep_light_check.setFocus(Qt.FocusReason.OtherFocusReason)
     qtbot.waitUntil(rp.keep_light_check.hasFocus)
     qtbot.keyClick(rp.keep_light_check, Qt.Key.Key_Tab)
+    assert rp.relighting_combo.hasFocus()
+    qtbot.keyClick(rp.relighting_combo, Qt.Key.Key_Tab)
     assert rp.shadow_tool_buttons["not_shadow"].hasFocus()
     qtbot.keyClick(rp.shadow_tool_buttons["not_shadow"], Qt.Key.Key_Tab)
     assert rp.shadow_tool_buttons["shadow"].hasFocus()

@@ -114,7 +114,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--preset", choices=["fast", "balanced", "accurate"], default=DEFAULT_CLI_PRESET,
                    help="speed/accuracy preset")
     p.add_argument("--mode", choices=["auto", "learned", "classic"], default="auto",
-                   help="learned networks (default when installed) or Direct + physics")
+                   help="learned networks (default when installed) or Direct + physics; "
+                   "with auto, a photo whose project chose physics relighting gets it")
     p.add_argument("--depth-model", metavar="MODEL.onnx", default=None,
                    help="an ONNX depth model to use instead of the shipped one")
     p.add_argument("--no-phone-depth", action="store_true",

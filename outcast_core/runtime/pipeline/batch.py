@@ -52,6 +52,8 @@ FORMATS = {"relight": ("jpg", "png", "tif", "webp"), "deshadow": ("jpg", "png", 
 #: The app's project files (``app.state.PROJECT_SUFFIX``; a test keeps them equal).
 PROJECT_SUFFIX = ".outcast.json"
 MAX_PROJECT_BYTES = 1_000_000
+#: The relightings a project may choose (``app.state.RELIGHTINGS``; a test keeps them equal).
+PROJECT_RELIGHTINGS = ("learned", "physics")
 #: A batch's record in its output folder: the settings each finished output was made with
 #: (:func:`job_settings`) and the suns it was made with (:class:`RecordEntry`). A batch run
 #: again skips an output only when it was made with the same settings (and reports its suns);
@@ -377,13 +379,14 @@ _SETTING_WORDS = {
     "sources": "--sources", "sweep": "--sweep", "day": "--day", "frames": "--frames",
     "easing": "--easing", "fps": "--fps", "size": "--size", "fmt": "--format",
     "preset": "--preset", "mode": "--mode", "exposure": "--exposure", "daylight": "the light",
+    "relighting": "the project's relighting",
     "depth_model": "--depth-model", "use_phone_depth": "the phone's depth",
     "photo": "the photo", "project": "the photo's project",
 }
 
 
 #: :func:`job_settings` leaves these out at their defaults (records made before them match).
-_SETTING_DEFAULTS = {"exposure": "photo", "daylight": True}
+_SETTING_DEFAULTS = {"exposure": "photo", "daylight": True, "relighting": "the default"}
 
 
 def _recorded(settings: str) -> dict[str, Any]:
@@ -483,11 +486,20 @@ def daylight_for(options: BatchOptions, read: ProjectSettings | None) -> bool:
     return True if daylight is None else daylight
 
 
+def relight_mode_for(options: BatchOptions, read: ProjectSettings | None) -> str | None:
+    """A job's relighting (``RelightSession``'s ``relight_mode``) where ``--mode`` leaves
+    it to the photo's project: ``"physics"`` when the project chose it in step 2 and
+    ``--mode`` is ``auto``; None (as ``--mode`` says) otherwise."""
+    if options.mode == "auto" and read is not None and read.relighting == "physics":
+        return "physics"
+    return None
+
+
 def _project_key(read: ProjectSettings | None, photo: Path) -> Any:
     """The photo's project as the record compares it: what a batch reads of it (its suns,
-    depth map and shadow corrections; its exposure and light count in the job's), so a project saved
-    again with the same ones (the dial moved in step 1, say) is not other settings (a user
-    trial's was redone); None without one."""
+    depth map and shadow corrections; its exposure, light and relighting count in the job's),
+    so a project saved again with the same ones (the dial moved in step 1, say) is not other
+    settings (a user trial's was redone); None without one."""
     if read is None:
         return None
     key = [_sun_key(read.original_sun), _sun_key(read.target_sun),
@@ -538,6 +550,8 @@ def job_settings(job: BatchJob, options: BatchOptions) -> str:
         keys["exposure"] = exposure  # (absent at the photo's: records made before it match)
     if options.kind != "deshadow" and not daylight_for(options, read):
         keys["daylight"] = False  # (absent when on: records made before it match)
+    if options.kind != "deshadow" and relight_mode_for(options, read):
+        keys["relighting"] = relight_mode_for(options, read)  # (likewise)
     keys.update(photo=_file_key(image), project=project,
                 job_to_sun=_sun_key(job.to_sun), job_from_sun=_sun_key(job.from_sun))
     return json.dumps(keys, sort_keys=True)
@@ -719,6 +733,9 @@ class ProjectSettings:
     #: Whether relit photos take the new sun's daylight (False: step 2's "Keep the photo's
     #: light"); None in projects from before the setting.
     daylight: bool | None = None
+    #: Step 2's relighting (``learned`` or ``physics``; ``RelightSession.relight_mode``); None
+    #: in projects from before the choice.
+    relighting: str | None = None
     #: The photo the project was saved with (pixel size and fingerprint); None in projects
     #: from before the app recorded it.
     photo: PhotoIdentity | None = None
@@ -756,13 +773,15 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
     depth map the user loaded, relative to the project file), ``exposure`` ("Meter the new
     light"; None in projects from before it), ``shadow_edits`` (the user's corrections of
     the found shadows; none in projects from before them), ``daylight`` (false: "Keep the
-    photo's light"; None in projects from before it) and ``photo``, the identity of the photo
+    photo's light"; None in projects from before it), ``relighting`` (step 2's "Relighting";
+    None in projects from before it) and ``photo``, the identity of the photo
     it was saved with (:class:`~outcast_core.runtime.io.photo_identity.PhotoIdentity`; None in
     projects from before it), which a batch checks against the photo it reads.
 
     Raises:
         ValueError: the project file is not a valid OutCast project, is for another photo, or
-            holds a sun, an exposure, a light or a photo identity the app does not write.
+            holds a sun, an exposure, a light, a relighting or a photo identity the app does
+            not write.
     """
     from outcast_core.runtime.pipeline.relight import EXPOSURES
 
@@ -793,6 +812,10 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
     if "daylight" in data and not isinstance(daylight, bool):  # null too, as the app says
         raise ValueError(f"project '{project.name}' daylight: expected true or false, got "
                          f"{daylight!r}")
+    relighting = data.get("relighting")
+    if relighting is not None and relighting not in PROJECT_RELIGHTINGS:
+        raise ValueError(f"project '{project.name}' relighting: expected one of "
+                         f"{PROJECT_RELIGHTINGS}, got {relighting!r}")
     from outcast_core.runtime.pipeline.photo_shadows import shadow_edits_from_json
 
     try:
@@ -804,7 +827,7 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
     except ValueError as exc:
         raise ValueError(f"project '{project.name}' photo: {exc}") from None
     return ProjectSettings(sun("original_sun"), sun("target_sun"), str(depth), exposure, edits,
-                           daylight, photo_id, project.name)
+                           daylight, relighting, photo_id, project.name)
 
 
 def project_suns(photo: str | os.PathLike[str]) -> tuple[Sun | None, Sun | None, str]:
@@ -975,7 +998,7 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
         to_sun = target_sun_for(job, options, project_target)
         result.to_sun = to_sun
     session = RelightSession(registry=_registry(options.threads), preset=options.preset,
-                             mode=options.mode)
+                             mode=options.mode, relight_mode=relight_mode_for(options, read))
     session.exposure = exposure_for(options, read)  # (a user trial's metered project was
     # batch-relit unmetered)
     if options.kind != "deshadow":  # (a de-shadowed photo is not relit: no new sun's light)

@@ -273,6 +273,16 @@ def _same_masks(a: tuple[np.ndarray, np.ndarray] | None,
     return all(x.shape == y.shape and np.array_equal(x, y) for x, y in zip(a, b, strict=True))
 
 
+#: What :attr:`RelightSession.relight_mode` may be set to.
+RELIGHT_MODES = ("auto", "learned", "physics")
+
+
+def _check_relight_mode(mode: str) -> str:
+    if mode not in RELIGHT_MODES:
+        raise ValueError(f"expected relight mode auto, learned or physics, got {mode!r}")
+    return mode
+
+
 class RelightSession:
     """Set once, query many.
 
@@ -350,20 +360,17 @@ class RelightSession:
         relight_mode = relight_mode or {"classic": "physics"}.get(mode, mode)
         if shadow_mode not in {"auto", "learned", "direct"}:
             raise ValueError(f"expected shadow mode auto, learned or direct, got {shadow_mode!r}")
-        if relight_mode not in {"auto", "learned", "physics"}:
-            raise ValueError(
-                f"expected relight mode auto, learned or physics, got {relight_mode!r}"
-            )
+        _check_relight_mode(relight_mode)
         self.registry = registry if registry is not None else ModelRegistry()
         self.thickness = thickness
         self.depth_mode = depth_mode
         self._requested = (shadow_mode, relight_mode)
         if depth_mode == "model":
             self.registry.load("depth")
-        self.shadow_mode = self._resolve(shadow_mode, "shadow", "direct")
-        self.relight_mode = self._resolve(relight_mode, "relight", "physics")
-        self.preset = self._check_preset(preset)
         self._lock = threading.RLock()
+        self.shadow_mode = self._resolve(shadow_mode, "shadow", "direct")
+        self._relight_mode = self._resolve(relight_mode, "relight", "physics")
+        self.preset = self._check_preset(preset)
         self.timings: dict[str, float] = {}
         #: Whether :meth:`sun_look` reads the photo with ``D`` when ``models/sun.onnx`` is there
         #: (the search for the sun then weighs its suns by it); not in the classic mode, which
@@ -410,6 +417,23 @@ class RelightSession:
         if mode not in EXPOSURES:
             raise ValueError(f"expected exposure {' or '.join(EXPOSURES)}, got {mode!r}")
         return mode
+
+    @property
+    def relight_mode(self) -> str:
+        """How the photo is relit: ``"learned"`` (``L`` with the guards that keep the
+        photo's colours, texture and exposure: the default where ``models/relight.onnx`` is
+        installed, measured best on real photos) or ``"physics"`` (the photo times the change
+        of light each pixel gets). Set ``"auto"`` for the default; ``"learned"`` raises
+        :class:`ModelError` naming the file when ``L`` cannot be loaded, and the mode stays.
+        Relit images are cached per mode (both stay cached); a relighting under way keeps the
+        mode it started with (setting it waits for the session's lock)."""
+        return self._relight_mode
+
+    @relight_mode.setter
+    def relight_mode(self, mode: str) -> None:
+        resolved = self._resolve(_check_relight_mode(mode), "relight", "physics")
+        with self._lock:
+            self._relight_mode = resolved
 
     # ------------------------------------------------------------------ set-up
     def _resolve(self, requested: str, model: str, classic: str) -> str:
@@ -519,16 +543,18 @@ class RelightSession:
         change = daylight_change(elevation_above(w_old, up), elevation_above(w_new, up))
         return None if change.is_identity else change
 
-    def _daylight_gain(self, change: DaylightChange | None, s_new: np.ndarray,
-                       sky: np.ndarray, light: LightEstimate, up: np.ndarray,
-                       view_dirs: np.ndarray) -> np.ndarray | None:
-        """The gain that carries a relighting (made with the photo's light; ``view_dirs``: its
-        pixels' rays) to the new sun's daylight ``change`` (:meth:`_daylight_change`;
-        :func:`~outcast_core.runtime.pipeline.daylight.daylight_gain`, the sky by
-        :func:`~outcast_core.runtime.pipeline.daylight.sky_change`); None without a change."""
+    @staticmethod
+    def _daylight_gain(change: DaylightChange | None, s_new: np.ndarray, sky: np.ndarray,
+                       light: LightEstimate, up: np.ndarray, view_dirs: np.ndarray,
+                       relight_mode: str) -> np.ndarray | None:
+        """The gain that carries a relighting in ``relight_mode`` (made with the photo's
+        light; ``view_dirs``: its pixels' rays) to the new sun's daylight ``change``
+        (:meth:`_daylight_change`; :func:`~outcast_core.runtime.pipeline.daylight.
+        daylight_gain`, the sky by :func:`~outcast_core.runtime.pipeline.daylight.
+        sky_change`); None without a change."""
         if change is None:
             return None
-        if self.relight_mode == "learned":  # as the guards' physics image takes it
+        if relight_mode == "learned":  # as the guards' physics image takes it
             s_new = smooth_new_shadow(s_new)
         sky_gain = None
         if sky.any():
@@ -1095,7 +1121,8 @@ class RelightSession:
         :attr:`exposure`; the app passes the one the user saw when asking).
         """
         exposure = self._checked_exposure(exposure)
-        key = (_key(w_new), preview, self.preset.name, exposure, self._daylight)
+        key = (_key(w_new), preview, self.preset.name, exposure, self._daylight,
+               self._relight_mode)
         with self._lock:
             self._require_image()
             if self.original_sun is None or self.original_shadow is None:
@@ -1199,7 +1226,8 @@ class RelightSession:
         up = self.horizon_up()
         change = self._daylight_change(self._daylight, self.original_sun, wv, up)
         light = self._relight_light()
-        gain = self._daylight_gain(change, s_new, st["sky"], light, up, st["view_dirs"])
+        gain = self._daylight_gain(change, s_new, st["sky"], light, up, st["view_dirs"],
+                                   self._relight_mode)
         if self.relight_mode == "learned":
             out = self.registry.load("relight", threads=PREVIEW_THREADS).run({
                 **st["feeds_l"], "shadow_new": s_new[None, None],
@@ -1243,6 +1271,7 @@ class RelightSession:
             "original_geometry": self._original_geometry, "preset": self.preset,
             "sun_seen": self.sun_seen, "greyscale": self.greyscale, "exposure": self._exposure,
             "up": self.horizon_up(), "daylight": self._daylight,
+            "relight_mode": self._relight_mode,
         }
 
     def _relight_from(
@@ -1258,8 +1287,8 @@ class RelightSession:
         s_new = shadow_toward_original(s_new, s_o, inp["original_geometry"], share)
         change = self._daylight_change(inp["daylight"], w_o, wv, inp["up"])
         gain = self._daylight_gain(change, s_new, inp["sky"], inp["light"], inp["up"],
-                                   inp["view_dirs"])
-        if self.relight_mode == "learned":
+                                   inp["view_dirs"], inp["relight_mode"])
+        if inp["relight_mode"] == "learned":
             model = self.registry.load("relight", threads=threads)
             out = model.run({
                 "image": image.transpose(2, 0, 1)[None],
@@ -1540,7 +1569,7 @@ class RelightSession:
         def cached(wv: np.ndarray) -> np.ndarray | None:
             with self._lock:
                 return self._relight_cache.get((_key(wv), False, preset, inp["exposure"],
-                                                inp["daylight"]))
+                                                inp["daylight"], inp["relight_mode"]))
 
         def shadow_of(wv: np.ndarray) -> np.ndarray | None:
             if cached(wv) is not None:

@@ -775,6 +775,61 @@ def test_a_rerun_with_a_report_resumes_and_replaces_its_report(
         assert report.read_text() == text and not (tmp_path / "out2").exists()
 
 
+def test_batch_takes_the_projects_relighting_unless_told(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A project saved with step 2's "Relighting: Physics" is batch-relit with physics, as its
+    suns are taken from it; ``--mode learned`` or ``classic`` says otherwise; a project from
+    before the choice, or with "Learned", takes the default; the choice is part of a job's
+    settings (a rerun after it changed is other settings); a relighting the app does not
+    write is refused."""
+    from app import state
+    from outcast_core.runtime.pipeline import batch
+    from outcast_core.runtime.pipeline.batch import job_settings, settings_changed
+    from outcast_core.runtime.pipeline.session import RelightSession
+
+    assert batch.PROJECT_RELIGHTINGS == state.RELIGHTINGS
+    seen: list[str] = []  # the session's relighting at each relit photo
+    real = RelightSession.relight_full
+    monkeypatch.setattr(RelightSession, "relight_full",
+                        lambda self, w, **kw: seen.append(self.relight_mode) or real(self, w, **kw))
+    d = tmp_path / "in"
+    d.mkdir()
+    photo = _photo(d / "a.png", 0)
+    project = state.project_path_for(photo)
+    data = {"outcast_project": 1, "image": "a.png",
+            "original_sun": {"azimuth": 200.0, "elevation": 40.0},
+            "target_sun": {"azimuth": 90.0, "elevation": 30.0}}
+    project.write_text(json.dumps(data))
+    assert batch.read_project(photo).relighting is None  # a project from before the choice
+    job = BatchJob(str(photo), str(tmp_path / "o" / "x.png"))
+    relight = BatchOptions(kind="relight", preset="fast")
+    before = job_settings(job, relight)
+
+    def save(relighting: str) -> None:
+        state.save_project(state.ProjectState(
+            image_path=str(photo), original_sun=state.Sun(200.0, 40.0),
+            target_sun=state.Sun(90.0, 30.0), relighting=relighting), project)
+
+    save("learned")
+    assert job_settings(job, relight) == before  # (a record made before the choice matches)
+    save("physics")
+    assert batch.read_project(photo).relighting == "physics"
+    assert job_settings(job, relight) != before
+    assert "the project's relighting" in settings_changed(before, job_settings(job, relight))
+    for i, mode in enumerate(("auto", "learned", "classic")):
+        opts = BatchOptions(kind="relight", preset="fast", mode=mode)
+        r = run_job(BatchJob(str(photo), str(tmp_path / "o" / f"{i}.png")), opts)
+        assert r.status == "done", r.message
+        assert r.details["relighting"] == seen[-1]
+    assert seen == ["physics", "learned", "physics"]
+    assert '"relighting"' not in job_settings(job, BatchOptions(kind="deshadow"))  # not relit
+    data["relighting"] = "auto"
+    project.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match="'a.outcast.json' relighting: expected one of"):
+        batch.read_project(photo)
+
+
 def test_relights_warnings_are_in_the_batchs_lines_summary_and_report(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -93,6 +93,39 @@ def test_relight_moves_the_shadow(scene, tmp_path) -> None:
     assert full.shape == photo.shape and np.all(np.isfinite(full))
 
 
+def test_the_relighting_mode_is_switched_on_a_session(scene, tmp_path) -> None:
+    """The app's "Relighting" choice: a session relit in one mode and switched to the other
+    gives the other mode's relighting (as a session made in it), keeps both cached, and a
+    learned mode that cannot load ``L`` is refused by name with the mode unchanged."""
+    image, depth = scene
+    w_o, w_n = np.array([-0.5, -0.3, -0.8]), np.array([0.5, 0.3, -0.8])
+
+    def made(mode: str) -> RelightSession:
+        s = RelightSession(preset="fast", shadow_mode="direct", relight_mode=mode)
+        s.daylight = False
+        s.set_image(image, depth=depth, fov_deg=30.0)
+        s.set_original_sun(w_o)
+        return s
+
+    s = made("learned")
+    learned = s.relight(w_n)
+    s.relight_mode = "physics"
+    assert s.relight_mode == "physics"
+    physics = s.relight(w_n)
+    assert np.abs(physics - learned).max() > 0.05  # another relighting, not the cached one
+    np.testing.assert_allclose(physics, made("physics").relight(w_n), atol=1e-5)
+    s.relight_mode = "auto"  # the default: L, installed
+    assert s.relight_mode == "learned" and s.relight(w_n) is learned  # still cached
+    with pytest.raises(ValueError, match="relight mode"):
+        s.relight_mode = "neural"
+    bare = RelightSession(registry=ModelRegistry(tmp_path), mode="classic")
+    with pytest.raises(ModelError, match=r"relight\.json"):
+        bare.relight_mode = "learned"
+    assert bare.relight_mode == "physics"
+    bare.relight_mode = "auto"
+    assert bare.relight_mode == "physics"
+
+
 def test_preset_switch_keeps_original_sun(scene, tmp_path) -> None:
     image, depth = scene
     s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", preset="fast")
@@ -202,7 +235,7 @@ def test_physics_new_shade_takes_the_photos_own_shade_colour(tmp_path) -> None:
     old, new = sun_vector(200.0, 40.0), sun_vector(120.0, 40.0)  # one elevation: no daylight
 
     def session(img: np.ndarray, on: bool) -> RelightSession:
-        s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", preset="fast")
+        s = RelightSession(mode="classic", preset="fast")  # (the shipped L: learned, below)
         s.shade_colour = on
         s.set_image(img, depth=depth, fov_deg=30.0)
         s.set_original_sun(old)
