@@ -32,9 +32,11 @@ REPO = Path(__file__).resolve().parents[2]
 #: 5.5e-3 for one process with half the batch (the control below). When everything is right
 #: only float32 rounding in another order of summation remains (two half-batch sums averaged
 #: by gloo vs one sum): measured at most 1e-7 on S, 4.3e-7 on the critic after 4 steps (Adam's
-#: ``m / sqrt(v)`` amplifies rounding in small gradients, the GAN's most). 1e-5 sits 20x
-#: above the rounding and 200x below the smallest mistake.
-TOLERANCE = 1e-5
+#: ``m / sqrt(v)`` amplifies rounding in small gradients, the GAN's most). On another CPU
+#: (an AMD EPYC, 2026-12-02) one weight of S's of 5760 came 4e-5 apart (Adam's ``m /
+#: sqrt(v)`` on a near-zero gradient), so 1e-4: 2.5x above the largest rounding seen and 20x
+#: below the smallest mistake.
+TOLERANCE = 1e-4
 
 
 def _free_port() -> int:
@@ -177,7 +179,7 @@ def test_two_processes_match_one_with_the_same_global_batch(tmp_path) -> None:
     # Control: one process with half the batch (what a rank trains on) is far outside it.
     Trainer(TrainConfig(**_base("half_s", "shadow", data, batch=2)), progress=False).fit()
     half, two = _weights("half_s")["nets"]["shadow"], _weights("two_s")["nets"]["shadow"]
-    assert max((half[k] - two[k]).abs().max().item() for k in two) > 100 * TOLERANCE
+    assert max((half[k] - two[k]).abs().max().item() for k in two) > 20 * TOLERANCE
 
 
 #: Settings a cluster preset may change from the shipped network's config: scale, data,
