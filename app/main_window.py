@@ -371,6 +371,10 @@ class MainWindow(QMainWindow):
         #: moved): saving over that project is saving this photo's project.
         self._photo_moved_from = ""
         self.session_mode = session_mode
+        #: Step 2's "Relighting" as the user chose it (``"learned"`` or ``"physics"``): what
+        #: the undo history and the project keep; the panel shows (and jobs take) physics
+        #: instead while the learned relighting cannot run (:meth:`_show_relighting`).
+        self.relighting_choice = "learned"
         self.depth_mode = "auto"
         self.depth_path = ""
         #: An ONNX depth model the user chose (remembered in the settings); "" = the shipped Z.
@@ -890,7 +894,7 @@ class MainWindow(QMainWindow):
             heading=self.user_heading,
             exposure=self.relight_panel.exposure(),
             daylight=self.relight_panel.daylight(),
-            relighting=self.relight_panel.relighting(),
+            relighting=self.relighting_choice,
             shadow_edits=self.shadow_edits,
         )
 
@@ -936,7 +940,7 @@ class MainWindow(QMainWindow):
             # review).
             exposure = state.exposure != self.relight_panel.exposure()
             daylight = state.daylight != self.relight_panel.daylight()
-            relighting = state.relighting != self.relight_panel.relighting()
+            relighting = state.relighting != self.relighting_choice
             if exposure:
                 self.set_exposure(state.exposure, refresh=False)
             if daylight:
@@ -1552,21 +1556,23 @@ class MainWindow(QMainWindow):
 
     def set_relighting(self, mode: str, refresh: bool = True) -> None:
         """How relit photos are made (``RelightSession.relight_mode``: ``"learned"`` or
-        ``"physics"``): the choice; with ``refresh``, the relit view and an open time-lapse
-        preview are drawn again. As the light, jobs take the relighting shown when they are
-        asked for and set it on the session in the worker (:class:`~app.state.RelitLook`)."""
-        if not self.relight_panel.learned_available():  # (an undo past a model's failure)
-            mode = "physics"
-        if self.relight_panel.relighting() != mode:
-            self.relight_panel.set_relighting(mode)
+        ``"physics"``): the user's choice, shown (physics while the learned relighting cannot
+        run); with ``refresh``, the relit view and an open time-lapse preview are drawn again.
+        As the light, jobs take the relighting shown when they are asked for and set it on the
+        session in the worker (:class:`~app.state.RelitLook`)."""
+        self.relighting_choice = mode
+        shown = mode if self.relight_panel.learned_available() else "physics"
+        if self.relight_panel.relighting() != shown:
+            self.relight_panel.set_relighting(shown)
         self.mode_label.setText(self._mode_text())
         if refresh:
             self._relight_for_light()
 
     def _show_relighting(self, mode: str) -> None:
-        """Step 2's relighting for a session just loaded (no job holds it): ``mode``, or
-        physics where the learned relighting cannot run (the choice says why), set on the
-        session and shown."""
+        """Step 2's relighting for a session just loaded (no job holds it): the user's
+        choice ``mode``, shown and set on the session, or physics where the learned relighting
+        cannot run (the greyed-out choice says why; the choice is kept, for the project and
+        for a later session where it can)."""
         session = self.session
         assert session is not None
         why_not = ""
@@ -1575,12 +1581,11 @@ class MainWindow(QMainWindow):
                        "(--classic, or a model that failed to load)")
         elif not session.registry.available("relight"):
             why_not = "Not available: the relighting model (models/relight.onnx) is not installed"
-        mode = "physics" if why_not else mode
         self.relight_panel.set_learned_available(why_not)
-        self.relight_panel.set_relighting(mode)
-        if session.relight_mode != mode:
-            session.relight_mode = mode
-        self.mode_label.setText(self._mode_text())
+        self.set_relighting(mode, refresh=False)
+        shown = self.relight_panel.relighting()
+        if session.relight_mode != shown:
+            session.relight_mode = shown
 
     def _relight_for_light(self) -> None:
         """The exposure or the light changed: the relit view and an open time-lapse preview
@@ -2718,7 +2723,7 @@ class MainWindow(QMainWindow):
             heading=self.user_heading,
             exposure=self.relight_panel.exposure(),
             daylight=self.relight_panel.daylight(),
-            relighting=self.relight_panel.relighting(),
+            relighting=self.relighting_choice,
             shadow_edits=self.shadow_edits,
         )
 
@@ -2948,11 +2953,7 @@ class MainWindow(QMainWindow):
             self.open_image(*self._last_load)
         elif self.image_path:
             state = self.edit_state()
-            if state is not None:  # (physics relighting from now on)
-                state = replace(state, relighting="physics")
-            project = self.project_state()
-            project.relighting = "physics"
-            self.open_image(self.image_path, project=project, restore=state,
+            self.open_image(self.image_path, project=self.project_state(), restore=state,
                             record_from=state)  # fmt: skip
 
     @Slot(int, str)

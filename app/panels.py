@@ -38,7 +38,6 @@ VIEW_CHOICES = (
     ("all", "All buffers"),
 )
 
-#: Step 2's shadow-correction tools: key, button text, tooltip, status-bar hint while on.
 #: Step 2's "Relighting" (key: ``RelightSession.relight_mode``, text, tooltip), the default
 #: first.
 RELIGHTING_CHOICES = (
@@ -53,6 +52,7 @@ RELIGHTING_CHOICES = (
 RELIGHTING_TIP = ("How the photo is relit: Learned (the default) keeps the photo's colours and "
                   "texture; Physics follows the depth to the letter")
 
+#: Step 2's shadow-correction tools: key, button text, tooltip, status-bar hint while on.
 SHADOW_TOOLS = (
     ("not_shadow", "Not a shadow",
      "Click an area marked as shadow that is not one (a dark object, foliage, a black car): "

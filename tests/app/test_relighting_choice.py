@@ -41,7 +41,7 @@ def test_the_choice_sets_the_session_s_relighting_relights_and_is_undoable(
     window.save_project()
     rp, session = window.relight_panel, window.session
     assert session.relight_mode == "learned" and rp.relighting() == "learned"  # the default
-    assert rp.learned_available() and "depth" in rp.relighting_combo.toolTip()
+    assert rp.learned_available()
     assert "learned relighting" in window.mode_label.text()
     seen = _spy_relighting(monkeypatch, session)
     _choose(window, "physics")
@@ -133,9 +133,9 @@ def test_the_time_lapse_export_takes_the_relighting(window, photo, settle, tmp_p
 @pytest.mark.parametrize("why", ["classic", "not installed"])
 def test_without_the_relighting_model_learned_is_greyed_out(qtbot, settings, photo,
                                                             monkeypatch, tmp_path, why):
-    """``--classic`` (or a model that failed: the app's fallback), or no
-    ``models/relight.onnx``: physics, and the learned choice greyed out saying why; an undo to
-    a learned state stays physics."""
+    """``--classic``, or no ``models/relight.onnx``: physics, and the learned choice greyed
+    out saying why; the user's choice (learned) is what the project keeps, for a machine that
+    can run it."""
     from app.main_window import MainWindow
 
     if why == "not installed":
@@ -151,7 +151,39 @@ def test_without_the_relighting_model_learned_is_greyed_out(qtbot, settings, pho
         assert not rp.learned_available()
         item = rp.relighting_combo.model().item(rp.relighting_combo.findData("learned"))
         assert ("--classic" if why == "classic" else "relight.onnx") in item.toolTip()
-        w.set_relighting("learned", refresh=False)
+        assert w.project_state().relighting == "learned"
+        w.set_relighting("learned", refresh=False)  # (an undo to a learned state)
         assert rp.relighting() == "physics"
     finally:
         w.runner.shutdown()
+
+
+def test_a_broken_relighting_model_falls_back_to_physics_keeping_the_choice(
+        window, photo, settle, errors, tmp_path, monkeypatch):
+    """``relight.onnx`` damaged: said, physics from then on (greyed-out Learned), the user's
+    choice kept in the project, and the next edit is recorded as itself (a review: a forced
+    physics was recorded as "Relighting: Physics" on the next sun move)."""
+    import shutil
+    from pathlib import Path
+
+    shipped = Path(__file__).resolve().parents[2] / "models"
+    models = tmp_path / "models"
+    models.mkdir()
+    for f in shipped.iterdir():
+        if f.suffix in (".onnx", ".json"):
+            shutil.copy(f, models / f.name)
+    (models / "relight.onnx").write_bytes(b"garbage")
+    monkeypatch.setenv("OUTCAST_MODEL_DIR", str(models))
+    _load(window, photo, settle)
+    window.confirm_original_sun()  # makes the drag preview ready: loads L
+    settle()
+    assert errors and "relight.onnx" in errors[0][1]
+    assert window.session_mode == "classic"
+    rp = window.relight_panel
+    assert rp.relighting() == "physics" and not rp.learned_available()
+    assert window.session.relight_mode == "physics"
+    assert window.project_state().relighting == "learned"
+    window.relight_panel.sun_panel.set_sun(200.0, 30.0)
+    window._on_target_sun_committed(200.0, 30.0)
+    settle()
+    assert undo_texts(window)[-1] == "Move new sun"

@@ -550,8 +550,9 @@ def job_settings(job: BatchJob, options: BatchOptions) -> str:
         keys["exposure"] = exposure  # (absent at the photo's: records made before it match)
     if options.kind != "deshadow" and not daylight_for(options, read):
         keys["daylight"] = False  # (absent when on: records made before it match)
-    if options.kind != "deshadow" and relight_mode_for(options, read):
-        keys["relighting"] = relight_mode_for(options, read)  # (likewise)
+    relighting = relight_mode_for(options, read)
+    if options.kind != "deshadow" and relighting:
+        keys["relighting"] = relighting  # (likewise)
     keys.update(photo=_file_key(image), project=project,
                 job_to_sun=_sun_key(job.to_sun), job_from_sun=_sun_key(job.from_sun))
     return json.dumps(keys, sort_keys=True)
@@ -813,7 +814,7 @@ def read_project(photo: str | os.PathLike[str]) -> ProjectSettings | None:
         raise ValueError(f"project '{project.name}' daylight: expected true or false, got "
                          f"{daylight!r}")
     relighting = data.get("relighting")
-    if relighting is not None and relighting not in PROJECT_RELIGHTINGS:
+    if "relighting" in data and relighting not in PROJECT_RELIGHTINGS:  # null too, as the app
         raise ValueError(f"project '{project.name}' relighting: expected one of "
                          f"{PROJECT_RELIGHTINGS}, got {relighting!r}")
     from outcast_core.runtime.pipeline.photo_shadows import shadow_edits_from_json

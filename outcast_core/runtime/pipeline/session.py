@@ -364,7 +364,6 @@ class RelightSession:
         self.registry = registry if registry is not None else ModelRegistry()
         self.thickness = thickness
         self.depth_mode = depth_mode
-        self._requested = (shadow_mode, relight_mode)
         if depth_mode == "model":
             self.registry.load("depth")
         self._lock = threading.RLock()
@@ -1121,9 +1120,9 @@ class RelightSession:
         :attr:`exposure`; the app passes the one the user saw when asking).
         """
         exposure = self._checked_exposure(exposure)
-        key = (_key(w_new), preview, self.preset.name, exposure, self._daylight,
-               self._relight_mode)
-        with self._lock:
+        with self._lock:  # the key too: a light or mode set meanwhile is not cached as this one
+            key = (_key(w_new), preview, self.preset.name, exposure, self._daylight,
+                   self._relight_mode)
             self._require_image()
             if self.original_sun is None or self.original_shadow is None:
                 raise RuntimeError("set_original_sun() must be called before relight()")
@@ -1226,9 +1225,9 @@ class RelightSession:
         up = self.horizon_up()
         change = self._daylight_change(self._daylight, self.original_sun, wv, up)
         light = self._relight_light()
-        gain = self._daylight_gain(change, s_new, st["sky"], light, up, st["view_dirs"],
-                                   self._relight_mode)
-        if self.relight_mode == "learned":
+        mode = self._relight_mode  # (under the session's lock: relight())
+        gain = self._daylight_gain(change, s_new, st["sky"], light, up, st["view_dirs"], mode)
+        if mode == "learned":
             out = self.registry.load("relight", threads=PREVIEW_THREADS).run({
                 **st["feeds_l"], "shadow_new": s_new[None, None],
                 "sun_new": wv.astype(np.float32)[None],

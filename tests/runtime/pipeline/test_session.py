@@ -126,6 +126,33 @@ def test_the_relighting_mode_is_switched_on_a_session(scene, tmp_path) -> None:
     assert bare.relight_mode == "physics"
 
 
+def test_a_mode_set_while_a_relighting_waits_is_not_cached_as_the_old_one(scene) -> None:
+    """The relit cache's key is taken under the session's lock (a review: taken before it, a
+    mode another thread set in between left the physics image cached under learned's key,
+    returned for every later learned request)."""
+    image, depth = scene
+    w_o, w_n = np.array([-0.5, -0.3, -0.8]), np.array([0.5, 0.3, -0.8])
+    s = RelightSession(preset="fast", shadow_mode="direct", relight_mode="learned")
+    s.daylight = False
+    s.set_image(image, depth=depth, fov_deg=30.0)
+    s.set_original_sun(w_o)
+    lock = s._lock
+
+    class SwitchedFirst:  # another thread's setter wins the lock just before this call
+        def __enter__(self):
+            s._lock = lock
+            s._relight_mode = "physics"
+            return lock.__enter__()
+
+        def __exit__(self, *exc):
+            return lock.__exit__(*exc)
+
+    s._lock = SwitchedFirst()
+    physics = s.relight(w_n)  # asked for in learned, run in physics (set first)
+    s.relight_mode = "learned"
+    assert np.abs(s.relight(w_n) - physics).max() > 0.05  # not the physics image again
+
+
 def test_preset_switch_keeps_original_sun(scene, tmp_path) -> None:
     image, depth = scene
     s = RelightSession(registry=ModelRegistry(tmp_path), mode="classic", preset="fast")
