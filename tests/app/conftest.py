@@ -31,6 +31,52 @@ def undo_texts(window) -> list[str]:
     return [stack.text(i) for i in range(stack.count())]
 
 
+def spy_relit_full(monkeypatch, session, read) -> list:
+    """What ``read(session)`` gives each time ``session`` relights at full resolution (the
+    view on release, the still export), in order."""
+    seen: list = []
+    real = session.relight_full
+
+    def spy(w, **kw):
+        seen.append(read(session))
+        return real(w, **kw)
+
+    monkeypatch.setattr(session, "relight_full", spy)
+    return seen
+
+
+def check_timelapse_export_takes(window, settle, tmp_path, monkeypatch, read, change,
+                                 value) -> None:
+    """A step-2 setting changed with the time-lapse dialog open (a 3-frame sweep): the
+    export's time is measured again for it, its timing and its export run with ``value``
+    (what ``read(session)`` gives as ``render_timelapse`` starts)."""
+    from outcast_core.runtime.pipeline import timelapse as tl
+
+    dialog = window.open_timelapse()
+    s = dialog.settings()
+    s.kind, s.frames, s.format, s.size = "sweep", 3, "png", "working"
+    dialog.load_settings(s)
+    settle()
+    timed = dialog._estimate_key()
+    real = tl.render_timelapse
+    seen: list[tuple[object, int]] = []
+
+    def spy(session, samples, *args, **kwargs):
+        seen.append((read(session), len(samples)))
+        return real(session, samples, *args, **kwargs)
+
+    monkeypatch.setattr(tl, "render_timelapse", spy)
+    change()
+    settle()
+    assert dialog._estimate_key() != timed  # timed again for the new setting
+    assert seen and all(v == value for v, _ in seen)
+    seen.clear()
+    dialog.export(str(tmp_path / "frames"))
+    settle()
+    assert dialog.status.text().startswith("Saved 3 frames")
+    assert seen == [(value, 3)]
+
+
 @pytest.fixture
 def photo(tmp_path):
     return make_photo(tmp_path / "scene.jpg")

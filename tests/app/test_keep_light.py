@@ -9,23 +9,8 @@ import json
 import pytest
 
 from app.state import ProjectState, Step, load_project
-from outcast_core.runtime.pipeline import timelapse as tl
-from tests.app.conftest import undo_texts
+from tests.app.conftest import check_timelapse_export_takes, spy_relit_full, undo_texts
 from tests.app.test_main_window import _confirm, _load
-
-
-def _spy_daylight(monkeypatch, session) -> list[bool]:
-    """The session's light each time it relights at full resolution (the view on release, the
-    still export)."""
-    seen: list[bool] = []
-    real = session.relight_full
-
-    def spy(w, **kw):
-        seen.append(session.daylight)
-        return real(w, **kw)
-
-    monkeypatch.setattr(session, "relight_full", spy)
-    return seen
 
 
 def test_the_checkbox_sets_the_session_s_light_relights_and_is_undoable(
@@ -38,7 +23,7 @@ def test_the_checkbox_sets_the_session_s_light_relights_and_is_undoable(
     assert rp.keep_light_check.text() == "Keep the photo's light"
     assert "weaker and redder" in rp.keep_light_check.toolTip()
     assert not window.has_unsaved_changes()
-    seen = _spy_daylight(monkeypatch, session)
+    seen = spy_relit_full(monkeypatch, session, lambda s: s.daylight)
     rp.keep_light_check.setChecked(True)
     settle()
     assert session.daylight is False and seen == [False]  # the view relit in the photo's light
@@ -112,7 +97,7 @@ def test_jobs_take_the_light_shown_when_asked_and_a_new_photo_takes_the_daylight
 
     _load(window, photo, settle)
     _confirm(window, settle)
-    seen = _spy_daylight(monkeypatch, window.session)
+    seen = spy_relit_full(monkeypatch, window.session, lambda s: s.daylight)
     window.export_still(str(tmp_path / "still.png"))
     window.relight_panel.keep_light_check.setChecked(True)  # before the export has run
     settle()
@@ -127,26 +112,6 @@ def test_jobs_take_the_light_shown_when_asked_and_a_new_photo_takes_the_daylight
 def test_the_time_lapse_export_takes_the_light(window, photo, settle, tmp_path, monkeypatch):
     _load(window, photo, settle)
     _confirm(window, settle)
-    dialog = window.open_timelapse()
-    s = dialog.settings()
-    s.kind, s.frames, s.format, s.size = "sweep", 3, "png", "working"
-    dialog.load_settings(s)
-    settle()
-    timed = dialog._estimate_key()
-    real = tl.render_timelapse
-    seen: list[tuple[bool, int]] = []
-
-    def spy(session, samples, *args, **kwargs):
-        seen.append((session.daylight, len(samples)))
-        return real(session, samples, *args, **kwargs)
-
-    monkeypatch.setattr(tl, "render_timelapse", spy)
-    window.relight_panel.keep_light_check.setChecked(True)
-    settle()
-    assert dialog._estimate_key() != timed  # timed again in the photo's light
-    assert seen and all(on is False for on, _ in seen)
-    seen.clear()
-    dialog.export(str(tmp_path / "frames"))
-    settle()
-    assert dialog.status.text().startswith("Saved 3 frames")
-    assert seen == [(False, 3)]
+    check_timelapse_export_takes(
+        window, settle, tmp_path, monkeypatch, lambda session: session.daylight,
+        lambda: window.relight_panel.keep_light_check.setChecked(True), False)

@@ -10,23 +10,8 @@ import json
 import pytest
 
 from app.state import Step, load_project
-from outcast_core.runtime.pipeline import timelapse as tl
-from tests.app.conftest import undo_texts
+from tests.app.conftest import check_timelapse_export_takes, spy_relit_full, undo_texts
 from tests.app.test_main_window import _confirm, _load
-
-
-def _spy_relighting(monkeypatch, session) -> list[str]:
-    """The session's relighting each time it relights at full resolution (the view on
-    release, the still export)."""
-    seen: list[str] = []
-    real = session.relight_full
-
-    def spy(w, **kw):
-        seen.append(session.relight_mode)
-        return real(w, **kw)
-
-    monkeypatch.setattr(session, "relight_full", spy)
-    return seen
 
 
 def _choose(window, mode: str) -> None:
@@ -43,7 +28,7 @@ def test_the_choice_sets_the_session_s_relighting_relights_and_is_undoable(
     assert session.relight_mode == "learned" and rp.relighting() == "learned"  # the default
     assert rp.learned_available()
     assert "learned relighting" in window.mode_label.text()
-    seen = _spy_relighting(monkeypatch, session)
+    seen = spy_relit_full(monkeypatch, session, lambda s: s.relight_mode)
     _choose(window, "physics")
     settle()
     assert session.relight_mode == "physics" and seen == ["physics"]  # the view relit
@@ -88,7 +73,7 @@ def test_jobs_take_the_relighting_shown_when_asked_and_a_new_photo_takes_the_def
 
     _load(window, photo, settle)
     _confirm(window, settle)
-    seen = _spy_relighting(monkeypatch, window.session)
+    seen = spy_relit_full(monkeypatch, window.session, lambda s: s.relight_mode)
     window.session.relight_mode = "physics"  # as a job asked for before left it
     window.export_still(str(tmp_path / "still.png"))  # asked for with "Learned" shown
     _choose(window, "physics")  # before the export has run
@@ -105,29 +90,9 @@ def test_the_time_lapse_export_takes_the_relighting(window, photo, settle, tmp_p
                                                     monkeypatch):
     _load(window, photo, settle)
     _confirm(window, settle)
-    dialog = window.open_timelapse()
-    s = dialog.settings()
-    s.kind, s.frames, s.format, s.size = "sweep", 3, "png", "working"
-    dialog.load_settings(s)
-    settle()
-    timed = dialog._estimate_key()
-    real = tl.render_timelapse
-    seen: list[tuple[str, int]] = []
-
-    def spy(session, samples, *args, **kwargs):
-        seen.append((session.relight_mode, len(samples)))
-        return real(session, samples, *args, **kwargs)
-
-    monkeypatch.setattr(tl, "render_timelapse", spy)
-    _choose(window, "physics")
-    settle()
-    assert dialog._estimate_key() != timed  # timed again for physics
-    assert seen and all(mode == "physics" for mode, _ in seen)
-    seen.clear()
-    dialog.export(str(tmp_path / "frames"))
-    settle()
-    assert dialog.status.text().startswith("Saved 3 frames")
-    assert seen == [("physics", 3)]
+    check_timelapse_export_takes(
+        window, settle, tmp_path, monkeypatch, lambda session: session.relight_mode,
+        lambda: _choose(window, "physics"), "physics")
 
 
 @pytest.mark.parametrize("why", ["classic", "not installed"])

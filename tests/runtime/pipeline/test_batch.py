@@ -311,6 +311,22 @@ def test_batch_takes_the_projects_exposure_unless_told(tmp_path: Path,
         batch.project_exposure(photo)
 
 
+def _photo_with_old_project(tmp_path: Path) -> tuple[Path, Path, Path, dict]:
+    """A folder (``in``) with one photo and its project as the app saved it before the step-2
+    settings were kept (suns only): ``(folder, photo, project file, its JSON)``."""
+    from app import state
+
+    d = tmp_path / "in"
+    d.mkdir()
+    photo = _photo(d / "a.png", 0)
+    project = state.project_path_for(photo)
+    data = {"outcast_project": 1, "image": "a.png",
+            "original_sun": {"azimuth": 200.0, "elevation": 40.0},
+            "target_sun": {"azimuth": 90.0, "elevation": 30.0}}
+    project.write_text(json.dumps(data))
+    return d, photo, project, data
+
+
 def test_batch_takes_the_projects_light_unless_told(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -327,14 +343,7 @@ def test_batch_takes_the_projects_light_unless_told(
                         lambda self, w, **kw: seen.append(self.daylight) or real(self, w, **kw))
     monkeypatch.setattr(timelapse, "render_timelapse",
                         lambda session, *a, **kw: seen.append(session.daylight))
-    d = tmp_path / "in"
-    d.mkdir()
-    photo = _photo(d / "a.png", 0)
-    project = state.project_path_for(photo)
-    data = {"outcast_project": 1, "image": "a.png",
-            "original_sun": {"azimuth": 200.0, "elevation": 40.0},
-            "target_sun": {"azimuth": 90.0, "elevation": 30.0}}
-    project.write_text(json.dumps(data))
+    d, photo, project, data = _photo_with_old_project(tmp_path)
     assert batch.read_project(photo).daylight is None  # a project from before the setting
 
     def save(daylight: bool) -> None:
@@ -793,14 +802,7 @@ def test_batch_takes_the_projects_relighting_unless_told(
     real = RelightSession.relight_full
     monkeypatch.setattr(RelightSession, "relight_full",
                         lambda self, w, **kw: seen.append(self.relight_mode) or real(self, w, **kw))
-    d = tmp_path / "in"
-    d.mkdir()
-    photo = _photo(d / "a.png", 0)
-    project = state.project_path_for(photo)
-    data = {"outcast_project": 1, "image": "a.png",
-            "original_sun": {"azimuth": 200.0, "elevation": 40.0},
-            "target_sun": {"azimuth": 90.0, "elevation": 30.0}}
-    project.write_text(json.dumps(data))
+    d, photo, project, data = _photo_with_old_project(tmp_path)
     assert batch.read_project(photo).relighting is None  # a project from before the choice
     job = BatchJob(str(photo), str(tmp_path / "o" / "x.png"))
     relight = BatchOptions(kind="relight", preset="fast")
