@@ -107,7 +107,7 @@ def main(argv: list[str] | None = None) -> int:
     combo = win.relight_panel.relighting_combo  # step 2's "Relighting": physics, and back
     combo.setCurrentIndex(combo.findData("physics"))
     settle()
-    shot(win, "05c_relit_physics.png")
+    shot(win, "05a_relit_physics.png")
     combo.setCurrentIndex(combo.findData("learned"))
     settle()
 
