@@ -598,7 +598,13 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     mu = (wide_blur(log_c * (weight * on)[..., None], sigma)
           / np.maximum(n_m, 1e-6)[..., None])
     mu = np.where((n_m > 1e-4)[..., None], mu, log_c)
-    gain = warm_lift(np.clip(lit - mu, 0.0, MAX_LIFT_LOG))
+    # A channel further below the lit surface than the largest lift (deep blue shade's red:
+    # 3.1-3.2 in two dev photos) takes the others down by as much, so the shadow ends in the
+    # lit surface's colour, a little darker, not tinted: clipped alone, red fell short and a
+    # marked shadow on pavement or decking came out cyan.
+    need = np.maximum(lit - mu, 0.0)
+    over = np.maximum(need.max(axis=-1) - MAX_LIFT_LOG, 0.0)
+    gain = warm_lift(np.clip(need - over[..., None], 0.0, MAX_LIFT_LOG))
     excess = (mu - log_c) @ LUMA_709 - DARKER_MARGIN
     keep = np.exp(-0.5 * (np.maximum(excess, 0.0) / DARKER_WIDTH) ** 2)
     # Crushed: a marked shadow no lift can bring back (the camera kept noise, not colour)

@@ -1070,6 +1070,36 @@ def test_a_marked_shadow_is_lifted_to_the_lit_surface_round_it() -> None:
     assert (gain[inner] > unmarked[inner] + 0.1).all()
 
 
+def test_a_marked_deep_blue_shadow_is_lifted_to_the_lit_colour_not_cyan() -> None:
+    """A marked shadow whose red lies further below the lit surface than the largest lift
+    (16x; deep blue shade on pavement: red 25x down, green 7x, blue 3x, as two dev photos'
+    are): all channels come down by red's shortfall, so it ends in the pavement's colour, a
+    little darker. Red clipped alone fell short and the shadow came out cyan (a*b* 12 away)."""
+    from outcast_core.runtime.geometry.colour import linear_to_lab, linear_to_srgb, srgb_to_linear
+    from outcast_core.runtime.pipeline.photo_shadows import marked_weight
+
+    rng = np.random.default_rng(3)
+    lin = np.full((H, W, 3), [0.5, 0.42, 0.33], np.float32)
+    shadow = np.zeros((H, W), bool)
+    shadow[40:80, 30:100] = True
+    lin[shadow] /= np.array([25.0, 7.0, 3.0], np.float32)
+    lin *= 1.0 + 0.03 * rng.standard_normal((H, W, 1)).astype(np.float32)
+    img = linear_to_srgb(np.clip(lin, 0.0, 1.0))
+    sky = np.zeros((H, W), bool)
+    p = photo_shadow_probability(img, sky)
+    masks = shadow_edit_masks(p, img, sky, [ShadowEdit(*_centre(shadow), True)])
+    edited, not_shadow = apply_edit_masks(p, sky, *masks)
+    marked = marked_weight(masks[0])
+    assert marked[shadow].mean() > 0.9
+    out = linear_to_lab(srgb_to_linear(deshadow(img, edited, sky | not_shadow, marked=marked)))
+    inner = cv2.erode(shadow.astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
+    ring = (cv2.dilate(shadow.astype(np.uint8), np.ones((15, 15), np.uint8)) > 0) & ~shadow
+    lit = linear_to_lab(srgb_to_linear(img))[ring].mean(axis=0)
+    got = out[inner].mean(axis=0)
+    assert np.hypot(*(got[1:] - lit[1:])) < 3.0  # the pavement's colour
+    assert lit[0] - 15.0 < got[0] < lit[0] + 1.0  # its level, a little darker
+
+
 def _reference_marked_lift(log_c, p, usable, marked):
     """``marked_lift`` as first written (ab58bda): two elliptical dilations per region."""
     from outcast_core.runtime.pipeline import photo_shadows as ps
