@@ -2894,8 +2894,11 @@ class MainWindow(QMainWindow):
         # own result in the dialog and gives way to them).
         # Nor the dialog's preview frames ("rendering time-lapse frame took 0.00 s" for a
         # cached one replaced what the user's relighting said: a user trial).
-        if (not self.runner.busy(background=False) and channel != "find_sun"
-                and self._says_status(channel)):
+        # Waiting only for jobs that say their own status: a time-lapse preview frame queued
+        # behind the relighting left "Relighting…" up for good (a user trial: a light or
+        # relighting switched with the time-lapse dialog open).
+        if (channel != "find_sun" and self._says_status(channel)
+                and not any(self._says_status(ch) for _, ch, _ in self.runner.active())):
             if channel in IMAGE_EXPORT_CHANNELS:
                 text = f"Saved {os.path.basename(result['path'])} in {seconds:.1f} s"
             elif channel == "tl_export":

@@ -135,3 +135,24 @@ def test_a_quality_switch_says_the_job_that_runs(qtbot, window, settle, tmp_path
             assert visible and most == 0
     window.runner.idle.emit()
     assert not bar.isVisible()
+
+
+@pytest.mark.parametrize("change", ["light", "relighting"])
+def test_a_change_with_the_time_lapse_dialog_open_ends_ready(window, photo, settle, change):
+    """A light or relighting switched with the time-lapse dialog open: the view's relighting
+    and then the dialog's frame run; the status says the relighting's end, not "Relighting…"
+    for good (a user trial: the dialog's frame, which says nothing in the status bar, was
+    still waiting when the relighting ended, so the end was never said)."""
+    window.open_path(photo)
+    settle()
+    window.confirm_original_sun()
+    settle()
+    window.open_timelapse()
+    settle()
+    rp = window.relight_panel
+    if change == "light":
+        rp.keep_light_check.setChecked(True)
+    else:
+        rp.relighting_combo.setCurrentIndex(rp.relighting_combo.findData("physics"))
+    settle()
+    assert window.stage_label.text().startswith("Ready · relighting took")

@@ -181,8 +181,15 @@ def check_batch_output(args: argparse.Namespace) -> None:
                 f"'{args.report}' already exists and is not a report of this batch "
                 f"('{args.folder}' into '{args.output}'); choose another name, or use --force "
                 "to replace it (--force also redoes every photo)")
-        check_output_path(args.report, extensions=(".json",), force=args.force or ours,
-                          inputs=[args.targets])
+        if not out.exists() and report.parent.resolve() == out.resolve():
+            # in OUT_DIR, which the batch makes (checked above): a new file, its name checked
+            # (a user trial's "-o out --report out/r.json" was refused: "folder does not exist")
+            if report.suffix.lower() != ".json":
+                raise CliError(f"cannot write '{args.report}': expected an extension in .json, "
+                               f"got '{report.suffix}'")
+        else:
+            check_output_path(args.report, extensions=(".json",), force=args.force or ours,
+                              inputs=[args.targets])
 
 
 #: The report's marker (:func:`_our_report`): a file without it is not a batch's report.

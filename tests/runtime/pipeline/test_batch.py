@@ -915,6 +915,25 @@ def test_the_reports_paths_are_absolute_for_relative_folders(
     assert data["input_folder"] == str(tmp_path.resolve() / "in")
 
 
+def test_a_report_in_the_output_folder_the_batch_makes_is_written(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``-o out --report out/r.json`` with ``out`` not made yet: the batch makes it and writes
+    the report there (a user trial's was refused: "folder 'out' does not exist"); a report
+    in a folder nothing makes is still refused, and so is a report without ``.json``."""
+    monkeypatch.chdir(tmp_path)
+    Path("in").mkdir()
+    _photo(Path("in") / "p.png", 0)
+    args = ["batch", "in", "-o", "out", "--from", "200,40", "--to", "90,30", "--mode",
+            "classic", "--preset", "fast", "-q"]
+    assert main([*args, "--report", "elsewhere/r.json"]) != 0
+    assert "does not exist" in capsys.readouterr().err and not Path("out").exists()
+    assert main([*args, "--report", "out/r.txt"]) != 0
+    assert ".json" in capsys.readouterr().err and not Path("out").exists()
+    assert main([*args, "--report", "out/r.json"]) == 0
+    assert json.loads(Path("out/r.json").read_text())["counts"]["done"] == 1
+
+
 def test_the_batchs_own_files_in_its_folder_are_not_called_other_files(tmp_path: Path) -> None:
     """A targets CSV or a report kept in the photos' folder is the batch's own, not a file
     it passed over."""
