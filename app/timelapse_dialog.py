@@ -776,17 +776,19 @@ class TimelapseDialog(QDialog):
         # The real sun is given against the horizon and the camera's heading (its frame: the
         # photo's tilt); a sweep in the dial's (the camera's) angles.
         frame = " above the horizon" if any(s.tilt) and s.elevation >= 0 else ""
+        look = self.main.relight_panel.look()  # as the user sees it now
+        # Step 2's relighting when it is not the default (a user trial: the dialog never said
+        # which one its frames and the export use)
+        how = ", physics relighting" if look.relighting == "physics" else ""
         self._caption = (f"Frame {index + 1}/{len(self._samples)}{when} · azimuth "
                          f"{s.azimuth:.1f}°, elevation {s.elevation:.1f}°{frame}{below} · quick "
-                         "preview")
+                         f"preview{how}")
         self.caption.setText(self._caption)
         session = self.main.session
         if session is None or session.original_sun is None or not self.isVisible():
             return  # (hidden: drawn when shown; a closed dialog's frame, redrawn after a
             # change of quality, said "rendering time-lapse frame took …": a user trial)
         w = tl.sun_vectors([s])[0]
-
-        look = self.main.relight_panel.look()  # as the user sees it now
         exposure = look.exposure
         edits = self.main.shadow_edits  # the photo's shadows as corrected now
 

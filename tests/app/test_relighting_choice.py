@@ -93,6 +93,11 @@ def test_the_time_lapse_export_takes_the_relighting(window, photo, settle, tmp_p
     check_timelapse_export_takes(
         window, settle, tmp_path, monkeypatch, lambda session: session.relight_mode,
         lambda: _choose(window, "physics"), "physics")
+    caption = window._timelapse_dialog.caption.text()  # the dialog says which (a user trial)
+    assert "quick preview, physics relighting" in caption
+    _choose(window, "learned")
+    settle()
+    assert "physics" not in window._timelapse_dialog.caption.text()  # (the default: unsaid)
 
 
 @pytest.mark.parametrize("why", ["classic", "not installed"])
