@@ -1337,7 +1337,7 @@ class MainWindow(QMainWindow):
             opened += "".join(f" · {note[:1].lower()}{note[1:].rstrip('.')}"
                               for note in file_notes)
         self.stage_label.setText(opened)
-        self._held_message = opened if self.runner.busy(background=False) else ""
+        self._held_message = opened if self._status_pending() else ""
         if restore is not None:  # the same photo again: keep the history
             self._edit_state = record_from
             self._record(restore)
@@ -1734,7 +1734,7 @@ class MainWindow(QMainWindow):
                 text += (f" Its elevation is set to {where} turn the sun around the ring until "
                          "the shadows fit.")
         self.stage_label.setText(text)
-        self._held_message = text if self.runner.busy(background=False) else ""
+        self._held_message = text if self._status_pending() else ""
         notice = text if not placed or fit.compass_decided else ""
         prior = result.get("prior")
         if not notice and prior is not None and prior.azimuth is not None:
@@ -1807,7 +1807,7 @@ class MainWindow(QMainWindow):
                 f"{f' for a {tilt}' if tilt else ''} (check it against the shadows{note})")
         self.stage_label.setText(text)
         # (past the overlay's "Ready")
-        self._held_message = text if self.runner.busy(background=False) else ""
+        self._held_message = text if self._status_pending() else ""
 
     def _apply_project(self, project: ProjectState) -> None:
         self.preset = project.preset  # the session was created with it
@@ -2032,7 +2032,7 @@ class MainWindow(QMainWindow):
                                   BRUSH_SOFTNESS[tool])
             self.stage_label.setText(SHADOW_TOOL_HINTS[tool])
             self.canvas.setFocus()  # Esc reaches the window's action from here
-        elif not self.runner.busy(background=False):
+        elif not self._status_pending():
             self.stage_label.setText("Ready")
 
     def _undo_step(self, step: Callable[[], None]) -> None:
@@ -2831,6 +2831,14 @@ class MainWindow(QMainWindow):
         else:
             self.progress_bar.hide()
 
+    def _status_pending(self) -> bool:
+        """Whether a job that says its end in the status bar (:meth:`_says_status`) is
+        waiting, running or not yet reported, so what the status says now will be replaced.
+        Not the dialog's frames nor the background timing: a time-lapse frame queued behind
+        the view's relighting left "Relighting…" up for good (a user trial: the light or the
+        relighting switched with the time-lapse dialog open)."""
+        return any(self._says_status(ch) for _, ch, _ in self.runner.active())
+
     def _says_status(self, channel: str) -> bool:
         """Whether a job of ``channel`` says its start and end in the status bar: not the
         background timing nor a dialog's own frames (:data:`DIALOG_CHANNELS`), which say theirs
@@ -2894,11 +2902,8 @@ class MainWindow(QMainWindow):
         # own result in the dialog and gives way to them).
         # Nor the dialog's preview frames ("rendering time-lapse frame took 0.00 s" for a
         # cached one replaced what the user's relighting said: a user trial).
-        # Waiting only for jobs that say their own status: a time-lapse preview frame queued
-        # behind the relighting left "Relighting…" up for good (a user trial: a light or
-        # relighting switched with the time-lapse dialog open).
         if (channel != "find_sun" and self._says_status(channel)
-                and not any(self._says_status(ch) for _, ch, _ in self.runner.active())):
+                and not self._status_pending()):
             if channel in IMAGE_EXPORT_CHANNELS:
                 text = f"Saved {os.path.basename(result['path'])} in {seconds:.1f} s"
             elif channel == "tl_export":

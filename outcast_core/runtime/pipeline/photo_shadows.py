@@ -1338,12 +1338,8 @@ def _with_penumbra(region: np.ndarray, log_y: np.ndarray, sky: np.ndarray) -> np
     (the median over a ring :data:`ADD_RING` wide beyond that reach) by :data:`ADD_DARKER`."""
     side = max(region.shape)
     k = max(1, round(ADD_PENUMBRA * side))
-    reach = cv2.dilate(region.astype(np.uint8),
-                       cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2)) > 0
-    r = k + max(2, round(ADD_RING * side))
-    ring = cv2.dilate(region.astype(np.uint8),
-                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2)) > 0
-    ring &= ~reach & ~sky
+    reach = _grown(region, k)
+    ring = _grown(region, k + max(2, round(ADD_RING * side))) & ~reach & ~sky
     if not ring.any():
         return region
     dark = log_y < float(np.median(log_y[ring])) - ADD_DARKER
@@ -1380,11 +1376,14 @@ def _darker_than_round(region: np.ndarray, log_y: np.ndarray, sky: np.ndarray, l
     shadow, taken for one, the lift would brighten to glare (a user trial)."""
     if region.sum() > ADD_MAX_SHARE * max(1, int((~sky).sum())):
         return False
-    k = max(2, round(ADD_RING * max(region.shape)))
-    ring = cv2.dilate(region.astype(np.uint8),
-                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1,) * 2)) > 0
-    ring &= ~region & ~sky
+    ring = _grown(region, max(2, round(ADD_RING * max(region.shape)))) & ~region & ~sky
     return not ring.any() or level <= float(np.median(log_y[ring])) - ADD_DARKER
+
+
+def _grown(mask: np.ndarray, radius: int) -> np.ndarray:
+    """``mask`` (bool) dilated by a disc of ``radius`` pixels."""
+    return cv2.dilate(mask.astype(np.uint8), cv2.getStructuringElement(
+        cv2.MORPH_ELLIPSE, (2 * radius + 1,) * 2)) > 0
 
 
 def _closed(mask: np.ndarray, radius: int) -> np.ndarray:
