@@ -68,6 +68,7 @@ from outcast_core.runtime.pipeline.photo_shadows import (
     deshadow,
     edit_masks_at,
     filled_share,
+    found_shade_marks,
     lift_probability,
     lit_surface_colour,
     marked_weight,
@@ -88,6 +89,7 @@ from outcast_core.runtime.pipeline.relight import (
     LightEstimate,
     add_sun,
     estimate_light,
+    facing_up,
     glare_gone_full,
     guard_learned_relight,
     meter_exposure,
@@ -591,7 +593,9 @@ class RelightSession:
         self._lifted: np.ndarray | None = None
         #: Where the photo's own shadows are (``H x W`` in [0, 1]), set by set_original_sun().
         self.shadow_probability: np.ndarray | None = None
-        #: The lift's material guard (:meth:`_lift_guard`), per size, for one ``S_o``.
+        #: The lift's material guard (:meth:`_lift_guard`), per size, and what the de-shadow
+        #: (``"marks"``, :meth:`_deshadow_marks`) and the lift (``"lift_marks"``) take as
+        #: marked shadows at the working size, for one ``S_o``.
         self._lift_guards: dict[Any, Any] = {}
         #: The shadow network's ``S`` at the original sun (the geometry's prior for ``S_o``).
         self._original_geometry: np.ndarray | None = None
@@ -914,7 +918,12 @@ class RelightSession:
         self._relight_cache.clear()
         self._deshadowed = None
         self._lifted = None
-        self._lift_guards = {"of": self.original_shadow}
+        # With S_o, under the lock: a relighting stream reads them lock-free (about 25 ms).
+        found = found_shade_marks(self.image_srgb, prob, self._lift_excluded)
+        self._lift_guards = {
+            "of": self.original_shadow, "marks": self._with_user_marks(found, self.sky),
+            "lift_marks": self._with_user_marks(
+                found * facing_up(self.normals, self.horizon_up()), self.sky)}
         self._detail = None
         self._detail_lift = None
 
@@ -941,7 +950,7 @@ class RelightSession:
                 t0 = time.perf_counter()
                 self._deshadowed = self._in_photo_colours(
                     deshadow(self.image_srgb, self.shadow_probability, self._lift_excluded,
-                             marked=self._marked(self.sky), lifted=self.lifted_shadows()))
+                             marked=self._working_lift_marks(), lifted=self.lifted_shadows()))
                 self._time("deshadow", t0)
             return self._deshadowed
 
@@ -960,8 +969,33 @@ class RelightSession:
             if self._lifted is None:
                 self._lifted = lift_probability(self.image_srgb, self.shadow_probability,
                                                 self._lift_excluded,
-                                                marked=self._marked(self.sky))
+                                                marked=self._working_lift_marks())
             return self._lifted
+
+    def _working_lift_marks(self) -> np.ndarray | None:
+        """:meth:`_deshadow_marks` at the working size, made with ``S_o`` (after
+        :meth:`set_original_sun`)."""
+        return self._lift_guards.get("marks")
+
+    def _deshadow_marks(self, image: np.ndarray, probability: np.ndarray,
+                        excluded: np.ndarray, sky: np.ndarray) -> np.ndarray | None:
+        """What the de-shadow lifts as marked shadows, each to the lit surface round it
+        (``H x W`` float32 in [0, 1] at the size of ``sky``, or None: none): the user's "Mark
+        shadow" (:meth:`_marked`) and the found shadows whose own lit ring says they are its
+        shade (:func:`~outcast_core.runtime.pipeline.photo_shadows.found_shade_marks`), the
+        larger per pixel. The relighting's lift takes them as shade, lifts them whole into its
+        ceiling and lets the lift reach it there (:meth:`_lift_inputs`), the found ones on
+        surfaces that face up (:func:`~outcast_core.runtime.pipeline.relight.facing_up`)."""
+        return self._with_user_marks(found_shade_marks(image, probability, excluded), sky)
+
+    def _with_user_marks(self, found: np.ndarray, sky: np.ndarray) -> np.ndarray | None:
+        """``found`` (``H x W``, bool or a weight in [0, 1]) and the user's marks at its size
+        (:meth:`_marked`), the larger per pixel, as float32; None when both are empty."""
+        user = self._marked(sky)
+        if not found.any():
+            return user
+        marks = np.asarray(found, np.float32)
+        return marks if user is None else np.maximum(user, marks)
 
     def lifted_shadows_full(self) -> np.ndarray:
         """How much :meth:`deshadow_full` lifts each pixel as shadow, at the photo's full size
@@ -1028,8 +1062,8 @@ class RelightSession:
             ``{"image", "sky", "probability", "original_shadow", "excluded", "marked"}`` at
             that size (``h x w x 3`` sRGB float32, ``h x w`` bool, ``h x w`` float32, ``h x w``
             float32, ``h x w`` bool: the sky and what the user marked "not a shadow", which the
-            lift leaves out; ``h x w`` float32 in [0, 1] or None: how much the user marked as
-            shadow).
+            lift leaves out; ``h x w`` float32 in [0, 1] or None: what the de-shadow lifts as
+            marked shadows, :meth:`_deshadow_marks`).
         """
         with self._lock:
             self._require_image()
@@ -1069,7 +1103,8 @@ class RelightSession:
                     prob, not_shadow = apply_edit_masks(prob, sky, *self._edit_masks)
                     excluded = sky | not_shadow
                 s_o = original_shadow_from_photo(prob, cosine, sky)
-            marked = self._marked(sky)
+            marked = (self._working_lift_marks() if working
+                      else self._deshadow_marks(image, prob, excluded, sky))
             self._detail = {"image": image, "sky": sky, "probability": prob.astype(np.float32),
                             "original_shadow": s_o.astype(np.float32), "excluded": excluded,
                             "marked": marked}
@@ -1399,6 +1434,7 @@ class RelightSession:
         # The detail's lifted texture is the lift's de-shadowed photo, lift or not; the
         # photo's bands are kept per size with the lift's inputs (per S_o).
         inputs = self._lift_inputs(s_o.shape) if lift or self.keep_detail else {}
+        inputs.pop("physics_fill", None)  # physics mode's (_physics_fills)
         cache = self._lift_guards.setdefault(("detail", tuple(s_o.shape)), {})
         return guard_learned_relight(image, relit, s_o, s_new, sky, light, keep_sky=True,
                                      colour=self.colour_guard, floor=self.contrast_floor,
@@ -1420,11 +1456,11 @@ class RelightSession:
         if self._marked(sky) is None:
             return relit
         inputs = self._lift_inputs(tuple(relit.shape[:2]))
-        if not inputs or inputs["lift_fill"] is None:
+        if not inputs or inputs["physics_fill"] is None:
             return relit
         base, lit_old = inputs["lift_base"]
         cap = physics_relight(base, lit_old, s_new, sky, light=light, snap=False)
-        k = inputs["lift_fill"][..., None]
+        k = inputs["physics_fill"][..., None]
         out = (1.0 - k) * srgb_to_linear(relit) + k * srgb_to_linear(cap)
         return linear_to_srgb(out).astype(np.float32)
 
@@ -1453,8 +1489,11 @@ class RelightSession:
         ``shape``: where the lift may act (:meth:`_lift_guard`), the photo de-shadowed with the
         clear-sky shade colour (:data:`~outcast_core.runtime.pipeline.relight.LIFT_SHADE_SHIFT`)
         with the lit level of the old sun, which physics relights into the lift's ceiling, and
-        the lit surroundings' colour the lifted surface takes. Made once at working size per
-        ``S_o``, resized per ``shape``."""
+        the lit surroundings' colour the lifted surface takes; its ``lift_fill``, where the
+        lift may reach that ceiling (what the de-shadow filled, and the marked shadows:
+        :meth:`_deshadow_marks`); and ``physics_fill``, what it filled alone (physics mode's,
+        :meth:`_physics_fills`). Made once at working size per ``S_o``, resized per
+        ``shape``."""
         guard = self._lift_guard(shape)
         if guard is None:
             return {}
@@ -1464,8 +1503,19 @@ class RelightSession:
             assert self.shadow_probability is not None
             # Unbounded: its fine band is the relit photo's texture where the new sun
             # lights the surface (photo_shadows.LIFT_ABOVE_LIT says what the bound cost there).
+            # A marked shadow (the user's, or a found one its own lit ring says is shade, on
+            # a surface facing up: relight.LIFT_MARK_FACING) is lifted whole, not only as far
+            # as its found probability goes, and the lift may rise to this ceiling there
+            # ("trust" below): its reference is the lit surface round it, where physics has
+            # the photo's one sun/sky ratio.
+            marks = guards.get("lift_marks")
+            lifted = None
+            if marks is not None:
+                lifted = np.maximum(lift_probability(
+                    self.image_srgb, self.shadow_probability, self._lift_excluded,
+                    LIFT_SHADE_SHIFT, marks), marks)
             base = deshadow(self.image_srgb, self.shadow_probability, self._lift_excluded,
-                            LIFT_SHADE_SHIFT, marked=self._marked(self.sky), above_lit=None)
+                            LIFT_SHADE_SHIFT, marked=marks, above_lit=None, lifted=lifted)
             lit_old = np.maximum(cosine_term(self.normals, self.original_sun), LIT_FLOOR)
             lit_old = np.where(self.sky, 0.0, lit_old)
             guards["colour"] = lit_surface_colour(self.image_srgb, self.shadow_probability,
@@ -1477,22 +1527,26 @@ class RelightSession:
                 fill = np.where(fill > FILL_MIN, fill, 0.0).astype(np.float32)
                 fill = fill if fill.any() else None
             guards["fill"] = fill
-            # Last: a thread that finds "base" finds "colour" and "fill" too.
+            guards["trust"] = (fill if marks is None else marks if fill is None
+                               else np.maximum(fill, marks))
+            # Last: a thread that finds "base" finds "colour", "fill" and "trust" too.
             guards["base"] = (base.astype(np.float32), lit_old.astype(np.float32))
         key = ("base", tuple(shape))
         if key not in guards:
             base, lit_old = guards["base"]
-            colour, fill = guards["colour"], guards["fill"]
+            colour, fill, trust = guards["colour"], guards["fill"], guards["trust"]
             if base.shape[:2] != tuple(shape):
                 base = np.clip(resize(base, tuple(shape)), 0.0, 1.0)
                 lit_old = np.clip(resize(lit_old, tuple(shape)), 0.0, 1.0)
                 colour = resize(colour, tuple(shape))
                 if fill is not None:
                     fill = np.clip(resize(fill, tuple(shape)), 0.0, 1.0)
-            guards[key] = (base, lit_old, colour, fill)
-        base, lit_old, colour, fill = guards[key]
+                if trust is not None:
+                    trust = np.clip(resize(trust, tuple(shape)), 0.0, 1.0)
+            guards[key] = (base, lit_old, colour, fill, trust)
+        base, lit_old, colour, fill, trust = guards[key]
         return {"lift_guard": guard, "lift_base": (base, lit_old), "lift_colour": colour,
-                "lift_fill": fill}
+                "lift_fill": trust, "physics_fill": fill}
 
     def _lift_guard(self, shape: tuple[int, int]) -> np.ndarray | None:
         """Where a newly lit surface may be lifted to physics' brightness: the photo's found
@@ -1508,9 +1562,8 @@ class RelightSession:
                                     self._lift_excluded, LIFT_SHADE_SHIFT)
                      * near_predicted_shadow(self._original_geometry, self.sky,
                                              LIFT_PRIOR_RADIUS))
-            masks = self._edit_masks  # once: another thread's _apply_found may reset it
-            if masks is not None:  # the user's word: a shadow, not a material
-                marked = marked_weight(masks[0])
+            marked = guards.get("lift_marks")  # the user's word, or its own ring: shade
+            if marked is not None:
                 guard = (guard + marked * (1.0 - guard)).astype(np.float32)
             guards["working"] = guard
         key = tuple(shape)

@@ -209,7 +209,10 @@ def test_the_lift_probability_is_made_once_per_size(tmp_path: Path,
     assert detail != s.image_srgb.shape[:2]  # the full-size de-shadow is found apart
     assert sorted(made) == sorted([s.image_srgb.shape[:2], detail])
     monkeypatch.setattr(ps, "lift_probability", real)
-    np.testing.assert_array_equal(out, deshadow(s.image_srgb, s.shadow_probability, s.sky))
+    found = ps.found_shade_marks(s.image_srgb, s.shadow_probability, s.sky)
+    marks = found.astype(np.float32) if found.any() else None
+    np.testing.assert_array_equal(out, deshadow(s.image_srgb, s.shadow_probability, s.sky,
+                                                marked=marks))
     assert shown.shape == out.shape[:2] and mask.shape == full.shape[:2] == big.shape[:2]
     with pytest.raises(ValueError, match="lift probability"):
         deshadow(s.image_srgb, s.shadow_probability, s.sky, lifted=mask)
@@ -547,3 +550,126 @@ def test_keep_fills_in_boxes_and_bands_is_the_whole_frame_blend(monkeypatch, dty
     else:
         np.testing.assert_allclose(got, want, atol=1e-5)
     assert (got[k[..., 0] == 0] == full[k[..., 0] == 0]).all()  # nothing else touched
+
+
+def _deep_blue_scene() -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Warm gravel with a cast shadow in deep blue shade (its chromaticity moved twice the
+    clear sky's shift, as the dev photos' SBU shade often is), beside a navy object (bluer
+    only, red against green unchanged: 31 degrees off the sky's direction) and a dark
+    sea-blue one (moved mostly in red: 36 degrees off)."""
+    from outcast_core.runtime.geometry.colour import srgb_to_linear
+
+    lin = srgb_to_linear(_ground())
+    regions = {name: np.zeros((H, W), bool) for name in ("shadow", "navy", "sea")}
+    regions["shadow"][34:56, 8:38] = True
+    regions["navy"][6:24, 52:68] = True
+    regions["sea"][38:58, 60:90] = True
+    gains = {"shadow": (-2.3, -1.8, -0.96), "navy": (-2.0, -2.0, -0.8),
+             "sea": (-3.1, -1.2, -0.4)}  # natural log, R, G, B
+    for name, g in gains.items():
+        lin[regions[name]] *= np.exp(np.array(g, np.float32))
+    return linear_to_srgb(lin).astype(np.float32), regions
+
+
+def _log_contrast(img: np.ndarray, inside: np.ndarray, lit: np.ndarray) -> float:
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+
+    y = np.log(luminance(srgb_to_linear(np.clip(img, 0, 1))) + 1e-3)
+    return float(y[lit].mean() - y[inside].mean())
+
+
+def test_found_shade_marks_take_deep_blue_shade_and_leave_blue_materials() -> None:
+    """A found shadow whose own lit ring says it is its shade (darker, moved along the clear
+    sky's direction) is marked; dark blue materials that moved elsewhere are not, nor what the
+    user marked "not a shadow" (passed as ``sky``)."""
+    img, regions = _deep_blue_scene()
+    sky = np.zeros((H, W), bool)
+    p = photo_shadow_probability(img, sky)
+    assert all(p[r].mean() > 0.8 for r in regions.values())  # all three found dark
+    marks = ps.found_shade_marks(img, p, sky)
+    core = cv2.erode(regions["shadow"].astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    assert marks[core].all()
+    assert not marks[regions["navy"]].any() and not marks[regions["sea"]].any()
+    assert not marks[~cv2.dilate(regions["shadow"].astype(np.uint8),
+                                 np.ones((9, 9), np.uint8)).astype(bool)].any()
+    assert not ps.found_shade_marks(img, p, regions["shadow"]).any()  # "not a shadow"
+    assert not ps.found_shade_marks(img, np.zeros_like(p), sky).any()  # nothing found
+
+
+def test_deep_blue_shade_is_lifted_to_its_lit_ring_when_found_as_shade() -> None:
+    """The photo-wide lift's material guard, expecting shade nearly neutral, keeps most of
+    deep blue shade (a blue-grey ghost in "Shadows removed"); lifted as the found marks say,
+    from the lit ring round it, the shadow nearly goes, and the blue materials stay."""
+    img, regions = _deep_blue_scene()
+    sky = np.zeros((H, W), bool)
+    p = photo_shadow_probability(img, sky)
+    marks = ps.found_shade_marks(img, p, sky).astype(np.float32)
+    plain = deshadow(img, p, sky)
+    marked = deshadow(img, p, sky, marked=marks)
+    core = cv2.erode(regions["shadow"].astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
+    lit = ~cv2.dilate((p > 0.1).astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
+    before = _log_contrast(img, core, lit)
+    assert _log_contrast(plain, core, lit) > 0.5 * before  # the ghost
+    assert abs(_log_contrast(marked, core, lit)) < 0.15 * before
+    for name in ("navy", "sea"):  # (the photo-wide statistics count the shadow as shade now)
+        assert np.abs(marked[regions[name]] - plain[regions[name]]).mean() < 0.01
+
+
+def test_a_marked_shadow_is_lifted_no_brighter_than_its_lit_ring_even_unbounded() -> None:
+    """The relighting's ceiling is the de-shadow without its bound (``above_lit=None``); a
+    marked shadow's pixels still end no brighter than the lit surface's bright end round it
+    (``marked_lift``'s ``top``): a penumbra lifted by the core's gain made a light rim."""
+    img, mask = _shadowed()
+    img *= 0.6
+    rim = mask & ~(cv2.erode(mask.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0)
+    img[rim] = np.sqrt(img[rim] * _ground()[rim] * 0.6)  # a penumbra: half way in log
+    sky = np.zeros((H, W), bool)
+    out = deshadow(img, mask.astype(np.float32), sky, marked=mask.astype(np.float32),
+                   above_lit=None)
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+
+    y = luminance(srgb_to_linear(out))
+    ring = cv2.dilate(mask.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool) & ~mask
+    assert y[rim].mean() <= 1.02 * np.percentile(y[ring], ps.MARKED_TOP)
+    assert y[mask & ~rim].mean() > 0.8 * y[ring].mean()  # the core is lifted
+
+
+def test_the_session_lifts_found_deep_blue_shade_in_both_the_export_and_the_relighting(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The session hands the found marks to the de-shadow (the export, the found shadows the
+    app shows) and to the relighting's lift, whose ceiling it raises and lets the lift reach,
+    on surfaces that face up (``relight.LIFT_MARK_FACING``); without them deep blue shade
+    stays a ghost in both. The box scene's camera looks straight down, its horizon's up the
+    camera's vertical, so its ground counts as a wall for the relighting's lift until
+    ``facing_up`` is made to say otherwise."""
+    from outcast_core.runtime.pipeline import session as session_module
+
+    img, regions = _deep_blue_scene()
+    _, depth = _session_inputs(tmp_path)
+    core = cv2.erode(regions["shadow"].astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
+
+    def lifted(found: bool = True) -> tuple[float, float, np.ndarray]:
+        if not found:
+            monkeypatch.setattr(session_module, "found_shade_marks",
+                                lambda image, p, sky: np.zeros(p.shape, bool))
+        s = RelightSession(preset="fast")
+        s.set_image(img, depth=depth)
+        s.set_original_sun((0.5, -0.6, 0.6))
+        lit = ~cv2.dilate((s.shadow_probability > 0.1).astype(np.uint8),
+                          np.ones((7, 7), np.uint8)).astype(bool)
+        relit = s.relight((-0.5, -0.6, -0.6))  # a sun that lights the shadow's ground
+        return (_log_contrast(s.deshadow(), core, lit), _log_contrast(relit, core, lit),
+                s.lifted_shadows())
+
+    export, on_a_wall, shown = lifted()
+    monkeypatch.setattr(session_module, "facing_up",
+                        lambda normals, up: np.ones(np.shape(normals)[:2], np.float32))
+    _, relit, _ = lifted()
+    ghost_export, ghost_relit, _ = lifted(found=False)
+    before = _log_contrast(img, core, ~cv2.dilate(regions["shadow"].astype(np.uint8),
+                                                   np.ones((7, 7), np.uint8)).astype(bool))
+    assert ghost_export > 0.5 * before and abs(export) < 0.2 * before
+    assert relit < 0.5 * ghost_relit
+    assert on_a_wall == pytest.approx(ghost_relit, abs=1e-6)
+    assert shown[core].mean() > 0.9  # what the app shows as found: all of it
