@@ -695,10 +695,11 @@ def shadow_contrast_floor(
       and the marked shadows, the user's and the found ones whose own lit ring says shade
       (:func:`~outcast_core.runtime.pipeline.photo_shadows.found_shade_marks`: their ceiling
       is lifted to the lit surface round each, a reference physics' one sun/sky ratio for the
-      whole photo does not have). Measured with the found ones (2026-12-03, eighteenth
-      session): synthetic newly lit x1.741 -> x1.802, what the found shadows wrongly include
-      (dev photos, +-120 degrees, 68 cases) x3.53 -> x3.60, the truly found (82) x4.72 ->
-      x5.09, the fast preset's old shade 0.26 -> 0.22.
+      whole photo does not have). Measured with the found ones on surfaces facing up
+      (2026-12-03, eighteenth session; :data:`LIFT_MARK_FACING`): synthetic newly lit x1.741
+      -> x1.777, what the found shadows wrongly include (dev photos, +-120 degrees, outside
+      the human masks, 68 cases) x3.53 -> x3.58, the truly found (82) x4.72 -> x4.95, the
+      fast preset's old shade 0.256 -> 0.239.
 
     Measured on 2026-11-30 (held-out synthetic views, true depth, ``python3
     scripts/eval_session_synthetic.py ~/.cache/outcast/data/test --max-views 40``, 480 pairs,
