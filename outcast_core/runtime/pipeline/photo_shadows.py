@@ -632,11 +632,12 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
 #: (:data:`SKY_SHADE_SHIFT`'s direction). The direction is what a white balance cannot move
 #: (it scales lit and shade alike) and what blue materials do not share: on the 47 dev photos
 #: the candidates that lie in the human-marked shadows are 2-30 degrees off it (two of 35 at
-#: 42 and 56), those outside them (a sea, navy trousers, a tree, a blue tarp) 28-52 (eight
-#: of 21 at 1-25, most of them small). Chosen on the dev photos (eighteenth session's note in
+#: 42 and 56), those outside them (a sea, navy trousers, a tree) 28-52, but nine of 20 at
+#: 1-25, most of them small. Chosen on the dev photos (eighteenth session's note in
 #: models/EVAL.md): at 20 / 25 / 30 / no limit the human-marked shadows keep 0.450 / 0.449 /
 #: 0.421 / 0.401 of their contrast after the de-shadow (0.525 without these marks) and the
-#: photo outside them changes by 0.0999 / 0.1008 / 0.1024 / 0.1133 in log luminance (0.0974).
+#: photo outside them changes by 0.0999 / 0.1008 / 0.1024 / 0.1133 in log luminance (0.0974);
+#: at 25 with the penumbra (:func:`_with_penumbra`, a thinner dark outline) 0.460 / 0.1009.
 FOUND_MARK_LEVEL = 0.5
 FOUND_MARK_MIN_SHARE = 0.001
 FOUND_MARK_RING = 0.02
