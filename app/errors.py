@@ -90,8 +90,8 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
 
     Args:
         exc: the exception.
-        action: one of ``"open"``, ``"depth"``, ``"depth-model"``, ``"export"``, ``"project"``,
-            or anything else.
+        action: one of ``"open"``, ``"depth"``, ``"depth-model"``, ``"export"``, ``"project"``
+            (opening one), ``"save-project"``, or anything else.
 
     Returns:
         A :class:`UserMessage`.
@@ -156,12 +156,20 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
                 "that the disk has free space, then try again."
             )
         return UserMessage("Export failed", detail, todo)
-    if action == "project":
+    if action == "project":  # opening one
         return UserMessage(
-            "Could not open or save the project",
+            "Could not open the project",
             detail,
             "Project files are the .outcast.json files OutCast writes next to the photo. "
             "Your current work is unchanged.",
+        )
+    if action == "save-project":
+        return UserMessage(
+            "Could not save the project",
+            detail,
+            "Nothing on disk was changed; your edits are still here, unsaved. Check that the "
+            "folder exists, that you can write to it and that the disk has free space, then "
+            "save again (or choose File \u25b8 Save project as).",
         )
     return UserMessage(
         "Something went wrong",

@@ -2764,7 +2764,7 @@ class MainWindow(QMainWindow):
         try:
             save_project(self.project_state(), target)
         except (OSError, ValueError) as exc:
-            self.show_error(exc, "project")
+            self.show_error(exc, "save-project")
             return None
         self._project_files.add(os.path.abspath(target))
         self._project_file = os.path.abspath(target)

@@ -171,6 +171,19 @@ def test_save_marks_the_project_clean(window, photo, settle):
     assert not window.has_unsaved_changes() and not window.isWindowModified()
 
 
+def test_a_project_that_cannot_be_saved_says_so_and_stays_unsaved(window, photo, settle,
+                                                                   errors, tmp_path):
+    """Saving into a folder that is gone: a dialog about saving (it said "open or save"),
+    the edits kept as unsaved work, nothing written."""
+    _load(window, photo, settle)
+    _type_sun(window.align_panel.sun_panel, 100.0, 35.0)
+    target = tmp_path / "gone" / "scene.outcast.json"
+    assert window.save_project(str(target)) is None
+    assert [title for title, _ in errors] == ["Could not save the project"]
+    assert "unsaved" in errors[0][1] and window.has_unsaved_changes()
+    assert not target.parent.exists()
+
+
 def test_a_typed_heading_is_undoable_and_unsaved_work(window, photo, settle):
     """A heading typed in step 1 changes the EXIF sun: closing without saving must ask, and
     Edit > Undo takes it back (a user trial lost one silently)."""

@@ -28,6 +28,7 @@ def test_open_malformed_project_shows_one_dialog(window, errors, photo, tmp_path
     project.write_text(json.dumps({"outcast_project": 1, "image": photo, "timelapse": timelapse}))
     window.open_path(str(project))
     assert len(errors) == 1 and field in errors[0][1]
+    assert errors[0][0] == "Could not open the project"
     assert window.step is Step.EMPTY
 
 
