@@ -621,23 +621,22 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
 
 
 #: :func:`found_shade_marks`: a found shadow (:func:`without_texture` of the probability above
-#: :data:`FOUND_MARK_LEVEL`, 8-connected, at least :data:`FOUND_MARK_MIN_SHARE` of the frame)
-#: is compared with the lit ring round it (:data:`FOUND_MARK_RING` of the longer side wide,
-#: beyond :data:`MARKED_GAP`, its usable pixels with a probability under
-#: :data:`FOUND_MARK_RING_P`, at least :data:`FOUND_MARK_MIN_RING` of them, their log
-#: luminance's interquartile range under :data:`FOUND_MARK_SPREAD`: one surface). It is shade
-#: of that surface when it is darker (median log luminance, natural log) by
-#: :data:`FOUND_MARK_DARKER`, bluer (log B/G) by more than :data:`FOUND_MARK_BLUER`, and its
-#: chromaticity moved within :data:`FOUND_MARK_ANGLE` degrees of the clear sky's shift
-#: (:data:`SKY_SHADE_SHIFT`'s direction). The direction is what a white balance cannot move
-#: (it scales lit and shade alike) and what blue materials do not share: on the 47 dev photos
-#: the candidates that lie in the human-marked shadows are 2-30 degrees off it (two of 35 at
-#: 42 and 56), those outside them (a sea, navy trousers, a tree) 28-52, but nine of 20 at
-#: 1-25, most of them small. Chosen on the dev photos (eighteenth session's note in
-#: models/EVAL.md): at 20 / 25 / 30 / no limit the human-marked shadows keep 0.450 / 0.449 /
-#: 0.421 / 0.401 of their contrast after the de-shadow (0.525 without these marks) and the
-#: photo outside them changes by 0.0999 / 0.1008 / 0.1024 / 0.1133 in log luminance (0.0974);
-#: at 25 with the penumbra (:func:`_with_penumbra`, a thinner dark outline) 0.460 / 0.1009.
+#: :data:`FOUND_MARK_LEVEL`, 8-connected, at least :data:`FOUND_MARK_MIN_SHARE` of the frame) is
+#: compared with the lit ring round it (:data:`FOUND_MARK_RING` of the longer side wide, beyond
+#: :data:`MARKED_GAP`, its usable pixels with a probability under :data:`FOUND_MARK_RING_P`, at
+#: least :data:`FOUND_MARK_MIN_RING` of them, their log luminance's interquartile range under
+#: :data:`FOUND_MARK_SPREAD`: one surface). It is shade of that surface when it is darker (median
+#: log luminance, natural log) by :data:`FOUND_MARK_DARKER`, bluer (log B/G) by more than
+#: :data:`FOUND_MARK_BLUER`, and its chromaticity moved within :data:`FOUND_MARK_ANGLE` degrees of
+#: the clear sky's shift (:data:`SKY_SHADE_SHIFT`'s direction). The direction is what a white
+#: balance cannot move (it scales lit and shade alike) and what blue materials do not share: on the
+#: 47 dev photos the candidates that lie in the human-marked shadows are 2-30 degrees off it (two of
+#: 35 at 42 and 56); of the 20 outside them, the large ones are 28-52 off (a sea 37, navy trousers
+#: 30, a tree 52), nine (most of them small) within 25. Chosen on the dev photos (eighteenth
+#: session's note in models/EVAL.md): at 20 / 25 / 30 / no limit the human-marked shadows keep 0.450
+#: / 0.449 / 0.421 / 0.401 of their contrast after the de-shadow (0.525 without these marks) and the
+#: photo outside them changes by 0.0999 / 0.1008 / 0.1024 / 0.1133 in log luminance (0.0974); at 25
+#: with the penumbra (a thinner dark outline) 0.461 / 0.1009.
 FOUND_MARK_LEVEL = 0.5
 FOUND_MARK_MIN_SHARE = 0.001
 FOUND_MARK_RING = 0.02
@@ -653,16 +652,17 @@ def found_shade_marks(image_srgb: np.ndarray, probability: np.ndarray, sky: np.n
                       ) -> np.ndarray:
     """The found shadows whose own lit ring says they are its shade (``H x W`` bool): what
     :func:`deshadow` may lift as if the user had marked them (:func:`marked_lift`: to the lit
-    surface round each one) rather than by the photo-wide statistics, with their penumbra
-    (:func:`_with_penumbra`). ``sky``: what is not surface (the sky, and what the user marked
-    "not a shadow").
+    surface round each one) rather than by the photo-wide statistics, with their penumbra.
+    ``sky``: what is not surface (the sky, and what the user marked, as "not a shadow" or as
+    a shadow: the session's).
 
     The photo-wide lift reads its lit reference within a third of the frame and keeps a pixel
     whose colour is not the lit surface's in clear-sky shade (:func:`same_material`): deep
     blue shade (two to three times the clear sky's shift, common in the dev photos' SBU
     part) passed at 0.1-0.4 and stayed a blue-grey ghost, its lit reference the grass and
     trees round a pavement. Each shadow kept here is compared with its own ring
-    (:data:`FOUND_MARK_LEVEL` and the constants after it).
+    (:data:`FOUND_MARK_LEVEL` and the constants after it) and grown by :data:`ADD_PENUMBRA`
+    into what is still :data:`ADD_DARKER` darker than that ring (as :func:`_with_penumbra`).
 
     Example:
         >>> img = np.full((64, 64, 3), [0.6, 0.55, 0.5], np.float32)
@@ -673,9 +673,7 @@ def found_shade_marks(image_srgb: np.ndarray, probability: np.ndarray, sky: np.n
         >>> bool(m[32, 32]), bool(m[8, 8])
         (True, False)
     """
-    img = np.nan_to_num(np.clip(np.asarray(image_srgb, np.float32), 0.0, 1.0))
-    p = np.asarray(probability, np.float32)
-    sky = np.asarray(sky, bool)
+    img, p, sky = _check_probability(image_srgb, probability, sky)
     h, w = p.shape
     side = max(h, w)
     found = ((without_texture(p) > FOUND_MARK_LEVEL) & ~sky).astype(np.uint8)
@@ -691,12 +689,14 @@ def found_shade_marks(image_srgb: np.ndarray, probability: np.ndarray, sky: np.n
         (~small[labels]).astype(np.uint8), connectivity=8)
     lin = srgb_to_linear(img)
     y = np.log(luminance(lin) + _LOG_EPS)
+    blurred = edit_luminance(img)  # the penumbra's test, as a "Mark shadow" fill reads it
     chroma = log_chromaticity(lin, _LOG_EPS)
     usable = _usable(lin, sky)
     ring_ok = usable & (p < FOUND_MARK_RING_P)
     gap = max(1, round(MARKED_GAP * side))
     reach = gap + max(2, round(FOUND_MARK_RING * side))
     sky_dir = math.atan2(SKY_SHADE_SHIFT[1], SKY_SHADE_SHIFT[0])
+    grow = max(1, round(ADD_PENUMBRA * side))
     for (t, b, le, r), inside, band in _region_bands(labels, stats, gap, reach):
         ring = band & ring_ok[t:b, le:r]
         shade = inside & usable[t:b, le:r]
@@ -710,9 +710,11 @@ def found_shade_marks(image_srgb: np.ndarray, probability: np.ndarray, sky: np.n
         if (q3 - q1 < FOUND_MARK_SPREAD
                 and FOUND_MARK_DARKER[0] < darker < FOUND_MARK_DARKER[1]
                 and shift[1] > FOUND_MARK_BLUER and min(turn, 360.0 - turn) <= FOUND_MARK_ANGLE):
-            out[t:b, le:r] |= inside
-    if out.any():
-        out = _with_penumbra(out, edit_luminance(img), sky)
+            # With its penumbra: grown into what is still darker than its own ring (the
+            # rings of other shadows, on other surfaces, are not its: a review).
+            bw = blurred[t:b, le:r]
+            dark = bw < float(np.median(bw[ring])) - ADD_DARKER
+            out[t:b, le:r] |= inside | (_grown(inside, grow) & dark & ~sky[t:b, le:r])
     return out
 
 
@@ -1012,7 +1014,7 @@ def lift_probability(image_srgb: np.ndarray, probability: np.ndarray, sky: np.nd
     """How much :func:`deshadow` lifts each pixel as shadow (``H x W`` float32 in [0, 1]):
     the found shadow probability without the surface's fine texture (:func:`without_texture`)
     and where its colour is the lit surface's in shade (:func:`same_material`), except where
-    the user marked a shadow (``marked``, as :func:`deshadow`'s), which keeps its probability.
+    a shadow is marked (``marked``, as :func:`deshadow`'s), which keeps its probability.
     What the app shows as the photo's found shadows: the probability alone showed a thin
     trunk's shadow on snow at 0.4-0.5, which the lift then left dark (a user trial).
     """
@@ -1035,9 +1037,10 @@ def deshadow(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,
     """The photo with its shadows lifted (``H x W x 3`` sRGB float32, same size); the surface's
     fine texture is not lifted (:func:`without_texture`). ``shift``: the shade's expected
     chromaticity shift (:func:`same_material`). ``marked`` (``H x W`` in [0, 1], bool or
-    float: :func:`shadow_edit_masks`' added cover; or None): what the user marked as shadow
-    ("Mark shadow"), taken at their word, as far as it covers a pixel: neither opened as
-    texture nor weakened as another material than the lit surface round it (grey paving
+    float: :func:`shadow_edit_masks`' added cover, and the session's
+    :func:`found_shade_marks`; or None): what the user marked as shadow ("Mark shadow"), or
+    its own lit ring says is shade, taken at its word as far as it covers a pixel: neither
+    opened as texture nor weakened as another material than the lit surface round it (grey paving
     marked beside a cyan pool was lifted to a quarter of its probability), and lifted to the
     lit surface just round it (:func:`marked_lift`). ``above_lit``: :func:`deshadow_log_gain`'s.
     ``lifted``: :func:`lift_probability` of these same inputs when the caller has it already

@@ -285,6 +285,15 @@ def _check_relight_mode(mode: str) -> str:
     return mode
 
 
+def _with_user_marks(found: np.ndarray, user: np.ndarray | None) -> np.ndarray | None:
+    """``found`` (``H x W``, bool or a weight in [0, 1]) and the user's marks (``user``, of the
+    same size, or None), the larger per pixel, as float32; None when both are empty."""
+    if not found.any():
+        return user
+    marks = np.asarray(found, np.float32)
+    return marks if user is None else np.maximum(user, marks)
+
+
 class RelightSession:
     """Set once, query many.
 
@@ -476,6 +485,10 @@ class RelightSession:
                 self._tilt = tilt
                 self._up = None
                 self._relight_cache = _LRU()
+                if self.original_shadow is not None:  # the lift's marks face the new up
+                    assert self.shadow_probability is not None
+                    self._lift_guards = self._new_lift_guards(self.shadow_probability,
+                                                              self.original_shadow)
 
     def photo_tilt(self) -> tuple[float, float, str]:
         """The camera's ``(pitch, roll, source)`` (degrees) found for this photo
@@ -910,6 +923,7 @@ class RelightSession:
             s, prob = np.where(changed, redone, s).astype(np.float32), edited
             self._lift_excluded = self.sky | not_shadow
         self.shadow_edits_used = tuple(used)
+        guards = self._new_lift_guards(prob, s)  # first: S_o and its guards back to back
         self.original_shadow = s
         self.shadow_probability = prob
         # What the user calls "not a shadow" is no lit surface either (a dark material).
@@ -918,14 +932,32 @@ class RelightSession:
         self._relight_cache.clear()
         self._deshadowed = None
         self._lifted = None
-        # With S_o, under the lock: a relighting stream reads them lock-free (about 25 ms).
-        found = found_shade_marks(self.image_srgb, prob, self._lift_excluded)
-        self._lift_guards = {
-            "of": self.original_shadow, "marks": self._with_user_marks(found, self.sky),
-            "lift_marks": self._with_user_marks(
-                found * facing_up(self.normals, self.horizon_up()), self.sky)}
+        self._lift_guards = guards
         self._detail = None
         self._detail_lift = None
+
+    def _new_lift_guards(self, probability: np.ndarray, s_o: np.ndarray) -> dict[Any, Any]:
+        """A fresh :attr:`_lift_guards` for ``S_o`` (``s_o``) and its shadow probability:
+        the marked shadows the de-shadow (``"marks"``) and the relighting's lift
+        (``"lift_marks"``: the found ones on surfaces facing up, :func:`~outcast_core.runtime.
+        pipeline.relight.facing_up`) take, and the user's own (``"user"``), made under the
+        lock with ``S_o`` (about 25 ms), as a relighting stream reads them lock-free."""
+        assert self._lift_excluded is not None and self.sky is not None
+        user = self._marked(self.sky)
+        found = self._found_marks(self.image_srgb, probability, self._lift_excluded, user)
+        facing = facing_up(self.normals, self.horizon_up()) if found.any() else found
+        return {"of": s_o, "user": user, "marks": _with_user_marks(found, user),
+                "lift_marks": _with_user_marks(found * facing, user)}
+
+    @staticmethod
+    def _found_marks(image: np.ndarray, probability: np.ndarray, excluded: np.ndarray,
+                     user: np.ndarray | None) -> np.ndarray:
+        """:func:`~outcast_core.runtime.pipeline.photo_shadows.found_shade_marks` outside what
+        the user marked (as shadow: its soft edge is the user's; as not a shadow: in
+        ``excluded``)."""
+        if user is not None:
+            excluded = excluded | (user > 0)
+        return found_shade_marks(image, probability, excluded)
 
     @property
     def refinement(self) -> str:
@@ -950,7 +982,7 @@ class RelightSession:
                 t0 = time.perf_counter()
                 self._deshadowed = self._in_photo_colours(
                     deshadow(self.image_srgb, self.shadow_probability, self._lift_excluded,
-                             marked=self._working_lift_marks(), lifted=self.lifted_shadows()))
+                             marked=self._working_marks(), lifted=self.lifted_shadows()))
                 self._time("deshadow", t0)
             return self._deshadowed
 
@@ -969,10 +1001,10 @@ class RelightSession:
             if self._lifted is None:
                 self._lifted = lift_probability(self.image_srgb, self.shadow_probability,
                                                 self._lift_excluded,
-                                                marked=self._working_lift_marks())
+                                                marked=self._working_marks())
             return self._lifted
 
-    def _working_lift_marks(self) -> np.ndarray | None:
+    def _working_marks(self) -> np.ndarray | None:
         """:meth:`_deshadow_marks` at the working size, made with ``S_o`` (after
         :meth:`set_original_sun`)."""
         return self._lift_guards.get("marks")
@@ -986,16 +1018,23 @@ class RelightSession:
         larger per pixel. The relighting's lift takes them as shade, lifts them whole into its
         ceiling and lets the lift reach it there (:meth:`_lift_inputs`), the found ones on
         surfaces that face up (:func:`~outcast_core.runtime.pipeline.relight.facing_up`)."""
-        return self._with_user_marks(found_shade_marks(image, probability, excluded), sky)
-
-    def _with_user_marks(self, found: np.ndarray, sky: np.ndarray) -> np.ndarray | None:
-        """``found`` (``H x W``, bool or a weight in [0, 1]) and the user's marks at its size
-        (:meth:`_marked`), the larger per pixel, as float32; None when both are empty."""
         user = self._marked(sky)
-        if not found.any():
-            return user
-        marks = np.asarray(found, np.float32)
-        return marks if user is None else np.maximum(user, marks)
+        return _with_user_marks(self._found_marks(image, probability, excluded, user), user)
+
+    def relight_fills(self, sky: np.ndarray | None = None) -> np.ndarray | None:
+        """Where a relighting may have filled crushed shade rather than lifted it (``H x W``
+        float32 in [0, 1] at the size of ``sky``, the working size without one; None: nowhere):
+        the marked shadows its lift takes (the user's, and the found ones on surfaces facing
+        up), off the sky. What goes to full size takes the working result there
+        (:func:`~outcast_core.runtime.pipeline.photo_shadows.keep_fills`), not the photo's
+        noise times the gain. Needs :meth:`set_original_sun`."""
+        marks = self._lift_guards.get("lift_marks")  # once: a new S_o replaces the dict
+        if marks is None:
+            return None
+        sky = self.sky if sky is None else sky
+        if marks.shape != sky.shape:
+            marks = np.clip(resize(marks, sky.shape), 0.0, 1.0)
+        return np.where(sky, 0.0, marks).astype(np.float32)
 
     def lifted_shadows_full(self) -> np.ndarray:
         """How much :meth:`deshadow_full` lifts each pixel as shadow, at the photo's full size
@@ -1103,7 +1142,7 @@ class RelightSession:
                     prob, not_shadow = apply_edit_masks(prob, sky, *self._edit_masks)
                     excluded = sky | not_shadow
                 s_o = original_shadow_from_photo(prob, cosine, sky)
-            marked = (self._working_lift_marks() if working
+            marked = (self._working_marks() if working
                       else self._deshadow_marks(image, prob, excluded, sky))
             self._detail = {"image": image, "sky": sky, "probability": prob.astype(np.float32),
                             "original_shadow": s_o.astype(np.float32), "excluded": excluded,
@@ -1280,7 +1319,7 @@ class RelightSession:
                              st["camera"].width / self.camera.width, exposure, self.greyscale,
                              self.original_sun, None if change is None else change.sun)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
-                                          threads=1, fills=self._marked(st["sky"]))
+                                          threads=1, fills=self.relight_fills(st["sky"]))
         self._time("relight_preview", t1)
         return out.astype(np.float32) * np.float32(1.0 / 255.0)  # 8 bits: it is for the screen
 
@@ -1449,11 +1488,11 @@ class RelightSession:
     def _physics_fills(self, relit: np.ndarray, s_new: np.ndarray, sky: np.ndarray,
                        light: LightEstimate) -> np.ndarray:
         """Physics relighting (``relit``, at the size of ``sky``) where a crushed shadow the
-        user marked was filled (:meth:`_lift_inputs`' ``lift_fill``): the filled photo relit
+        user marked was filled (:meth:`_lift_inputs`' ``physics_fill``): the filled photo relit
         from the old sun's lit level, as the learned relighting's lift ceiling is. Physics
         multiplies the photo's noise there, so the marked shadow stayed black (a test wall:
         L* 11.7 against 68 round it, the learned relighting 64.7)."""
-        if self._marked(sky) is None:
+        if self._lift_guards.get("user") is None:
             return relit
         inputs = self._lift_inputs(tuple(relit.shape[:2]))
         if not inputs or inputs["physics_fill"] is None:
@@ -1520,10 +1559,11 @@ class RelightSession:
             lit_old = np.where(self.sky, 0.0, lit_old)
             guards["colour"] = lit_surface_colour(self.image_srgb, self.shadow_probability,
                                                   self._lift_excluded, LIFT_COLOUR_SIGMA)
-            # What the de-shadow filled: a crushed shadow the user marked (None elsewhere).
-            fill = None
-            if self._marked(self.sky) is not None:
-                fill = filled_share(self.image_srgb, base)
+            # What the de-shadow filled of a crushed shadow the user marked (None elsewhere):
+            # physics mode's (the found marks are filled in the ceiling too).
+            fill, user = None, guards.get("user")
+            if user is not None:
+                fill = filled_share(self.image_srgb, base) * (user > 0)
                 fill = np.where(fill > FILL_MIN, fill, 0.0).astype(np.float32)
                 fill = fill if fill.any() else None
             guards["fill"] = fill
@@ -1659,7 +1699,7 @@ class RelightSession:
         with self._lock:
             out = transfer_to_full_resolution(self.full_image_srgb, self.image_srgb, relit,
                                               out_dtype=dtype, sky=self.sky,
-                                              fills=self.marked_shadows())
+                                              fills=self.relight_fills())
             out = self.without_old_sun_full(out, relit, w_new)
         self._time("full_resolution", t0)
         return out

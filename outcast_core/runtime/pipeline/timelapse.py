@@ -1031,7 +1031,7 @@ def _frame_maker(session: Any, size: str) -> Callable[[np.ndarray, np.ndarray], 
         return lambda relit, _sun: resize(relit, shape)
     photo = full if shape == full.shape[:2] else resize(full, shape)  # once, uint8 if 8-bit
     sky = session.sky
-    marked = session.marked_shadows()  # a marked crushed shadow: filled, as in stills
+    marked = session.relight_fills()  # a marked crushed shadow: filled, as in stills
 
     def make(relit: np.ndarray, sun: np.ndarray) -> np.ndarray:
         out = transfer_to_full_resolution(photo, work, relit, out_dtype=np.uint8, sky=sky,

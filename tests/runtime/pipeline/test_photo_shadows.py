@@ -673,3 +673,73 @@ def test_the_session_lifts_found_deep_blue_shade_in_both_the_export_and_the_reli
     assert relit < 0.5 * ghost_relit
     assert on_a_wall == pytest.approx(ghost_relit, abs=1e-6)
     assert shown[core].mean() > 0.9  # what the app shows as found: all of it
+
+
+def _deep_blue_session(tmp_path: Path, crushed: bool = False
+                       ) -> tuple[RelightSession, dict[str, np.ndarray]]:
+    """The deep blue scene in a session at its sun; ``crushed``: its shadow 22x darker than
+    the gravel (past the largest lift, so the lift's ceiling fills it)."""
+    from outcast_core.runtime.geometry.colour import srgb_to_linear
+
+    img, regions = _deep_blue_scene()
+    if crushed:
+        lin = srgb_to_linear(img)
+        lin[regions["shadow"]] *= np.float32(np.exp(-1.3))
+        img = linear_to_srgb(lin).astype(np.float32)
+    _, depth = _session_inputs(tmp_path)
+    s = RelightSession(preset="fast")
+    s.set_image(img, depth=depth)
+    s.set_original_sun((0.5, -0.6, 0.6))
+    return s, regions
+
+
+def test_the_relightings_found_marks_face_up_and_follow_the_cameras_tilt(tmp_path: Path) -> None:
+    """The box scene's camera looks straight down: with the camera's vertical as the horizon's
+    up its ground is a wall, and the relighting's lift takes no found marks there (nor does
+    a full-size relighting fill them); told the camera's pitch, the ground faces up and they
+    count (they went stale with the old up: a review)."""
+    s, regions = _deep_blue_session(tmp_path)
+    core = cv2.erode(regions["shadow"].astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
+    assert s._working_marks()[core].all()  # the de-shadow's, whatever faces where
+    assert s.relight_fills() is None
+    s.set_camera_tilt(-90.0, 0.0)
+    fills = s.relight_fills()
+    assert fills is not None and fills[core].min() == 1.0
+    assert s.relight_fills(np.zeros((32, 48), bool)).shape == (32, 48)
+    s.set_camera_tilt(None)
+    assert s.relight_fills() is None
+
+
+def test_a_users_mark_keeps_its_own_edge_and_physics_fills_only_the_users(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Found marks never replace the user's (its soft edge, no penumbra grown round it), and
+    physics mode fills only what the user marked: the lift's ceiling fills a crushed found
+    shadow, which physics left alone once the user had marked anything anywhere (a review)."""
+    from outcast_core.runtime.pipeline import session as session_module
+    from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
+
+    monkeypatch.setattr(session_module, "facing_up",  # the box scene's ground faces the camera
+                        lambda normals, up: np.ones(np.shape(normals)[:2], np.float32))
+    s, regions = _deep_blue_session(tmp_path, crushed=True)
+    core = cv2.erode(regions["shadow"].astype(np.uint8), np.ones((7, 7), np.uint8)) > 0
+    shape = s.image_srgb.shape[:2]
+    assert s._lift_inputs(shape)["lift_fill"][core].mean() > 0.9  # the ceiling's trust
+    navy = regions["navy"]
+    ys, xs = np.nonzero(navy)
+    s.set_shadow_edits([ShadowEdit(float(xs.mean() + 0.5) / W, float(ys.mean() + 0.5) / H,
+                                   shadow=True)])
+    user = s.marked_shadows()
+    assert user is not None and user[navy].mean() > 0.9
+    inputs = s._lift_inputs(shape)
+    assert inputs["lift_fill"][core].mean() > 0.9
+    physics = inputs["physics_fill"]
+    assert physics is None or not physics[~(user > 0)].any()
+    # The user brushes the found shadow itself: where the stroke is, the marks are the
+    # user's, its soft edge too (found marks were 1 there, grown beyond it).
+    s.set_shadow_edits([ShadowEdit((12.0 + 2 * k) / W, 45.0 / H, shadow=True, radius=0.06,
+                                   start=k == 0) for k in range(12)])
+    user = s.marked_shadows()
+    assert user is not None and user[core].max() == 1.0 and ((user > 0) & (user < 1)).any()
+    marks = s._working_marks()
+    np.testing.assert_array_equal(marks[user > 0], user[user > 0])

@@ -72,7 +72,7 @@ class _FakeSession:
         self.calls.full += 1
         return self.full_image_srgb * 0.8
 
-    def marked_shadows(self):  # no "Mark shadow": nothing filled
+    def relight_fills(self):  # no marked shadow: nothing filled
         return None
 
     def without_old_sun_full(self, out, relit, w):  # this photo shows no sun
