@@ -124,6 +124,33 @@ def session_reuse(repeats: int) -> None:
               f"{t_cached:9.5f} {t_full:11.3f}")
     lift_cost(img, repeats)
     deshadow_full_cost(repeats)
+    found_marks_cost(repeats)
+
+
+def found_marks_cost(repeats: int) -> None:
+    """What finding the shadows their own lit ring calls shade costs (``photo_shadows.
+    found_shade_marks``) on a 12 MP photo (balanced): made with ``S_o`` at the working size,
+    and again at up to 1024 px for the full-size de-shadow, against ``set_original_sun``
+    itself (the baseline, which includes the first)."""
+    import cv2
+
+    from outcast_core.runtime.io.imageio import read_image
+    from outcast_core.runtime.pipeline.photo_shadows import found_shade_marks
+
+    sample = Path(__file__).resolve().parents[1] / "samples" / "exif_003_th_pool.jpg"
+    img = cv2.resize(read_image(sample).image_srgb, (4000, 3000), interpolation=cv2.INTER_LINEAR)
+    s = RelightSession(preset="balanced")
+    s.set_image(img)
+    w = (0.3, -0.8, -0.5)
+    t_sun, _ = best_of(lambda: s.set_original_sun(w), repeats)
+    t_work, _ = best_of(lambda: found_shade_marks(s.image_srgb, s.shadow_probability,
+                                                  s.sky), repeats)
+    d = s.found_shadows_detail()
+    t_detail, _ = best_of(lambda: found_shade_marks(d["image"], d["probability"],
+                                                    d["excluded"]), repeats)
+    print(f"  found shade marks, 12 MP, balanced: at the working size {t_work:.3f} s "
+          f"(x{t_work / t_sun:.3f} of set_original_sun's {t_sun:.2f} s), at the de-shadow's "
+          f"{d['image'].shape[1]} px {t_detail:.3f} s (x{t_detail / t_sun:.3f})")
 
 
 def deshadow_full_cost(repeats: int) -> None:
