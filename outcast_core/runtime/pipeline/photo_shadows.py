@@ -605,6 +605,12 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     need = np.maximum(lit - mu, 0.0)
     over = np.maximum(need.max(axis=-1) - MAX_LIFT_LOG, 0.0)
     gain = warm_lift(np.clip(need - over[..., None], 0.0, MAX_LIFT_LOG))
+    # A penumbra (a pixel of the mark lighter than its shadow, smoothly: not its fine texture)
+    # takes the share of the gain that brings it to the lit surface: the whole gain lifted it
+    # past, into a light rim round the shadow (a user trial: cream, 3 px wide).
+    smooth = cv2.GaussianBlur(y, (0, 0), max(1.0, side * PENUMBRA_SMOOTH))
+    share = np.clip((lit @ LUMA_709 - smooth) / np.maximum(gain @ LUMA_709, 1e-3), 0.0, 1.0)
+    gain = gain * np.where(weight > 0, share, 1.0)[..., None]
     excess = (mu - log_c) @ LUMA_709 - DARKER_MARGIN
     keep = np.exp(-0.5 * (np.maximum(excess, 0.0) / DARKER_WIDTH) ** 2)
     # Crushed: a marked shadow no lift can bring back (the camera kept noise, not colour)
@@ -717,6 +723,11 @@ def found_shade_marks(image_srgb: np.ndarray, probability: np.ndarray, sky: np.n
             out[t:b, le:r] |= inside | (_grown(inside, grow) & dark & ~sky[t:b, le:r])
     return out
 
+
+#: :func:`marked_lift`: the blur (fraction of the longer side) under which a mark's pixels are
+#: its texture, lifted with the shadow's whole gain; over it, lighter than the shadow is its
+#: penumbra, lifted as far as the lit surface.
+PENUMBRA_SMOOTH = 1.0 / 192
 
 #: :func:`marked_lift`: a marked pixel darker than the lit surface round it by more than the
 #: largest lift (:data:`MAX_LIFT_LOG`) is crushed shade, filled with that surface's colour in

@@ -743,3 +743,27 @@ def test_a_users_mark_keeps_its_own_edge_and_physics_fills_only_the_users(
     assert user is not None and user[core].max() == 1.0 and ((user > 0) & (user < 1)).any()
     marks = s._working_marks()
     np.testing.assert_array_equal(marks[user > 0], user[user > 0])
+
+
+def test_a_marked_shadows_penumbra_is_lifted_to_the_lit_surface_not_past_it() -> None:
+    """A penumbra (a smooth ramp from the shadow to the lit gravel) inside a mark takes the
+    share of the gain that brings it to the lit surface: the whole gain lifted it to the
+    lit gravel's bright end, a light rim round the shadow (a user trial: cream, 3 px)."""
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+
+    rng = np.random.default_rng(3)
+    base = np.array([0.45, 0.4, 0.3], np.float32)  # gravel: its bright end 1.17x its median
+    img = np.clip(base * np.exp(0.1 * rng.standard_normal((H, W, 1))), 0, 1).astype(np.float32)
+    mask = np.zeros((H, W), bool)
+    mask[24:40, 30:66] = True
+    dist = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 3)
+    depth = np.clip(dist / 4.0, 0.0, 1.0)[..., None]  # 0 at the edge, 1 from 4 px in
+    img = (img * np.exp(np.log(SHADE) * depth)).astype(np.float32)
+    rim = mask & (dist <= 2.5)
+    sky = np.zeros((H, W), bool)
+    out = deshadow(img, mask.astype(np.float32), sky, marked=mask.astype(np.float32))
+    y = luminance(srgb_to_linear(out))
+    ring = cv2.dilate(mask.astype(np.uint8), np.ones((11, 11), np.uint8)).astype(bool) & ~mask
+    assert np.median(y[rim]) <= 1.05 * np.median(y[ring])
+    core = mask & (dist > 5)
+    assert np.median(y[core]) > 0.6 * np.median(y[ring])  # the shadow itself is lifted (0.21)

@@ -1146,6 +1146,10 @@ def _reference_marked_lift(log_c, p, usable, marked):
           / np.maximum(n_m, 1e-6)[..., None])
     mu = np.where((n_m > 1e-4)[..., None], mu, log_c)
     gain = ps.warm_lift(np.clip(lit - mu, 0.0, ps.MAX_LIFT_LOG))
+    # (since 2026-12-03) a penumbra takes the share of the gain that brings it to the lit level
+    smooth = cv2.GaussianBlur(y, (0, 0), max(1.0, side * ps.PENUMBRA_SMOOTH))
+    share = np.clip((lit @ ps.LUMA_709 - smooth) / np.maximum(gain @ ps.LUMA_709, 1e-3), 0, 1)
+    gain = gain * np.where(weight > 0, share, 1.0)[..., None]
     excess = (mu - log_c) @ ps.LUMA_709 - ps.DARKER_MARGIN
     keep = np.exp(-0.5 * (np.maximum(excess, 0.0) / ps.DARKER_WIDTH) ** 2)
     return (np.where((weight > 0)[..., None], gain, 0.0).astype(np.float32), top,
