@@ -696,10 +696,11 @@ def shadow_contrast_floor(
       (:func:`~outcast_core.runtime.pipeline.photo_shadows.found_shade_marks`: their ceiling
       is lifted to the lit surface round each, a reference physics' one sun/sky ratio for the
       whole photo does not have). Measured with the found ones on surfaces facing up
-      (2026-12-03, eighteenth session; :data:`LIFT_MARK_FACING`): synthetic newly lit x1.741
-      -> x1.777, what the found shadows wrongly include (dev photos, +-120 degrees, outside
-      the human masks, 68 cases) x3.53 -> x3.58, the truly found (82) x4.72 -> x4.95, the
-      fast preset's old shade 0.256 -> 0.239.
+      (2026-12-03, eighteenth session; :data:`LIFT_MARK_FACING`; with the marked penumbra's
+      share, ``photo_shadows.PENUMBRA_SMOOTH``): synthetic newly lit x1.741 -> x1.772, what
+      the found shadows wrongly include (dev photos, +-120 degrees, outside the human masks,
+      68 cases) x3.53 -> x3.56, the truly found (82) x4.72 -> x4.90, the fast preset's old
+      shade 0.256 -> 0.241.
 
     Measured on 2026-11-30 (held-out synthetic views, true depth, ``python3
     scripts/eval_session_synthetic.py ~/.cache/outcast/data/test --max-views 40``, 480 pairs,
