@@ -659,8 +659,7 @@ def found_shade_marks(image_srgb: np.ndarray, probability: np.ndarray, sky: np.n
     """The found shadows whose own lit ring says they are its shade (``H x W`` bool): what
     :func:`deshadow` may lift as if the user had marked them (:func:`marked_lift`: to the lit
     surface round each one) rather than by the photo-wide statistics, with their penumbra.
-    ``sky``: what is not surface (the sky, and what the user marked, as "not a shadow" or as
-    a shadow: the session's).
+    ``sky``: what is not surface (the sky, and what the user marked "not a shadow").
 
     The photo-wide lift reads its lit reference within a third of the frame and keeps a pixel
     whose colour is not the lit surface's in clear-sky shade (:func:`same_material`): deep

@@ -287,11 +287,12 @@ def _check_relight_mode(mode: str) -> str:
 
 def _with_user_marks(found: np.ndarray, user: np.ndarray | None) -> np.ndarray | None:
     """``found`` (``H x W``, bool or a weight in [0, 1]) and the user's marks (``user``, of the
-    same size, or None), the larger per pixel, as float32; None when both are empty."""
+    same size, or None) as float32, the user's wherever they mark (a brushed mark's soft edge
+    is theirs); None when both are empty."""
     if not found.any():
         return user
     marks = np.asarray(found, np.float32)
-    return marks if user is None else np.maximum(user, marks)
+    return marks if user is None else np.where(user > 0, user, marks).astype(np.float32)
 
 
 class RelightSession:
@@ -944,20 +945,10 @@ class RelightSession:
         lock with ``S_o`` (about 25 ms), as a relighting stream reads them lock-free."""
         assert self._lift_excluded is not None and self.sky is not None
         user = self._marked(self.sky)
-        found = self._found_marks(self.image_srgb, probability, self._lift_excluded, user)
+        found = found_shade_marks(self.image_srgb, probability, self._lift_excluded)
         facing = facing_up(self.normals, self.horizon_up()) if found.any() else found
         return {"of": s_o, "user": user, "marks": _with_user_marks(found, user),
                 "lift_marks": _with_user_marks(found * facing, user)}
-
-    @staticmethod
-    def _found_marks(image: np.ndarray, probability: np.ndarray, excluded: np.ndarray,
-                     user: np.ndarray | None) -> np.ndarray:
-        """:func:`~outcast_core.runtime.pipeline.photo_shadows.found_shade_marks` outside what
-        the user marked (as shadow: its soft edge is the user's; as not a shadow: in
-        ``excluded``)."""
-        if user is not None:
-            excluded = excluded | (user > 0)
-        return found_shade_marks(image, probability, excluded)
 
     @property
     def refinement(self) -> str:
@@ -1015,11 +1006,12 @@ class RelightSession:
         (``H x W`` float32 in [0, 1] at the size of ``sky``, or None: none): the user's "Mark
         shadow" (:meth:`_marked`) and the found shadows whose own lit ring says they are its
         shade (:func:`~outcast_core.runtime.pipeline.photo_shadows.found_shade_marks`), the
-        larger per pixel. The relighting's lift takes them as shade, lifts them whole into its
-        ceiling and lets the lift reach it there (:meth:`_lift_inputs`), the found ones on
-        surfaces that face up (:func:`~outcast_core.runtime.pipeline.relight.facing_up`)."""
-        user = self._marked(sky)
-        return _with_user_marks(self._found_marks(image, probability, excluded, user), user)
+        user's wherever they mark. The relighting's lift takes them as shade, lifts them whole
+        into its ceiling and lets the lift reach it there (:meth:`_lift_inputs`), the found
+        ones on surfaces that face up (:func:`~outcast_core.runtime.pipeline.relight.
+        facing_up`)."""
+        return _with_user_marks(found_shade_marks(image, probability, excluded),
+                                self._marked(sky))
 
     def relight_fills(self, sky: np.ndarray | None = None) -> np.ndarray | None:
         """Where a relighting may have filled crushed shade rather than lifted it (``H x W``

@@ -713,7 +713,7 @@ def test_the_relightings_found_marks_face_up_and_follow_the_cameras_tilt(tmp_pat
 def test_a_users_mark_keeps_its_own_edge_and_physics_fills_only_the_users(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """Found marks never replace the user's (its soft edge, no penumbra grown round it), and
+    """Found marks never replace the user's (its soft edge) nor go where the user marks, and
     physics mode fills only what the user marked: the lift's ceiling fills a crushed found
     shadow, which physics left alone once the user had marked anything anywhere (a review)."""
     from outcast_core.runtime.pipeline import session as session_module
@@ -743,6 +743,10 @@ def test_a_users_mark_keeps_its_own_edge_and_physics_fills_only_the_users(
     assert user is not None and user[core].max() == 1.0 and ((user > 0) & (user < 1)).any()
     marks = s._working_marks()
     np.testing.assert_array_equal(marks[user > 0], user[user > 0])
+    # The rest of the found shadow stays marked (left out of the found marks with the user's
+    # mark, a GUI trial's click left a darker patch at a shadow's shoulder).
+    rest = core & (user <= 0)
+    assert rest.sum() > 20 and marks[rest].min() == 1.0
 
 
 def test_a_marked_shadows_penumbra_is_lifted_to_the_lit_surface_not_past_it() -> None:
