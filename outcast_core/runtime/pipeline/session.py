@@ -287,12 +287,11 @@ def _check_relight_mode(mode: str) -> str:
 
 def _with_user_marks(found: np.ndarray, user: np.ndarray | None) -> np.ndarray | None:
     """``found`` (``H x W``, bool or a weight in [0, 1]) and the user's marks (``user``, of the
-    same size, or None) as float32, the user's wherever they mark (a brushed mark's soft edge
-    is theirs); None when both are empty."""
+    same size, or None), the larger per pixel, as float32; None when both are empty."""
     if not found.any():
         return user
     marks = np.asarray(found, np.float32)
-    return marks if user is None else np.where(user > 0, user, marks).astype(np.float32)
+    return marks if user is None else np.maximum(user, marks)
 
 
 class RelightSession:
@@ -487,9 +486,7 @@ class RelightSession:
                 self._up = None
                 self._relight_cache = _LRU()
                 if self.original_shadow is not None:  # the lift's marks face the new up
-                    assert self.shadow_probability is not None
-                    self._lift_guards = self._new_lift_guards(self.shadow_probability,
-                                                              self.original_shadow)
+                    self._lift_guards = self._new_lift_guards(self.original_shadow)
 
     def photo_tilt(self) -> tuple[float, float, str]:
         """The camera's ``(pitch, roll, source)`` (degrees) found for this photo
@@ -924,7 +921,7 @@ class RelightSession:
             s, prob = np.where(changed, redone, s).astype(np.float32), edited
             self._lift_excluded = self.sky | not_shadow
         self.shadow_edits_used = tuple(used)
-        guards = self._new_lift_guards(prob, s)  # first: S_o and its guards back to back
+        guards = self._new_lift_guards(s)  # first: S_o and its guards back to back
         self.original_shadow = s
         self.shadow_probability = prob
         # What the user calls "not a shadow" is no lit surface either (a dark material).
@@ -937,15 +934,16 @@ class RelightSession:
         self._detail = None
         self._detail_lift = None
 
-    def _new_lift_guards(self, probability: np.ndarray, s_o: np.ndarray) -> dict[Any, Any]:
-        """A fresh :attr:`_lift_guards` for ``S_o`` (``s_o``) and its shadow probability:
-        the marked shadows the de-shadow (``"marks"``) and the relighting's lift
-        (``"lift_marks"``: the found ones on surfaces facing up, :func:`~outcast_core.runtime.
-        pipeline.relight.facing_up`) take, and the user's own (``"user"``), made under the
-        lock with ``S_o`` (about 25 ms), as a relighting stream reads them lock-free."""
+    def _new_lift_guards(self, s_o: np.ndarray) -> dict[Any, Any]:
+        """A fresh :attr:`_lift_guards` for ``S_o`` (``s_o``): the marked shadows the de-shadow
+        (``"marks"``) and the relighting's lift (``"lift_marks"``: the found ones on surfaces facing
+        up, :func:`~outcast_core.runtime.pipeline.relight.facing_up`) take, and the user's own
+        (``"user"``), made under the lock with ``S_o`` (about 25 ms), as a relighting stream reads
+        them lock-free."""
         assert self._lift_excluded is not None and self.sky is not None
+        assert self._found is not None
         user = self._marked(self.sky)
-        found = found_shade_marks(self.image_srgb, probability, self._lift_excluded)
+        found = found_shade_marks(self.image_srgb, self._found[1], self._lift_excluded)
         facing = facing_up(self.normals, self.horizon_up()) if found.any() else found
         return {"of": s_o, "user": user, "marks": _with_user_marks(found, user),
                 "lift_marks": _with_user_marks(found * facing, user)}
@@ -1002,14 +1000,14 @@ class RelightSession:
 
     def _deshadow_marks(self, image: np.ndarray, probability: np.ndarray,
                         excluded: np.ndarray, sky: np.ndarray) -> np.ndarray | None:
-        """What the de-shadow lifts as marked shadows, each to the lit surface round it
-        (``H x W`` float32 in [0, 1] at the size of ``sky``, or None: none): the user's "Mark
-        shadow" (:meth:`_marked`) and the found shadows whose own lit ring says they are its
-        shade (:func:`~outcast_core.runtime.pipeline.photo_shadows.found_shade_marks`), the
-        user's wherever they mark. The relighting's lift takes them as shade, lifts them whole
-        into its ceiling and lets the lift reach it there (:meth:`_lift_inputs`), the found
-        ones on surfaces that face up (:func:`~outcast_core.runtime.pipeline.relight.
-        facing_up`)."""
+        """What the de-shadow lifts as marked shadows, each to the lit surface round it (``H x W``
+        float32 in [0, 1] at the size of ``sky``, or None: none): the user's "Mark shadow"
+        (:meth:`_marked`) and the found shadows whose own lit ring says they are its shade
+        (:func:`~outcast_core.runtime.pipeline.photo_shadows.found_shade_marks`, of ``probability``
+        before the user's marks, so a brushed mark keeps its soft edge and a found shadow its whole
+        extent), the larger per pixel. The relighting's lift takes them as shade, lifts them whole
+        into its ceiling and lets the lift reach it there (:meth:`_lift_inputs`), the found ones on
+        surfaces that face up (:func:`~outcast_core.runtime.pipeline.relight.facing_up`)."""
         return _with_user_marks(found_shade_marks(image, probability, excluded),
                                 self._marked(sky))
 
@@ -1117,9 +1115,13 @@ class RelightSession:
             assert self._lift_excluded is not None
             excluded = (self._lift_excluded if working else
                         resize(self._lift_excluded.astype(np.uint8), shape, nearest=True) > 0)
+            assert self._found is not None
+            unedited = self._found[1]  # what the found marks read (not the user's marks)
             if working or self.refinement != "photo" or self._original_geometry is None:
                 prob = np.clip(resize(self.shadow_probability, shape), 0.0, 1.0)
                 s_o = np.clip(resize(self.original_shadow, shape), 0.0, 1.0)
+                if not working:
+                    unedited = np.clip(resize(unedited, shape), 0.0, 1.0)
             else:
                 if self._detail_found is None:  # once per S_o: the edits do not change it
                     cosine = np.clip(resize(cosine_term(self.normals, self.original_sun),
@@ -1130,12 +1132,13 @@ class RelightSession:
                         gate = np.clip(resize(gate, shape), 0.0, 1.0)
                     self._detail_found = (photo_shadow_probability(image, sky) * gate, cosine)
                 prob, cosine = self._detail_found
+                unedited = prob
                 if self._edit_masks is not None:  # the regions the user marked, this size
                     prob, not_shadow = apply_edit_masks(prob, sky, *self._edit_masks)
                     excluded = sky | not_shadow
                 s_o = original_shadow_from_photo(prob, cosine, sky)
             marked = (self._working_marks() if working
-                      else self._deshadow_marks(image, prob, excluded, sky))
+                      else self._deshadow_marks(image, unedited, excluded, sky))
             self._detail = {"image": image, "sky": sky, "probability": prob.astype(np.float32),
                             "original_shadow": s_o.astype(np.float32), "excluded": excluded,
                             "marked": marked}
