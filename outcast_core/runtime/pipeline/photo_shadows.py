@@ -666,8 +666,8 @@ def found_shade_marks(image_srgb: np.ndarray, probability: np.ndarray, sky: np.n
     blue shade (two to three times the clear sky's shift, common in the dev photos' SBU
     part) passed at 0.1-0.4 and stayed a blue-grey ghost, its lit reference the grass and
     trees round a pavement. Each shadow kept here is compared with its own ring
-    (:data:`FOUND_MARK_LEVEL` and the constants after it) and grown by :data:`ADD_PENUMBRA`
-    into what is still :data:`ADD_DARKER` darker than that ring (as :func:`_with_penumbra`).
+    (:data:`FOUND_MARK_LEVEL` and the constants after it) and grown into its penumbra against
+    that ring (:func:`_with_penumbra`).
 
     Example:
         >>> img = np.full((64, 64, 3), [0.6, 0.55, 0.5], np.float32)
@@ -701,7 +701,6 @@ def found_shade_marks(image_srgb: np.ndarray, probability: np.ndarray, sky: np.n
     gap = max(1, round(MARKED_GAP * side))
     reach = gap + max(2, round(FOUND_MARK_RING * side))
     sky_dir = math.atan2(SKY_SHADE_SHIFT[1], SKY_SHADE_SHIFT[0])
-    grow = max(1, round(ADD_PENUMBRA * side))
     for (t, b, le, r), inside, band in _region_bands(labels, stats, gap, reach):
         ring = band & ring_ok[t:b, le:r]
         shade = inside & usable[t:b, le:r]
@@ -718,8 +717,8 @@ def found_shade_marks(image_srgb: np.ndarray, probability: np.ndarray, sky: np.n
             # With its penumbra: grown into what is still darker than its own ring (the
             # rings of other shadows, on other surfaces, are not its: a review).
             bw = blurred[t:b, le:r]
-            dark = bw < float(np.median(bw[ring])) - ADD_DARKER
-            out[t:b, le:r] |= inside | (_grown(inside, grow) & dark & ~sky[t:b, le:r])
+            out[t:b, le:r] |= _with_penumbra(inside, bw, sky[t:b, le:r],
+                                             float(np.median(bw[ring])), side)
     return out
 
 
@@ -1444,17 +1443,22 @@ def shadow_edit_region(probability: np.ndarray, image_srgb: np.ndarray, sky: np.
 ADD_PENUMBRA = 1.0 / 192
 
 
-def _with_penumbra(region: np.ndarray, log_y: np.ndarray, sky: np.ndarray) -> np.ndarray:
+def _with_penumbra(region: np.ndarray, log_y: np.ndarray, sky: np.ndarray,
+                   level: float | None = None, side: int | None = None) -> np.ndarray:
     """``region`` grown by :data:`ADD_PENUMBRA` into pixels darker than the surface round it
-    (the median over a ring :data:`ADD_RING` wide beyond that reach) by :data:`ADD_DARKER`."""
-    side = max(region.shape)
+    by :data:`ADD_DARKER`: the log luminance ``level`` when the caller has measured it (a
+    found shadow's own ring, :func:`found_shade_marks`), else the median over a ring
+    :data:`ADD_RING` wide beyond that reach. ``side``: the photo's longer side when the
+    arrays are a window of it."""
+    side = max(region.shape) if side is None else side
     k = max(1, round(ADD_PENUMBRA * side))
     reach = _grown(region, k)
-    ring = _grown(region, k + max(2, round(ADD_RING * side))) & ~reach & ~sky
-    if not ring.any():
-        return region
-    dark = log_y < float(np.median(log_y[ring])) - ADD_DARKER
-    return region | (reach & dark & ~sky)
+    if level is None:
+        ring = _grown(region, k + max(2, round(ADD_RING * side))) & ~reach & ~sky
+        if not ring.any():
+            return region
+        level = float(np.median(log_y[ring]))
+    return region | (reach & (log_y < level - ADD_DARKER) & ~sky)
 
 
 def _found_object(found: np.ndarray, log_y: np.ndarray, row: int, col: int) -> np.ndarray:
