@@ -1077,11 +1077,6 @@ class RelightSession:
                                                      d["excluded"], marked=d["marked"])
             return self._detail_lift
 
-    def marked_shadows(self) -> np.ndarray | None:
-        """How much the user's "Mark shadow" counts at each working-size pixel (``H x W``
-        float32 in [0, 1]), or None without such a mark."""
-        return None if self.sky is None else self._marked(self.sky)
-
     def _marked(self, sky: np.ndarray) -> np.ndarray | None:
         """How much the user's "Mark shadow" counts at each pixel (float32 in [0, 1],
         :func:`~outcast_core.runtime.pipeline.photo_shadows.marked_weight`: a stroke's edge

@@ -730,7 +730,7 @@ def test_found_marks_are_read_before_the_users_and_physics_fills_only_the_users(
     ys, xs = np.nonzero(navy)
     s.set_shadow_edits([ShadowEdit(float(xs.mean() + 0.5) / W, float(ys.mean() + 0.5) / H,
                                    shadow=True)])
-    user = s.marked_shadows()
+    user = s._marked(s.sky)
     assert user is not None and user[navy].mean() > 0.9
     inputs = s._lift_inputs(shape)
     assert inputs["lift_fill"][core].mean() > 0.9
@@ -744,7 +744,7 @@ def test_found_marks_are_read_before_the_users_and_physics_fills_only_the_users(
     assert found[core].all()
     s.set_shadow_edits([ShadowEdit((20.0 + 2 * k) / W, 45.0 / H, shadow=True, radius=0.06,
                                    start=k == 0) for k in range(16)])
-    user = s.marked_shadows()
+    user = s._marked(s.sky)
     assert user is not None and (user[core] > 0).mean() > 0.3 and (user[core] == 0).any()
     marks = s._working_marks()
     assert marks[found].min() == 1.0
@@ -796,7 +796,7 @@ def test_found_shade_marks_are_made_once_per_sun_and_size_across_shadow_marks(
     ys, xs = np.nonzero(regions["navy"])
     s.set_shadow_edits([ShadowEdit(float(xs.mean() + 0.5) / W, float(ys.mean() + 0.5) / H,
                                    shadow=True)])
-    assert s.marked_shadows() is not None and len(made) == 1
+    assert s._marked(s.sky) is not None and len(made) == 1
     s.set_shadow_edits([ShadowEdit(float(xs.mean() + 0.5) / W, float(ys.mean() + 0.5) / H,
                                    shadow=False)])
     assert len(made) == 2  # what is surface changed
