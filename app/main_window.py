@@ -605,7 +605,8 @@ class MainWindow(QMainWindow):
         for act, step in ((self.act_undo, self.undo_stack.undo),
                           (self.act_redo, self.undo_stack.redo)):
             act.triggered.disconnect()  # (the stack's own step)
-            act.triggered.connect(lambda _c=False, step=step: self._undo_step(step))
+            act.triggered.connect(lambda _c=False, step=step, redo=act is self.act_redo:
+                                  self._undo_step(step, redo))
         self.undo_stack.cleanChanged.connect(self._on_clean_changed)
         self.act_about = QAction("&About OutCast", self)
         self.act_about.triggered.connect(self._about)
@@ -2035,13 +2036,19 @@ class MainWindow(QMainWindow):
         elif not self._status_pending():
             self.stage_label.setText("Ready")
 
-    def _undo_step(self, step: Callable[[], None]) -> None:
-        """Undo or redo (``step``), unless a brush stroke is being painted: then that stroke is
-        cancelled, as Esc does, and nothing else happens."""
+    def _undo_step(self, step: Callable[[], None], redo: bool = False) -> None:
+        """Undo or redo (``step``; ``redo``: which), unless a brush stroke is being painted:
+        then that stroke is cancelled, as Esc does, and nothing else happens. The status bar
+        says what was undone or redone until a job the step started says what it did: a
+        view kept from before (a de-shadowed photo) comes back at once, and the status kept
+        the timing of the job the step undid (a user trial)."""
         if self.canvas.cancel_stroke():
             self.stage_label.setText("Stroke cancelled")
             return
+        text = self.undo_stack.redoText() if redo else self.undo_stack.undoText()
         step()
+        if text:
+            self.stage_label.setText(f"{'Redone' if redo else 'Undone'} · {text}")
 
     @Slot(float, float)
     def _on_canvas_clicked(self, x: float, y: float) -> None:

@@ -230,10 +230,13 @@ def test_undo_and_redo_restore_the_edits_and_the_image(qtbot, window, photo, set
     assert window.shadow_edits == ()
     assert window.canvas.overlay() is first  # the kept image, shown at once
     assert window.undo_stack.redoText() == "Not a shadow"
+    # No job ran: the status says the undo, not the undone click's timing (a user trial).
+    assert window.stage_label.text() == "Undone · Not a shadow"
     assert not window.relight_panel.clear_shadow_edits_button.isEnabled()
     window.act_redo.trigger()
     settle()
     assert window.shadow_edits == edits
+    assert window.stage_label.text() == "Redone · Not a shadow"
     assert np.array_equal(_alpha(window.canvas.overlay()), dropped)
     assert window.relight_panel.clear_shadow_edits_button.isEnabled()
     assert _handed_edits(window, settle) == edits
