@@ -178,6 +178,31 @@ def test_mark_shadow_adds_a_missed_shadow_and_lifts_it(qtbot, window, patch_phot
     assert abs(after[LIT].mean() - before[LIT].mean()) < 4
 
 
+def test_a_click_that_marks_much_of_the_photo_says_so(qtbot, window, patch_photo, settle,
+                                                      monkeypatch):
+    """A "Mark shadow" click that fills more than LARGE_MARK_SHARE of the photo says how much,
+    and how to take it back (a user trial's click on a shadow's soft edge filled a whole court);
+    a smaller one says nothing of it."""
+    import app.main_window as mw
+
+    _shadows_view(window, patch_photo, settle)
+    _tool(window, "shadow")
+    _click(qtbot, window, *PATCH_XY)
+    settle()
+    share = window.session.marked_share()
+    assert 0.005 < share < mw.LARGE_MARK_SHARE
+    assert "% of the photo" not in window.stage_label.text()
+    window.act_undo.trigger()
+    settle()
+    assert window.shadow_edits == ()  # (the session takes them with the next job)
+    monkeypatch.setattr(mw, "LARGE_MARK_SHARE", share / 2)
+    _click(qtbot, window, PATCH_XY[0] + 0.02, PATCH_XY[1])  # (the same point: the kept view)
+    settle()
+    text = window.stage_label.text()
+    assert f"the click marked {share * 100:.0f} % of the photo as shadow" in text
+    assert "Ctrl+Z" in text
+
+
 def test_a_correction_that_changes_nothing_is_said(qtbot, window, photo, settle):
     _shadows_view(window, photo, settle)
     _tool(window, "not_shadow")

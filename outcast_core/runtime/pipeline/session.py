@@ -1077,6 +1077,18 @@ class RelightSession:
                                                      d["excluded"], marked=d["marked"])
             return self._detail_lift
 
+    def marked_share(self) -> float:
+        """The share of the photo's surface (off the sky) that the user's "Mark shadow"
+        regions cover at the working size (0 without one): the app says how much a click
+        marked when it is much (a click on a shadow's soft edge filled a whole blue court,
+        darker than the green round it, in a user trial)."""
+        masks = self._edit_masks  # once: another thread's _apply_found may reset it
+        sky = self.sky
+        if masks is None or sky is None or not masks[0].any():
+            return 0.0
+        added = (edit_masks_at(*masks, sky.shape)[0] > 0.5) & ~sky
+        return float(added.sum()) / max(1, int((~sky).sum()))
+
     def _marked(self, sky: np.ndarray) -> np.ndarray | None:
         """How much the user's "Mark shadow" counts at each pixel (float32 in [0, 1],
         :func:`~outcast_core.runtime.pipeline.photo_shadows.marked_weight`: a stroke's edge

@@ -340,6 +340,23 @@ def test_every_de_shadow_takes_the_marked_shadow_at_its_own_size(
     assert bounds[-1] is None and set(bounds[:-1]) == {LIFT_ABOVE_LIT}
 
 
+def test_marked_share_is_the_surface_the_user_s_marks_cover() -> None:
+    """:meth:`RelightSession.marked_share`: the share of the surface (off the sky) the "Mark
+    shadow" regions cover at the working size; "not a shadow" adds nothing to it."""
+    s, parts = _slope_session()
+    assert s.marked_share() == 0.0
+    s.set_shadow_edits((ShadowEdit(0.5, 0.2, False),))  # the pines: dropped, not marked
+    assert s.marked_share() == 0.0
+    s.set_shadow_edits((ShadowEdit(*_centre(parts["shadow"]), shadow=True),))
+    sky = s.sky
+    shadow = cv2.resize(parts["shadow"].astype(np.uint8), sky.shape[::-1],
+                        interpolation=cv2.INTER_NEAREST) > 0
+    expected = float((shadow & ~sky).sum()) / float((~sky).sum())
+    assert 0.8 * expected < s.marked_share() < 1.3 * expected
+    s.set_shadow_edits(())
+    assert s.marked_share() == 0.0
+
+
 def test_a_shadow_click_on_lit_ground_is_refused() -> None:
     """A sunlit fleck inside a shadow (or lit snow beside a trunk's shadow) is not darker than
     what is round it: "a shadow" there would be lifted to glare, so it adds nothing."""
