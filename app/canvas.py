@@ -96,6 +96,9 @@ class ImageCanvas(QWidget):
     zoom_changed = Signal(float)
     split_dragged = Signal(float)
     image_clicked = Signal(float, float)
+    #: A click tool's click that fell on the before | after line (which took it, to move the
+    #: line) and did not move it: the window says so (a user trial's click there did nothing).
+    split_clicked = Signal()
     stroke_painted = Signal(object, float)
 
     def __init__(self, parent: QWidget | None = None):
@@ -112,6 +115,7 @@ class ImageCanvas(QWidget):
         self._fit = True
         self._pan_from: QPointF | None = None
         self._dragging_split = False
+        self._split_press: QPointF | None = None  # where a press on the split line was
         self._click_tool = False
         #: With a click tool on: where the left button went down (widget coordinates) and the
         #: image point under it then (the pan may move the image a pixel or two before release).
@@ -519,6 +523,7 @@ class ImageCanvas(QWidget):
         self._press = None
         if event.button() == Qt.MouseButton.LeftButton and near_split:
             self._dragging_split = True
+            self._split_press = event.position()
             self.setCursor(Qt.CursorShape.SplitHCursor)
             event.accept()
         elif (self._click_tool and event.button() == Qt.MouseButton.LeftButton
@@ -567,6 +572,7 @@ class ImageCanvas(QWidget):
             event.accept()  # (its press was ignored: the left button paints on)
             return
         press, self._press = self._press, None
+        split_press, self._split_press = self._split_press, None
         self._pan_from = None
         self._dragging_split = False
         self.unsetCursor()
@@ -580,6 +586,11 @@ class ImageCanvas(QWidget):
                 y = press[1].y() / self._before.height()
                 if 0.0 <= x < 1.0 and 0.0 <= y < 1.0:
                     self.image_clicked.emit(x, y)
+        elif (split_press is not None and self._click_tool
+              and event.button() == Qt.MouseButton.LeftButton
+              and (event.position() - split_press).manhattanLength()
+              < QApplication.startDragDistance()):
+            self.split_clicked.emit()
         self._update_cursor(event.position())
         super().mouseReleaseEvent(event)
 

@@ -182,8 +182,8 @@ STILL_FILTERS = "PNG image (*.png);;JPEG image (*.jpg *.jpeg);;16-bit TIFF (*.ti
 #: The deshadow views' images kept for other corrections (undo and redo show them at once): at
 #: most this many bytes of images besides the shown ones (a 24-megapixel photo's take 72 MB).
 DESHADOW_KEEP_BYTES = 256 * 1024 * 1024
-#: A "Mark shadow" click that marks more than this share of the photo's surface is said in the
-#: status bar, with how to take it back: a click on a shadow's soft edge can fill a whole
+#: A "Mark shadow" click that marks more than this share of the photo is said in the status
+#: bar, with how to take it back: a click on a shadow's soft edge can fill a whole
 #: surface of that brightness (a user trial: a blue court darker than the green round it, 12 %
 #: of the photo, 0.5 % of it in the human-marked shadow). Of the 55 clicks of a simulated user
 #: on the 47 dev photos (fast; the darkest point of the two largest shadows the app missed), 40
@@ -449,6 +449,9 @@ class MainWindow(QMainWindow):
         #: found-shadows job says if they changed nothing.
         self._edit_just_added = 0
         self._edit_note = ""  # said after "Ready" when the last correction changed nothing
+        #: What an undo or redo said, and the jobs it started: the last of them to report says
+        #: it before its own result (:meth:`_undo_step`).
+        self._undo_note: tuple[str, set[int]] | None = None
         #: The redo steps a correction replaced (:meth:`_restore_redo`), and whether they are
         #: being put back (their undo shows nothing).
         self._redo_before_edit: list[tuple[EditState, EditState, str]] = []
@@ -761,6 +764,9 @@ class MainWindow(QMainWindow):
         rp.shadow_tool_changed.connect(self._on_shadow_tool_changed)
         rp.clear_shadow_edits_clicked.connect(self.clear_shadow_edits)
         self.canvas.image_clicked.connect(self._on_canvas_clicked)
+        self.canvas.split_clicked.connect(lambda: self.stage_label.setText(
+            "That click fell on the before | after line (drag it to move it): click beside "
+            "it to correct the shadows there"))
         self.canvas.stroke_painted.connect(self._on_canvas_stroke)
         try:  # the brush's size, as the user left it
             brush = float(self.settings.value("brush_size", BRUSH_DEFAULT))
@@ -2054,9 +2060,17 @@ class MainWindow(QMainWindow):
             self.stage_label.setText("Stroke cancelled")
             return
         text = self.undo_stack.redoText() if redo else self.undo_stack.undoText()
+        before = {i for i, _, _ in self.runner.active()}
         step()
         if text:
-            self.stage_label.setText(f"{'Redone' if redo else 'Undone'} · {text}")
+            note = f"{'Redone' if redo else 'Undone'} · {text}"
+            self.stage_label.setText(note)
+            # The jobs the step started say their end after it ("Undone · Confirm original
+            # sun · predicting shadows took 0.01 s"): a user trial's undo went back to step 1
+            # and the status said only the new job's timing.
+            started = {i for i, ch, _ in self.runner.active()
+                       if i not in before and self._says_status(ch)}
+            self._undo_note = (note, started) if started else None
 
     @Slot(float, float)
     def _on_canvas_clicked(self, x: float, y: float) -> None:
@@ -2445,9 +2459,9 @@ class MainWindow(QMainWindow):
                 self._edit_note = "the before | after line moved left to show the correction"
             marked = float(result.get("large_mark", 0.0))
             if idle is None and marked > 0.0:
-                self._edit_note = (f"the click marked {marked * 100:.0f} % of the photo as "
-                                   "shadow: Ctrl+Z takes it back; a stroke marks only what it "
-                                   "covers")
+                # (short: whole in the status bar at 1024 px, a user trial)
+                self._edit_note = (f"marked {marked * 100:.0f} % of the photo as shadow · "
+                                   "Ctrl+Z takes it back")
             return
         if view == "output":
             self._exposure_hint = "" if result.get("preview") else exposure_hint(
@@ -2932,6 +2946,10 @@ class MainWindow(QMainWindow):
         # own result in the dialog and gives way to them).
         # Nor the dialog's preview frames ("rendering time-lapse frame took 0.00 s" for a
         # cached one replaced what the user's relighting said: a user trial).
+        if (self._undo_note is not None and job_id in self._undo_note[1]
+                and self._status_pending()):  # it started the next (confirm, then relight)
+            self._undo_note[1].update(i for i, ch, _ in self.runner.active()
+                                      if self._says_status(ch))
         if (channel != "find_sun" and self._says_status(channel)
                 and not self._status_pending()):
             if channel in IMAGE_EXPORT_CHANNELS:
@@ -2956,6 +2974,10 @@ class MainWindow(QMainWindow):
                     text = f"Ready · {self._edit_note}"  # what the correction did (nothing)
                 elif channel == "relight" and tool:
                     text = SHADOW_TOOL_HINTS[tool]  # what the tool that is on does
+            if self._undo_note is not None and job_id in self._undo_note[1]:
+                note = self._undo_note[0]  # what the undo did, before what its job did
+                text = f"{note} · {text[len('Ready · '):]}" if text.startswith("Ready · ") else note
+            self._undo_note = None
             self.stage_label.setText(text)
 
     @Slot(int, str, object)

@@ -79,9 +79,14 @@ def test_undo_steps_and_new_sun(qtbot, window, photo, settle):
     settle()
     assert window.step is Step.ALIGN and window.original_sun is None
     assert window.canvas.overlay() is not None
+    # The status says what was undone, then what its job did (a user trial read only
+    # "Ready · predicting shadows took 0.01 s", back in step 1 without knowing why).
+    text = window.stage_label.text()
+    assert text.startswith("Undone · Confirm original sun · ") and " took " in text
     window.act_redo.trigger()
     settle()
     assert window.step is Step.RELIGHT and window.original_sun.as_tuple() == (100.0, 35.0)
+    assert window.stage_label.text().startswith("Redone · Confirm original sun")
     window.act_redo.trigger()
     window.act_redo.trigger()
     settle()

@@ -199,8 +199,32 @@ def test_a_click_that_marks_much_of_the_photo_says_so(qtbot, window, patch_photo
     _click(qtbot, window, PATCH_XY[0] + 0.02, PATCH_XY[1])  # (the same point: the kept view)
     settle()
     text = window.stage_label.text()
-    assert f"the click marked {share * 100:.0f} % of the photo as shadow" in text
-    assert "Ctrl+Z" in text
+    assert text == (f"Ready · marked {share * 100:.0f} % of the photo as shadow · "
+                    "Ctrl+Z takes it back")
+
+
+def test_a_click_on_the_before_after_line_says_so_and_adds_nothing(qtbot, window, patch_photo,
+                                                                   settle):
+    """The split line takes a press to move the line; a click tool's click there (not moved)
+    was ignored without a word (a user trial)."""
+    _shadows_view(window, patch_photo, settle, "shadows_removed")
+    _tool(window, "shadow")
+    canvas = window.canvas
+    assert canvas.split() is not None
+    r = canvas.image_rect()
+    on_line = QPoint(round(r.left() + r.width() * canvas.split()), round(r.center().y()))
+    qtbot.mouseClick(canvas, Qt.MouseButton.LeftButton, pos=on_line)
+    settle()
+    assert window.shadow_edits == ()
+    assert "before | after line" in window.stage_label.text()
+    # A drag of the line says nothing of the kind.
+    window.stage_label.setText("")
+    _mouse(canvas, QEvent.Type.MouseButtonPress, on_line, Qt.MouseButton.LeftButton)
+    _mouse(canvas, QEvent.Type.MouseMove, on_line + QPoint(40, 0), Qt.MouseButton.LeftButton)
+    _mouse(canvas, QEvent.Type.MouseButtonRelease, on_line + QPoint(40, 0),
+           Qt.MouseButton.NoButton)
+    settle()
+    assert window.shadow_edits == () and "before | after" not in window.stage_label.text()
 
 
 def test_a_correction_that_changes_nothing_is_said(qtbot, window, photo, settle):

@@ -1078,16 +1078,14 @@ class RelightSession:
             return self._detail_lift
 
     def marked_share(self) -> float:
-        """The share of the photo's surface (off the sky) that the user's "Mark shadow"
-        regions cover at the working size (0 without one): the app says how much a click
-        marked when it is much (a click on a shadow's soft edge filled a whole blue court,
-        darker than the green round it, in a user trial)."""
+        """The share of the photo (its whole frame) that the user's "Mark shadow" regions
+        cover at the working size (0 without one): the app says how much a click marked when
+        it is much (a click on a shadow's soft edge filled a whole blue court, darker than
+        the green round it, in a user trial)."""
         masks = self._edit_masks  # once: another thread's _apply_found may reset it
-        sky = self.sky
-        if masks is None or sky is None or not masks[0].any():
+        if masks is None or not masks[0].any():
             return 0.0
-        added = (edit_masks_at(*masks, sky.shape)[0] > 0.5) & ~sky
-        return float(added.sum()) / max(1, int((~sky).sum()))
+        return float(np.mean(np.asarray(masks[0], np.float32) > 0.5))
 
     def _marked(self, sky: np.ndarray) -> np.ndarray | None:
         """How much the user's "Mark shadow" counts at each pixel (float32 in [0, 1],
