@@ -63,7 +63,7 @@ def _one_line(exc: BaseException) -> str:
     return text[0] if text else type(exc).__name__
 
 
-_CHOOSE_A_PHOTO = "Choose a JPEG, PNG, TIFF, WebP or HEIC photo."
+_CHOOSE_A_PHOTO = "Choose a JPEG, PNG, TIFF, WebP, HEIC or BMP photo."  # (as the reader)
 
 _OPEN_ADVICE: dict[ImageReadReason | None, str] = {
     ImageReadReason.DAMAGED: "The file looks damaged or cut short (an interrupted copy or "

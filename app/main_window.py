@@ -2513,6 +2513,18 @@ class MainWindow(QMainWindow):
         if path:
             self.export_still(path, force=True)
 
+    def export_folder(self) -> str:
+        """Where export dialogs open: the folder of the last still or time-lapse exported
+        (when it still exists), else the photo's."""
+        folder = str(self.settings.value("export_folder", "") or "")
+        if not folder or not os.path.isdir(folder):
+            folder = str(Path(self.image_path).parent)
+        return folder
+
+    def remember_export_folder(self, path: str) -> None:
+        """Export dialogs open in ``path``'s folder from now on (:meth:`export_folder`)."""
+        self.settings.setValue("export_folder", str(Path(path).parent))
+
     def _ask_still_path(self, title: str, name: str) -> str | None:
         """Where to write a still named ``name`` (without its extension; None: cancelled). The
         dialog opens in the folder of the last still exported, with its type (a user trial:
@@ -2522,9 +2534,7 @@ class MainWindow(QMainWindow):
         again when that file exists (:meth:`may_write_completed`); nothing is ever replaced
         without a question."""
         filters = STILL_FILTERS.split(";;")
-        folder = str(self.settings.value("export_folder", "") or "")
-        if not folder or not os.path.isdir(folder):
-            folder = str(Path(self.image_path).parent)
+        folder = self.export_folder()
         kind = str(self.settings.value("export_filter", "") or "")
         kind = kind if kind in filters else filters[0]
         suggestion = with_filter_extension(str(Path(folder) / name), kind, ())
@@ -2536,7 +2546,7 @@ class MainWindow(QMainWindow):
         path = with_filter_extension(typed, chosen or kind, WRITE_EXTENSIONS)
         if not self.may_write_completed(typed, path):
             return None
-        self.settings.setValue("export_folder", str(Path(path).parent))
+        self.remember_export_folder(path)
         self.settings.setValue("export_filter", next(
             (f for f in filters if f"*{Path(path).suffix.lower()}" in f), kind))
         return path

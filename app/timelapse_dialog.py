@@ -836,9 +836,12 @@ class TimelapseDialog(QDialog):
         filt = next(f for k, _, f in FORMAT_CHOICES if k == fmt)
         stem = Path(self.main.image_path).stem or "timelapse"
         ext = "" if fmt == "png" else f".{fmt}"
-        suggestion = str(Path(self.main.image_path).with_name(f"{stem}_timelapse{ext}"))
+        # In the folder of the last export, as the still's dialog (a user trial: this one
+        # always offered the photo's folder).
+        suggestion = str(Path(self.main.export_folder()) / f"{stem}_timelapse{ext}")
         typed, _ = QFileDialog.getSaveFileName(self, "Export time-lapse", suggestion, filt)
         if not typed:
+            self.status.setText("")  # (not a refusal kept from an earlier try)
             return
         # The format chosen in this dialog: its extension, unless the name has one of its own
         # ("tl.m4v" for MP4; "tl.gif" for MP4 becomes "tl.gif.mp4").
@@ -847,7 +850,10 @@ class TimelapseDialog(QDialog):
         # The save dialog has asked before replacing the name typed; the main window asks
         # about a name this dialog completed.
         if self.main.may_write_completed(typed, path):
+            self.main.remember_export_folder(path)
             self.export(path, force=True)
+        else:
+            self.status.setText("")  # (not a refusal kept from an earlier try)
 
     def export(self, path: str, force: bool = False) -> int | None:
         """Render the path's frames and write them; progress and cancel in this dialog."""

@@ -964,6 +964,39 @@ def test_a_time_lapse_name_completed_by_the_app_is_not_replaced_unasked(
     assert dialog.last_result == "finished" and kept.read_bytes() != b"the user's video"
 
 
+def test_the_time_lapse_dialog_opens_where_the_last_export_went_and_a_cancel_clears_its_note(
+        window, photo, settle, tmp_path, monkeypatch, leave_answers):
+    """The time-lapse's save dialog opens in the folder of the last export, as the still's
+    does, and remembers its own (a user trial: it always offered the photo's folder); a
+    cancelled export leaves no earlier refusal in the dialog's status line."""
+    from PySide6.QtWidgets import QFileDialog
+
+    from app.leave_prompts import CANCEL
+    from tests.app.test_main_window import _timelapse
+
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    dialog = _timelapse(window, 3)
+    elsewhere = tmp_path / "exports"
+    elsewhere.mkdir()
+    window.remember_export_folder(str(elsewhere / "still.png"))
+    offered = []
+
+    def save_name(*a, **k):
+        offered.append(a[2])
+        return (str(elsewhere / "tl"), a[3])
+
+    monkeypatch.setattr(QFileDialog, "getSaveFileName", staticmethod(save_name))
+    (elsewhere / "tl.mp4").write_bytes(b"the user's video")
+    dialog.status.setText("Export failed: an earlier refusal")
+    leave_answers.script.append(CANCEL)
+    dialog.export_dialog()
+    settle()
+    assert Path(offered[-1]).parent == elsewhere
+    assert dialog.status.text() == ""
+    assert (elsewhere / "tl.mp4").read_bytes() == b"the user's video"
+
+
 def test_a_still_name_without_an_extension_takes_the_chosen_type(
         window, photo, settle, tmp_path, monkeypatch, errors, leave_answers):
     """"mine" with JPEG chosen is written as mine.jpg (a user trial's was refused as a name
