@@ -521,6 +521,7 @@ class ImageCanvas(QWidget):
         x = self._split_x()
         near_split = x is not None and abs(event.position().x() - x) <= 6.0
         self._press = None
+        self._split_press = None
         if event.button() == Qt.MouseButton.LeftButton and near_split:
             self._dragging_split = True
             self._split_press = event.position()

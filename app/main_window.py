@@ -449,9 +449,10 @@ class MainWindow(QMainWindow):
         #: found-shadows job says if they changed nothing.
         self._edit_just_added = 0
         self._edit_note = ""  # said after "Ready" when the last correction changed nothing
-        #: What an undo or redo said, and the jobs it started: the last of them to report says
-        #: it before its own result (:meth:`_undo_step`).
-        self._undo_note: tuple[str, set[int]] | None = None
+        #: What an undo or redo said, the jobs it started (or that were running: then not its
+        #: own, and their result is not said), for the last of them to report it before its
+        #: own result (:meth:`_undo_step`); dropped by the user's next change.
+        self._undo_note: tuple[str, set[int], bool] | None = None
         #: The redo steps a correction replaced (:meth:`_restore_redo`), and whether they are
         #: being put back (their undo shows nothing).
         self._redo_before_edit: list[tuple[EditState, EditState, str]] = []
@@ -925,6 +926,7 @@ class MainWindow(QMainWindow):
         before, self._edit_state = self._edit_state, after
         if before is None or after is None or same_edit_state(before, after):
             return
+        self._undo_note = None  # the user's own change: what an undo did is past
         self.undo_stack.push(EditCommand(self, before, after, text, step_of=step_of))
 
     def _reset_history(self, state: EditState | None) -> None:
@@ -2050,6 +2052,10 @@ class MainWindow(QMainWindow):
         elif not self._status_pending():
             self.stage_label.setText("Ready")
 
+    def _status_jobs(self) -> set[int]:
+        """The jobs waiting or running that say their end in the status bar."""
+        return {i for i, ch, _ in self.runner.active() if self._says_status(ch)}
+
     def _undo_step(self, step: Callable[[], None], redo: bool = False) -> None:
         """Undo or redo (``step``; ``redo``: which), unless a brush stroke is being painted:
         then that stroke is cancelled, as Esc does, and nothing else happens. The status bar
@@ -2060,17 +2066,21 @@ class MainWindow(QMainWindow):
             self.stage_label.setText("Stroke cancelled")
             return
         text = self.undo_stack.redoText() if redo else self.undo_stack.undoText()
-        before = {i for i, _, _ in self.runner.active()}
+        self._undo_note = None
+        before = self._status_jobs()
         step()
         if text:
             note = f"{'Redone' if redo else 'Undone'} · {text}"
             self.stage_label.setText(note)
             # The jobs the step started say their end after it ("Undone · Confirm original
             # sun · predicting shadows took 0.01 s"): a user trial's undo went back to step 1
-            # and the status said only the new job's timing.
-            started = {i for i, ch, _ in self.runner.active()
-                       if i not in before and self._says_status(ch)}
-            self._undo_note = (note, started) if started else None
+            # and the status said only the new job's timing. A step that started none (a
+            # kept view) while others run: theirs says it alone when they end.
+            started = self._status_jobs() - before
+            if started:
+                self._undo_note = (note, started, True)
+            elif before:
+                self._undo_note = (note, before, False)
 
     @Slot(float, float)
     def _on_canvas_clicked(self, x: float, y: float) -> None:
@@ -2295,7 +2305,9 @@ class MainWindow(QMainWindow):
             return None
         view = self.relight_panel.view()
         with_image = view == "shadows_removed"
-        kept = self._deshadow_kept.get(key)
+        # A correction just made takes the job even when its images are kept (the same click
+        # again after an undo): the job says what it did (nothing, or much: a review).
+        kept = None if self._edit_just_added else self._deshadow_kept.get(key)
         if kept is not None and (kept[0] is not None or not with_image):
             self._deshadow_kept.move_to_end(key)
             self._deshadow_key, self._deshadow_images = key, kept
@@ -2316,10 +2328,10 @@ class MainWindow(QMainWindow):
 
         def job(ctx: JobContext) -> dict[str, Any]:
             click = bool(just_added) and edits[-1].shadow and edits[-1].radius == 0
-            if click:  # what the session marked before the click (after an undo, it still
-                session.set_shadow_edits(edits[:-just_added])  # had the undone edit)
+            # What was marked before the click (measured: after an undo the session may
+            # still hold the undone edit).
+            marked = session.marked_share(edits[:-just_added]) if click else 0.0
             found = session.shadow_probability
-            marked = session.marked_share()
             session.set_shadow_edits(edits)
             after = session.shadow_probability
             marked = session.marked_share() - marked  # what the click just marked
@@ -2459,9 +2471,11 @@ class MainWindow(QMainWindow):
                 self._edit_note = "the before | after line moved left to show the correction"
             marked = float(result.get("large_mark", 0.0))
             if idle is None and marked > 0.0:
-                # (short: whole in the status bar at 1024 px, a user trial)
-                self._edit_note = (f"marked {marked * 100:.0f} % of the photo as shadow · "
-                                   "Ctrl+Z takes it back")
+                # (short: whole in the status bar at 1024 px, a user trial; before the line's
+                # note when the line moved too)
+                self._edit_note = " · ".join(n for n in (
+                    f"marked {marked * 100:.0f} % of the photo as shadow · Ctrl+Z takes it back",
+                    self._edit_note) if n)
             return
         if view == "output":
             self._exposure_hint = "" if result.get("preview") else exposure_hint(
@@ -2933,6 +2947,7 @@ class MainWindow(QMainWindow):
         if job_id < self._shown.get(channel, 0):
             return
         self._shown[channel] = job_id
+        waiting = self._status_jobs()  # (what this job's handler starts is added below)
         if channel == "load":
             if not self._on_loaded(result):
                 return  # declined: what the window said stays
@@ -2958,8 +2973,7 @@ class MainWindow(QMainWindow):
         # cached one replaced what the user's relighting said: a user trial).
         if (self._undo_note is not None and job_id in self._undo_note[1]
                 and self._status_pending()):  # it started the next (confirm, then relight)
-            self._undo_note[1].update(i for i, ch, _ in self.runner.active()
-                                      if self._says_status(ch))
+            self._undo_note[1].update(self._status_jobs() - waiting)
         if (channel != "find_sun" and self._says_status(channel)
                 and not self._status_pending()):
             if channel in IMAGE_EXPORT_CHANNELS:
@@ -2985,14 +2999,20 @@ class MainWindow(QMainWindow):
                 elif channel == "relight" and tool:
                     text = SHADOW_TOOL_HINTS[tool]  # what the tool that is on does
             if self._undo_note is not None and job_id in self._undo_note[1]:
-                note = self._undo_note[0]  # what the undo did, before what its job did
-                text = f"{note} · {text[len('Ready · '):]}" if text.startswith("Ready · ") else note
+                note, _, own = self._undo_note  # what the undo did, before what its job did
+                if channel in IMAGE_EXPORT_CHANNELS or channel == "tl_export":
+                    text = f"{note} · {text}"  # (an export that was running: said too)
+                elif own and text.startswith("Ready · "):
+                    text = f"{note} · {text[len('Ready · '):]}"
+                else:  # a tool's hint, or a result the undo made stale
+                    text = note
             self._undo_note = None
             self.stage_label.setText(text)
 
     @Slot(int, str, object)
     def _on_job_failed(self, job_id: int, channel: str, exc: Any) -> None:
         self.progress_bar.hide()
+        self._undo_note = None  # (the failure is said instead)
         if channel == "find_sun":
             self.align_panel.set_finding(False)
         if channel == "load":

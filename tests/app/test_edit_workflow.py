@@ -86,7 +86,8 @@ def test_undo_steps_and_new_sun(qtbot, window, photo, settle):
     window.act_redo.trigger()
     settle()
     assert window.step is Step.RELIGHT and window.original_sun.as_tuple() == (100.0, 35.0)
-    assert window.stage_label.text().startswith("Redone · Confirm original sun")
+    text = window.stage_label.text()
+    assert text.startswith("Redone · Confirm original sun · ") and " took " in text
     window.act_redo.trigger()
     window.act_redo.trigger()
     settle()

@@ -196,11 +196,33 @@ def test_a_click_that_marks_much_of_the_photo_says_so(qtbot, window, patch_photo
     settle()
     assert window.shadow_edits == ()  # (the session takes them with the next job)
     monkeypatch.setattr(mw, "LARGE_MARK_SHARE", share / 2)
-    _click(qtbot, window, PATCH_XY[0] + 0.02, PATCH_XY[1])  # (the same point: the kept view)
+    _click(qtbot, window, PATCH_XY[0] + 0.02, PATCH_XY[1])  # beside the first click
     settle()
     text = window.stage_label.text()
     assert text == (f"Ready · marked {share * 100:.0f} % of the photo as shadow · "
                     "Ctrl+Z takes it back")
+    # The same click again after an undo: its images are kept, and it still says so.
+    window.act_undo.trigger()
+    settle()
+    assert window.stage_label.text() == "Undone · Mark shadow"
+    _click(qtbot, window, PATCH_XY[0] + 0.02, PATCH_XY[1])
+    settle()
+    assert window.stage_label.text() == text
+
+
+def test_a_kept_view_says_ready_not_an_earlier_timing(qtbot, window, photo, settle):
+    """Views whose images are kept come back at once: the status says Ready (or the tool's
+    hint), not the timing of the job that made the view shown before (a review)."""
+    _shadows_view(window, photo, settle, "shadows_removed")
+    window.relight_panel.set_view("shadows_found")
+    settle()
+    window.relight_panel.set_view("shadows_removed")  # kept: no job
+    settle()
+    assert window.stage_label.text() == "Ready"
+    _tool(window, "shadow")
+    window.relight_panel.set_view("shadows_found")  # kept too
+    settle()
+    assert window.stage_label.text().startswith("Click inside a shadow the app missed")
 
 
 def test_a_click_on_the_before_after_line_says_so_and_adds_nothing(qtbot, window, patch_photo,

@@ -1077,12 +1077,20 @@ class RelightSession:
                                                      d["excluded"], marked=d["marked"])
             return self._detail_lift
 
-    def marked_share(self) -> float:
+    def marked_share(self, edits: Sequence[ShadowEdit] | None = None) -> float:
         """The share of the photo (its whole frame) that the user's "Mark shadow" regions
         cover at the working size (0 without one): the app says how much a click marked when
         it is much (a click on a shadow's soft edge filled a whole blue court, darker than
-        the green round it, in a user trial)."""
-        masks = self._edit_masks  # once: another thread's _apply_found may reset it
+        the green round it, in a user trial). ``edits``: those corrections instead of
+        :attr:`shadow_edits`, measured without being applied (0 before an original sun)."""
+        with self._lock:
+            if edits is None or tuple(edits) == self.shadow_edits:
+                masks = self._edit_masks
+            elif self._found is None or self.sky is None or self.image_srgb is None:
+                return 0.0
+            else:
+                masks = (shadow_edit_masks(self._found[1], self.image_srgb, self.sky,
+                                           tuple(edits)) if edits else None)
         if masks is None or not masks[0].any():
             return 0.0
         return float(np.mean(np.asarray(masks[0], np.float32) > 0.5))

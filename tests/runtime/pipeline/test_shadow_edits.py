@@ -347,7 +347,11 @@ def test_marked_share_is_the_surface_the_user_s_marks_cover() -> None:
     assert s.marked_share() == 0.0
     s.set_shadow_edits((ShadowEdit(0.5, 0.2, False),))  # the pines: dropped, not marked
     assert s.marked_share() == 0.0
-    s.set_shadow_edits((ShadowEdit(*_centre(parts["shadow"]), shadow=True),))
+    mark = (ShadowEdit(*_centre(parts["shadow"]), shadow=True),)
+    measured = s.marked_share(mark)  # other corrections, measured without applying them
+    assert s.shadow_edits == (ShadowEdit(0.5, 0.2, False),)
+    s.set_shadow_edits(mark)
+    assert s.marked_share() == measured and s.marked_share(()) == 0.0
     sky = s.sky
     shadow = cv2.resize(parts["shadow"].astype(np.uint8), sky.shape[::-1],
                         interpolation=cv2.INTER_NEAREST) > 0
