@@ -897,14 +897,7 @@ def deshadow_log_gain(
         if m.any():
             mark = marked_lift(st["log_c"], p, _usable(srgb_to_linear(img), sky), m)
     glob = st["glob"]
-    local = st["mu_lit"] - st["mu_shd"]
-    # Trust the local ratio where both sides have weight; blend to the global one elsewhere.
-    trust = np.clip(np.minimum(st["n_lit"], st["n_shd"]) / 0.05, 0.0, 1.0)[..., None]
-    gain = trust * local + (1.0 - trust) * glob.reshape(1, 1, 3)
-    # Lit surfaces nearby may be another material: never lift far beyond the photo's own
-    # sun/shade ratio.
-    gain = np.clip(gain, 0.0, np.minimum(MAX_LIFT_LOG, LOCAL_MAX * np.maximum(glob, 0.0)))
-    gain = warm_lift(gain)
+    gain = warm_lift(_local_ratio(st))
     keep = _not_darker_than_shade(st["log_c"], st["mu_lit"], glob)
     gain = gain * (p * keep)[..., None]
     if above_lit is not None:
@@ -924,6 +917,40 @@ def deshadow_log_gain(
     room = top - st["log_c"] @ LUMA_709
     m_gain = m_gain * np.clip(room / np.maximum(lum, 1e-6), 0.0, 1.0)[..., None]
     return (gain + m[..., None] * (m_gain - gain)).astype(np.float32)
+
+
+def _local_ratio(st: dict) -> np.ndarray:
+    """The log ratio (per channel, ``H x W x 3``) between the lit surface and the shade round
+    each pixel, from :func:`_shade_statistics`: the local one where both sides have weight,
+    blended to the photo's global one elsewhere, clamped to ``[0, MAX_LIFT_LOG]`` and to
+    :data:`LOCAL_MAX` times the global one (lit surfaces nearby may be another material)."""
+    glob = st["glob"]
+    trust = np.clip(np.minimum(st["n_lit"], st["n_shd"]) / 0.05, 0.0, 1.0)[..., None]
+    ratio = trust * (st["mu_lit"] - st["mu_shd"]) + (1.0 - trust) * glob.reshape(1, 1, 3)
+    return np.clip(ratio, 0.0, np.minimum(MAX_LIFT_LOG, LOCAL_MAX * np.maximum(glob, 0.0)))
+
+
+def shade_log_ratio(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray
+                    ) -> np.ndarray:
+    """How much darker than the lit surface round it the photo's own shade is there (``H x W``
+    float32, natural log of luminance, >= 0; 0 without both lit and shaded surface): the
+    de-shadow's local lit/shade ratio (:func:`deshadow_log_gain` before each pixel's own
+    probability). The learned relighting darkens a surface the new sun newly shadows at
+    least this much (:func:`~outcast_core.runtime.pipeline.relight.shadow_contrast_floor`'s
+    ``shade_ratio``).
+
+    Example:
+        >>> img = np.full((32, 32, 3), 0.8, np.float32); img[16:] *= 0.25
+        >>> p = photo_shadow_probability(img, np.zeros((32, 32), bool))
+        >>> r = shade_log_ratio(img, p, np.zeros((32, 32), bool))
+        >>> bool(abs(float(r[8, 8]) - np.log(4.0)) < 0.25)
+        True
+    """
+    img, p, sky = _check_probability(image_srgb, probability, sky)
+    st = _shade_statistics(img, p, sky)
+    if st is None:
+        return np.zeros(p.shape, np.float32)
+    return (_local_ratio(st) @ LUMA_709).astype(np.float32)
 
 
 def material_guard(image_srgb: np.ndarray, probability: np.ndarray, sky: np.ndarray,

@@ -169,6 +169,61 @@ def test_shadow_contrast_floor_darkens_new_shadows_at_least_as_physics_does() ->
         shadow_contrast_floor(image, relit[:3], physics, s_old, s_new)
 
 
+def test_new_shade_is_at_least_as_dark_as_the_photo_s_own_shade_round_it() -> None:
+    """``shade_ratio``: a newly shadowed surface ends at least the photo's own local shade
+    ratio below the photo (physics' one sun/sky ratio left it lighter), never lighter than
+    physics makes it; nothing else moves."""
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+    from outcast_core.runtime.pipeline.photo_shadows import shade_log_ratio
+    from outcast_core.runtime.pipeline.relight import (
+        estimate_light,
+        guard_learned_relight,
+        shadow_contrast_floor,
+    )
+
+    h, w = 24, 36
+    image = np.full((h, w, 3), [0.6, 0.55, 0.5], np.float32)
+    s_old = np.ones((h, w), np.float32)
+    s_old[12:, :18] = 0.0  # the photo's own shade: 8 x darker than its lit surface
+    image[12:, :18] /= 8.0
+    s_new = s_old.copy()
+    s_new[12:, 18:26] = 0.0  # newly shadowed, beside it
+    sky = np.zeros((h, w), bool)
+    physics = image.copy()
+    physics[12:, 18:26] *= 0.5  # a timid physics (its one sun/sky ratio: 2)
+    ratio = shade_log_ratio(image, 1.0 - s_old, sky)
+
+    def y(img: np.ndarray, rows: slice, cols: slice) -> float:
+        return float(luminance(srgb_to_linear(img[rows, cols])).mean())
+
+    new_shd = (slice(14, None), slice(19, 25))
+    local = float(np.exp(-ratio[new_shd].mean()))
+    assert local < 0.3  # the photo's own shade round it: far darker than physics' 0.5
+    plain = shadow_contrast_floor(image, image, physics, s_old, s_new)
+    out = shadow_contrast_floor(image, image, physics, s_old, s_new, shade_ratio=ratio)
+    assert y(out, *new_shd) == pytest.approx(local * y(image, *new_shd), rel=0.05)
+    assert y(out, *new_shd) < 0.6 * y(plain, *new_shd)
+    np.testing.assert_allclose(out[:12], plain[:12], atol=1e-5)  # lit under both suns
+    np.testing.assert_allclose(out[:, :18], plain[:, :18], atol=1e-5)  # shade under both
+    # A shade physics made darker stays as dark.
+    deep = image.copy()
+    deep[12:, 18:26] *= 0.02
+    out = shadow_contrast_floor(image, image, deep, s_old, s_new, shade_ratio=ratio)
+    assert y(out, *new_shd) == pytest.approx(y(deep, *new_shd), rel=0.05)
+    # The guard reads it from S_o and the photo (a light estimate of a milder photo: physics
+    # too light here).
+    mild = np.full((h, w, 3), [0.6, 0.55, 0.5], np.float32)
+    mild[12:, :18] /= 2.0
+    light = estimate_light(srgb_to_linear(mild), s_old)
+    kw = dict(keep_sky=True, colour=False, anchor=False, detail=False)
+    guarded = guard_learned_relight(image, image, s_old, s_new, sky, light, **kw)
+    unguarded = guard_learned_relight(image, image, s_old, s_new, sky, light, **kw,
+                                      local_shade=False)
+    assert y(guarded, *new_shd) < 0.6 * y(unguarded, *new_shd)
+    with pytest.raises(ValueError, match="shade ratio"):
+        shadow_contrast_floor(image, image, physics, s_old, s_new, shade_ratio=ratio[:3])
+
+
 def test_anchor_exposure_takes_the_exposure_of_physics_on_surfaces_lit_under_both_suns() -> None:
     from outcast_core.runtime.pipeline.relight import (
         anchor_exposure,
