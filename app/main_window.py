@@ -1443,15 +1443,22 @@ class MainWindow(QMainWindow):
                                    if v is None)
             return f"The photo's EXIF has no {missing}: set the sun by eye or find it."
         night = tl.sun_below_horizon_at_capture(exif)
-        if night is not None:  # how far below, at what time as read (a zone-less one as UTC)
+        if night is not None:  # how far below, at what time as read (a zone-less one: the
+            # longitude's zone)
             return (f"{night[0].upper()}{night[1:]}: check the camera's clock and time zone, "
                     "or set the sun by eye or find it.")
+        when, guessed = tl.exif_capture_time(exif)
         _, el = tl.true_sun_position(when, lat, lon)
+        zone = ""
+        if guessed:
+            hours = when.utcoffset().total_seconds() / 3600.0
+            zone = (f" (its time zone, UTC{hours:+g}, is guessed from the longitude: the EXIF "
+                    "gives none)")
         if getattr(exif, "heading_deg", None) is None and self.user_heading is None:
             above = " above the true horizon" if self.tilt_note() else ""
             return (f"No compass heading in the photo's EXIF: Find sun uses the elevation "
-                    f"{el:.0f}°{above} from the photo's time and place. Type the camera heading "
-                    f"{heading_box} for the full sun.")
+                    f"{el:.0f}°{above} from the photo's time and place{zone}. Type the camera "
+                    f"heading {heading_box} for the full sun.")
         seen, typed = self.seen_heading, self.user_heading
         if seen is not None and typed is not None and abs(seen - typed) < 0.05:
             recorded = self._exif_heading()

@@ -93,6 +93,7 @@ cores at load 3-10; seconds are under that load; ``models/EVAL.md`` has the tabl
 
 from __future__ import annotations
 
+import datetime as dt
 import math
 import os
 import time
@@ -260,6 +261,13 @@ class SunPrior:
                 raise ValueError(f"expected {name} >= 0, got {val}")
 
 
+#: :func:`exif_sun_prior`: a capture time without a time zone is read at its longitude's
+#: (:func:`~outcast_core.runtime.pipeline.timelapse.exif_capture_time`), and the search may
+#: leave its elevation by as much as the sun moves in this many hours either way (national zones
+#: and summer time are an hour or two from the longitude's; China's west three).
+GUESSED_ZONE_HOURS = 1.0
+
+
 def exif_sun_prior(metadata: Any, heading: float | None = None) -> SunPrior | None:
     """The sun prior of a photo's EXIF (:class:`~outcast_core.runtime.io.exif.PhotoMetadata`).
 
@@ -274,22 +282,35 @@ def exif_sun_prior(metadata: Any, heading: float | None = None) -> SunPrior | No
         is recorded or given (both in the horizon's frame: :func:`find_sun` turns them into the
         camera's).
     """
-    from outcast_core.runtime.pipeline.timelapse import relative_azimuth, true_sun_position
+    from outcast_core.runtime.pipeline.timelapse import (
+        exif_capture_time,
+        relative_azimuth,
+        true_sun_position,
+    )
 
-    when = getattr(metadata, "capture_time", None)
+    when, guessed = exif_capture_time(metadata)
     lat, lon = getattr(metadata, "latitude", None), getattr(metadata, "longitude", None)
     if when is None or lat is None or lon is None:
         return None
     true_az, el = true_sun_position(when, lat, lon)
     if el <= 0.0:
         return None
+    tolerance, zone = SunPrior.elevation_tolerance, ""
+    if guessed:  # the zone of the longitude, perhaps hours from the photo's own
+        spread = max(abs(true_sun_position(when + dt.timedelta(hours=h), lat, lon)[1] - el)
+                     for h in (-GUESSED_ZONE_HOURS, GUESSED_ZONE_HOURS))
+        tolerance += spread
+        hours = when.utcoffset().total_seconds() / 3600.0  # type: ignore[union-attr]
+        zone = f" (time zone UTC{hours:+g} guessed from the longitude: ±{spread:.0f}°)"
     recorded = getattr(metadata, "heading_deg", None)
     if recorded is None and heading is None:
-        return SunPrior(el, description=f"elevation {el:.0f}° from the photo's time and place")
+        return SunPrior(el, elevation_tolerance=tolerance,
+                        description=f"elevation {el:.0f}° from the photo's time and place{zone}")
     az = relative_azimuth(true_az, heading if heading is not None else recorded)
     whose = "the camera heading given" if heading is not None else "compass heading"
-    return SunPrior(el, az, description=f"azimuth {az:.0f}°, elevation {el:.0f}° from the "
-                                        f"photo's time, place and {whose}")
+    return SunPrior(el, az, elevation_tolerance=tolerance,
+                    description=f"azimuth {az:.0f}°, elevation {el:.0f}° from the photo's time, "
+                                f"place and {whose}{zone}")
 
 
 @dataclass
@@ -719,7 +740,8 @@ def photo_camera_tilt(session: Any, path: str | os.PathLike[str] | None
 def sun_frame_pitch(session: Any, path: str | os.PathLike[str]) -> float | None:
     """The camera's pitch (degrees, up positive; roll taken as 0) at which the sun seen in the
     frame (:func:`sun_in_photo`) stands at its true elevation from the photo's EXIF GPS and
-    time; None without either. Depth cannot tell a slope from level ground, the sun can: on the
+    time; None without either, or with a time without a zone (its elevation is a guess:
+    :func:`exif_sun_prior`). Depth cannot tell a slope from level ground, the sun can: on the
     ski-slope sample the ground plane (the slope) says 6.7° down, the sun about 10° up."""
     from outcast_core.runtime.io.imageio import read_metadata
     from outcast_core.runtime.pipeline.timelapse import true_sun_position
@@ -732,8 +754,8 @@ def sun_frame_pitch(session: Any, path: str | os.PathLike[str]) -> float | None:
     except (OSError, ValueError):
         return None
     when, lat, lon = meta.capture_time, meta.latitude, meta.longitude
-    if when is None or lat is None or lon is None:
-        return None
+    if when is None or when.tzinfo is None or lat is None or lon is None:
+        return None  # (a zone-less time: the elevation too uncertain to set the pitch by)
     _, true_el = true_sun_position(when, lat, lon)
     if true_el <= 0.0:
         return None

@@ -189,8 +189,9 @@ def exif_sun(
     ``tilt`` is the camera's ``(pitch, roll)`` in degrees: the sun is returned in the camera's
     frame (the dial's and the session's angles). Its elevation there may be negative (a camera
     pitched well up can have the sun ahead of it under its own horizon); the app's dial clamps
-    it, a relighting takes the vector as it is."""
-    when = getattr(exif, "capture_time", None)
+    it, a relighting takes the vector as it is. A capture time without a zone is read at its
+    longitude's (:func:`exif_capture_time`)."""
+    when, _ = exif_capture_time(exif)
     lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
     exif_heading = getattr(exif, "heading_deg", None)
     heading = heading if heading is not None else exif_heading
@@ -218,7 +219,7 @@ def sun_below_horizon_at_capture(exif: Any) -> str | None:
         >>> text.split(" below")[0], text.split("place ")[1]
         ('the sun was 15.0°', '(2026-06-01 23:30 +02:00)')
     """
-    when = getattr(exif, "capture_time", None)
+    when, guessed = exif_capture_time(exif)
     lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
     if when is None or lat is None or lon is None:
         return None
@@ -226,24 +227,28 @@ def sun_below_horizon_at_capture(exif: Any) -> str | None:
     if el > 0:
         return None
     return (f"the sun was {-el + 0.0:.1f}° below the horizon at the photo's time and place "
-            f"({_capture_time_words(when)})")
+            f"({_capture_time_words(when, guessed)})")
 
 
-def _capture_time_words(when: dt.datetime) -> str:
-    """``2026-06-01 22:14 +02:00``; a time without a zone says it was read as UTC (as
-    :func:`true_sun_position` reads it)."""
+def _capture_time_words(when: dt.datetime, guessed: bool = False) -> str:
+    """``2026-06-01 22:14 +02:00``; a zone guessed from the longitude
+    (:func:`exif_capture_time`) says so, and a time without a zone that it was read as UTC
+    (as :func:`true_sun_position` reads it)."""
     offset = when.utcoffset()
     if offset is None:
         return f"{when:%Y-%m-%d %H:%M}, read as UTC: the EXIF gives no time zone"
     minutes = round(offset.total_seconds() / 60)
     sign = "-" if minutes < 0 else "+"
-    return f"{when:%Y-%m-%d %H:%M} {sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+    words = f"{when:%Y-%m-%d %H:%M} {sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+    if guessed:
+        words += ", the time zone of its longitude: the EXIF gives none"
+    return words
 
 
 def exif_sun_problem(exif: Any, heading: float | None = None) -> str | None:
     """Why :func:`exif_sun` gives no sun for ``exif`` (and ``heading``), in words ("no EXIF
     compass heading", :func:`sun_below_horizon_at_capture`...); None when it gives one."""
-    when = getattr(exif, "capture_time", None)
+    when = getattr(exif, "capture_time", None)  # (a zone-less one without GPS: missing GPS)
     lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
     gps = None if lat is None or lon is None else lat
     missing = [name for name, value in (("GPS position", gps), ("capture time", when),
@@ -379,6 +384,33 @@ def solve_heading(
 def default_utc_offset(longitude: float) -> float:
     """A guess of the local UTC offset from longitude (whole hours of mean solar time)."""
     return float(round(_check_angle("longitude", longitude, -180.0, 180.0) / 15.0))
+
+
+def exif_capture_time(exif: Any) -> tuple[dt.datetime | None, bool]:
+    """The photo's capture time as an aware datetime, and whether its time zone is a guess.
+
+    A capture time with a zone (EXIF ``OffsetTimeOriginal``, or derived from the GPS time
+    stamp) is returned as it is. A camera's bare wall-clock time is local time in an unknown
+    zone: it is read at the zone of its longitude (:func:`default_utc_offset`), not as UTC as
+    until 2026-12-03, which put the sun of a photo taken at longitude 100 seven hours off.
+    Without a capture time, or a zone-less one without a longitude: ``(None, False)``.
+
+    Example:
+        >>> from outcast_core.runtime.io.exif import PhotoMetadata
+        >>> m = PhotoMetadata(latitude=13.7, longitude=100.5,
+        ...                   capture_time=dt.datetime(2026, 3, 1, 10, 0))
+        >>> when, guessed = exif_capture_time(m)
+        >>> str(when.utcoffset()), guessed
+        ('7:00:00', True)
+    """
+    when = getattr(exif, "capture_time", None)
+    if when is None or when.tzinfo is not None:
+        return when, False
+    lon = getattr(exif, "longitude", None)
+    if lon is None:
+        return None, False
+    zone = dt.timezone(dt.timedelta(hours=default_utc_offset(lon)))
+    return when.replace(tzinfo=zone), True
 
 
 def daylight_range(

@@ -157,7 +157,8 @@ def _photo_at(path, when: str, offset: str | None = "+07:00"):
 
 def test_the_words_for_a_sun_below_the_horizon_at_the_photos_time(tmp_path):
     """What happened, with the numbers that tell why: how far below, and the time as read (a
-    time without a zone is read as UTC: the usual cause for a daylight photo)."""
+    time without a zone is read at its longitude's zone, and says so; until 2026-12-03 it was
+    read as UTC, which put a Phuket photo at 18:00 local time seven hours later, at night)."""
     from outcast_core.runtime.io.imageio import read_metadata
     from outcast_core.runtime.pipeline.timelapse import (
         exif_sun_problem,
@@ -172,9 +173,13 @@ def test_the_words_for_a_sun_below_the_horizon_at_the_photos_time(tmp_path):
     assert text == (f"the sun was {-el:.1f}° below the horizon at the photo's time and place "
                     "(2019-08-21 23:00 +07:00)")
     assert exif_sun_problem(night) == text  # before the missing compass heading
-    naive = read_metadata(_photo_at(tmp_path / "u.jpg", "2019:08:21 18:00:00", offset=None))
-    assert sun_below_horizon_at_capture(naive).endswith(
-        "(2019-08-21 18:00, read as UTC: the EXIF gives no time zone)")
+    evening = read_metadata(_photo_at(tmp_path / "u.jpg", "2019:08:21 18:00:00", offset=None))
+    assert evening.capture_time.tzinfo is None
+    assert sun_below_horizon_at_capture(evening) is None  # 18:00 at +07:00: the sun still up
+    naive = read_metadata(_photo_at(tmp_path / "v.jpg", "2019:08:21 23:00:00", offset=None))
+    assert sun_below_horizon_at_capture(naive) == (
+        f"the sun was {-el:.1f}° below the horizon at the photo's time and place "
+        "(2019-08-21 23:00 +07:00, the time zone of its longitude: the EXIF gives none)")
     day = read_metadata(_photo_at(tmp_path / "d.jpg", "2019:08:21 11:00:00"))
     assert sun_below_horizon_at_capture(day) is None
     assert exif_sun_problem(day) == "no EXIF compass heading"

@@ -154,6 +154,29 @@ def test_exif_sun_prior() -> None:
     assert "compass heading" in full.description
 
 
+def test_a_capture_time_without_a_zone_is_read_at_its_longitudes_and_widens_the_prior() -> None:
+    """A camera's bare wall-clock time at longitude 100.5 (Bangkok) is local time, UTC+7: the
+    prior's elevation is the sun's then, not at 10:00 UTC (17:00 local, 40 degrees lower), and
+    the search may leave it by as much as the sun moves in an hour either way; the words say
+    the zone is a guess. A time with a zone keeps the narrow tolerance."""
+    wall = dt.datetime(2026, 3, 1, 10, 0)
+    meta = PhotoMetadata(latitude=13.75, longitude=100.5, capture_time=wall)
+    prior = exif_sun_prior(meta)
+    local = wall.replace(tzinfo=dt.timezone(dt.timedelta(hours=7)))
+    _, el = true_sun_position(local, 13.75, 100.5)
+    _, el_utc = true_sun_position(wall.replace(tzinfo=dt.UTC), 13.75, 100.5)
+    assert prior is not None and prior.elevation == pytest.approx(el)
+    assert abs(el - el_utc) > 20.0  # what reading it as UTC got wrong
+    spread = max(abs(true_sun_position(local + dt.timedelta(hours=h), 13.75, 100.5)[1] - el)
+                 for h in (-1, 1))
+    assert spread > 5.0
+    assert prior.elevation_tolerance == pytest.approx(2.0 + spread)
+    assert "time zone UTC+7 guessed from the longitude" in prior.description
+    zoned = exif_sun_prior(PhotoMetadata(latitude=13.75, longitude=100.5, capture_time=local))
+    assert zoned is not None and zoned.elevation == pytest.approx(el)
+    assert zoned.elevation_tolerance == 2.0 and "guessed" not in zoned.description
+
+
 def test_camera_tilt_sources() -> None:
     """The camera's tilt: a pair as given, this function's own triple, a metadata pose, else
     the ground plane (this scene's camera looks straight at a wall-like ground: none)."""
