@@ -400,6 +400,9 @@ class MainWindow(QMainWindow):
         #: the EXIF's), not typed: solved again when the dialog reopens, so a re-aligned sun or
         #: a new step-1 heading reaches the real sun path (a user trial).
         self.timelapse_auto_heading: float | None = None
+        #: The time-lapse's UTC offset as the dialog guessed it from the longitude (the EXIF
+        #: gave none), or None: not kept by a project, so guessed again when it reopens.
+        self.timelapse_auto_offset: float | None = None
         #: A compass heading typed in step 1 (None: unknown, or the EXIF's when it records one,
         #: which a typed heading replaces).
         self.user_heading: float | None = None
@@ -932,6 +935,7 @@ class MainWindow(QMainWindow):
     def _reset_history(self, state: EditState | None) -> None:
         self._timelapse_baseline = None
         self.timelapse_auto_heading = None
+        self.timelapse_auto_offset = None
         self.undo_stack.clear()
         self._edit_state = state
         self.undo_stack.setClean()
@@ -2805,11 +2809,16 @@ class MainWindow(QMainWindow):
     def _timelapse_to_save(self) -> TimelapseSettings:
         """The time-lapse settings as a project keeps them: a heading the dialog filled in
         (:attr:`timelapse_auto_heading`) is not kept, so it is solved again from the confirmed
-        sun when the project reopens (a user trial's reopened project kept an old heading)."""
+        sun when the project reopens (a user trial's reopened project kept an old heading), nor
+        a UTC offset it guessed from the longitude (:attr:`timelapse_auto_offset`)."""
         settings, auto = self.timelapse_settings, self.timelapse_auto_heading
         if (settings.heading is not None and auto is not None
                 and abs(settings.heading - auto) < 0.05):
-            return replace(settings, heading=None)
+            settings = replace(settings, heading=None)
+        guess = self.timelapse_auto_offset  # (likewise an offset guessed from the longitude)
+        if (settings.utc_offset is not None and guess is not None
+                and abs(settings.utc_offset - guess) < 1e-6):
+            settings = replace(settings, utc_offset=None)
         return settings
 
     def _commit_typed_fields(self) -> None:

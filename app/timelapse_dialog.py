@@ -370,6 +370,8 @@ class TimelapseDialog(QDialog):
         self._preview_pixmap: QPixmap | None = None
         self._caption = ""  # the shown frame's caption, before what its preview says
         self._unsolved = ""  # why _solved_heading gave None, when it can say
+        self._zone_from = ""  # where the local time's offset came from (load_settings)
+        self._place_words = ""
 
         # ---- export row
         self.progress = QProgressBar(self)
@@ -419,6 +421,8 @@ class TimelapseDialog(QDialog):
             c.currentIndexChanged.connect(self._settings_changed)
         for c in (self.size_combo, self.format_combo):  # (the estimate; kept as unsaved work)
             c.currentIndexChanged.connect(self._update_estimate)
+        self.lon_box.valueChanged.connect(self._on_longitude_changed)
+        self.offset_box.valueChanged.connect(self._show_place_hint)
         self.date_edit.dateChanged.connect(self._settings_changed)
         self.start_edit.timeChanged.connect(self._settings_changed)
         self.end_edit.timeChanged.connect(self._settings_changed)
@@ -473,9 +477,15 @@ class TimelapseDialog(QDialog):
             offset = s.utc_offset
             if offset is None and getattr(exif, "tz_offset", None) is not None:
                 offset = exif.tz_offset.total_seconds() / 3600.0
-            if offset is None:
+                self._zone_from = "exif"
+            elif offset is None:  # guessed, and guessed again when the longitude changes
                 offset = tl.default_utc_offset(lon or 0.0)
+                self._zone_from = "longitude"
+            else:
+                self._zone_from = "saved"
             self.offset_box.setValue(offset)
+            self.main.timelapse_auto_offset = (offset if self._zone_from == "longitude"
+                                               else None)
             self.daylight_check.setChecked(not (s.start and s.end))
             if s.start:
                 self.start_edit.setTime(QTime.fromString(s.start, "HH:mm"))
@@ -494,11 +504,11 @@ class TimelapseDialog(QDialog):
                 w.blockSignals(False)
         self._ready = True
         self._on_daylight_toggled(self.daylight_check.isChecked())
-        gps = lat is not None and lon is not None
-        self.place_hint.setText(
-            "Place and date from the photo's EXIF." if gps else
+        self._place_words = (
+            "Place and date from the photo's EXIF." if lat is not None and lon is not None else
             "The photo has no GPS position: enter the place."
         )  # fmt: skip
+        self._show_place_hint()
         solvable = self._solved_heading() is not None  # (and _unsolved says why not)
         self.solve_button.setEnabled(solvable)
         # Off: say why (a night-time EXIF clock's sun is below the horizon: a robustness trial).
@@ -700,6 +710,39 @@ class TimelapseDialog(QDialog):
         light)."""
         self._on_scrub(self.scrubber.value())
         self._update_estimate()
+
+    def _offset_guessed(self) -> bool:
+        """Whether the local time's offset is still the one guessed from the longitude (the
+        user has not typed another)."""
+        auto = getattr(self.main, "timelapse_auto_offset", None)
+        return auto is not None and abs(self.offset_box.value() - auto) < 1e-6
+
+    def _show_place_hint(self) -> None:
+        """The place hint, with where the local time's offset comes from: the EXIF's is said,
+        a guess from the longitude is said to be one (national time zones and summer time
+        differ from it by an hour or more, and every time of the day moves with it)."""
+        zone = ""
+        if self._offset_guessed():
+            zone = (f" Local time UTC{self.offset_box.value():+g}\u00a0h is guessed from the "
+                    "longitude (the photo's EXIF gives no time zone): correct it if the place "
+                    "keeps another.")
+        elif (self._zone_from == "exif" and self._exif_offset() is not None
+              and abs(self.offset_box.value() - self._exif_offset()) < 1e-6):
+            zone = " Local time's offset from the photo's EXIF."
+        self.place_hint.setText(self._place_words + zone)
+
+    def _exif_offset(self) -> float | None:
+        exif = getattr(self.main.loaded, "exif", None)
+        tz = getattr(exif, "tz_offset", None)
+        return None if tz is None else tz.total_seconds() / 3600.0
+
+    def _on_longitude_changed(self, value: float) -> None:
+        """A longitude typed while the offset is the guessed one: guessed again from it."""
+        if self._ready and self._offset_guessed():
+            guess = tl.default_utc_offset(value)
+            self.main.timelapse_auto_offset = guess
+            self.offset_box.setValue(guess)
+        self._show_place_hint()
 
     def _on_daylight_toggled(self, checked: bool) -> None:
         self.start_edit.setEnabled(not checked)

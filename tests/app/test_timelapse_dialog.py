@@ -374,3 +374,43 @@ def test_from_photo_says_why_it_is_off_for_a_night_time_clock(window, photo, set
     dialog = window.open_timelapse()
     settle()
     assert dialog.solve_button.isEnabled() and dialog.solve_button.toolTip() == SOLVE_TIP
+
+
+def test_a_utc_offset_guessed_from_the_longitude_says_so_and_follows_the_longitude(
+        window, photo, settle):
+    """A photo without a time zone in its EXIF: the dialog guessed the local time's offset
+    from the longitude without a word, kept it when the user typed the place's longitude, and
+    a project saved it as if it had been typed. Now the hint says it is a guess, a longitude
+    typed re-guesses it, an offset typed stays, and only a typed one is kept."""
+    import datetime as dt
+    from dataclasses import replace
+
+    _relight(window, photo, settle)
+    exif = window.loaded.exif
+    wall = dt.datetime(2019, 8, 21, 10, 57)  # a bare camera clock: no zone
+    window.loaded = replace(window.loaded, exif=replace(exif, latitude=7.83, longitude=98.3,
+                                                        capture_time=wall, tz_offset=None))
+    dialog = window.open_timelapse()
+    settle()
+    assert dialog.offset_box.value() == 7.0
+    assert "UTC+7\u00a0h is guessed from the longitude" in dialog.place_hint.text()
+    assert window._timelapse_to_save().utc_offset is None  # a guess: guessed again next time
+    dialog.lon_box.setValue(-3.7)  # the place typed: the guess follows it
+    assert dialog.offset_box.value() == 0.0
+    assert "UTC+0\u00a0h is guessed" in dialog.place_hint.text()
+    dialog.offset_box.setValue(2.0)  # the user's own: kept, and no longer called a guess
+    dialog.lon_box.setValue(-3.0)
+    assert dialog.offset_box.value() == 2.0
+    assert "guessed" not in dialog.place_hint.text()
+    assert window._timelapse_to_save().utc_offset == 2.0
+    dialog.close()
+    zoned = dt.datetime(2019, 8, 21, 10, 57, tzinfo=dt.timezone(dt.timedelta(hours=7)))
+    window.timelapse_settings = replace(window.timelapse_settings, utc_offset=None)
+    window.loaded = replace(window.loaded, exif=replace(
+        window.loaded.exif, longitude=98.3, capture_time=zoned,
+        tz_offset=dt.timedelta(hours=7)))
+    dialog = window.open_timelapse()
+    settle()
+    assert dialog.offset_box.value() == 7.0
+    assert "from the photo's EXIF" in dialog.place_hint.text()
+    assert "guessed" not in dialog.place_hint.text()
