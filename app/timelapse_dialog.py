@@ -378,6 +378,12 @@ class TimelapseDialog(QDialog):
         self.progress.setRange(0, 100)
         self.progress.setValue(0)
         self.progress.setTextVisible(False)  # no "0 %" before any export (a user trial)
+        # Idle, an empty bar looked like a text field to type into (a user trial): it shows
+        # while an export runs and after one finishes; hidden, it keeps its room.
+        policy = self.progress.sizePolicy()
+        policy.setRetainSizeWhenHidden(True)
+        self.progress.setSizePolicy(policy)
+        self.progress.setVisible(False)
         self.status = QLabel("", self)
         self.status.setWordWrap(True)
         self.export_button = QPushButton("Export…", self)
@@ -943,6 +949,7 @@ class TimelapseDialog(QDialog):
         self._set_exporting(True)
         self.progress.setValue(0)
         self.progress.setTextVisible(True)
+        self.progress.setVisible(True)
         shape = self.frame_shape()
         pixels = f" of {shape[1]} × {shape[0]}" if shape is not None else ""
         self.status.setText(f"Exporting {len(samples)} frames{pixels} to {os.path.basename(path)}…")
@@ -975,6 +982,7 @@ class TimelapseDialog(QDialog):
         self.cancel_button.setEnabled(on)
         if not on:
             self.progress.setTextVisible(finished)
+            self.progress.setVisible(finished)
             if finished:
                 self.progress.setValue(self.progress.maximum())
 

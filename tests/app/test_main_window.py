@@ -234,6 +234,7 @@ def test_timelapse_export_decodes(qtbot, window, photo, settle, errors, tmp_path
     assert len(frames) == 5
     assert frames[0].shape == (96, 128, 3)
     assert dialog.progress.value() == 100 and dialog.progress.isTextVisible()
+    assert not dialog.progress.isHidden()  # the finished bar stays in view
 
 
 def test_timelapse_cancel_leaves_no_file(qtbot, window, photo, settle, tmp_path, monkeypatch):
@@ -269,7 +270,7 @@ def test_timelapse_cancel_leaves_no_file(qtbot, window, photo, settle, tmp_path,
     assert dialog.export_button.isEnabled() and not dialog.cancel_button.isEnabled()
     # No "0 %" under "nothing was written" (a user trial).
     assert dialog.status.text() == "Export cancelled; nothing was written."
-    assert not dialog.progress.isTextVisible()
+    assert not dialog.progress.isTextVisible() and dialog.progress.isHidden()
 
 
 def test_corrupt_file_shows_error_and_app_survives(qtbot, window, photo, settle, errors, tmp_path):
