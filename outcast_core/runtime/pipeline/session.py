@@ -47,7 +47,7 @@ from outcast_core.runtime.geometry.colour import (
 )
 from outcast_core.runtime.geometry.fullres import resize_to_working
 from outcast_core.runtime.geometry.raymarch import RaySampler
-from outcast_core.runtime.geometry.shadows import DirectStats, direct_shadow
+from outcast_core.runtime.geometry.shadows import DepthEdgeFill, DirectStats, direct_shadow
 from outcast_core.runtime.io.models import ModelError, ModelRegistry
 from outcast_core.runtime.pipeline.auto_sun import SunInPhoto, photo_camera_tilt, sun_in_photo
 from outcast_core.runtime.pipeline.daylight import (
@@ -590,6 +590,8 @@ class RelightSession:
         self.normals: np.ndarray | None = None
         self.view_dirs: np.ndarray | None = None
         self._sampler: RaySampler | None = None
+        #: The learned shadow's fill at depth edges (DepthEdgeFill) at the working size.
+        self._edge_fill: DepthEdgeFill | None = None
         self._preview: dict[str, Any] | None = None
         self._relight_preview: dict[str, Any] | None = None
         #: How many times the light-independent inputs of the step-2 drag preview were built
@@ -812,6 +814,7 @@ class RelightSession:
             depth = np.where(self.sky, np.inf, self.depth).astype(np.float32)
         if self.shadow_mode == "learned":
             out = self._learned_shadow(image, depth, normals, cam, wv)
+            out = self._depth_edge_fill(preview, depth)(out)
         else:
             step = self.preset.direct_step * (2.0 if preview else 1.0)
             stats = DirectStats(0, 0, "")
@@ -824,6 +827,18 @@ class RelightSession:
             out = np.clip(resize(out, (self.camera.height, self.camera.width)), 0.0, 1.0)
         self._time("shadow_preview" if preview else "shadow", t0)
         return out.astype(np.float32)
+
+    def _depth_edge_fill(self, preview: bool, depth: np.ndarray) -> DepthEdgeFill:
+        """The learned shadow's fill at depth edges for this depth (made once per depth map
+        and size: the preview's is kept with the preview's inputs)."""
+        if preview:
+            st = self._preview_state()
+            if "edge_fill" not in st:
+                st["edge_fill"] = DepthEdgeFill(depth)
+            return st["edge_fill"]
+        if self._edge_fill is None:
+            self._edge_fill = DepthEdgeFill(depth)
+        return self._edge_fill
 
     def _learned_shadow(
         self, image: np.ndarray, depth: np.ndarray, normals: np.ndarray, cam: Camera,
@@ -1260,6 +1275,7 @@ class RelightSession:
             "shadow_old": s_o, "geometry_old": geometry_o,
             "sampler": RaySampler(depth, cam) if self.shadow_mode != "learned"
             else None,
+            "edge_fill": DepthEdgeFill(depth) if self.shadow_mode == "learned" else None,
             # The working-size photo in 8 bits: the preview is moved onto it by tables only.
             "working_u8": np.rint(self.image_srgb * 255.0).astype(np.uint8),
             "view_dirs": view_dirs,
@@ -1307,7 +1323,7 @@ class RelightSession:
         if self.shadow_mode == "learned":
             out = self.registry.load("shadow", threads=PREVIEW_THREADS).run({**st["feeds_s"],
                                                     "sun": wv.astype(np.float32)[None]})
-            s_new = np.clip(_first(out)[0, 0], 0.0, 1.0)
+            s_new = st["edge_fill"](np.clip(_first(out)[0, 0], 0.0, 1.0))
         else:
             step = self.preset.direct_step * 2.0
             s_new = direct_shadow(
