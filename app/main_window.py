@@ -519,11 +519,19 @@ class MainWindow(QMainWindow):
         self.footers.addWidget(self.relight_panel.footer)
         self.footers.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
         self.steps.currentChanged.connect(self.footers.setCurrentIndex)
+        # Each step's title stays above it (scrolled down to the corrections, the panel cut
+        # "Step 2 · Relight" in half: a user trial).
+        self.headers = QStackedWidget(self)
+        self.headers.addWidget(self.align_panel.header)
+        self.headers.addWidget(self.relight_panel.header)
+        self.headers.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
+        self.steps.currentChanged.connect(self.headers.setCurrentIndex)
         side = QWidget(self)
         side.setMinimumWidth(290)
         side_layout = QVBoxLayout(side)
         side_layout.setContentsMargins(0, 0, 0, 0)
         side_layout.setSpacing(0)
+        side_layout.addWidget(self.headers)
         side_layout.addWidget(scroll, 1)
         side_layout.addWidget(self.footers)
         # Step 1's notice sits above the photo, as wide as the canvas (the panel is narrow).

@@ -86,11 +86,19 @@ BRUSH_RANGE = (0.5, 100.0 * MAX_BRUSH_RADIUS)
 BRUSH_STEP = 1.25
 
 
-def _header(text: str, hint: str, parent: QWidget) -> tuple[QLabel, QLabel]:
-    title = QLabel(f"<span style='font-size:13pt; font-weight:600'>{text}</span>", parent)
+def _header(text: str, hint: str, parent: QWidget) -> tuple[QWidget, QLabel]:
+    """The step's title, in a widget of its own the window pins above the scrolling panel
+    (``header``): scrolled to a tool below the dial on a small screen, the panel cut the title
+    in half (a user trial); and the hint below it, in the panel."""
+    header = QWidget(parent)
+    title = QLabel(f"<span style='font-size:13pt; font-weight:600'>{text}</span>", header)
+    title.setObjectName("step_title")
+    row = QVBoxLayout(header)
+    row.setContentsMargins(9, 9, 9, 0)
+    row.addWidget(title)
     body = QLabel(hint, parent)
     body.setWordWrap(True)
-    return title, body
+    return header, body
 
 
 def chain_tab_order(widgets: list[QWidget]) -> None:
@@ -171,7 +179,7 @@ class AlignPanel(QWidget):
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
-        title, body = _header(
+        self.header, body = _header(
             "Step 1 · Find the photo's sun",
             "Drag the sun until the blue predicted shadows line up with the shadows in the "
             "photo, then confirm.",
@@ -241,7 +249,6 @@ class AlignPanel(QWidget):
         row.addWidget(self.opacity_slider, 1)
         row.addWidget(self.opacity_label)
         layout = QVBoxLayout(self)
-        layout.addWidget(title)
         layout.addWidget(body)
         layout.addWidget(self.sun_panel)
         layout.addWidget(self.find_button)
@@ -334,12 +341,13 @@ class RelightPanel(QWidget):
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
-        title, body = _header(
+        self.header, body = _header(
             "Step 2 · Relight",
             "Drag the new sun (the faint one is the photo's own). View \u25b8 Shadows found "
             "shows the photo's shadows, to correct them.",
             self,
         )
+        self.hint = body  # (hidden while the correction tools show: they have their own)
         self.sun_panel = SunDialPanel("New sun", QColor(255, 140, 30), self)
         self.view_combo = QComboBox(self)
         for key, text in VIEW_CHOICES:
@@ -453,7 +461,6 @@ class RelightPanel(QWidget):
         buttons.addWidget(self.export_button)
         buttons.addWidget(self.timelapse_button)
         layout = QVBoxLayout(self)
-        layout.addWidget(title)
         layout.addWidget(body)
         layout.addWidget(self.sun_panel)
         layout.addLayout(form)
@@ -554,11 +561,15 @@ class RelightPanel(QWidget):
 
     def show_shadow_tools(self, shown: bool) -> None:
         """Show the correction tools (the views of the photo's own shadows) or hide them, with
-        the tool turned off."""
+        the tool turned off; the step's hint shows when they do not."""
         if not shown:
             self.set_shadow_tool("")
         self.shadow_tools.setVisible(shown)
         self.shadow_tools.setEnabled(shown)
+        # The step's hint (drag the sun; View > Shadows found to correct) is what the tools'
+        # own words follow on from; hidden, its room goes to the dial (on a 700-pixel-high
+        # window the panel scrolled and showed half of it: a user trial).
+        self.hint.setVisible(not shown)
 
     def brush(self) -> float:
         """The brush's radius, a fraction of the photo's longer side."""

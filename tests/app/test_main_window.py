@@ -948,6 +948,10 @@ def test_step_2_corrections_are_in_view_on_a_small_screen(qtbot, window, photo, 
              rp.clear_shadow_edits_button]
     qtbot.waitUntil(lambda: all(_in_view(scroll, w) for w in tools))
     assert rp.shadow_edits_label.text() == "2 corrections"
+    # The step's title stays whole above the scrolled panel (it was cut in half: a user trial).
+    assert window.headers.currentWidget() is rp.header and not scroll.isAncestorOf(rp.header)
+    assert rp.header.isVisibleTo(window) and rp.header.height() >= rp.header.sizeHint().height()
+    assert not rp.hint.isVisibleTo(window)  # the tools have their own words (half of it showed)
     assert rp.sun_panel.dial.height() >= 150
     if size == (1280, 800):  # all of it fits, the dial as tall as there is room for
         assert scroll.verticalScrollBar().maximum() == 0
@@ -956,4 +960,5 @@ def test_step_2_corrections_are_in_view_on_a_small_screen(qtbot, window, photo, 
     settle()  # at 1024 x 700 less the "Relighting" row's)
     qtbot.waitUntil(lambda: rp.sun_panel.dial.height() >= (280 if size[1] >= 800 else 250))
     assert scroll.verticalScrollBar().maximum() == 0
+    assert rp.hint.isVisibleTo(window)
     _no_gaps(rp)
