@@ -69,6 +69,18 @@ def test_a_gap_with_too_little_of_its_own_surface_keeps_its_shadow() -> None:
     assert np.array_equal(fill(shadow), shadow)
 
 
+@pytest.mark.parametrize("shape", [(1, 1), (1, 9), (9, 1), (2, 2)])
+def test_tiny_and_degenerate_depth_maps(shape: tuple[int, int]) -> None:
+    depth = np.full(shape, 5.0, np.float32)
+    depth.flat[0] = 2.0  # one near pixel
+    shadow = np.random.default_rng(0).random(shape).astype(np.float32)
+    out = DepthEdgeFill(depth)(shadow)
+    assert out.shape == shape and np.isfinite(out).all()
+    assert out.min() >= shadow.min() - 1e-6 and out.max() <= shadow.max() + 1e-6  # a mean
+    for bad in (np.nan, -1.0, 0.0, np.inf):  # no surface at all: nothing to fill
+        assert not DepthEdgeFill(np.full(shape, bad, np.float32)).band.any()
+
+
 def test_shapes_are_checked() -> None:
     with pytest.raises(ValueError, match="H x W"):
         DepthEdgeFill(np.ones((4, 4, 1), np.float32))
