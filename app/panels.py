@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from itertools import pairwise
 
-from PySide6.QtCore import QSize, Qt, Signal
+from PySide6.QtCore import QEvent, QObject, QSize, Qt, Signal
 from PySide6.QtGui import QColor, QHideEvent, QShowEvent
 from PySide6.QtWidgets import (
     QCheckBox,
@@ -190,12 +190,28 @@ class AlignPanel(QWidget):
         # panel does. In the narrow panel, above the dial, a long one (Find sun's on the field
         # path) pushed the camera heading box it speaks of below the fold (a user trial).
         self.notice = QLabel(self)
+        self.notice.setObjectName("step_notice")
         self.notice.setWordWrap(True)
-        self.notice.setStyleSheet(
-            "background: #fff4d6; color: #5a4300; border: 1px solid #e0c070; "
-            "border-radius: 4px; padding: 6px 8px;"
+        self.notice.setStyleSheet(  # (the label's own: its close button is not styled so)
+            "QLabel#step_notice { background: #fff4d6; color: #5a4300; "
+            "border: 1px solid #e0c070; border-radius: 4px; padding: 6px 28px 6px 8px; }"
         )
         self.notice.hide()
+        # A long notice took a sixth of a 700-pixel-high window from the photo (a user
+        # trial): it can be closed; it comes back when what it says changes (the status bar's
+        # "Photo notes" keeps the load's part).
+        self.notice_close = QToolButton(self.notice)
+        self.notice_close.setText("\u00d7")
+        self.notice_close.setAutoRaise(True)
+        self.notice_close.setFixedSize(20, 20)
+        self.notice_close.setStyleSheet(
+            "QToolButton { color: #5a4300; border: none; padding: 0; font-size: 13pt; }"
+            "QToolButton:hover { background: #f0dca8; border-radius: 3px; }")
+        self.notice_close.setToolTip("Hide this note (it shows again when it changes)")
+        self.notice_close.setAccessibleName("Hide the note")
+        self.notice_close.clicked.connect(self.dismiss_notice)
+        self.notice.installEventFilter(self)
+        self._dismissed_notice = ""
         self.sun_panel = SunDialPanel("Original sun", QColor(255, 200, 40), self)
         self.exif_button = QPushButton("Sun from photo's EXIF", self)
         self.exif_button.setToolTip(EXIF_BUTTON_TIP)
@@ -306,12 +322,29 @@ class AlignPanel(QWidget):
         self.exif_button.setToolTip(text or EXIF_BUTTON_TIP)
 
     def show_notice(self, text: str) -> None:
-        """A warning above the photo (hidden when empty, and while another step is shown)."""
+        """A warning above the photo (hidden when empty, while another step is shown, and
+        once closed until it says something else)."""
+        if text != self._dismissed_notice:
+            self._dismissed_notice = ""
         self.notice.setText(text)
         self._show_notice_if_any()
 
+    def dismiss_notice(self) -> None:
+        """Close the notice (its close button): it stays hidden until its text changes."""
+        self._dismissed_notice = self.notice.text()
+        self.notice.hide()
+
     def _show_notice_if_any(self) -> None:
-        self.notice.setVisible(bool(self.notice.text()) and not self.isHidden())
+        text = self.notice.text()
+        self.notice.setVisible(bool(text) and not self.isHidden()
+                               and text != self._dismissed_notice)
+
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:  # noqa: N802 (Qt's name)
+        if watched is self.notice and event.type() == QEvent.Type.Resize:
+            b = self.notice_close
+            b.adjustSize()
+            b.move(self.notice.width() - b.width() - 4, 4)  # its top right corner
+        return super().eventFilter(watched, event)
 
     def showEvent(self, event: QShowEvent) -> None:  # noqa: N802 (Qt's name)
         super().showEvent(event)

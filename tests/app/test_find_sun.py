@@ -525,6 +525,39 @@ def test_step_1_notice_drops_find_sun_advice_that_no_longer_holds(window, settle
     assert "No sun makes" not in notice.text() and notice.text() == loaded
 
 
+def test_step_1_notice_can_be_closed_until_it_says_something_else(window, settle,
+                                                                   monkeypatch):
+    """A user trial at 1024 x 700: the notice above the photo (Find sun's advice and the
+    depth source) took a sixth of the window. It closes; the same words do not bring it back,
+    new ones do."""
+    from PySide6.QtWidgets import QApplication
+
+    window.resize(1024, 700)
+    _load(window, os.path.join(ROOT, "samples", "exif_001_cz_fieldpath.jpg"), settle)
+    ap = window.align_panel
+    notice, close = ap.notice, ap.notice_close
+    QApplication.processEvents()
+    assert notice.isVisibleTo(window) and close.isVisibleTo(window)
+    assert notice.rect().contains(close.geometry())  # in its top right corner
+    assert close.geometry().right() > notice.width() - 40 and close.y() < 12
+    loaded = notice.text()
+    canvas_height = window.canvas.height()
+    close.click()
+    QApplication.processEvents()
+    assert not notice.isVisibleTo(window) and notice.text() == loaded
+    assert window.canvas.height() > canvas_height  # the photo takes the room
+    ap.show_notice(loaded)  # the same words again: still closed
+    assert not notice.isVisibleTo(window)
+    fit = dataclasses.replace(_fit(10.0, 60.0, found=False), unfound="no-fit")
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)
+    window.find_sun()  # something new to say
+    settle()
+    assert notice.isVisibleTo(window) and "around the ring" in notice.text()
+    close.click()
+    window.align_panel.heading_box.setValue(200.0)  # the advice goes: the load's words again
+    assert notice.isVisibleTo(window) and notice.text() == loaded
+
+
 def test_the_exif_button_s_tooltip_follows_its_note(window, settle):
     """A user trial: "No compass heading in the photo's EXIF…" stayed in the EXIF button's
     tooltip after a heading was typed, and for the next photo, which records one."""
