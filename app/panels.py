@@ -92,7 +92,6 @@ def _header(text: str, hint: str, parent: QWidget) -> tuple[QWidget, QLabel]:
     in half (a user trial); and the hint below it, in the panel."""
     header = QWidget(parent)
     title = QLabel(f"<span style='font-size:13pt; font-weight:600'>{text}</span>", header)
-    title.setObjectName("step_title")
     row = QVBoxLayout(header)
     row.setContentsMargins(9, 9, 9, 0)
     row.addWidget(title)
@@ -342,7 +341,6 @@ class AlignPanel(QWidget):
     def eventFilter(self, watched: QObject, event: QEvent) -> bool:  # noqa: N802 (Qt's name)
         if watched is self.notice and event.type() == QEvent.Type.Resize:
             b = self.notice_close
-            b.adjustSize()
             b.move(self.notice.width() - b.width() - 4, 4)  # its top right corner
         return super().eventFilter(watched, event)
 

@@ -259,9 +259,9 @@ class DepthEdgeFill:
         #: ``H x W`` bool: the far-side pixels whose shadow is filled.
         self.band = band
         ys, xs = np.nonzero(band)
-        self._index = (ys * d.shape[1] + xs).astype(np.int64)
+        self._index = (ys * d.shape[1] + xs).astype(np.intp)
         if ys.size == 0:
-            self._nbr = np.zeros((0, 0), np.int64)
+            self._nbr = np.zeros((0, 0), np.int32)
             self._wt = np.zeros((0, 0), np.float32)
             self._trust = np.zeros(0, np.float32)
             return
@@ -269,7 +269,7 @@ class DepthEdgeFill:
         support = ~band & ~sky
         r = EDGE_FILL_RADIUS
         offsets = [(dy, dx) for dy in range(-r, r + 1) for dx in range(-r, r + 1)]
-        nbr = np.zeros((ys.size, len(offsets)), np.int64)
+        nbr = np.zeros((ys.size, len(offsets)), np.int32)  # (half int64's memory)
         wt = np.zeros((ys.size, len(offsets)), np.float32)
         here = log_d[ys, xs]
         spread = 2.0 * (r / 2.0) ** 2
