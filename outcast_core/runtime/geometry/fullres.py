@@ -13,6 +13,10 @@ that in bands of rows, in a few threads, without any full-size float buffer:
   ``cv2.resize(..., INTER_LINEAR)``; every band uses the rows' absolute positions, so the result
   does not depend on the band size (no seams: tested equal to one band covering the image).
 
+Along the skyline (:class:`SkyGuide`) and at the photo's edges where the gain changes with the
+colour (:class:`EdgeGuide`), a pixel takes the gain of the working pixels of its own colour
+instead of the bilinear mix, so neither side's gain bleeds onto the other.
+
 Peak memory is the input and the output plus ``threads`` bands of temporaries, whatever the
 photo's size.
 """
@@ -237,6 +241,135 @@ def _guard_skyline(g: np.ndarray, lin: np.ndarray, near: np.ndarray, r0: int,
     g[ys, xs] = alpha * g_k + (1.0 - alpha) * g_s
 
 
+#: Rec. 709 luminance weights (linear RGB).
+_LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+#: :class:`EdgeGuide`: a full-resolution pixel is guided where, among the working pixels
+#: within :data:`EDGE_STATS_REACH` of the one it lies in, the log luminance gain spans more
+#: than this (elsewhere the gain is smooth and the bilinear one is right) ...
+EDGE_GAIN_SPREAD = 0.3
+#: ... the working photo's log luminance spans more than this (a new shadow's edge across one
+#: surface keeps the plain transfer: the photo says nothing about where it runs) ...
+EDGE_COLOUR_SPREAD = 0.6
+#: ... and the gain follows the colour there (absolute correlation of the two logs over the
+#: neighbourhood): an object's edge, not a blotchy new shadow over a textured surface (which,
+#: guided, printed the pool's ripples into its new shadow as jagged steps).
+EDGE_CORRELATION = 0.7
+#: :class:`EdgeGuide`: the neighbourhood (working pixels each way) those three are taken over.
+EDGE_STATS_REACH = 1
+#: :class:`EdgeGuide`: how far (working pixels, each way) a pixel looks for the working pixels
+#: of its own colour, and the half-width (working pixels) of the tent its spatial weight is.
+EDGE_REACH = 1
+EDGE_TENT = 1.5
+#: :class:`EdgeGuide`: Gaussian sigma of the range weight (log luminance distance).
+EDGE_RANGE_SIGMA = 0.2
+#: :class:`EdgeGuide`: floor of the range weight (a colour that no neighbour has falls back
+#: to the spatial weights).
+EDGE_RANGE_FLOOR = 1e-3
+
+
+class EdgeGuide:
+    """Joint bilateral upsampling of the gain where it jumps at an edge of the photo.
+
+    Bilinear upsampling gives a full-resolution pixel beside an object's edge part of the
+    object's gain. The working pixel on the edge mixes both sides, and the learned relighting
+    gives it a gain of its own, often the object's, which the bilinear weights then spread
+    onto the other side: on the README's relit pool sample, a light strip down the pool beside
+    each dark pole. Here a full-resolution pixel whose working neighbourhood has a gain and a
+    colour that both change, and change together (:data:`EDGE_GAIN_SPREAD`,
+    :data:`EDGE_COLOUR_SPREAD`, :data:`EDGE_CORRELATION`), takes its gain from the working
+    pixels within :data:`EDGE_REACH` of its own luminance: a tent of :data:`EDGE_TENT` working
+    pixels times a Gaussian (:data:`EDGE_RANGE_SIGMA`) of the log luminance distance between
+    the pixel and each working pixel (Kopf et al. 2007's joint bilateral upsampling, on the
+    edges only). Every other pixel keeps the bilinear gain; at 1:1 nothing changes.
+
+    Args:
+        photo_srgb: ``h x w x 3`` the working-size photo (sRGB; uint8 0-255 or float 0-1).
+        gain: ``h x w x 3`` its gain (:func:`gain_map`).
+
+    Attributes:
+        flag: ``h x w`` bool, the working pixels on such an edge.
+        neighbours: ``h x w x K x 4`` float32 (None when nothing is flagged): per working pixel,
+            the gain and log luminance of its ``K = (2 EDGE_REACH + 1) ** 2`` neighbours
+            (rows, then columns; clamped at the border).
+    """
+
+    def __init__(self, photo_srgb: np.ndarray, gain: np.ndarray) -> None:
+        photo = np.asarray(photo_srgb)
+        gain = np.asarray(gain, np.float32)
+        if gain.shape != photo.shape or gain.ndim != 3 or gain.shape[2] != 3:
+            raise ValueError(f"expected an h x w x 3 gain of the photo's shape {photo.shape}, "
+                             f"got {gain.shape}")
+        photo = (photo.astype(np.float32) / np.float32(255.0) if photo.dtype == np.uint8
+                 else photo.astype(np.float32))
+        log_lum = np.log(srgb_to_linear(photo) @ _LUMA + np.float32(_LOG_FLOOR))
+        log_lum = log_lum.astype(np.float32)
+        log_gain = np.log(np.maximum(gain @ _LUMA, 1e-6)).astype(np.float32)
+        size = (2 * EDGE_STATS_REACH + 1,) * 2
+        kernel = np.ones(size, np.uint8)
+
+        def spread(a: np.ndarray) -> np.ndarray:
+            return (cv2.dilate(a, kernel, borderType=cv2.BORDER_REPLICATE)
+                    - cv2.erode(a, kernel, borderType=cv2.BORDER_REPLICATE))
+
+        def box(a: np.ndarray) -> np.ndarray:
+            return cv2.blur(a, size, borderType=cv2.BORDER_REPLICATE)
+
+        mg, ml = box(log_gain), box(log_lum)
+        cov = box(log_gain * log_lum) - mg * ml
+        vg = np.maximum(box(log_gain * log_gain) - mg * mg, 1e-12)
+        vl = np.maximum(box(log_lum * log_lum) - ml * ml, 1e-12)
+        self.flag = ((spread(log_gain) > EDGE_GAIN_SPREAD)
+                     & (spread(log_lum) > EDGE_COLOUR_SPREAD)
+                     & (np.abs(cov) > EDGE_CORRELATION * np.sqrt(vg * vl)))
+        self.neighbours: np.ndarray | None = None
+        if self.useful():  # (built only when there is an edge to guard)
+            packed = np.concatenate([gain, log_lum[..., None]], axis=-1)
+            h, w, r = gain.shape[0], gain.shape[1], EDGE_REACH
+            pad = np.pad(packed, ((r, r), (r, r), (0, 0)), mode="edge")
+            self.neighbours = np.ascontiguousarray(np.stack(
+                [pad[dy:dy + h, dx:dx + w] for dy in range(2 * r + 1)
+                 for dx in range(2 * r + 1)], axis=2), dtype=np.float32)
+
+    def useful(self) -> bool:
+        """Whether any working pixel is on such an edge."""
+        return bool(self.flag.any())
+
+
+def _tent_table(out_size: int, in_size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per output row (or column): the working row it lies in (``nearest``) and the tent
+    weights (:data:`EDGE_TENT`) of the working rows ``nearest + d``, ``d`` in
+    ``-EDGE_REACH..EDGE_REACH`` (``out_size x (2 EDGE_REACH + 1)`` float32; rows past the
+    edge repeat the last, as the gather clamps)."""
+    pos = (np.arange(out_size) + 0.5) * (in_size / out_size)
+    nearest = np.minimum(pos.astype(np.int64), in_size - 1)
+    offsets = np.arange(-EDGE_REACH, EDGE_REACH + 1)
+    q = np.clip(nearest[:, None] + offsets[None, :], 0, in_size - 1)
+    wt = np.maximum(0.0, 1.0 - np.abs(pos[:, None] - 0.5 - q) / EDGE_TENT)
+    return nearest, wt.astype(np.float32)
+
+
+def _guard_edges(g: np.ndarray, lin: np.ndarray, r0: int, guide: EdgeGuide,
+                 tables: tuple[tuple[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+                 ) -> None:
+    """:class:`EdgeGuide`'s gain, in place, on the band's pixels on an edge. ``lin`` is the
+    band's linear photo plus :data:`GAIN_EPS`; ``r0`` the band's first row; ``tables`` the
+    rows' and the columns' :func:`_tent_table`."""
+    (yn, wy), (xn, wx) = tables
+    r1 = r0 + g.shape[0]
+    ys, xs = np.nonzero(guide.flag[yn[r0:r1]][:, xn])
+    if ys.size == 0:
+        return
+    nb = guide.neighbours[yn[ys + r0], xn[xs]]  # N x K x 4: each neighbour's gain, log lum
+    lf = np.log(np.maximum(lin[ys, xs] @ _LUMA - GAIN_EPS, 0.0) + _LOG_FLOOR)
+    d = lf.astype(np.float32)[:, None] - nb[:, :, 3]
+    rng = np.exp(d * d * np.float32(-0.5 / EDGE_RANGE_SIGMA ** 2))
+    rng += np.float32(EDGE_RANGE_FLOOR)
+    k = wy.shape[1]
+    rng *= (wy[ys + r0][:, :, None] * wx[xs][:, None, :]).reshape(-1, k * k)
+    total = rng.sum(axis=1, keepdims=True)
+    g[ys, xs] = np.einsum("nk,nkc->nc", rng, nb[:, :, :3]) / np.maximum(total, 1e-12)
+
+
 def _bands(height: int, width: int, band_rows: int | None) -> list[tuple[int, int]]:
     rows = band_rows if band_rows is not None else max(8, BAND_PIXELS // max(1, width))
     rows = max(1, int(rows))
@@ -252,6 +385,7 @@ def apply_gain(
     threads: int | None = None,
     out: np.ndarray | None = None,
     sky: SkyGuide | None = None,
+    edges: EdgeGuide | None = None,
 ) -> np.ndarray:
     """Multiply an upsampled working-size gain into a full-resolution photo, band by band.
 
@@ -291,6 +425,13 @@ def apply_gain(
                          f"got {out.shape} {out.dtype}")
     up = GainUpsampler(gain, (height, width))
     guard = sky is not None and sky.useful()
+    edge_guard = (edges is not None and edges.useful()
+                  and (height > gain.shape[0] or width > gain.shape[1]))
+    if edge_guard:
+        if edges.flag.shape != gain.shape[:2]:
+            raise ValueError(f"expected an edge guide of the gain's size {gain.shape[:2]}, "
+                             f"got {edges.flag.shape}")
+        edge_tables = (_tent_table(height, gain.shape[0]), _tent_table(width, gain.shape[1]))
     if guard:
         if sky.sky.shape != gain.shape[:2]:
             raise ValueError(f"expected a sky guide of the gain's size {gain.shape[:2]}, got "
@@ -309,6 +450,8 @@ def apply_gain(
             lin = srgb_to_linear(src)
             lin += GAIN_EPS
         g = up.rows(r0, r1)
+        if edge_guard:
+            _guard_edges(g, lin, r0, edges, edge_tables)
         if guard:
             y_first, y_last = int(ycoef[0][r0]), int(ycoef[0][r1 - 1]) + 1
             if sides["rows"][y_first:y_last + 1].any():  # (bands far from it: nothing to do)
@@ -349,6 +492,7 @@ def resize_to_working(photo_srgb: np.ndarray, shape: tuple[int, int]) -> np.ndar
 
 __all__ = [
     "DECODE_U8",
+    "EdgeGuide",
     "ENCODE_U8",
     "GAIN_EPS",
     "GainUpsampler",

@@ -210,6 +210,12 @@ def physics_relight(
     return linear_to_srgb(out)
 
 
+#: :func:`transfer_to_full_resolution` guides the gain at the photo's edges
+#: (:class:`~outcast_core.runtime.geometry.fullres.EdgeGuide`); False gives the plain bilinear
+#: transfer (for measuring what the guide does).
+EDGE_GUIDED = True
+
+
 def transfer_to_full_resolution(
     full_srgb: np.ndarray,
     work_before_srgb: np.ndarray,
@@ -224,8 +230,10 @@ def transfer_to_full_resolution(
     """Apply a working-resolution relighting to the full-resolution photo.
 
     The per-pixel linear gain ``after / before`` is computed at working resolution, upsampled
-    (bilinear, pixel centres aligned) and multiplied into the full-resolution photo, so the
-    photo's own detail survives. The full image is processed in bands of rows, in a few threads
+    (bilinear, pixel centres aligned; at the photo's edges, where the gain changes with the
+    colour, by the colour: :class:`~outcast_core.runtime.geometry.fullres.EdgeGuide`, unless
+    :data:`EDGE_GUIDED` is off) and multiplied into the full-resolution photo, so the photo's
+    own detail survives. The full image is processed in bands of rows, in a few threads
     (:func:`outcast_core.runtime.geometry.fullres.apply_gain`), so a 100-megapixel photo needs only
     its
     own buffers plus a few bands of temporaries; the result does not depend on the band size.
@@ -248,12 +256,13 @@ def transfer_to_full_resolution(
     Returns:
         ``H x W x 3`` sRGB of ``out_dtype``.
     """
-    from outcast_core.runtime.geometry.fullres import SkyGuide, apply_gain, gain_map
+    from outcast_core.runtime.geometry.fullres import EdgeGuide, SkyGuide, apply_gain, gain_map
 
     gain = gain_map(np.asarray(work_before_srgb), np.asarray(work_after_srgb))  # h x w x 3
     guide = None if sky is None else SkyGuide(sky, np.asarray(work_before_srgb))
+    edges = EdgeGuide(np.asarray(work_before_srgb), gain) if EDGE_GUIDED else None
     out = apply_gain(full_srgb, gain, out_dtype=out_dtype, band_rows=band_rows, threads=threads,
-                     sky=guide)
+                     sky=guide, edges=edges)
     if fills is not None:
         out = keep_fills(out, work_before_srgb, work_after_srgb, fills, full_srgb)
     return out

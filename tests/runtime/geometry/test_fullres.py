@@ -132,16 +132,20 @@ def test_the_skyline_keeps_each_sides_gain_at_full_resolution() -> None:
     sky_work = cv2.resize(sky_full.astype(np.float32), (big_w // k, big_h // k),
                           interpolation=cv2.INTER_AREA) > 0.5
     relit = np.where(sky_work[..., None], work, linear_to_srgb(srgb_to_linear(work) * 0.5))
-    plain = srgb_to_linear(transfer_to_full_resolution(photo, work, relit))
-    guided = srgb_to_linear(transfer_to_full_resolution(photo, work, relit, sky=sky_work))
+    gain = gain_map(work, relit)
+    guide = SkyGuide(sky_work, work)
+    plain = srgb_to_linear(apply_gain(photo, gain))
+    guided = srgb_to_linear(apply_gain(photo, gain, sky=guide))
     ratio_plain, ratio = plain / lin, guided / lin
     near = np.abs(yy - ridge) < 3 * k  # the skyline's band (the guide reaches 2.5 px)
     assert ratio_plain[sky_full & near].min() < 0.8  # the smudge the guide removes
     np.testing.assert_allclose(ratio[sky_full & near], 1.0, atol=0.02)
     np.testing.assert_allclose(ratio[~sky_full & near], 0.5, atol=0.02)
     np.testing.assert_allclose(guided[~near], plain[~near], atol=1e-5)
-    gain = gain_map(work, relit)
-    guide = SkyGuide(sky_work, work)
+    # The session's transfer (the sky guide and the edge guide) keeps each side's gain too.
+    both = srgb_to_linear(transfer_to_full_resolution(photo, work, relit, sky=sky_work)) / lin
+    np.testing.assert_allclose(both[sky_full & near], 1.0, atol=0.02)
+    np.testing.assert_allclose(both[~sky_full & near], 0.5, atol=0.02)
     whole = apply_gain(photo, gain, band_rows=big_h, threads=1, sky=guide)
     for rows, threads in ((1, 1), (13, 3)):
         np.testing.assert_allclose(apply_gain(photo, gain, band_rows=rows, threads=threads,
@@ -189,3 +193,81 @@ def test_the_skyline_guide_keeps_the_surfaces_own_gain_and_changes_nothing_at_on
     err = np.abs(out / np.maximum(srgb_to_linear(big), 1e-4) - ref / np.maximum(
         srgb_to_linear(big), 1e-4))
     assert err.max() < 0.1  # near the plain transfer's gains: no pixel flips to the other's
+
+
+def _pole_scene(k: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A dark pole (not on the working grid) before a bright pool, at ``k`` x: the full photo,
+    the working photo, its relighting (the pool shaded to 0.3, the pole kept, the working pixels
+    that mix both given the pole's gain, as the learned relighting does) and the full-size
+    pole mask."""
+    big_h, big_w = 20 * k, 24 * k
+    xx = np.arange(big_w)[None, :] * np.ones((big_h, 1))
+    pole = (xx >= 9.4 * k) & (xx < 10.9 * k)
+    lin = np.where(pole[..., None], [0.01, 0.012, 0.015], [0.2, 0.45, 0.5]).astype(np.float32)
+    photo = linear_to_srgb(lin)
+    work = cv2.resize(photo, (big_w // k, big_h // k), interpolation=cv2.INTER_AREA)
+    dark = srgb_to_linear(work).mean(axis=-1) < 0.3  # the pole and the pixels mixing it
+    gain = np.where(dark[..., None], 1.0, 0.3).astype(np.float32)
+    relit = linear_to_srgb(srgb_to_linear(work) * gain)
+    return photo, work, relit, pole
+
+
+def test_an_objects_edge_keeps_each_sides_gain_at_full_resolution() -> None:
+    """The README's relit pool sample had a light strip beside each dark pole: the working
+    pixel mixing pole and pool got the pole's gain, and the bilinear transfer spread it onto
+    the pool. With the edge guide the pool keeps its own gain up to the pole; the pole keeps
+    its own; far from the edge the transfer is the plain one; bands do not matter."""
+    from outcast_core.runtime.geometry.fullres import EdgeGuide
+
+    photo, work, relit, pole = _pole_scene()
+    lin = srgb_to_linear(photo)
+    gain = gain_map(work, relit)
+    plain = srgb_to_linear(apply_gain(photo, gain)) / lin
+    guide = EdgeGuide(work, gain)
+    guided = srgb_to_linear(apply_gain(photo, gain, edges=guide)) / lin
+    assert plain[~pole].max() > 0.5  # the light strip
+    np.testing.assert_allclose(guided[~pole], 0.3, atol=0.03)
+    assert guided[pole].min() > 0.9
+    far = np.abs(np.arange(photo.shape[1]) - 10.0 * 6)[None, :] > 4 * 6
+    np.testing.assert_allclose(guided[:, far[0]], plain[:, far[0]], atol=1e-5)
+    whole = apply_gain(photo, gain, band_rows=photo.shape[0], threads=1, edges=guide)
+    for rows, threads in ((1, 1), (13, 3)):
+        np.testing.assert_allclose(apply_gain(photo, gain, band_rows=rows, threads=threads,
+                                              edges=guide), whole, atol=1e-6)
+    # The session's transfer uses it.
+    through = srgb_to_linear(transfer_to_full_resolution(photo, work, relit)) / lin
+    np.testing.assert_allclose(through[~pole], 0.3, atol=0.03)
+
+
+def test_the_edge_guide_leaves_a_shadow_edge_on_one_surface_and_one_to_one_alone() -> None:
+    """A new shadow's edge across one surface (the photo says nothing about where it runs)
+    keeps the plain transfer, texture or not; a gain that does not follow the colour
+    (a blotchy shadow over a textured surface) too; at 1:1 nothing changes."""
+    from outcast_core.runtime.geometry.fullres import EdgeGuide
+
+    rng = np.random.default_rng(3)
+    h, w, k = 16, 20, 5
+    work = np.full((h, w, 3), 0.6, np.float32)
+    gain = np.where((np.arange(w) < 9.5)[None, :, None], 0.25, 1.0) * np.ones((h, 1, 3))
+    gain = gain.astype(np.float32)
+    photo = cv2.resize(work, (w * k, h * k), interpolation=cv2.INTER_LINEAR)
+    guide = EdgeGuide(work, gain)
+    assert not guide.useful()
+    np.testing.assert_allclose(apply_gain(photo, gain, edges=guide), apply_gain(photo, gain),
+                               atol=1e-6)
+    texture = np.clip(rng.uniform(0.3, 0.9, (h, w, 1)) * np.ones((1, 1, 3)), 0, 1)
+    texture = texture.astype(np.float32)
+    blotchy = rng.uniform(0.2, 1.2, (h, w, 1)).astype(np.float32) * np.ones((1, 1, 3),
+                                                                             np.float32)
+    guide = EdgeGuide(texture, blotchy)
+    assert guide.flag.mean() < 0.1  # (nine samples correlate by chance now and then)
+    photo, work, relit, _ = _pole_scene()
+    gain = gain_map(work, relit)
+    guide = EdgeGuide(work, gain)
+    assert guide.useful()
+    np.testing.assert_allclose(apply_gain(work, gain, edges=guide), apply_gain(work, gain),
+                               atol=1e-6)
+    with pytest.raises(ValueError, match="gain"):
+        EdgeGuide(work, gain[:, :-1])
+    with pytest.raises(ValueError, match="edge guide"):
+        apply_gain(photo, gain[:-1, :-1], edges=guide)
