@@ -132,10 +132,10 @@ def read_camera_pose(path: str | os.PathLike[str]) -> CameraPose | None:
     Never raises for a missing or unreadable file or malformed metadata (the photo itself is
     read, with its errors, by :func:`~outcast_core.runtime.io.imageio.read_image`).
     """
-    from PIL import Image
+    from outcast_core.runtime.io.imageio import open_pil
 
     try:
-        with Image.open(path) as im:
+        with open_pil(path) as im:
             pose = pose_from_xmp(_xmp_of(im))
             if pose is not None and pose.pitch is not None:
                 return pose

@@ -574,6 +574,17 @@ def _open_pil(path: Path, data: bytes | None = None) -> Iterator[Image.Image]:
         f.close()
 
 
+@contextlib.contextmanager
+def open_pil(path: str | os.PathLike[str]) -> Iterator[Image.Image]:
+    """A photo opened by Pillow (header only, lazily decoded) for reading its metadata, with
+    Pillow's decompression-bomb warning (from 89 MP) replaced by OutCast's own limit
+    (:data:`MAX_DECODE_PIXELS`, checked where the pixels are read): a 108 MP photo, which
+    OutCast relights, printed Pillow's warning when its camera pose was read (a user trial).
+    Raises what ``Image.open`` raises."""
+    with _open_pil(Path(path)) as im:
+        yield im
+
+
 def _check_pixel_count(path: Path, width: int, height: int) -> None:
     """Refuse an image larger than :data:`MAX_DECODE_PIXELS` (from its header size)."""
     if width * height > MAX_DECODE_PIXELS:

@@ -668,8 +668,10 @@ def read_phone_depth(path: str | os.PathLike[str], photo_hw: tuple[int, int] | N
 
 
 def _jpeg_orientation(path: Path) -> int:
+    from outcast_core.runtime.io.imageio import open_pil
+
     try:
-        with Image.open(path) as im:
+        with open_pil(path) as im:
             return int(im.getexif().get(0x0112, 1) or 1)
     except Exception:
         return 1

@@ -46,6 +46,27 @@ def test_dji_gimbal_in_a_jpeg(tmp_path: Path) -> None:
     assert pose.pitch_roll() == (-30.5, 1.2)
 
 
+def test_a_photo_above_pillows_bomb_limit_is_read_without_its_warning(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Pillow warns from 89 MP (and fails from twice that); OutCast relights up to 160 MP and
+    checks its own limit where it reads the pixels. A 108 MP photo printed Pillow's warning
+    when its pose was read (a user trial). Pillow's limit is lowered here so that a small
+    photo stands in for the large one: the pose is still read, and nothing is warned."""
+    import warnings
+
+    from outcast_core.runtime.io.phone_depth import _jpeg_orientation
+
+    path = tmp_path / "drone.jpg"
+    _photo().save(path, xmp=XMP_DJI.encode())
+    monkeypatch.setattr(Image, "MAX_IMAGE_PIXELS", 48 * 32 * 2 // 3)  # within 2x: a warning
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert read_camera_pose(path) == CameraPose(-30.5, 1.2, "XMP DJI gimbal")
+        assert _jpeg_orientation(path) == 1
+    assert not [w for w in caught if issubclass(w.category, Image.DecompressionBombWarning)]
+    assert Image.MAX_IMAGE_PIXELS == 48 * 32 * 2 // 3  # Pillow's own limit is put back
+
+
 def test_gpano_elements_in_a_png(tmp_path: Path) -> None:
     path = tmp_path / "phone.png"
     info = PngImagePlugin.PngInfo()
