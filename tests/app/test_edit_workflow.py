@@ -340,6 +340,24 @@ def test_undo_does_not_take_in_a_number_being_typed(window, photo, settle):
     assert window.user_heading is None and window.step is Step.RELIGHT
 
 
+def test_a_cut_jpeg_is_said_before_the_save_question(window, photo, settle, leave_answers,
+                                                    errors, tmp_path):
+    """A JPEG cut short passed the header check, so the app asked to save the open photo's
+    changes and only then said the new one was damaged (a user trial). Now it says so first;
+    the open photo and its edits stay."""
+    _load(window, photo, settle)
+    _confirm(window, settle)
+    assert window.has_unsaved_changes()
+    data = Path(photo).read_bytes()
+    cut = tmp_path / "cut.jpg"
+    cut.write_bytes(data[: len(data) * 2 // 3])
+    window.open_path(str(cut))
+    settle()
+    assert leave_answers.asked == []
+    assert errors and "truncated or corrupt" in errors[-1][1]
+    assert window.image_path == str(photo) and window.has_unsaved_changes()
+
+
 def test_the_same_photo_opened_again_starts_afresh(window, photo, settle, leave_answers):
     """Opened again with "Don't save": its time-lapse edits go with the rest (a user trial
     found them saved later)."""

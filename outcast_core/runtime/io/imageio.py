@@ -344,10 +344,17 @@ def read_image_size(path: str | os.PathLike[str]) -> tuple[int, int]:
 
 
 def check_photo_file(path: str | os.PathLike[str]) -> None:
-    """Refuse a file that cannot be a photo, from its first bytes and header only (format and
-    pixel count; no EXIF, no pixels): quick enough for a window to call before it asks
-    anything (:func:`read_image_size` reads a PNG's chunks looking for EXIF, most of a big
-    file).
+    """Refuse a file that cannot be a photo, from its first bytes and header (format and
+    pixel count; no EXIF), and a JPEG cut short: quick enough for a window to call before it
+    asks anything (:func:`read_image_size` reads a PNG's chunks looking for EXIF, most of a
+    big file).
+
+    A JPEG that does not end with its end-of-image marker is decoded at 1/8 size (the
+    entropy-coded data read once, a few hundredths of a second for a 12 MP photo) and
+    refused when that stops short, unless only the marker is missing
+    (:func:`_jpeg_lacking_only_its_end`): a truncated JPEG passed the header check, so the
+    app asked to save the open photo's changes before it said the new one was damaged (a user
+    trial). Other formats are checked when their pixels are read.
 
     Raises:
         ImageReadError: as :func:`read_image`, for what the header shows.
@@ -356,11 +363,30 @@ def check_photo_file(path: str | os.PathLike[str]) -> None:
     try:
         _check_input_file(path)
         with _open_pil(path) as im:
-            _checked_format(im, path)
+            fmt = _checked_format(im, path)
+            if fmt in ("JPEG", "MPO"):
+                _check_jpeg_size(path, fmt, *im.size)
+                _check_jpeg_complete(im, path, fmt)
     except ImageReadError:
         raise
     except Exception as exc:  # noqa: BLE001 - Pillow raises many types for broken headers
         raise _error_for(exc, path, f"cannot read image '{path}'") from exc
+
+
+def _check_jpeg_complete(im: Image.Image, path: Path, fmt: str) -> None:
+    """:func:`check_photo_file`'s test of an opened JPEG ``im`` for data cut short."""
+    with open(path, "rb") as f:
+        f.seek(max(0, path.stat().st_size - 4096))
+        tail = f.read()
+    if tail.rstrip(b"\x00").endswith(b"\xff\xd9"):
+        return  # (the usual case: nothing to decode)
+    try:
+        im.draft("RGB", (max(1, im.width // 8), max(1, im.height // 8)))
+        im.load()
+    except OSError as exc:
+        if _jpeg_lacking_only_its_end(path, fmt) is None:
+            raise ImageReadError(f"cannot read image '{path}': the file is truncated or "
+                                 "corrupt", ImageReadReason.DAMAGED, _one_line(exc)) from exc
 
 
 def _starts_like_a_photo(path: Path) -> bool:

@@ -451,6 +451,32 @@ def test_a_jpeg_lacking_only_its_end_marker_is_read(tmp_path: Path, subsampling:
     _check_error(cut, "truncated or corrupt", ImageReadReason.DAMAGED)
 
 
+@pytest.mark.parametrize("kind", ["baseline", "progressive"])
+def test_the_quick_check_refuses_a_cut_jpeg_as_reading_does(tmp_path: Path, kind: str) -> None:
+    """:func:`check_photo_file` (what the app calls before it asks to save the open photo)
+    refuses a JPEG cut short, as :func:`read_image` does, and passes the whole file and one
+    lacking only its end marker where reading does (a user trial: a cut JPEG passed)."""
+    from outcast_core.runtime.io.imageio import check_photo_file
+
+    im = Image.fromarray((_noise_image(61, 83) * 255).round().astype(np.uint8))
+    whole = tmp_path / "whole.jpg"
+    im.save(whole, quality=90, progressive=kind == "progressive")
+    data = whole.read_bytes()
+    check_photo_file(whole)
+    no_end = tmp_path / "no_end.jpg"
+    no_end.write_bytes(data[:-2])
+    if kind == "baseline":
+        check_photo_file(no_end)
+        read_image(no_end)
+    for keep in (len(data) * 2 // 3, len(data) - 400):
+        cut = tmp_path / f"cut{keep}.jpg"
+        cut.write_bytes(data[:keep])
+        with pytest.raises(ImageReadError, match="truncated or corrupt") as info:
+            check_photo_file(cut)
+        assert info.value.reason is ImageReadReason.DAMAGED
+        _check_error(cut, "truncated or corrupt", ImageReadReason.DAMAGED)
+
+
 @pytest.mark.parametrize("kind", ["progressive", "cmyk"])
 def test_a_cut_progressive_or_cmyk_jpeg_stays_refused(tmp_path: Path, kind: str) -> None:
     """Their last block does not turn mid-grey when cut short (a progressive JPEG's first
