@@ -531,6 +531,92 @@ def _region_bands(labels: np.ndarray, stats: np.ndarray, gap: int, reach: int
         yield (t, b, le, r), inside, band
 
 
+#: :func:`marked_lift`: a class of the lit ring whose chromaticity differs from the marked
+#: shadow's by more than this (log units)...
+RING_OTHER_CHROMA = 0.1
+#: ... in a direction more than this many degrees from the way shade's turns when it is lit
+#: (``-SKY_SHADE_SHIFT``) is another material, not the shadow's surface lit.
+RING_OTHER_ANGLE = 45.0
+
+
+def _lit_class(log_c: np.ndarray, ring: np.ndarray, bright: np.ndarray, mark: np.ndarray
+               ) -> np.ndarray:
+    """Which class of a marked shadow's lit ring (``ring``, ``H x W`` bool, split by
+    ``bright`` over its pixels) is the shadow's surface lit, as ``ring``'s pixels to keep.
+
+    The bright class, as a rule: the dark one is another shadow, the mark's missed penumbra or
+    dark dirt. But a shadow's occluder stands beside it, and a click's or a grown stroke's
+    ring runs round the whole shadow and meets it: on a dev photo a box's shadow on carpet,
+    marked, was lifted to the white box's cream, three times the carpet's brightness. So the
+    dark class is kept when it is lit against the mark (:data:`ADD_DARKER` brighter), turns
+    from the mark as lit shade does, and the bright class does not (:data:`RING_OTHER_CHROMA`,
+    :data:`RING_OTHER_ANGLE`).
+    """
+    lc = log_c[ring]
+    dark = ~bright
+    mark_c = np.median(log_c[mark], axis=0)
+    level = float(mark_c @ LUMA_709)
+    away = -np.asarray(SKY_SHADE_SHIFT, np.float64)
+    away /= np.linalg.norm(away)
+
+    def other(cls: np.ndarray) -> bool:
+        c = np.median(lc[cls], axis=0) - mark_c
+        d = np.array([c[0] - c[1], c[2] - c[1]], np.float64)
+        norm = float(np.linalg.norm(d))
+        return norm > RING_OTHER_CHROMA and float(d @ away) < norm * math.cos(
+            math.radians(RING_OTHER_ANGLE))
+
+    keep = bright
+    if (float(np.median(lc[dark] @ LUMA_709)) >= level + ADD_DARKER and other(bright)
+            and not other(dark)):
+        keep = dark
+    out = np.zeros_like(ring)
+    out[ring] = keep
+    return out
+
+
+def _marks_with_their_shadows(marks: np.ndarray, log_y: np.ndarray, usable: np.ndarray
+                              ) -> np.ndarray:
+    """The marked pixels (``H x W`` bool) with, for each 8-connected mark that has no lit
+    surface round it, the even region it lies in: connected pixels within :data:`ADD_RANGE` of
+    the mark's median log luminance ``log_y``, as a click's fill takes them, where that region
+    may be a shadow at that level (:func:`_darker_than_round`: at most :data:`ADD_MAX_SHARE`
+    of the surface, darker than a ring round it). :func:`marked_lift` reads the lit surface
+    round this: a stroke inside a wide shadow is lifted to the lit ground beyond the shadow,
+    as a click on it is, and not to the shadow round the stroke (a user trial: tinted, not
+    lifted). A mark with lit surface round it already (a click's region, a found shadow: its
+    ring, :data:`ADD_RING` wide, :data:`ADD_DARKER` brighter) keeps its own ring, and costs
+    only that test."""
+    out = marks.copy()
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(marks.astype(np.uint8),
+                                                           connectivity=8)
+    if n <= 1:
+        return out
+    h, w = marks.shape
+    side = max(h, w)
+    smooth = cv2.GaussianBlur(log_y.astype(np.float32), (0, 0), max(0.5, side / 384.0))
+    ring_r = max(2, round(ADD_RING * side))
+    for k in range(1, n):
+        x0, y0, bw, bh = (int(v) for v in stats[k, :4])
+        t, le = max(0, y0 - ring_r), max(0, x0 - ring_r)
+        b, r = min(h, y0 + bh + ring_r), min(w, x0 + bw + ring_r)
+        mark = labels[t:b, le:r] == k
+        level = float(np.median(smooth[t:b, le:r][mark]))
+        round_it = _grown(mark, ring_r) & ~mark & usable[t:b, le:r]
+        if round_it.any() and level <= float(np.median(smooth[t:b, le:r][round_it])) - ADD_DARKER:
+            continue  # lit surface round it already
+        mark = labels == k
+        even = ((np.abs(smooth - level) <= ADD_RANGE) & usable) | mark
+        _, parts = cv2.connectedComponents(even.astype(np.uint8), connectivity=8)
+        grown = np.isin(parts, np.unique(parts[mark]))
+        if grown.sum() > ADD_MAX_SHARE * max(1, int(usable.sum())):
+            continue  # (:func:`_darker_than_round`'s two tests, on the whole photo)
+        ring = _grown(grown, ring_r) & ~grown & usable
+        if not ring.any() or level <= float(np.median(smooth[ring])) - ADD_DARKER:
+            out |= grown
+    return out
+
+
 def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
     """The lift of the shadows the user marked, from the lit surface just round each of them
@@ -568,16 +654,20 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     m = np.clip(np.asarray(marked, np.float32), 0.0, 1.0)
     h, w = m.shape
     side = max(h, w)
-    _, labels, stats, _ = cv2.connectedComponentsWithStats((m > 0).astype(np.uint8),
-                                                           connectivity=8)
     gap = max(1, round(MARKED_GAP * side))
     reach = gap + max(2, round(MARKED_RING * side))
-    candidates = usable & (p <= 0.5) & (m <= 0)
     y = log_c @ LUMA_709
+    # Each mark is measured against the lit surface round the shadow it lies in: a stroke
+    # painted inside a wide shadow has shadow all round it (a user trial: tinted, not lifted).
+    region = _marks_with_their_shadows(m > 0, y, usable)
+    _, labels, stats, _ = cv2.connectedComponentsWithStats(region.astype(np.uint8),
+                                                           connectivity=8)
+    candidates = usable & (p <= 0.5) & ~region
     lit = np.zeros(log_c.shape, np.float32)
     top = np.zeros((h, w), np.float32)
     weight = np.zeros((h, w), np.float32)
-    for (t, b, le, r), inside, band in _region_bands(labels, stats, gap, reach):
+    for (t, b, le, r), whole, band in _region_bands(labels, stats, gap, reach):
+        inside = whole & (m[t:b, le:r] > 0)
         ring = band & candidates[t:b, le:r]
         if ring.sum() < 16:
             continue
@@ -586,7 +676,7 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
         bright = values >= split
         if (STROKE_MIN_SHARE * values.size <= bright.sum() < values.size
                 and np.median(values[bright]) - np.median(values[~bright]) > STROKE_SPLIT):
-            ring[ring] = bright
+            ring = _lit_class(log_c[t:b, le:r], ring, bright, inside)
         lit[t:b, le:r][inside] = log_c[t:b, le:r][ring].mean(axis=0)
         top[t:b, le:r][inside] = np.percentile(y[t:b, le:r][ring], MARKED_TOP)
         weight[t:b, le:r][inside] = m[t:b, le:r][inside]

@@ -615,6 +615,71 @@ def test_deep_blue_shade_is_lifted_to_its_lit_ring_when_found_as_shade() -> None
         assert np.abs(marked[regions[name]] - plain[regions[name]]).mean() < 0.01
 
 
+def test_a_mark_inside_a_wide_shadow_is_lifted_to_the_lit_ground_beyond_it() -> None:
+    """A "Mark shadow" stroke painted inside a wide shadow the photo's probability missed was
+    tinted and not lifted: the ring round the stroke is that shadow too (a user trial on the
+    ski slope). It is measured against the lit ground round the shadow it lies in, as a click
+    there is; only the marked pixels are lifted. A mark on a lit patch gets nothing either
+    way, and a mark covering the whole shadow is lifted as before."""
+    img, mask = _shadowed(box=(16, 48, 20, 76))  # a wide shadow
+    sky = np.zeros((H, W), bool)
+    p = np.where(mask, 0.3, 0.0).astype(np.float32)  # missed: found at 0.3 only
+    stroke = np.zeros((H, W), bool)
+    stroke[30:36, 40:56] = True  # painted well inside it
+    plain = deshadow(img, p, sky)
+    p, _ = ps.apply_edit_masks(p, sky, stroke, np.zeros((H, W), bool))  # as the session does
+    out = deshadow(img, p, sky, marked=stroke.astype(np.float32))
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+
+    def y(a: np.ndarray, where: np.ndarray) -> float:
+        return float(luminance(srgb_to_linear(a))[where].mean())
+
+    lit = ~cv2.dilate(mask.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    assert y(out, stroke) > 0.85 * y(img, lit)  # lifted to the lit ground
+    rest = mask & ~cv2.dilate(stroke.astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
+    assert y(plain, stroke) < 0.5 * y(img, lit)  # (unmarked, it stays a shadow)
+    np.testing.assert_allclose(out[rest], plain[rest], atol=0.02)  # the rest is not marked
+    p_whole, _ = ps.apply_edit_masks(np.where(mask, 0.3, 0.0).astype(np.float32), sky, mask,
+                                     np.zeros((H, W), bool))
+    whole = deshadow(img, p_whole, sky, marked=mask.astype(np.float32))
+    assert y(whole, stroke) > 0.85 * y(img, lit)
+    patch = np.zeros((H, W), bool)
+    patch[2:8, 2:10] = True  # on the lit ground
+    np.testing.assert_allclose(deshadow(img, p, sky, marked=patch.astype(np.float32))[patch],
+                               plain[patch], atol=0.05)
+
+
+def test_a_marked_shadow_beside_its_white_occluder_is_lifted_to_the_ground_not_the_box(
+) -> None:
+    """A box's shadow on brown carpet, marked: the lit ring round it holds the carpet and the
+    white box itself, which Otsu's bright class picked: the shadow was lifted to the box's
+    cream, three times the carpet (a dev photo). The ring's class that turns from the shadow
+    as lit shade does (the carpet) is taken; a shadow beside a lit surface of its own colour
+    only is lifted as before."""
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+
+    rng = np.random.default_rng(4)
+    carpet = np.array([0.45, 0.35, 0.25], np.float32)
+    img = np.clip(carpet * (1 + 0.04 * rng.standard_normal((H, W, 1))), 0, 1).astype(np.float32)
+    shadow = np.zeros((H, W), bool)
+    shadow[30:50, 20:60] = True
+    box = np.zeros((H, W), bool)
+    box[20:50, 60:80] = True
+    img[shadow] *= SHADE  # darker and bluer
+    img[box] = [0.92, 0.93, 0.95]  # white
+    sky = np.zeros((H, W), bool)
+    p = shadow.astype(np.float32)
+    out = deshadow(img, p, sky, marked=p)
+
+    def y(a: np.ndarray, where: np.ndarray) -> float:
+        return float(np.median(luminance(srgb_to_linear(a))[where]))
+
+    core = cv2.erode(shadow.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    ground = ~cv2.dilate((shadow | box).astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
+    assert 0.8 < y(out, core) / y(img, ground) < 1.25
+    assert y(out, core) < 0.5 * y(img, box)
+
+
 def test_a_marked_shadow_is_lifted_no_brighter_than_its_lit_ring_even_unbounded() -> None:
     """The relighting's ceiling is the de-shadow without its bound (``above_lit=None``); a
     marked shadow's pixels still end no brighter than the lit surface's bright end round it

@@ -1122,18 +1122,21 @@ def test_a_marked_deep_blue_shadow_is_lifted_to_the_lit_colour_not_cyan() -> Non
 
 
 def _reference_marked_lift(log_c, p, usable, marked):
-    """``marked_lift`` as first written (ab58bda): two elliptical dilations per region."""
+    """``marked_lift`` as first written (ab58bda): two elliptical dilations per region (each
+    mark with the shadow it lies in and the ring's lit class chosen as ``marked_lift`` does
+    since 2026-12-04: what is compared here is the bands)."""
     from outcast_core.runtime.pipeline import photo_shadows as ps
 
     m = np.clip(np.asarray(marked, np.float32), 0.0, 1.0)
     h, w = m.shape
     side = max(h, w)
-    n, labels, stats, _ = cv2.connectedComponentsWithStats((m > 0).astype(np.uint8),
+    y = log_c @ ps.LUMA_709
+    grown = ps._marks_with_their_shadows(m > 0, y, usable)
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(grown.astype(np.uint8),
                                                            connectivity=8)
     gap = max(1, round(ps.MARKED_GAP * side))
     reach = gap + max(2, round(ps.MARKED_RING * side))
-    candidates = usable & (p <= 0.5) & (m <= 0)
-    y = log_c @ ps.LUMA_709
+    candidates = usable & (p <= 0.5) & ~grown
     lit = np.zeros(log_c.shape, np.float32)
     top = np.zeros((h, w), np.float32)
     weight = np.zeros((h, w), np.float32)
@@ -1148,13 +1151,13 @@ def _reference_marked_lift(log_c, p, usable, marked):
         ring = (far > 0) & (near == 0) & candidates[t:b, le:r]
         if ring.sum() < 16:
             continue
+        inside = (region > 0) & (m[t:b, le:r] > 0)
         values = y[t:b, le:r][ring]
         split = ps._otsu_threshold(values)
         bright = values >= split
         if (ps.STROKE_MIN_SHARE * values.size <= bright.sum() < values.size
                 and np.median(values[bright]) - np.median(values[~bright]) > ps.STROKE_SPLIT):
-            ring[ring] = bright
-        inside = region > 0
+            ring = ps._lit_class(log_c[t:b, le:r], ring, bright, inside)
         lit[t:b, le:r][inside] = log_c[t:b, le:r][ring].mean(axis=0)
         top[t:b, le:r][inside] = np.percentile(y[t:b, le:r][ring], ps.MARKED_TOP)
         weight[t:b, le:r][inside] = m[t:b, le:r][inside]
