@@ -403,6 +403,10 @@ class MainWindow(QMainWindow):
         #: The time-lapse's UTC offset as the dialog guessed it from the longitude (the EXIF
         #: gave none), or None: not kept by a project, so guessed again when it reopens.
         self.timelapse_auto_offset: float | None = None
+        #: The sweep the time-lapse dialog filled in from the two suns (:meth:`sweep_suns`),
+        #: as its widgets show it, or None: not kept by a project, so filled in again from the
+        #: suns of the day when the dialog reopens.
+        self.timelapse_auto_sweep: tuple[Sun, Sun] | None = None
         #: A compass heading typed in step 1 (None: unknown, or the EXIF's when it records one,
         #: which a typed heading replaces).
         self.user_heading: float | None = None
@@ -944,6 +948,7 @@ class MainWindow(QMainWindow):
         self._timelapse_baseline = None
         self.timelapse_auto_heading = None
         self.timelapse_auto_offset = None
+        self.timelapse_auto_sweep = None
         self.undo_stack.clear()
         self._edit_state = state
         self.undo_stack.setClean()
@@ -2827,7 +2832,26 @@ class MainWindow(QMainWindow):
         if (settings.utc_offset is not None and guess is not None
                 and abs(settings.utc_offset - guess) < 1e-6):
             settings = replace(settings, utc_offset=None)
+        if self.timelapse_auto_sweep == (settings.sweep_from, settings.sweep_to):
+            default = TimelapseSettings()  # (and the sweep filled in from the two suns)
+            settings = replace(settings, sweep_from=default.sweep_from,
+                               sweep_to=default.sweep_to)
         return settings
+
+    def sweep_suns(self) -> tuple[Sun, Sun] | None:
+        """The time-lapse's sweep as the user set the scene up: from the confirmed original
+        sun to where the new-sun dial stands (the dial's angles, as a sweep takes them); None
+        before a sun is confirmed or while the two stand within a degree of each other. The
+        dialog offered a fixed sweep from (80, 15) to (280, 50) whatever the suns were (a
+        user trial)."""
+        if self.original_sun is None:
+            return None
+        az, el = self.relight_panel.sun_panel.sun()
+        a, b = self.original_sun, Sun(float(az), float(el))
+        if (abs((a.azimuth - b.azimuth + 180.0) % 360.0 - 180.0) < 1.0
+                and abs(a.elevation - b.elevation) < 1.0):
+            return None
+        return a, b
 
     def _commit_typed_fields(self) -> None:
         """Take in a number still being typed (a spin box commits on Enter or when it loses the

@@ -463,6 +463,7 @@ class TimelapseDialog(QDialog):
             self.from_el.setValue(s.sweep_from.elevation)
             self.to_az.setValue(s.sweep_to.azimuth)
             self.to_el.setValue(s.sweep_to.elevation)
+            self._fill_sweep(s)
             self.way_combo.setCurrentIndex(max(0, self.way_combo.findData(s.way)))
             self.easing_combo.setCurrentIndex(max(0, self.easing_combo.findData(s.easing)))
             self.frames_box.setValue(s.frames)
@@ -525,6 +526,22 @@ class TimelapseDialog(QDialog):
             "photo has not both")
         self.main.set_timelapse_settings(self.settings(), shown=True)
         self._settings_changed()
+
+    def _fill_sweep(self, s: TimelapseSettings) -> None:
+        """A sweep the user never set (the defaults) shown from the photo's confirmed sun to
+        the new sun (:meth:`MainWindow.sweep_suns`), and remembered as filled in
+        (``timelapse_auto_sweep``: a project does not keep it)."""
+        self.main.timelapse_auto_sweep = None
+        default = TimelapseSettings()
+        suns = getattr(self.main, "sweep_suns", lambda: None)()
+        if (s.sweep_from, s.sweep_to) != (default.sweep_from, default.sweep_to) or suns is None:
+            return
+        self.from_az.setValue(suns[0].azimuth % 360.0)
+        self.from_el.setValue(suns[0].elevation)
+        self.to_az.setValue(suns[1].azimuth % 360.0)
+        self.to_el.setValue(suns[1].elevation)
+        self.main.timelapse_auto_sweep = (Sun(self.from_az.value(), self.from_el.value()),
+                                          Sun(self.to_az.value(), self.to_el.value()))
 
     def settings(self) -> TimelapseSettings:
         """The settings the widgets show."""

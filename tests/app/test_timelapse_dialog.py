@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from app.state import Step
 from outcast_core.runtime.pipeline import timelapse as tl
 
@@ -415,3 +417,36 @@ def test_a_utc_offset_guessed_from_the_longitude_says_so_and_follows_the_longitu
     assert dialog.offset_box.value() == 7.0
     assert "from the photo's EXIF" in dialog.place_hint.text()
     assert "guessed" not in dialog.place_hint.text()
+
+
+def test_the_sweep_starts_from_the_two_suns_until_the_user_sets_it(window, photo, settle,
+                                                                    tmp_path):
+    """The dialog offered a sweep from (80, 15) to (280, 50) whatever the suns were (a user
+    trial). It now runs from the confirmed sun to the new sun; that is filled in, not the
+    user's: not unsaved work, not kept by a project, filled in again from the suns of the day
+    when the dialog reopens. A sweep the user sets is kept."""
+    from app.state import load_project
+
+    _relight(window, photo, settle)
+    a0, e0 = window.original_sun.azimuth, window.original_sun.elevation
+    window.relight_panel.sun_panel.set_sun(200.0, 30.0)
+    settle()
+    dialog = window.open_timelapse()
+    settle()
+    assert dialog.kind_combo.currentData() == "sweep"
+    assert (dialog.from_az.value(), dialog.from_el.value()) == pytest.approx((a0 % 360, e0),
+                                                                             abs=0.1)
+    assert (dialog.to_az.value(), dialog.to_el.value()) == pytest.approx((200.0, 30.0), abs=0.1)
+    assert "the time-lapse settings" not in window.unsaved_parts()
+    window.project_state()  # (reads the dialog back, as saving does)
+    assert window._timelapse_to_save().sweep_from.azimuth == 80.0  # filled in: not kept
+    dialog.close()
+    window.relight_panel.sun_panel.set_sun(120.0, 20.0)
+    settle()
+    dialog = window.open_timelapse()
+    settle()
+    assert (dialog.to_az.value(), dialog.to_el.value()) == pytest.approx((120.0, 20.0), abs=0.1)
+    dialog.to_el.setValue(45.0)  # the user's own
+    path = window.save_project(str(tmp_path / "p.outcast.json"))
+    assert path and load_project(path).timelapse.sweep_to.elevation == 45.0
+    dialog.close()
