@@ -879,9 +879,16 @@ class MainWindow(QMainWindow):
     def has_unsaved_changes(self) -> bool:
         """Whether undoable edits, or changes to the time-lapse settings, were made since the
         photo was opened or the project saved."""
-        return not self.undo_stack.isClean() or (
-            self._timelapse_baseline is not None
-            and self.timelapse_settings != self._timelapse_baseline)
+        return not self.undo_stack.isClean() or self._timelapse_changed()
+
+    def _timelapse_changed(self) -> bool:
+        """Whether the time-lapse settings differ from their baseline, as a project keeps
+        them (:meth:`_timelapse_to_save`): what the dialog filled in (a sweep from the suns of
+        the moment, a solved heading, a guessed offset) is not the user's change. Compared as
+        shown, a sweep filled in again from a moved sun stayed unsaved work after the move was
+        undone (a user trial)."""
+        return (self._timelapse_baseline is not None
+                and self._timelapse_to_save() != self._timelapse_baseline)
 
     def unsaved_parts(self) -> list[str]:
         """What :meth:`has_unsaved_changes` sees, in words (the save question's): the parts of
@@ -896,8 +903,7 @@ class MainWindow(QMainWindow):
             command = stack.command(clean if now > clean else clean - 1)
             if isinstance(command, EditCommand):
                 parts = changed_parts(command.before if now > clean else command.after, state)
-        if (self._timelapse_baseline is not None
-                and self.timelapse_settings != self._timelapse_baseline):
+        if self._timelapse_changed():
             parts.append("the time-lapse settings")
         return parts
 
@@ -905,9 +911,9 @@ class MainWindow(QMainWindow):
         """The time-lapse dialog's settings, as they change; ``shown``: as it first shows them
         (with the place, date and heading filled from the photo), the baseline of unsaved work
         until the next save or photo."""
-        if shown and self._timelapse_baseline is None:
-            self._timelapse_baseline = settings
         self.timelapse_settings = settings
+        if shown and self._timelapse_baseline is None:
+            self._timelapse_baseline = self._timelapse_to_save()
         self._update_title()
 
     # ================================================================== undo / redo
@@ -2887,7 +2893,7 @@ class MainWindow(QMainWindow):
         self.recent.add(target)
         self._save_recent()
         if self._timelapse_baseline is not None:  # project_state() took the dialog's
-            self._timelapse_baseline = self.timelapse_settings
+            self._timelapse_baseline = self._timelapse_to_save()
         self.undo_stack.setClean()
         self.stage_label.setText(f"Saved project {os.path.basename(target)}")
         return target

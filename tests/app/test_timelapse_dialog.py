@@ -450,3 +450,28 @@ def test_the_sweep_starts_from_the_two_suns_until_the_user_sets_it(window, photo
     path = window.save_project(str(tmp_path / "p.outcast.json"))
     assert path and load_project(path).timelapse.sweep_to.elevation == 45.0
     dialog.close()
+
+
+def test_a_sweep_filled_in_again_is_not_unsaved_work(window, photo, settle, tmp_path):
+    """A user trial: saved, the new sun moved, the dialog opened and closed (the sweep filled
+    in again from the moved sun), the move undone: the window stayed modified, "your changes
+    to the time-lapse settings are not saved"."""
+    _relight(window, photo, settle)
+    window.relight_panel.sun_panel.set_sun(270.0, 30.0)
+    settle()
+    window.open_timelapse().close()
+    settle()
+    assert window.save_project(str(tmp_path / "p.outcast.json"))
+    assert not window.has_unsaved_changes()
+    before = window.undo_stack.index()
+    window.relight_panel.sun_panel.set_sun(200.0, 20.0)
+    settle()
+    dialog = window.open_timelapse()
+    settle()
+    assert dialog.to_az.value() == pytest.approx(200.0, abs=0.1)
+    dialog.close()
+    while window.undo_stack.index() > before:
+        window.undo_stack.undo()
+        settle()
+    assert "the time-lapse settings" not in window.unsaved_parts()
+    assert not window.has_unsaved_changes()

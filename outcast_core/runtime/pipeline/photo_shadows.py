@@ -575,18 +575,19 @@ def _lit_class(log_c: np.ndarray, ring: np.ndarray, bright: np.ndarray, mark: np
     return out
 
 
-def _marks_with_their_shadows(marks: np.ndarray, log_y: np.ndarray, usable: np.ndarray
+def _marks_with_their_shadows(marks: np.ndarray, log_c: np.ndarray, usable: np.ndarray
                               ) -> np.ndarray:
     """The marked pixels (``H x W`` bool) with, for each 8-connected mark that has no lit
-    surface round it, the even region it lies in: connected pixels within :data:`ADD_RANGE` of
-    the mark's median log luminance ``log_y``, as a click's fill takes them, where that region
-    may be a shadow at that level (:func:`_darker_than_round`: at most :data:`ADD_MAX_SHARE`
-    of the surface, darker than a ring round it). :func:`marked_lift` reads the lit surface
-    round this: a stroke inside a wide shadow is lifted to the lit ground beyond the shadow,
-    as a click on it is, and not to the shadow round the stroke (a user trial: tinted, not
-    lifted). A mark with lit surface round it already (a click's region, a found shadow: its
-    ring, :data:`ADD_RING` wide, :data:`ADD_DARKER` brighter) keeps its own ring, and costs
-    only that test."""
+    surface round it, the even region it lies in: connected usable pixels within
+    :data:`ADD_RANGE` of the mark's median log luminance (blurred as :func:`edit_luminance`
+    blurs it; ``log_c``: ``H x W x 3`` log colour), where that region may be a shadow at that
+    level (:func:`_darker_than_round`'s tests: at most :data:`ADD_MAX_SHARE` of the surface,
+    darker than a ring :data:`ADD_RING` wide round it by :data:`ADD_DARKER`).
+    :func:`marked_lift` reads the lit surface round this: a stroke inside a wide shadow is
+    lifted to the lit ground beyond the shadow, as a click there is, and not to the shadow
+    round the stroke (a user trial: tinted, not lifted). A mark with lit surface round it
+    already (a click's region, a found shadow: its own ring that much brighter) keeps its own
+    ring and costs that test only; a mark inside a region already taken, nothing."""
     out = marks.copy()
     n, labels, stats, _ = cv2.connectedComponentsWithStats(marks.astype(np.uint8),
                                                            connectivity=8)
@@ -594,26 +595,39 @@ def _marks_with_their_shadows(marks: np.ndarray, log_y: np.ndarray, usable: np.n
         return out
     h, w = marks.shape
     side = max(h, w)
-    smooth = cv2.GaussianBlur(log_y.astype(np.float32), (0, 0), max(0.5, side / 384.0))
+    lum = np.maximum(np.exp(log_c) - _LOG_EPS, 0.0) @ LUMA_709
+    smooth = cv2.GaussianBlur(np.log(lum + _LOG_EPS).astype(np.float32), (0, 0),
+                              max(0.5, side / 384.0))
     ring_r = max(2, round(ADD_RING * side))
+    most = ADD_MAX_SHARE * max(1, int(usable.sum()))
+    taken = np.zeros((h, w), bool)  # regions added so far
     for k in range(1, n):
         x0, y0, bw, bh = (int(v) for v in stats[k, :4])
         t, le = max(0, y0 - ring_r), max(0, x0 - ring_r)
         b, r = min(h, y0 + bh + ring_r), min(w, x0 + bw + ring_r)
         mark = labels[t:b, le:r] == k
+        if taken[t:b, le:r][mark].all():
+            continue
         level = float(np.median(smooth[t:b, le:r][mark]))
         round_it = _grown(mark, ring_r) & ~mark & usable[t:b, le:r]
         if round_it.any() and level <= float(np.median(smooth[t:b, le:r][round_it])) - ADD_DARKER:
             continue  # lit surface round it already
-        mark = labels == k
-        even = ((np.abs(smooth - level) <= ADD_RANGE) & usable) | mark
-        _, parts = cv2.connectedComponents(even.astype(np.uint8), connectivity=8)
-        grown = np.isin(parts, np.unique(parts[mark]))
-        if grown.sum() > ADD_MAX_SHARE * max(1, int(usable.sum())):
-            continue  # (:func:`_darker_than_round`'s two tests, on the whole photo)
-        ring = _grown(grown, ring_r) & ~grown & usable
-        if not ring.any() or level <= float(np.median(smooth[ring])) - ADD_DARKER:
-            out |= grown
+        whole = labels == k
+        even = ((np.abs(smooth - level) <= ADD_RANGE) & usable) | whole
+        count, parts, part_stats, _ = cv2.connectedComponentsWithStats(
+            even.astype(np.uint8), connectivity=8)
+        touched = np.zeros(count, bool)
+        touched[parts[whole]] = True
+        if part_stats[touched, cv2.CC_STAT_AREA].sum() > most:
+            continue
+        ys, xs = np.nonzero(touched[parts])
+        t, le = max(0, int(ys.min()) - ring_r), max(0, int(xs.min()) - ring_r)
+        b, r = min(h, int(ys.max()) + 1 + ring_r), min(w, int(xs.max()) + 1 + ring_r)
+        grown = touched[parts[t:b, le:r]]
+        ring = _grown(grown, ring_r) & ~grown & usable[t:b, le:r]
+        if not ring.any() or level <= float(np.median(smooth[t:b, le:r][ring])) - ADD_DARKER:
+            out[t:b, le:r] |= grown
+            taken[t:b, le:r] |= grown
     return out
 
 
@@ -624,11 +638,14 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     bool, the surface whose colour can be measured; ``marked``: ``H x W`` in [0, 1], how much
     the user's mark counts).
 
-    Each marked region (8-connected, ``marked > 0``) is lifted to the lit surface round it: a
-    band :data:`MARKED_RING` wide beyond :data:`MARKED_GAP` of its edge, its usable pixels
-    not found shadow (``p <= 0.5``), split in two with Otsu's threshold and, where the two
-    classes differ clearly (:data:`STROKE_SPLIT`: another shadow, the marked shadow's missed
-    fringe, dark dirt), its bright class only. The gain is that lit surface's mean log colour
+    Each marked region (8-connected, ``marked > 0``; one with no lit surface round it taken
+    with the shadow it lies in, :func:`_marks_with_their_shadows`) is lifted to the lit
+    surface round it: a band :data:`MARKED_RING` wide beyond :data:`MARKED_GAP` of its edge,
+    its usable pixels not found shadow (``p <= 0.5``), split in two with Otsu's threshold
+    and, where the two classes differ clearly (:data:`STROKE_SPLIT`), the class that is the
+    shadow's surface lit (:func:`_lit_class`: the bright one unless that is another material,
+    the shadow's occluder, and the dark one the surface). Only the marked pixels are lifted.
+    The gain is that lit surface's mean log colour
     minus the marked shadow's own local mean (the shade's scale of :func:`deshadow_log_gain`,
     read on the marked pixels only), so the shadow ends at the level and colour of the lit
     surface round it, its texture kept; where the marked shadow itself (its local mean) lies
@@ -659,7 +676,7 @@ def marked_lift(log_c: np.ndarray, p: np.ndarray, usable: np.ndarray, marked: np
     y = log_c @ LUMA_709
     # Each mark is measured against the lit surface round the shadow it lies in: a stroke
     # painted inside a wide shadow has shadow all round it (a user trial: tinted, not lifted).
-    region = _marks_with_their_shadows(m > 0, y, usable)
+    region = _marks_with_their_shadows(m > 0, log_c, usable)
     _, labels, stats, _ = cv2.connectedComponentsWithStats(region.astype(np.uint8),
                                                            connectivity=8)
     candidates = usable & (p <= 0.5) & ~region

@@ -201,8 +201,9 @@ def _pole_scene(k: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndar
     that mix both given the pole's gain, as the learned relighting does) and the full-size
     pole mask."""
     big_h, big_w = 20 * k, 24 * k
-    xx = np.arange(big_w)[None, :] * np.ones((big_h, 1))
-    pole = (xx >= 9.4 * k) & (xx < 10.9 * k)
+    yy, xx = np.mgrid[0:big_h, 0:big_w]
+    lean = 0.15 * yy  # a leaning pole: every row differs (a band's row offset shows)
+    pole = (xx >= 9.4 * k + lean) & (xx < 10.9 * k + lean)
     lin = np.where(pole[..., None], [0.01, 0.012, 0.015], [0.2, 0.45, 0.5]).astype(np.float32)
     photo = linear_to_srgb(lin)
     work = cv2.resize(photo, (big_w // k, big_h // k), interpolation=cv2.INTER_AREA)
@@ -225,24 +226,26 @@ def test_an_objects_edge_keeps_each_sides_gain_at_full_resolution() -> None:
     plain = srgb_to_linear(apply_gain(photo, gain)) / lin
     guide = EdgeGuide(work, gain)
     guided = srgb_to_linear(apply_gain(photo, gain, edges=guide)) / lin
-    assert plain[~pole].max() > 0.5  # the light strip
-    np.testing.assert_allclose(guided[~pole], 0.3, atol=0.03)
-    assert guided[pole].min() > 0.9
-    far = np.abs(np.arange(photo.shape[1]) - 10.0 * 6)[None, :] > 4 * 6
-    np.testing.assert_allclose(guided[:, far[0]], plain[:, far[0]], atol=1e-5)
+    assert np.percentile(plain[~pole], 99) > 0.8  # the light strip
+    # (a few pool pixels by the leaning pole keep a little of it: the flag there is patchy)
+    assert np.percentile(guided[~pole], 95) < 0.32 and guided[~pole].mean() < 0.31
+    assert guided[pole].min() > 0.75 > plain[pole].min()
+    yy, xx = np.mgrid[0:photo.shape[0], 0:photo.shape[1]]
+    far = np.abs(xx - (10.15 * 6 + 0.15 * yy)) > 4 * 6
+    np.testing.assert_allclose(guided[far], plain[far], atol=1e-5)
     whole = apply_gain(photo, gain, band_rows=photo.shape[0], threads=1, edges=guide)
     for rows, threads in ((1, 1), (13, 3)):
         np.testing.assert_allclose(apply_gain(photo, gain, band_rows=rows, threads=threads,
                                               edges=guide), whole, atol=1e-6)
     # The session's transfer uses it.
     through = srgb_to_linear(transfer_to_full_resolution(photo, work, relit)) / lin
-    np.testing.assert_allclose(through[~pole], 0.3, atol=0.03)
+    np.testing.assert_allclose(through, guided, atol=1e-5)
 
 
 def test_the_edge_guide_leaves_a_shadow_edge_on_one_surface_and_one_to_one_alone() -> None:
-    """A new shadow's edge across one surface (the photo says nothing about where it runs)
-    keeps the plain transfer, texture or not; a gain that does not follow the colour
-    (a blotchy shadow over a textured surface) too; at 1:1 nothing changes."""
+    """A new shadow's edge across one even surface (the photo says nothing about where it
+    runs) keeps the plain transfer; a gain that does not follow the colour (a blotchy shadow
+    over a textured surface) is rarely guided; at 1:1 nothing changes."""
     from outcast_core.runtime.geometry.fullres import EdgeGuide
 
     rng = np.random.default_rng(3)

@@ -654,8 +654,8 @@ def test_a_marked_shadow_beside_its_white_occluder_is_lifted_to_the_ground_not_t
     """A box's shadow on brown carpet, marked: the lit ring round it holds the carpet and the
     white box itself, which Otsu's bright class picked: the shadow was lifted to the box's
     cream, three times the carpet (a dev photo). The ring's class that turns from the shadow
-    as lit shade does (the carpet) is taken; a shadow beside a lit surface of its own colour
-    only is lifted as before."""
+    as lit shade does (the carpet) is taken; the same shadow without the box is lifted to the
+    carpet as before."""
     from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
 
     rng = np.random.default_rng(4)
@@ -678,6 +678,10 @@ def test_a_marked_shadow_beside_its_white_occluder_is_lifted_to_the_ground_not_t
     ground = ~cv2.dilate((shadow | box).astype(np.uint8), np.ones((9, 9), np.uint8)).astype(bool)
     assert 0.8 < y(out, core) / y(img, ground) < 1.25
     assert y(out, core) < 0.5 * y(img, box)
+    bare = img.copy()
+    bare[box] = img[ground][: int(box.sum())]  # carpet where the box stood
+    alone = deshadow(bare, p, sky, marked=p)
+    assert 0.8 < y(alone, core) / y(img, ground) < 1.25
 
 
 def test_a_marked_shadow_is_lifted_no_brighter_than_its_lit_ring_even_unbounded() -> None:

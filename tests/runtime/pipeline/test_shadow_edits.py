@@ -1131,7 +1131,7 @@ def _reference_marked_lift(log_c, p, usable, marked):
     h, w = m.shape
     side = max(h, w)
     y = log_c @ ps.LUMA_709
-    grown = ps._marks_with_their_shadows(m > 0, y, usable)
+    grown = ps._marks_with_their_shadows(m > 0, log_c, usable)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(grown.astype(np.uint8),
                                                            connectivity=8)
     gap = max(1, round(ps.MARKED_GAP * side))
