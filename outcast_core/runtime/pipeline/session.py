@@ -814,7 +814,7 @@ class RelightSession:
             depth = np.where(self.sky, np.inf, self.depth).astype(np.float32)
         if self.shadow_mode == "learned":
             out = self._learned_shadow(image, depth, normals, cam, wv)
-            out = self._depth_edge_fill(preview, depth)(out)
+            out = self._depth_edge_fill(preview, depth, image)(out)
         else:
             step = self.preset.direct_step * (2.0 if preview else 1.0)
             stats = DirectStats(0, 0, "")
@@ -828,16 +828,18 @@ class RelightSession:
         self._time("shadow_preview" if preview else "shadow", t0)
         return out.astype(np.float32)
 
-    def _depth_edge_fill(self, preview: bool, depth: np.ndarray) -> DepthEdgeFill:
-        """The learned shadow's fill at depth edges for this depth (made once per depth map
-        and size: the preview's is kept with the preview's inputs)."""
+    def _depth_edge_fill(self, preview: bool, depth: np.ndarray, image: np.ndarray
+                         ) -> DepthEdgeFill:
+        """The learned shadow's fill at depth edges for this depth and ``image`` (the photo
+        at the depth's size, whose luminance edges confirm a small depth step; made once per
+        depth map and size: the preview's is kept with the preview's inputs)."""
         if preview:
             st = self._preview_state()
             if "edge_fill" not in st:
-                st["edge_fill"] = DepthEdgeFill(depth)
+                st["edge_fill"] = DepthEdgeFill(depth, image)
             return st["edge_fill"]
         if self._edge_fill is None:
-            self._edge_fill = DepthEdgeFill(depth)
+            self._edge_fill = DepthEdgeFill(depth, image)
         return self._edge_fill
 
     def _learned_shadow(
@@ -1275,7 +1277,7 @@ class RelightSession:
             "shadow_old": s_o, "geometry_old": geometry_o,
             "sampler": RaySampler(depth, cam) if self.shadow_mode != "learned"
             else None,
-            "edge_fill": DepthEdgeFill(depth) if self.shadow_mode == "learned" else None,
+            "edge_fill": DepthEdgeFill(depth, image) if self.shadow_mode == "learned" else None,
             # The working-size photo in 8 bits: the preview is moved onto it by tables only.
             "working_u8": np.rint(self.image_srgb * 255.0).astype(np.uint8),
             "view_dirs": view_dirs,
@@ -1385,6 +1387,11 @@ class RelightSession:
             "sun_seen": self.sun_seen, "greyscale": self.greyscale, "exposure": self._exposure,
             "up": self.horizon_up(), "daylight": self._daylight,
             "relight_mode": self._relight_mode,
+            # (the learned shadow's fill at depth edges, built once: the stream's shadows
+            # need it as :meth:`shadow`'s have it)
+            "edge_fill": None if self.shadow_mode != "learned" else self._depth_edge_fill(
+                False, np.where(self.sky, np.inf, self.depth).astype(np.float32),
+                self.image_srgb),
         }
 
     def _relight_from(
@@ -1665,7 +1672,7 @@ class RelightSession:
                 "sun": wv.astype(np.float32)[None],
                 "focal": np.array([[cam.focal]], np.float32),
             })
-            out = np.clip(_first(out)[0, 0], 0.0, 1.0)
+            out = inp["edge_fill"](np.clip(_first(out)[0, 0], 0.0, 1.0))
         else:
             step = inp["preset"].direct_step
             out = direct_shadow(

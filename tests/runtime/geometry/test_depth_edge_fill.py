@@ -100,16 +100,42 @@ def test_the_sessions_learned_shadows_are_filled_at_depth_edges() -> None:
     w = normalize_sun((0.6, -0.5, -0.6))
     d = np.where(s.sky, np.inf, s.depth).astype(np.float32)
     raw = s._learned_shadow(s.image_srgb, d, s.normals, s.camera, w)
-    fill = DepthEdgeFill(d)
+    fill = DepthEdgeFill(d, s.image_srgb)
     assert fill.band.any()
     got = s.shadow(w)
     assert np.allclose(got, fill(raw), atol=1e-6)
     assert not np.allclose(got, raw, atol=1e-3)  # the box's edges changed something
     assert np.array_equal(got[~fill.band], raw[~fill.band])
-    assert s._depth_edge_fill(False, d) is s._depth_edge_fill(False, d)  # once per depth map
+    assert (s._depth_edge_fill(False, d, s.image_srgb)
+            is s._depth_edge_fill(False, d, s.image_srgb))  # once per depth map
     s.shadow(w, preview=True)
     assert "edge_fill" in s._preview_state()
     direct = RelightSession(preset="fast", shadow_mode="direct")
     direct.set_image(image, depth=depth, fov_deg=30.0)
     direct.shadow(w)
     assert direct._edge_fill is None  # Direct, marched per pixel, has no bleed to take out
+
+
+def test_with_the_photo_a_small_depth_step_at_a_luminance_edge_is_an_edge() -> None:
+    """A rough depth map barely separates a pole from the floor behind it (the pool sample:
+    log depth -0.28 against -0.34), and the lit strip the network spread beside the pole
+    stayed. With the photo, a 5 % step where the luminance jumps is an edge; the fill reads
+    the floor's own luminance; a textured floor with no depth step, and the depth alone, are
+    left as before; a photo of another size is refused."""
+    depth = np.full((20, 24), 10.0, np.float32)
+    depth[:, 10:14] = 9.5  # 5 % nearer: no edge by depth alone
+    photo = np.full((20, 24, 3), 0.8, np.float32)
+    photo[:, 10:14] = 0.05  # a dark pole before a bright floor
+    floor = np.zeros((20, 24), np.float32)  # the floor in shade, the pole too
+    bled = floor.copy()
+    bled[:, 14:16] = 0.9  # the network's lit strip beside the pole
+    assert not DepthEdgeFill(depth).band.any()
+    fill = DepthEdgeFill(depth, photo)
+    assert fill.band[:, 14:16].all() and not fill.band[:, 10:14].any()
+    assert np.abs(fill(bled)[:, 14:16]).max() < 1e-6
+    rng = np.random.default_rng(2)
+    textured = np.clip(0.4 + 0.3 * rng.standard_normal((20, 24, 3)), 0, 1).astype(np.float32)
+    flat = np.full((20, 24), 10.0, np.float32)
+    assert not DepthEdgeFill(flat, textured).band.any()
+    with pytest.raises(ValueError, match="photo"):
+        DepthEdgeFill(depth, photo[:, :-1])
