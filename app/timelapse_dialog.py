@@ -533,7 +533,7 @@ class TimelapseDialog(QDialog):
         (``timelapse_auto_sweep``: a project does not keep it)."""
         self.main.timelapse_auto_sweep = None
         default = TimelapseSettings()
-        suns = getattr(self.main, "sweep_suns", lambda: None)()
+        suns = self.main.sweep_suns()
         if (s.sweep_from, s.sweep_to) != (default.sweep_from, default.sweep_to) or suns is None:
             return
         self.from_az.setValue(suns[0].azimuth % 360.0)

@@ -29,7 +29,7 @@ from concurrent.futures import ThreadPoolExecutor
 import cv2
 import numpy as np
 
-from outcast_core.runtime.geometry.colour import LUMA_709, linear_to_srgb, srgb_to_linear
+from outcast_core.runtime.geometry.colour import linear_to_srgb, luminance, srgb_to_linear
 
 #: Offset that guards dark pixels in the gain ``(after + e) / (before + e)``: where the photo is
 #: black, the relit value itself comes through.
@@ -247,8 +247,8 @@ def _guard_skyline(g: np.ndarray, lin: np.ndarray, near: np.ndarray, r0: int,
 EDGE_GAIN_SPREAD = 0.3
 #: ... the working photo's log luminance spans more than this (a new shadow's edge across one
 #: surface keeps the plain transfer: the photo says nothing about where it runs) ...
-EDGE_COLOUR_SPREAD = 0.6
-#: ... and the gain follows the colour there (absolute correlation of the two logs over the
+EDGE_LUMINANCE_SPREAD = 0.6
+#: ... and the gain follows the luminance there (absolute correlation of the two logs over the
 #: neighbourhood): an object's edge, not a blotchy new shadow over a textured surface (which,
 #: guided, printed the pool's ripples into its new shadow as jagged steps).
 EDGE_CORRELATION = 0.7
@@ -274,7 +274,7 @@ class EdgeGuide:
     onto the other side: on the README's relit pool sample, a light strip down the pool beside
     each dark pole. Here a full-resolution pixel whose working neighbourhood has a gain and a
     colour that both change, and change together (:data:`EDGE_GAIN_SPREAD`,
-    :data:`EDGE_COLOUR_SPREAD`, :data:`EDGE_CORRELATION`), takes its gain from the working
+    :data:`EDGE_LUMINANCE_SPREAD`, :data:`EDGE_CORRELATION`), takes its gain from the working
     pixels within :data:`EDGE_REACH` of its own luminance: a tent of :data:`EDGE_TENT` working
     pixels times a Gaussian (:data:`EDGE_RANGE_SIGMA`) of the log luminance distance between
     the pixel and each working pixel (Kopf et al. 2007's joint bilateral upsampling, on the
@@ -299,9 +299,9 @@ class EdgeGuide:
                              f"got {gain.shape}")
         photo = (photo.astype(np.float32) / np.float32(255.0) if photo.dtype == np.uint8
                  else photo.astype(np.float32))
-        log_lum = np.log(srgb_to_linear(photo) @ LUMA_709 + np.float32(_LOG_FLOOR))
+        log_lum = np.log(luminance(srgb_to_linear(photo)) + np.float32(_LOG_FLOOR))
         log_lum = log_lum.astype(np.float32)
-        log_gain = np.log(np.maximum(gain @ LUMA_709, 1e-6)).astype(np.float32)
+        log_gain = np.log(np.maximum(luminance(gain), 1e-6)).astype(np.float32)
         size = (2 * EDGE_STATS_REACH + 1,) * 2
         kernel = np.ones(size, np.uint8)
 
@@ -317,7 +317,7 @@ class EdgeGuide:
         vg = np.maximum(box(log_gain * log_gain) - mg * mg, 1e-12)
         vl = np.maximum(box(log_lum * log_lum) - ml * ml, 1e-12)
         self.flag = ((spread(log_gain) > EDGE_GAIN_SPREAD)
-                     & (spread(log_lum) > EDGE_COLOUR_SPREAD)
+                     & (spread(log_lum) > EDGE_LUMINANCE_SPREAD)
                      & (np.abs(cov) > EDGE_CORRELATION * np.sqrt(vg * vl)))
         self.neighbours: np.ndarray | None = None
         if self.useful():  # (built only when there is an edge to guard)
@@ -361,7 +361,7 @@ def _guard_edges(g: np.ndarray, lin: np.ndarray, r0: int, guide: EdgeGuide,
     if ys.size == 0:
         return
     nb = guide.neighbours[yn[ys + r0], xn[xs]]  # N x K x 4: each neighbour's gain, log lum
-    lf = np.log(np.maximum(lin[ys, xs] @ LUMA_709 - GAIN_EPS, 0.0) + _LOG_FLOOR)
+    lf = np.log(np.maximum(luminance(lin[ys, xs]) - GAIN_EPS, 0.0) + _LOG_FLOOR)
     d = lf.astype(np.float32)[:, None] - nb[:, :, 3]
     rng = np.exp(d * d * np.float32(-0.5 / EDGE_RANGE_SIGMA ** 2))
     rng += np.float32(EDGE_RANGE_FLOOR)

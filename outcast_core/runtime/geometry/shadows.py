@@ -26,7 +26,7 @@ from outcast_core.runtime.geometry.camera import (
     normalize_sun,
     normals_from_depth,
 )
-from outcast_core.runtime.geometry.colour import LUMA_709, srgb_to_linear
+from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
 from outcast_core.runtime.geometry.raymarch import DEFAULT_DIRECT_STEP, RaySampler, check_steps
 
 #: Relative depth tolerance below which a sample counts as touching, not occluding.
@@ -204,13 +204,13 @@ EDGE_FILL_DEPTH_SIGMA = 0.03
 EDGE_FILL_SUPPORT = 0.5
 #: :class:`DepthEdgeFill` with the photo: a pixel is also on the far side where a surface
 #: nearer by more than this (log) lies within reach and the photo's log luminance spans more
-#: than :data:`EDGE_FILL_COLOUR_JUMP` there (a rough depth map barely separates a pole from the
+#: than :data:`EDGE_FILL_LUMINANCE_JUMP` there (a rough depth map barely separates a pole from the
 #: floor behind it: -0.28 against -0.34 on the pool sample, where the lit strip stayed); the
 #: neighbours' weights also fall with the log luminance difference
-#: (:data:`EDGE_FILL_COLOUR_SIGMA`), so the fill comes from the pixel's own surface.
+#: (:data:`EDGE_FILL_LUMINANCE_SIGMA`), so the fill comes from the pixel's own surface.
 EDGE_FILL_SMALL_JUMP = 0.03
-EDGE_FILL_COLOUR_JUMP = 1.0
-EDGE_FILL_COLOUR_SIGMA = 0.5
+EDGE_FILL_LUMINANCE_JUMP = 1.0
+EDGE_FILL_LUMINANCE_SIGMA = 0.5
 
 
 class DepthEdgeFill:
@@ -282,13 +282,13 @@ class DepthEdgeFill:
             img = np.asarray(photo, np.float32)
             if img.shape != (*d.shape, 3):
                 raise ValueError(f"expected a photo of shape {(*d.shape, 3)}, got {img.shape}")
-            log_y = np.log(srgb_to_linear(np.clip(img, 0.0, 1.0)) @ LUMA_709
+            log_y = np.log(luminance(srgb_to_linear(np.clip(img, 0.0, 1.0)))
                            + np.float32(1e-3)).astype(np.float32)
             box = np.ones((k, k), np.uint8)
             span = (cv2.dilate(log_y, box, borderType=cv2.BORDER_REPLICATE)
                     - cv2.erode(log_y, box, borderType=cv2.BORDER_REPLICATE))
             band |= ((log_d - nearest > EDGE_FILL_SMALL_JUMP) & ~sky
-                     & (span > EDGE_FILL_COLOUR_JUMP))
+                     & (span > EDGE_FILL_LUMINANCE_JUMP))
         #: ``H x W`` bool: the far-side pixels whose shadow is filled.
         self.band = band
         ys, xs = np.nonzero(band)
@@ -313,7 +313,7 @@ class DepthEdgeFill:
             near = np.exp(-((log_d[qy, qx] - here) ** 2) / (2.0 * EDGE_FILL_DEPTH_SIGMA ** 2))
             if log_y is not None:
                 near = near * np.exp(-((log_y[qy, qx] - log_y[ys, xs]) ** 2)
-                                     / (2.0 * EDGE_FILL_COLOUR_SIGMA ** 2))
+                                     / (2.0 * EDGE_FILL_LUMINANCE_SIGMA ** 2))
             wt[:, j] = np.where(inside & support[qy, qx],
                                 np.exp(-(dy * dy + dx * dx) / spread) * near, 0.0)
             nbr[:, j] = qy * w + qx

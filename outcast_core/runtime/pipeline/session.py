@@ -838,8 +838,14 @@ class RelightSession:
             if "edge_fill" not in st:
                 st["edge_fill"] = DepthEdgeFill(depth, image)
             return st["edge_fill"]
+        return self._working_edge_fill()
+
+    def _working_edge_fill(self) -> DepthEdgeFill:
+        """:meth:`_depth_edge_fill` at the working size: built on first use from the working
+        depth and photo, kept until :meth:`_reset_working`."""
         if self._edge_fill is None:
-            self._edge_fill = DepthEdgeFill(depth, image)
+            self._edge_fill = DepthEdgeFill(
+                np.where(self.sky, np.inf, self.depth).astype(np.float32), self.image_srgb)
         return self._edge_fill
 
     def _learned_shadow(
@@ -1389,9 +1395,8 @@ class RelightSession:
             "relight_mode": self._relight_mode,
             # (the learned shadow's fill at depth edges, built once: the stream's shadows
             # need it as :meth:`shadow`'s have it)
-            "edge_fill": None if self.shadow_mode != "learned" else self._depth_edge_fill(
-                False, np.where(self.sky, np.inf, self.depth).astype(np.float32),
-                self.image_srgb),
+            "edge_fill": (self._working_edge_fill() if self.shadow_mode == "learned"
+                          else None),
         }
 
     def _relight_from(
