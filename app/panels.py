@@ -496,11 +496,16 @@ class RelightPanel(QWidget):
         layout.addWidget(self.sun_panel)
         layout.addLayout(form)
         layout.addWidget(self.shadow_tools)
-        layout.addWidget(self.realign_button, 0, Qt.AlignmentFlag.AlignLeft)
         layout.addStretch(1)
-        self.footer = QWidget(self)  # below the scrolling panel, always in view
-        buttons.setContentsMargins(9, 4, 9, 6)
-        self.footer.setLayout(buttons)
+        # Below the scrolling panel, always in view: the way back to step 1 too (at 1024 x 700
+        # with the correction tools shown it was below the fold: a user trial).
+        self.footer = QWidget(self)
+        footer = QVBoxLayout(self.footer)
+        footer.setContentsMargins(9, 0, 9, 6)
+        footer.setSpacing(2)
+        footer.addWidget(self.realign_button, 0, Qt.AlignmentFlag.AlignLeft)
+        buttons.setContentsMargins(0, 0, 0, 0)
+        footer.addLayout(buttons)
         # The correction tools stand above "Re-align" and the footer's buttons, but were made
         # after them: Tab went from the light's boxes to Export still (a user trial).
         sun = self.sun_panel

@@ -185,7 +185,10 @@ def render_report(reports: dict[str, Any], args: argparse.Namespace) -> str:
         "(0: the old shadow is gone, 1: unchanged); detail = the standard deviation of log "
         "luminance's finest band (minus a Gaussian of 1/128 of the longer side) where both suns "
         "light the surface, relit over the photo's (1: the photo's texture kept; below: "
-        "blurred). "
+        "blurred); false lift = the mean natural-log luminance gain where the photo's found "
+        "shadows lie away from every marked one (3 % of the longer side) and the new sun "
+        "lights them: dark materials and foliage taken for shade (0: unchanged; large: "
+        "bleached). "
         "The photos are research data kept "
         "outside the repository; only these numbers are here.", "",
         "### Speed / accuracy", "", render_trade(reports), "",
@@ -205,7 +208,7 @@ def render_trade(reports: dict[str, Any]) -> str:
     lines = ["| Preset | Overlay BER | Opposite | S_o BER | Otsu | Shuffled / swept (own) | "
              "Sky claim | "
              "De-shadow in / out | Relit chroma / sky / new shade (colour) / old shade / "
-             "detail | "
+             "detail / false lift | "
              "s / photo |",
              "|---|---|---|---|---|---|---|---|---|---|"]
 
@@ -222,6 +225,6 @@ def render_trade(reports: dict[str, Any]) -> str:
                      f"{f(m, 'sky_claim')} | {ds} | {f(m, 'relit_chroma', 2)} / "
                      f"{f(m, 'relit_sky', 2)} / {f(m, 'new_shade', 2)} "
                      f"({f(m, 'shade_colour', 2)}) / "
-                     f"{f(m, 'old_shade', 2)} / {f(m, 'relit_detail', 2)} | "
-                     f"{f(m, 'seconds', 2)} |")
+                     f"{f(m, 'old_shade', 2)} / {f(m, 'relit_detail', 2)} / "
+                     f"{f(m, 'false_lift', 2)} | {f(m, 'seconds', 2)} |")
     return "\n".join(lines)

@@ -57,6 +57,14 @@ photo and on average (DESIGN.md, "Real photographs: how we measure"):
   the photo's. Only the sun's cosine changes on such a surface, so 1 is right; below it the
   relit photo is blurred and looks hazy, above it the relighting embosses (added 2026-12-01,
   fourth session);
+* ``false_lift``: how much that relit photo brightens what the photo's found shadows wrongly
+  include (``S_o`` below the overlay's threshold, off the sky, more than
+  :data:`OLD_SHADE_RING` of the longer side from any human-marked shadow: dark materials,
+  dark foliage, self-shaded sides) where the new sun lights it (``S_n`` above
+  :data:`LIT_BOTH`): the mean natural-log luminance gain there. 0 is unchanged; ``ln 2``
+  (0.69) doubles it. Some of these surfaces do turn to the new sun, so 0 is no target; a large
+  value is the pale, bleached look of dark materials lifted as if they were shade (added
+  2026-12-04, twenty-third session);
 * ``seconds``: wall time for the photo (depth, 24 suns, confirmation, de-shadowing, one relight).
 
 Masks are compared at the mask's size: shadow images are resized to it (bilinear) before the
@@ -218,6 +226,7 @@ class PhotoResult:
     shade_colour: float | None = None
     old_shade: float | None = None
     relit_detail: float | None = None
+    false_lift: float | None = None
     depth_source: str = ""
     extra: dict[str, float] = field(default_factory=dict)
 
@@ -345,6 +354,8 @@ def _relight_checks(session: Any, res: PhotoResult, az: float, el: float,
     res.old_shade = old_shade_ratio(image, relit, marked, session.shadow(w_n), session.sky)
     res.shade_colour = shade_colour_gap(image, relit, marked, session.original_shadow,
                                         session.shadow(w_n), session.sky)
+    res.false_lift = false_lift(image, relit, marked, session.original_shadow,
+                                session.shadow(w_n), session.sky)
 
 
 def relit_check_sun(session: Any, az: float, el: float, turn: float = RELIGHT_TURN
@@ -490,6 +501,37 @@ def old_shade_ratio(
     return log_ratio(relit_srgb) / own
 
 
+def false_lift(
+    image_srgb: np.ndarray, relit_srgb: np.ndarray, marked: np.ndarray, shadow_old: np.ndarray,
+    shadow_new: np.ndarray, sky: np.ndarray,
+) -> float | None:
+    """``false_lift`` (module docstring); None when a photo has fewer than
+    :data:`MIN_PIXELS` such pixels. ``marked`` is the human shadow mask at the images' size.
+
+    Example:
+        >>> img = np.full((40, 40, 3), 0.5, np.float32); img[:, :10] = 0.05  # a dark material
+        >>> so = np.ones((40, 40), np.float32); so[:, :10] = 0.0  # found as shadow
+        >>> m, sky = np.zeros((40, 40), bool), np.zeros((40, 40), bool)
+        >>> lifted = img.copy(); lifted[:, :10] = 0.4
+        >>> round(false_lift(img, img, m, so, so * 0 + 1, sky), 2)
+        0.0
+        >>> bool(false_lift(img, lifted, m, so, so * 0 + 1, sky) > 1.0)
+        True
+    """
+    marked = np.asarray(marked, bool)
+    reach = max(1, round(OLD_SHADE_RING * max(marked.shape)))
+    near = cv2.dilate(marked.astype(np.uint8), np.ones((2 * reach + 1,) * 2, np.uint8)) > 0
+    where = ((np.asarray(shadow_old) < SHADOW_THRESHOLD) & (np.asarray(shadow_new) > LIT_BOTH)
+             & ~np.asarray(sky, bool) & ~near)
+    if where.sum() < MIN_PIXELS:
+        return None
+
+    def log_y(x: np.ndarray) -> np.ndarray:
+        return np.log(np.maximum(luminance(srgb_to_linear(np.clip(x, 0.0, 1.0)))[where], 1e-4))
+
+    return float(np.mean(log_y(relit_srgb) - log_y(image_srgb)))
+
+
 def shuffled_control(
     masks: dict[str, np.ndarray], truths: dict[str, np.ndarray]
 ) -> dict[str, float]:
@@ -559,7 +601,7 @@ SUMMARY_KEYS = ("overlay_ber", "opposite_ber", "refined_ber", "otsu_ber", "shuff
                 "swept_shuffled_ber", "swept_own_ber",
                 "sky_claim", "overlay_fraction", "shadow_fraction", "seconds",
                 "deshadow_in", "deshadow_out", "relit_chroma", "relit_sky", "new_shade",
-                "shade_colour", "old_shade", "relit_detail")
+                "shade_colour", "old_shade", "relit_detail", "false_lift")
 
 
 def summarize(results: Sequence[PhotoResult]) -> dict[str, float]:
@@ -675,7 +717,7 @@ def render_table(report: dict[str, Any]) -> str:
     """The per-photo results and their means as a Markdown table."""
     head = ("| Photo | Best sun | Overlay BER | Opposite | S_o BER | Otsu | "
             "Shuffled / swept (own) | Sky claim | De-shadow in / out | "
-            "Relit chroma / sky / new shade (colour) / old shade / detail | s |")
+            "Relit chroma / sky / new shade (colour) / old shade / detail / false lift | s |")
     lines = [head, "|---|---|---|---|---|---|---|---|---|---|---|"]
 
     def f(v: Any, d: int = 3) -> str:
@@ -692,7 +734,8 @@ def render_table(report: dict[str, Any]) -> str:
             f"{f(r['sky_claim'])} | {ds} | "
             f"{f(r['relit_chroma'], 2)} / {f(r['relit_sky'], 2)} / {f(r.get('new_shade'), 2)} "
             f"({f(r.get('shade_colour'), 2)}) / "
-            f"{f(r.get('old_shade'), 2)} / {f(r.get('relit_detail'), 2)} | "
+            f"{f(r.get('old_shade'), 2)} / {f(r.get('relit_detail'), 2)} / "
+            f"{f(r.get('false_lift'), 2)} | "
             f"{f(r['seconds'], 1)} |")
     m = report["mean"]
     ds = ("-" if "deshadow_in" not in m
@@ -706,7 +749,8 @@ def render_table(report: dict[str, Any]) -> str:
         f"{f(m.get('relit_chroma'), 2)} / {f(m.get('relit_sky'), 2)} / "
         f"{f(m.get('new_shade'), 2)} ({f(m.get('shade_colour'), 2)}) / "
         f"{f(m.get('old_shade'), 2)} / "
-        f"{f(m.get('relit_detail'), 2)} | {f(m.get('seconds'), 1)} |")
+        f"{f(m.get('relit_detail'), 2)} / {f(m.get('false_lift'), 2)} | "
+        f"{f(m.get('seconds'), 1)} |")
     return "\n".join(lines)
 
 

@@ -297,6 +297,37 @@ def test_old_shade_ratio_measures_the_old_shadow_left_where_the_new_sun_lights_i
     assert old_shade_ratio(np.full_like(img, 0.8), img, marked, lit, sky) is None
 
 
+def test_false_lift_measures_what_the_relighting_does_to_wrongly_found_shadows() -> None:
+    """The mean log gain where the found shadow lies away from every marked one and the new
+    sun lights it: 0 unchanged, ln 4 for four times the light; what lies near a marked shadow,
+    on the sky, stays shadowed or is no found shadow is left out."""
+    from outcast_core.runtime.geometry.colour import linear_to_srgb, srgb_to_linear
+    from outcast_core.runtime.pipeline.real_eval import false_lift
+
+    img = np.full((60, 60, 3), 0.7, np.float32)
+    img[:, 40:] = 0.15  # a dark material the photo's shadows take in
+    img[5:15, 5:15] = 0.15  # a real (marked) shadow
+    s_o = np.ones((60, 60), np.float32)
+    s_o[:, 40:] = 0.0
+    s_o[5:15, 5:15] = 0.0
+    marked = np.zeros((60, 60), bool)
+    marked[5:15, 5:15] = True
+    lit, sky = np.ones((60, 60), np.float32), np.zeros((60, 60), bool)
+    relit = img.copy()
+    relit[:, 40:] = linear_to_srgb(4.0 * srgb_to_linear(np.float32(0.15)))
+    relit[5:15, 5:15] = 0.9  # the real shadow lifted: not counted
+    assert false_lift(img, img, marked, s_o, lit, sky) == pytest.approx(0.0, abs=1e-6)
+    assert false_lift(img, relit, marked, s_o, lit, sky) == pytest.approx(math.log(4.0), abs=0.01)
+    # Where the new sun does not light it, or only a sky is left, nothing is measured.
+    assert false_lift(img, relit, marked, s_o, np.zeros_like(lit), sky) is None
+    assert false_lift(img, relit, marked, s_o, lit, np.ones_like(sky)) is None
+    # The found shadow within the ring round a marked one is that shadow's edge, not a material.
+    near = np.zeros((60, 60), bool)
+    near[:, 38:] = True
+    s_o[5:15, 5:15] = 1.0
+    assert false_lift(img, relit, near, s_o, lit, sky) is None
+
+
 def test_detail_ratio_measures_the_fine_texture_a_relighting_keeps() -> None:
     """1 for the photo's own texture whatever the exposure (a gain is no loss of detail),
     below 1 for a blurred relighting, None with too few pixels or no texture."""
