@@ -255,6 +255,44 @@ def test_anchor_exposure_takes_the_exposure_of_physics_on_surfaces_lit_under_bot
         anchor_exposure(image, drifted[:4], physics, s_old, s_new, sky)
 
 
+@pytest.mark.parametrize("drift", [0.4, 2.5])
+def test_new_shadows_stay_as_dark_as_physics_whatever_the_anchors_gain(drift: float) -> None:
+    """The anchor corrects ``L``'s exposure before the floor compares it with physics, so its
+    gain, read where both suns light the surface, no longer scales what the floor set: a gain
+    above 1 left new shadows lighter than physics, one below 1 (``L`` too bright on a small
+    patch both suns light: the pool sample relit to a sun on the horizon) crushed them."""
+    from outcast_core.runtime.pipeline import relight
+
+    h, w = 24, 32
+    rng = np.random.default_rng(1)
+    image = np.clip(0.55 + 0.04 * rng.standard_normal((h, w, 3)), 0, 1).astype(np.float32)
+    s_old = np.full((h, w), 0.9, np.float32)
+    s_new = np.zeros((h, w), np.float32)  # newly shadowed almost everywhere...
+    s_new[:8, :8] = 0.9  # ...but for a patch both suns light
+    sky = np.zeros((h, w), bool)
+    light = relight.estimate_light(srgb_to_linear(image), s_old)
+    learned = image.copy()  # L: the photo as it was, its exposure off by `drift` on the patch
+    learned[:8, :8] = np.clip(linear_to_srgb(srgb_to_linear(image[:8, :8]) * drift), 0, 1)
+    physics = relight.physics_relight(image, s_old, relight.smooth_new_shadow(s_new), sky,
+                                      light=light, snap=False)
+    out = relight.guard_learned_relight(image, learned, s_old, s_new, sky, light,
+                                        keep_sky=False, colour=False, detail=False)
+    y = srgb_to_linear(out) @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    y_p = srgb_to_linear(physics) @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    shade = (slice(14, None), slice(14, None))  # deep in the new shadow, off the patch's blur
+    assert np.median(y[shade] / y_p[shade]) == pytest.approx(1.0, abs=0.02)
+    # With the order before 2026-12-04 the anchor's gain reached the new shadow too.
+    old_order = relight.ANCHOR_FIRST
+    try:
+        relight.ANCHOR_FIRST = False
+        before = relight.guard_learned_relight(image, learned, s_old, s_new, sky, light,
+                                               keep_sky=False, colour=False, detail=False)
+    finally:
+        relight.ANCHOR_FIRST = old_order
+    y_b = srgb_to_linear(before) @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    assert abs(np.median(y_b[shade] / y_p[shade]) - 1.0) > 0.3
+
+
 def test_guarded_relight_keeps_the_photos_colour_where_both_suns_light_it() -> None:
     """The colour guard acts last: neither the exposure anchor's gain nor the shade floor moves
     the ``a*, b*`` it keeps on surfaces lit under both suns (the anchor's gain alone moved them

@@ -160,11 +160,14 @@ def test_lift_runs_at_working_and_preview_sizes_and_only_brightens(scene) -> Non
     on_preview = s.relight(SUNS[0], preview=True)
     assert on.shape == off.shape and on_preview.shape == off_preview.shape
     # The lift only raises luminance (never darkens), and it acts somewhere; where it acts the
-    # surface takes its lit surroundings' colour, which may move single channels either way.
+    # surface takes its lit surroundings' colour, which may move single channels either way,
+    # and then the new daylight's colour (a per-channel gain of luminance 1, which moves a
+    # coloured pixel's luminance a little: one pixel 0.4 % since the anchor runs before the
+    # floor).
     from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
 
     y_on, y_off = luminance(srgb_to_linear(on)), luminance(srgb_to_linear(off))
-    assert (y_on >= y_off * (1 - 2e-3) - 1e-4).all()
+    assert (y_on >= y_off * (1 - 1e-2) - 1e-4).all()
     assert (y_on > y_off * 1.1 + 0.01).any()
     # "Confirm sun" makes the drag preview's lift inputs, so the first drag frame does not,
     # and they are kept for the next sun.
