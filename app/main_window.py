@@ -3043,10 +3043,12 @@ class MainWindow(QMainWindow):
                 if isinstance(result, dict) and result.get("computed") is False:
                     text = "Ready"  # the shadows found at confirming, shown: no work to time
                 # (a project opens into step 2: what its opening said outlasts the relit view)
-                if channel in ("shadow", "relight") and self._held_message:
+                held = channel in ("shadow", "relight") and bool(self._held_message)
+                if held:
                     text, self._held_message = self._held_message, ""
-                if channel == "relight" and self._exposure_hint:
-                    text += f" · {self._exposure_hint}"
+                if channel == "relight" and self._exposure_hint:  # (the time: in the timings)
+                    text = (f"{text} · {self._exposure_hint}" if held
+                            else f"Ready · {self._exposure_hint}")
                 tool = self.relight_panel.shadow_tool()
                 if channel == "relight" and self._edit_note:
                     text = f"Ready · {self._edit_note}"  # what the correction did (nothing)
@@ -3258,17 +3260,20 @@ def exposure_hint(level: float | None) -> str:
     much darker or brighter (``level``: :func:`~outcast_core.runtime.pipeline.relight.
     exposure_level`); "" otherwise.
 
+    Short, so that the advice is whole in the status bar at 1024 px (the earlier wording, after
+    the relighting's time, was cut before it: a user trial); the status bar's tooltip says the
+    rest.
+
     Example:
-        >>> exposure_hint(0.2).split(":")[0]
-        "at the photo's exposure the new light makes the scene 5.0× darker"
+        >>> exposure_hint(0.2)
+        'the new light leaves the scene 5.0× darker: try "Meter the new light"'
         >>> exposure_hint(1.3)
         ''
     """
     if level is None or 1.0 / EXPOSURE_HINT_FACTOR < level < EXPOSURE_HINT_FACTOR:
         return ""
     factor, way = (1.0 / max(level, 1e-6), "darker") if level < 1.0 else (level, "brighter")
-    return (f"at the photo's exposure the new light makes the scene {factor:.1f}× {way}: "
-            "\"Meter the new light\" exposes it as a camera would")
+    return f"the new light leaves the scene {factor:.1f}× {way}: try \"Meter the new light\""
 
 
 def process_until_idle(window: MainWindow, timeout: float = 120.0, poll: float = 0.002) -> None:

@@ -34,6 +34,7 @@ from outcast_core.runtime.pipeline.timelapse import (
     MAX_FPS,
     MIN_FPS,
     MIN_RENDER_ELEVATION,
+    SHORT_SIDES,
     SunBelowHorizonError,
     SunSample,
     format_from_path,
@@ -211,6 +212,11 @@ def _check_sample_args(args: argparse.Namespace, exif: Any) -> None:
         if args.frames is None:
             raise ValueError("expected --frames N with --sweep")
         return
+    start, end = getattr(args, "start", None), getattr(args, "end", None)
+    if start is not None and end is not None and end <= start:  # (it was said after the
+        # depth and the heading: a user trial)
+        raise ValueError(f"expected the end time after the start time, got {start:%H:%M} -> "
+                         f"{end:%H:%M}")
     if _place(args, exif) is None:
         raise ValueError("expected --lat and --lon (the photo has no GPS position)")
     if args.heading is None and getattr(exif, "capture_time", None) is None:
@@ -355,13 +361,19 @@ def _run_timelapse(args: argparse.Namespace, loaded: Any, exif: Any, session: An
     if not quiet:
         # No guess up front: a formula from the session's last stages was 4x off (the app
         # times a short export instead); the progress says the time left at the frames' pace.
-        print(f"rendering {len(samples)} frames of {shape[1]}x{shape[0]} ({size}){padded}",
+        full = session.full_image_srgb.shape[:2]
+        # A video size beyond the photo gives the photo's own size ("(4k)" beside a 2016-px
+        # frame misled a user trial).
+        label = (f"the photo's own size: {size} is larger"
+                 if size in SHORT_SIDES and tuple(shape) == tuple(full)
+                 and SHORT_SIDES[size] > min(full) else size)
+        print(f"rendering {len(samples)} frames of {shape[1]}x{shape[0]} ({label}){padded}",
               file=sys.stderr)
     if not quiet:
         dim = dark_frames_note(session, samples)
         if dim:
             print(f"note: {dim}", file=sys.stderr)
-    out = render_timelapse(
+    render_timelapse(
         session,
         samples,
         args.output,
@@ -373,5 +385,7 @@ def _run_timelapse(args: argparse.Namespace, loaded: Any, exif: Any, session: An
     report.end_line()
     if not quiet:
         counted = f" ({corrections.removesuffix('; ')})" if corrections else ""
-        print(f"wrote {len(samples)} frames to {out}{counted}", file=sys.stderr)
+        # The output as given, as relight and deshadow say it (a frames folder came back
+        # absolute, a video relative: a user trial).
+        print(f"wrote {len(samples)} frames to {args.output}{counted}", file=sys.stderr)
     return 0

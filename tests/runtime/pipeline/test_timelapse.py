@@ -446,6 +446,23 @@ def test_cli_errors():
         _parse(["timelapse", "x", "--from", "0;30", "--date", "2020-01-01", "-o", "o.mp4"])
 
 
+def test_cli_refuses_an_end_before_the_start_before_any_work(tmp_path, capsys):
+    """``--start 18:00 --end 06:00`` is refused before the photo's depth is estimated and the
+    heading solved (it was said after both: a user trial), whatever the photo."""
+    from outcast_core.runtime.cli.main import main
+    from outcast_core.runtime.io.imageio import write_image
+
+    photo = tmp_path / "p.png"
+    write_image(photo, np.full((32, 48, 3), 0.5, np.float32))
+    rc = main(["timelapse", str(photo), "--from", "0,30", "--date", "2019-06-21", "--lat", "50",
+               "--lon", "14", "--heading", "0", "--start", "18:00", "--end", "06:00",
+               "-o", str(tmp_path / "t.gif")])
+    err = capsys.readouterr().err
+    assert rc == 2 and "expected the end time after the start time, got 18:00 -> 06:00" in err
+    assert "depth" not in err.lower() and "heading" not in err.lower()
+    assert not (tmp_path / "t.gif").exists()
+
+
 def test_cli_end_to_end_writes_and_refuses_overwrite(tmp_path):
     from outcast_core.runtime.cli.main import main
 

@@ -126,6 +126,13 @@ def test_cli_timelapse_size_option(tmp_path: Path, capsys):
     assert rc == 0
     err = capsys.readouterr().err
     assert "rendering 2 frames of 160x120 (working)\n" in err  # no guess up front
+    assert f"wrote 2 frames to {out}\n" in err  # the output as given
+    # A video size beyond the photo: the photo's own size, and said so (not "(4k)").
+    rc = main(["timelapse", str(photo), "--from", "90,40", "--sweep", "0,20:90,30", "--frames",
+               "2", "--size", "4k", "--preset", "fast", "-o", str(tmp_path / "big.gif")])
+    assert rc == 0
+    err = capsys.readouterr().err
+    assert "rendering 2 frames of 160x120 (the photo's own size: 4k is larger)\n" in err
     with pytest.raises(SystemExit):
         main(["timelapse", str(photo), "--from", "90,40", "--sweep", "0,20:90,30", "--frames",
               "2", "--size", "8k", "-o", str(tmp_path / "x.mp4")])  # fmt: skip
