@@ -118,6 +118,7 @@ from app.panels import (
     AlignPanel,
     PanelStack,
     RelightPanel,
+    ShownPageStack,
 )
 from app.state import (
     IMAGE_SUFFIXES,
@@ -518,7 +519,7 @@ class MainWindow(QMainWindow):
         scroll.setFrameShape(QScrollArea.Shape.NoFrame)
         # Each step's main buttons (Confirm sun; Export, Time-lapse) stay below the scrolling
         # panel, in view on a 768-pixel-high screen too.
-        self.footers = QStackedWidget(self)
+        self.footers = ShownPageStack(self)
         self.footers.addWidget(self.align_panel.footer)
         self.footers.addWidget(self.relight_panel.footer)
         self.footers.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
@@ -3261,8 +3262,8 @@ def exposure_hint(level: float | None) -> str:
     exposure_level`); "" otherwise.
 
     Short, so that the advice is whole in the status bar at 1024 px (the earlier wording, after
-    the relighting's time, was cut before it: a user trial); the status bar's tooltip says the
-    rest.
+    the relighting's time, was cut before it: a user trial); the relighting's time stays in
+    the timings beside it.
 
     Example:
         >>> exposure_hint(0.2)

@@ -928,6 +928,19 @@ def _no_gaps(panel) -> None:
     assert sun.height() <= sun.sizeHint().height() + 4
 
 
+def test_each_steps_footer_is_as_tall_as_its_own_buttons(qtbot, window, photo, settle):
+    """Step 2's footer has two rows (Re-align above the exports), step 1's one (Confirm sun);
+    as a plain stack step 1's took step 2's height, 20 px of its dial at 1024 x 700 (a
+    review)."""
+    window.resize(1024, 700)
+    _load(window, photo, settle)
+    one, two = window.align_panel.footer, window.relight_panel.footer
+    assert two.sizeHint().height() > one.sizeHint().height()
+    qtbot.waitUntil(lambda: window.footers.height() == one.sizeHint().height())
+    _confirm(window, settle)
+    qtbot.waitUntil(lambda: window.footers.height() == two.sizeHint().height())
+
+
 @pytest.mark.parametrize("size", [(1024, 700), (1280, 800)])
 def test_step_2_corrections_are_in_view_on_a_small_screen(qtbot, window, photo, settle, size):
     """A user trial: at 1280 x 800 step 2's panel cut off the count of corrections and "Clear

@@ -213,8 +213,10 @@ def _check_sample_args(args: argparse.Namespace, exif: Any) -> None:
             raise ValueError("expected --frames N with --sweep")
         return
     start, end = getattr(args, "start", None), getattr(args, "end", None)
-    if start is not None and end is not None and end <= start:  # (it was said after the
-        # depth and the heading: a user trial)
+    # (said after the depth and the heading until a user trial; an offset typed with a time,
+    # 06:00+02:00, is not the one the path takes: compared as the clock times they are)
+    if start is not None and end is not None and end.replace(tzinfo=None) <= start.replace(
+            tzinfo=None):
         raise ValueError(f"expected the end time after the start time, got {start:%H:%M} -> "
                          f"{end:%H:%M}")
     if _place(args, exif) is None:

@@ -330,8 +330,8 @@ def evaluate_photo(
 
 def _relight_checks(session: Any, res: PhotoResult, az: float, el: float,
                     truth: np.ndarray) -> None:
-    """``relit_chroma``, ``relit_sky``, ``new_shade``, ``old_shade`` and ``relit_detail`` of
-    :class:`PhotoResult` (module docstring)."""
+    """``relit_chroma``, ``relit_sky``, ``new_shade``, ``shade_colour``, ``old_shade``,
+    ``relit_detail`` and ``false_lift`` of :class:`PhotoResult` (module docstring)."""
     w_o = sun_vector(az, el)
     w_n = relit_check_sun(session, az, el)
     relit = session.relight(w_n)
@@ -372,7 +372,7 @@ def relit_check_sun(session: Any, az: float, el: float, turn: float = RELIGHT_TU
     return sun_vector(a + turn, e, *tilt)
 
 
-#: Least pixels of each kind :func:`new_shade_ratio` needs.
+#: Least pixels of each kind :func:`new_shade_ratio` needs (and :func:`false_lift`).
 MIN_PIXELS = 50
 
 

@@ -321,11 +321,16 @@ def test_false_lift_measures_what_the_relighting_does_to_wrongly_found_shadows()
     # Where the new sun does not light it, or only a sky is left, nothing is measured.
     assert false_lift(img, relit, marked, s_o, np.zeros_like(lit), sky) is None
     assert false_lift(img, relit, marked, s_o, lit, np.ones_like(sky)) is None
-    # The found shadow within the ring round a marked one is that shadow's edge, not a material.
-    near = np.zeros((60, 60), bool)
-    near[:, 38:] = True
-    s_o[5:15, 5:15] = 1.0
-    assert false_lift(img, relit, near, s_o, lit, sky) is None
+    # A found strip just beside a marked shadow (within the ring) is that shadow's edge, not a
+    # material: left out (about ln 11 if it counted).
+    s_o = np.ones((60, 60), np.float32)
+    s_o[:, 40:42] = 0.0
+    beside = np.zeros((60, 60), bool)
+    beside[:, 37:40] = True
+    lifted = img.copy()
+    lifted[:, 40:42] = 0.5
+    assert false_lift(img, lifted, beside, s_o, lit, sky) is None
+    assert false_lift(img, lifted, np.zeros_like(beside), s_o, lit, sky) > 2.0
 
 
 def test_detail_ratio_measures_the_fine_texture_a_relighting_keeps() -> None:

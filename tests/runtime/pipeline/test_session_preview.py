@@ -167,7 +167,7 @@ def test_lift_runs_at_working_and_preview_sizes_and_only_brightens(scene) -> Non
     from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
 
     y_on, y_off = luminance(srgb_to_linear(on)), luminance(srgb_to_linear(off))
-    assert (y_on >= y_off * (1 - 1e-2) - 1e-4).all()
+    assert (y_on >= y_off * (1 - 5e-3) - 1e-4).all()
     assert (y_on > y_off * 1.1 + 0.01).any()
     # "Confirm sun" makes the drag preview's lift inputs, so the first drag frame does not,
     # and they are kept for the next sun.

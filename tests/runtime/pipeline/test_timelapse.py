@@ -461,6 +461,14 @@ def test_cli_refuses_an_end_before_the_start_before_any_work(tmp_path, capsys):
     assert rc == 2 and "expected the end time after the start time, got 18:00 -> 06:00" in err
     assert "depth" not in err.lower() and "heading" not in err.lower()
     assert not (tmp_path / "t.gif").exists()
+    # A time typed with an offset is compared as the clock time it is (no traceback).
+    args = _parse(["timelapse", "x.jpg", "--from", "0,30", "--date", "2019-06-21", "--lat",
+                   "50", "--lon", "14", "--heading", "0", "--start", "06:00+02:00", "--end",
+                   "18:00", "-o", "o.mp4"])
+    assert len(_samples_from_args(args, None)) == 48
+    args.start, args.end = dt.time(18, 0, tzinfo=dt.UTC), dt.time(6, 0)
+    with pytest.raises(ValueError, match="end time after the start time"):
+        _samples_from_args(args, None)
 
 
 def test_cli_end_to_end_writes_and_refuses_overwrite(tmp_path):

@@ -116,7 +116,7 @@ def test_render_timelapse_between_working_and_full(tmp_path, monkeypatch):
     assert session.calls.full == 0 and session.calls.relight == 2  # the photo's detail, not full
 
 
-def test_cli_timelapse_size_option(tmp_path: Path, capsys):
+def test_cli_timelapse_size_option(tmp_path: Path, capsys, monkeypatch):
     rng = np.random.default_rng(1)
     photo = tmp_path / "p.png"
     write_image(photo, np.clip(0.5 + 0.1 * rng.standard_normal((120, 160, 3)), 0, 1))
@@ -133,6 +133,11 @@ def test_cli_timelapse_size_option(tmp_path: Path, capsys):
     assert rc == 0
     err = capsys.readouterr().err
     assert "rendering 2 frames of 160x120 (the photo's own size: 4k is larger)\n" in err
+    # A frames folder given relative is named as given (it came back absolute: a user trial).
+    monkeypatch.chdir(tmp_path)
+    rc = main(["timelapse", "p.png", "--from", "90,40", "--sweep", "0,20:90,30", "--frames",
+               "2", "--size", "working", "--preset", "fast", "-o", "frames"])
+    assert rc == 0 and "wrote 2 frames to frames\n" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["timelapse", str(photo), "--from", "90,40", "--sweep", "0,20:90,30", "--frames",
               "2", "--size", "8k", "-o", str(tmp_path / "x.mp4")])  # fmt: skip
