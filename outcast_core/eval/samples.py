@@ -93,7 +93,11 @@ def relight_samples(
     for name, entry in entries.items():
         loaded = read_image(spec.parent / name, max_pixels=4_000_000)
         session = RelightSession(ModelRegistry(models), preset=preset, mode="learned")
-        session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm)
+        # With the photo's file, as the app and the CLI set it: its metadata give the camera's
+        # tilt, the horizon of the new sun's daylight (without it the ski slope's relit
+        # photos came out blue-white, unlike the CLI's).
+        session.set_image(loaded.image_srgb, focal_35mm=loaded.exif.focal_35mm,
+                          photo_path=spec.parent / name)
         s_o = session.set_original_sun(sun_vector(*entry["from"]))
         row: dict[str, np.ndarray] = {
             "Input": session.image_srgb,
