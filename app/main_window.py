@@ -118,7 +118,6 @@ from app.panels import (
     AlignPanel,
     PanelStack,
     RelightPanel,
-    ShownPageStack,
 )
 from app.state import (
     IMAGE_SUFFIXES,
@@ -504,6 +503,19 @@ class MainWindow(QMainWindow):
         self._update_title()
 
     # ================================================================== UI
+    def _show_footer(self, index: int) -> None:
+        """The step's footer, the stack as tall as it: a stack's layout asks for its tallest
+        page's height but leaves out a page whose vertical size policy is Ignored, so step 2's
+        two rows (Re-align above the exports) no longer take 20 px of step 1's dial at
+        1024 x 700 (a review)."""
+        stack = self.footers
+        for k in range(stack.count()):
+            page = stack.widget(k)
+            page.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Preferred
+                               if k == index else QSizePolicy.Policy.Ignored)
+        stack.setCurrentIndex(index)
+        stack.updateGeometry()
+
     def _build_ui(self) -> None:
         if ICON_PATH.is_file():
             self.setWindowIcon(QIcon(str(ICON_PATH)))
@@ -519,11 +531,12 @@ class MainWindow(QMainWindow):
         scroll.setFrameShape(QScrollArea.Shape.NoFrame)
         # Each step's main buttons (Confirm sun; Export, Time-lapse) stay below the scrolling
         # panel, in view on a 768-pixel-high screen too.
-        self.footers = ShownPageStack(self)
+        self.footers = QStackedWidget(self)
         self.footers.addWidget(self.align_panel.footer)
         self.footers.addWidget(self.relight_panel.footer)
         self.footers.setSizePolicy(QSizePolicy.Policy.Preferred, QSizePolicy.Policy.Maximum)
-        self.steps.currentChanged.connect(self.footers.setCurrentIndex)
+        self.steps.currentChanged.connect(self._show_footer)
+        self._show_footer(self.steps.currentIndex())
         # Each step's title stays above it (scrolled down to the corrections, the panel cut
         # "Step 2 · Relight" in half: a user trial).
         self.headers = QStackedWidget(self)

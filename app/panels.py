@@ -116,24 +116,6 @@ def _percent_slider(value: int, parent: QWidget) -> QSlider:
     return s
 
 
-class ShownPageStack(QStackedWidget):
-    """A stack as tall as the page it shows: a plain stack asks for its tallest page's size,
-    so step 2's two-row footer (with "Re-align original sun") took 20 px of step 1's dial at
-    1024 x 700 (a review)."""
-
-    def __init__(self, parent: QWidget | None = None) -> None:
-        super().__init__(parent)
-        self.currentChanged.connect(lambda _i: self.updateGeometry())
-
-    def sizeHint(self) -> QSize:  # noqa: N802 (Qt's name)
-        page = self.currentWidget()
-        return super().sizeHint() if page is None else page.sizeHint()
-
-    def minimumSizeHint(self) -> QSize:  # noqa: N802 (Qt's name)
-        page = self.currentWidget()
-        return super().minimumSizeHint() if page is None else page.minimumSizeHint()
-
-
 class PanelStack(QStackedWidget):
     """The steps' panels in the side panel's scroll area, as tall as the shown one needs at
     its least (:meth:`QLayout.minimumHeightForWidth`: the dial at its smallest, text
