@@ -179,6 +179,22 @@ def shadow_edit_text(edits: tuple[ShadowEdit, ...]) -> str:
     return "Mark shadow" if last.shadow else "Not a shadow"
 
 
+def edit_done_note(edits: tuple[ShadowEdit, ...]) -> str:
+    """What the status bar says once a correction's result is shown (``edits``: the
+    corrections it left; short, to be whole at 1024 px).
+
+    Example:
+        >>> from outcast_core.runtime.pipeline.photo_shadows import ShadowEdit
+        >>> edit_done_note((ShadowEdit(0.5, 0.5, False),))
+        'applied "Not a shadow" · Ctrl+Z takes it back'
+        >>> edit_done_note(())
+        'cleared the shadow corrections · Ctrl+Z brings them back'
+    """
+    if not edits:
+        return "cleared the shadow corrections · Ctrl+Z brings them back"
+    return f'applied "{shadow_edit_text(edits)}" · Ctrl+Z takes it back'
+
+
 STEP_BURST_S = 1.0
 """Steps of one field at most this far apart (seconds) make one undo step (a held arrow key
 repeats about 30 times a second; clicks on a spin box's arrows come a few tenths apart)."""

@@ -82,7 +82,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     window.show()
     timer = quit_on_sigterm(app, window)
     if args.path:
-        window.open_path(args.path)
+        # Opened from inside the event loop: a file that cannot be opened shows a modal error,
+        # and a SIGTERM then ends that dialog's loop and this one together. Opened before
+        # app.exec(), the signal ended only the dialog's loop, and the app ran on with no
+        # window (a user trial: `outcast-gui text.jpg`, then SIGTERM).
+        from PySide6.QtCore import QTimer
+
+        QTimer.singleShot(0, lambda: window.open_path(args.path))
     status = int(app.exec())
     timer.stop()
     return status

@@ -92,6 +92,7 @@ from app.history import (
     EditCommand,
     EditState,
     changed_parts,
+    edit_done_note,
     same_edit_state,
     shadow_edit_text,
 )
@@ -456,6 +457,10 @@ class MainWindow(QMainWindow):
         #: found-shadows job says if they changed nothing.
         self._edit_just_added = 0
         self._edit_note = ""  # said after "Ready" when the last correction changed nothing
+        #: The corrections as the user's last click, stroke or "Clear corrections" left them
+        #: (None once an undo, a redo or another photo changed them): their result says so.
+        self._edit_made: tuple[ShadowEdit, ...] | None = None
+        self._edit_done = ""  # what it did, said instead of the tool's hint
         #: What an undo or redo said, the jobs it started (or that were running: then not its
         #: own, and their result is not said), for the last of them to report it before its
         #: own result (:meth:`_undo_step`); dropped by the user's next change.
@@ -2183,7 +2188,7 @@ class MainWindow(QMainWindow):
         # the job is submitted: its result must find it).
         self._edit_to_show = new if self.relight_panel.view() == "shadows_removed" else ()
         try:
-            self.set_shadow_edits((*self.shadow_edits, *new))
+            self.set_shadow_edits((*self.shadow_edits, *new), made=True)
         finally:
             self._edit_just_added = 0
         # What redo offered: this step replaces it, and gives it back if it changed nothing
@@ -2258,13 +2263,15 @@ class MainWindow(QMainWindow):
         """Take back every correction of the found shadows (one undo step)."""
         if not self.shadow_edits:
             return
-        self.set_shadow_edits(())
+        self.set_shadow_edits((), made=True)
         self._record(text=shadow_edit_text(()))
 
-    def set_shadow_edits(self, edits: tuple[ShadowEdit, ...]) -> None:
+    def set_shadow_edits(self, edits: tuple[ShadowEdit, ...], made: bool = False) -> None:
         """Use ``edits`` as the photo's shadow corrections (records nothing) and draw what
-        depends on them again: the step-2 view and an open time-lapse preview."""
+        depends on them again: the step-2 view and an open time-lapse preview. ``made``: the
+        user's click, stroke or clear made them (its result says so; an undo's does not)."""
         edits = tuple(edits)
+        self._edit_made = edits if made else None
         if edits == self.shadow_edits:
             return
         self._show_shadow_edits(edits)
@@ -2357,10 +2364,15 @@ class MainWindow(QMainWindow):
             self._deshadow_key, self._deshadow_images = key, kept
             self._edit_note = ""
             self._show_deshadow(view)  # (every job hands the session its own corrections)
+            made, self._edit_made = self._edit_made, None
             if not self._status_pending():  # (an undo says itself after this)
-                # Not the timing of the job shown before: what the tool that is on does.
+                # Not the timing of the job shown before: what the correction just made did
+                # (images kept: "Clear corrections" back to none), or what the tool that is
+                # on does.
                 tool = self.relight_panel.shadow_tool()
-                self.stage_label.setText(SHADOW_TOOL_HINTS[tool] if tool else "Ready")
+                self.stage_label.setText(
+                    f"Ready · {edit_done_note(made)}" if made == self.shadow_edits
+                    else SHADOW_TOOL_HINTS[tool] if tool else "Ready")
             return None
         if self._deshadow_job is not None:
             job_key, job_with_image, job_id = self._deshadow_job
@@ -2498,7 +2510,8 @@ class MainWindow(QMainWindow):
             return
         if view != self.relight_panel.view():
             return  # the user chose another view since; its own request is on the way
-        self._exposure_hint = self._edit_note = ""  # said only after the image it is about
+        self._exposure_hint = self._edit_note = self._edit_done = ""  # said only after the
+        # image it is about
         if view in DESHADOW_VIEWS:
             key = result["key"]
             if entry is None or key != self._deshadow_key_now():
@@ -2520,6 +2533,11 @@ class MainWindow(QMainWindow):
                 self._edit_note = " · ".join(n for n in (
                     f"marked {marked * 100:.0f} % of the photo as shadow · Ctrl+Z takes it back",
                     self._edit_note) if n)
+            made, self._edit_made = self._edit_made, None
+            if idle is None and made == self.shadow_edits:
+                # What the click, stroke or clear did, said in place of the tool's hint (a
+                # user trial's "Not a shadow" click and "Clear corrections" left only it).
+                self._edit_done = edit_done_note(made)
             return
         if view == "output":
             self._exposure_hint = "" if result.get("preview") else exposure_hint(
@@ -3066,8 +3084,10 @@ class MainWindow(QMainWindow):
                 tool = self.relight_panel.shadow_tool()
                 if channel == "relight" and self._edit_note:
                     text = f"Ready · {self._edit_note}"  # what the correction did (nothing)
-                elif channel == "relight" and tool:
-                    text = SHADOW_TOOL_HINTS[tool]  # what the tool that is on does
+                elif channel == "relight" and tool:  # what the correction did, or what the
+                    # tool that is on does
+                    text = f"Ready · {self._edit_done}" if self._edit_done else (
+                        SHADOW_TOOL_HINTS[tool])
             if self._undo_note is not None and job_id in self._undo_note[1]:
                 note, _, own = self._undo_note  # what the undo did, before what its job did
                 if channel in IMAGE_EXPORT_CHANNELS or channel == "tl_export":

@@ -160,6 +160,26 @@ def test_not_a_shadow_drops_the_found_region(qtbot, window, photo, settle, error
     assert undo_texts(window)[-1] == "Not a shadow"
     assert window.has_unsaved_changes() and window.isWindowModified()
     assert rp.clear_shadow_edits_button.isEnabled() and rp.shadow_tool() == "not_shadow"
+    # Said once its result is shown, not only the tool's hint (a user trial).
+    assert window.stage_label.text() == 'Ready · applied "Not a shadow" · Ctrl+Z takes it back'
+
+
+def test_clear_and_undo_say_what_they_did(qtbot, window, photo, settle):
+    """"Clear corrections" says it cleared them and how to get them back; an undo says
+    "Undone", not what the correction did."""
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    window.relight_panel.clear_shadow_edits_button.click()
+    settle()
+    assert window.shadow_edits == ()
+    assert window.stage_label.text() == (
+        "Ready · cleared the shadow corrections · Ctrl+Z brings them back")
+    window.act_undo.trigger()
+    settle()
+    assert len(window.shadow_edits) == 1
+    assert window.stage_label.text() == "Undone · Clear shadow corrections"
 
 
 def test_mark_shadow_adds_a_missed_shadow_and_lifts_it(qtbot, window, patch_photo, settle):

@@ -1489,11 +1489,19 @@ def _write_depth_png(path: Path, depth: np.ndarray) -> None:
     Image.fromarray(codes).save(path, format="PNG", pnginfo=info, compress_level=6)
 
 
+#: How a depth map's wrong kind of image is named (a 16-bit colour PNG reads as Pillow's "RGB",
+#: so "mode RGB" read oddly for it: a user trial).
+_PIL_MODE_WORDS = {"1": "black and white", "L": "8-bit grey", "LA": "8-bit grey with alpha",
+                   "P": "a palette's colours", "RGB": "colour", "RGBA": "colour with alpha",
+                   "CMYK": "CMYK colour", "F": "32-bit float grey"}
+
+
 def _read_depth_png(path: Path) -> np.ndarray:
     with _open_pil(path) as im:
         if im.format != "PNG" or im.mode not in ("I;16", "I;16B", "I;16L", "I"):
+            kind = _PIL_MODE_WORDS.get(im.mode, f"mode {im.mode}")
             raise _DepthContentError(
-                f"expected a 16-bit grey PNG depth map, got {im.format} mode {im.mode}"
+                f"expected a 16-bit grey PNG depth map, got a {im.format} image in {kind}"
             )
         _check_pixel_count(path, *im.size)
         codes = np.asarray(im).astype(np.float64)

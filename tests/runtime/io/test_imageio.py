@@ -837,6 +837,14 @@ def test_depth_png_from_another_tool_reads_as_relative(tmp_path: Path) -> None:
     assert back[1, 0] == pytest.approx(1.0) and back[0, 1] == pytest.approx(1000 / 65535)
 
 
+def test_a_colour_png_given_as_depth_is_named_in_words(tmp_path: Path) -> None:
+    """A 16-bit colour PNG reads as Pillow's 8-bit "RGB": the error says "colour", not "mode
+    RGB" (a user trial found that odd for a 16-bit file)."""
+    cv2.imwrite(str(tmp_path / "c.png"), np.full((4, 4, 3), 1000, np.uint16))
+    with pytest.raises(ValueError, match="got a PNG image in colour$"):
+        read_depth(tmp_path / "c.png")
+
+
 def test_depth_exr_channel_choice(tmp_path: Path) -> None:
     r = np.full((3, 4), 2.0, np.float32)
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
