@@ -458,9 +458,11 @@ class MainWindow(QMainWindow):
         self._edit_just_added = 0
         self._edit_note = ""  # said after "Ready" when the last correction changed nothing
         #: The corrections as the user's last click, stroke or "Clear corrections" left them
-        #: (None once an undo, a redo or another photo changed them): their result says so.
+        #: (None once an undo, a redo or another photo changed them), until the step-2 view
+        #: that shows them is asked for: the job carries them, and its result says what the
+        #: correction did (:func:`~app.history.edit_done_note`, in :attr:`_edit_done`).
         self._edit_made: tuple[ShadowEdit, ...] | None = None
-        self._edit_done = ""  # what it did, said instead of the tool's hint
+        self._edit_done = ""
         #: What an undo or redo said, the jobs it started (or that were running: then not its
         #: own, and their result is not said), for the last of them to report it before its
         #: own result (:meth:`_undo_step`); dropped by the user's next change.
@@ -2381,6 +2383,9 @@ class MainWindow(QMainWindow):
                 if waiting and any(i == job_id for i, _, _ in self.runner.active()):
                     return job_id  # already on its way (the new sun moved: nothing else to do)
         edits, just_added = self.shadow_edits, self._edit_just_added
+        # The correction this job shows, if the user's (its result says what it did; a later
+        # job, after a view switch or a sun move, says nothing of it: a review).
+        made, self._edit_made = self._edit_made, None
 
         def job(ctx: JobContext) -> dict[str, Any]:
             click = bool(just_added) and edits[-1].shadow and edits[-1].radius == 0
@@ -2409,7 +2414,7 @@ class MainWindow(QMainWindow):
             return {"view": view, "key": key, "image": image, "overlay": overlay,
                     "idle_edits": idle_edits, "computed": computed,
                     "large_mark": marked if click and marked > LARGE_MARK_SHARE else 0.0,
-                    "timings": _timings(session)}  # fmt: skip
+                    "made": made, "timings": _timings(session)}  # fmt: skip
 
         words = "Removing the photo's shadows" if with_image else "Finding the photo's shadows"
         job_id = self.runner.submit("relight", job, words)
@@ -2499,6 +2504,7 @@ class MainWindow(QMainWindow):
 
     def _on_relit(self, result: dict[str, Any]) -> None:
         view = result["view"]
+        self._edit_done = ""  # (said by this result only, whatever it shows: a review)
         entry = None
         if view in DESHADOW_VIEWS and result["key"][0] == self._loads:  # (not another photo's)
             # Kept even when not shown now: for undo and redo, and the other deshadow view.
@@ -2510,8 +2516,7 @@ class MainWindow(QMainWindow):
             return
         if view != self.relight_panel.view():
             return  # the user chose another view since; its own request is on the way
-        self._exposure_hint = self._edit_note = self._edit_done = ""  # said only after the
-        # image it is about
+        self._exposure_hint = self._edit_note = ""  # said only after the image it is about
         if view in DESHADOW_VIEWS:
             key = result["key"]
             if entry is None or key != self._deshadow_key_now():
@@ -2533,8 +2538,8 @@ class MainWindow(QMainWindow):
                 self._edit_note = " · ".join(n for n in (
                     f"marked {marked * 100:.0f} % of the photo as shadow · Ctrl+Z takes it back",
                     self._edit_note) if n)
-            made, self._edit_made = self._edit_made, None
-            if idle is None and made == self.shadow_edits:
+            made = result.get("made")
+            if idle is None and made is not None and made == self.shadow_edits:
                 # What the click, stroke or clear did, said in place of the tool's hint (a
                 # user trial's "Not a shadow" click and "Clear corrections" left only it).
                 self._edit_done = edit_done_note(made)
@@ -3084,10 +3089,10 @@ class MainWindow(QMainWindow):
                 tool = self.relight_panel.shadow_tool()
                 if channel == "relight" and self._edit_note:
                     text = f"Ready · {self._edit_note}"  # what the correction did (nothing)
-                elif channel == "relight" and tool:  # what the correction did, or what the
-                    # tool that is on does
-                    text = f"Ready · {self._edit_done}" if self._edit_done else (
-                        SHADOW_TOOL_HINTS[tool])
+                elif channel == "relight" and self._edit_done:
+                    text = f"Ready · {self._edit_done}"  # what the correction did
+                elif channel == "relight" and tool:
+                    text = SHADOW_TOOL_HINTS[tool]  # what the tool that is on does
             if self._undo_note is not None and job_id in self._undo_note[1]:
                 note, _, own = self._undo_note  # what the undo did, before what its job did
                 if channel in IMAGE_EXPORT_CHANNELS or channel == "tl_export":
@@ -3097,6 +3102,7 @@ class MainWindow(QMainWindow):
                 else:  # a tool's hint, or a result the undo made stale
                     text = note
             self._undo_note = None
+            self._edit_done = ""  # (said once)
             self.stage_label.setText(text)
 
     @Slot(int, str, object)

@@ -979,15 +979,49 @@ def test_the_brush_and_the_command_line_share_one_largest_radius(window, photo, 
     assert window.step is Step.EMPTY
 
 
+def test_a_correction_is_said_by_its_own_result_only(qtbot, window, photo, settle):
+    """What a correction did is said once, by the result that shows it: after a quick switch
+    of views and a sun move, the status said "applied ... Ctrl+Z takes it back" again, where
+    Ctrl+Z undid the sun (a review)."""
+    _shadows_view(window, photo, settle)
+    _tool(window, "not_shadow")
+    _click(qtbot, window, *BAND_XY)
+    settle()
+    assert "applied" in window.stage_label.text()
+    window.relight_panel.set_view("shadows_removed")
+    window.relight_panel.set_view("shadows_found")  # before the de-shadowed photo came
+    window.relight_panel.sun_panel.set_sun(200.0, 15.0)
+    window._on_target_sun_committed(200.0, 15.0)  # (what the dial's release sends)
+    settle()
+    assert undo_texts(window)[-1] == "Move new sun"
+    assert "applied" not in window.stage_label.text()
+
+
+def test_a_clear_is_said_with_no_tool_on_when_its_images_are_made(qtbot, window, photo,
+                                                                  settle):
+    """A clear whose images are not kept (a reopened project's corrections: the photo
+    without them never shown) says what it did with no tool on, as a kept one does (a
+    review)."""
+    _shadows_view(window, photo, settle)
+    assert window.add_shadow_edit(*BAND_XY, shadow=False)
+    settle()
+    window._deshadow_kept.clear()
+    window.clear_shadow_edits()
+    settle()
+    assert window.relight_panel.shadow_tool() is None or not window.relight_panel.shadow_tool()
+    assert window.stage_label.text() == (
+        "Ready · cleared the shadow corrections · Ctrl+Z brings them back")
+
+
 def test_opening_shadows_found_reports_no_timing_for_work_not_done(qtbot, window, photo,
                                                                    settle):
     """The shadows are found when the sun is confirmed: opening "Shadows found" afterwards
     said "finding shadows took 0.00 s"."""
     _shadows_view(window, photo, settle)
     assert window.stage_label.text() == "Ready"
-    assert window.add_shadow_edit(*BAND_XY, shadow=False)  # work done (no tool on): timed
+    assert window.add_shadow_edit(*BAND_XY, shadow=False)  # work done: what it did is said
     settle()
-    assert "finding shadows took" in window.stage_label.text()
+    assert window.stage_label.text() == 'Ready · applied "Not a shadow" · Ctrl+Z takes it back'
     window.relight_panel.set_view("shadows_removed")  # the de-shadowed photo made: timed
     settle()
     assert "removing shadows took" in window.stage_label.text()

@@ -1491,8 +1491,9 @@ def _write_depth_png(path: Path, depth: np.ndarray) -> None:
 
 #: How a depth map's wrong kind of image is named (a 16-bit colour PNG reads as Pillow's "RGB",
 #: so "mode RGB" read oddly for it: a user trial).
-_PIL_MODE_WORDS = {"1": "black and white", "L": "8-bit grey", "LA": "8-bit grey with alpha",
-                   "P": "a palette's colours", "RGB": "colour", "RGBA": "colour with alpha",
+_PIL_MODE_WORDS = {"1": "black and white", "L": "8-bit grey", "LA": "grey with alpha",
+                   "P": "a palette's colours", "RGB": "colour",
+                   "RGBA": "RGBA (colour, or grey with alpha)",
                    "CMYK": "CMYK colour", "F": "32-bit float grey"}
 
 
