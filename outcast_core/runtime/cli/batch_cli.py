@@ -327,30 +327,34 @@ def run_batch_command(args: argparse.Namespace) -> int:
 
     record([job for job in jobs if job.output not in redone])
 
+    seen: list[JobResult] = []  # what has ended, for an interrupted batch's report
+
     def show(r: JobResult) -> None:
         nonlocal count
         count += 1
+        seen.append(r)
         if r.status == "done" and r.output in by_output:
             job = by_output[r.output]
             record([replace(job, settings=settings_for_source(job, options, r.sun_source))], (r,))
         if r.status == "failed" or r.warnings or not args.quiet:  # (-q: failures, warnings)
             print(_line(r, count, total), file=sys.stderr, flush=True)
 
-    for r in early:
-        show(r)
-    if jobs and not args.quiet:
+    if jobs and not args.quiet:  # (first: a rerun's skipped lines came before it)
         print(f"processing {len(jobs)} photo{'s' if len(jobs) != 1 else ''} ({options.kind}) "
               f"with {min(args.workers, len(jobs))} worker(s)", file=sys.stderr, flush=True)
-    results = early + run_batch(jobs, options, workers=args.workers, on_result=show)
-    counts = summarize(results)
-    seconds = time.perf_counter() - t0
-    warned = [r for r in results if r.warnings and r.status in ("done", "skipped")]
-    if args.report:
+    for r in early:
+        show(r)
+    def write_report(results: list[JobResult], seconds: float, interrupted: bool) -> None:
         from outcast_core.runtime.io.imageio import atomic_output
 
+        warned = [r for r in results if r.warnings and r.status in ("done", "skipped")]
         data = {REPORT_MARKER: 1, "input_folder": str(Path(args.folder).expanduser().resolve()),
                 "output_folder": str(out_dir.resolve()), "options": dict(vars(options)),
-                "counts": counts, "with_warnings": len(warned), "seconds": round(seconds, 2),
+                "counts": summarize(results), "with_warnings": len(warned),
+                "seconds": round(seconds, 2),
+                # The photos not reached are in neither list: not_reached counts them.
+                **({"interrupted": True, "not_reached": total - len(results)}
+                   if interrupted else {}),
                 # Paths as the folders are given: absolute (the image's was relative when the
                 # folder was, beside an absolute input_folder: a user trial).
                 # (no expanduser: the folders were expanded, and a photo named "~trip.jpg"
@@ -361,6 +365,30 @@ def run_batch_command(args: argparse.Namespace) -> int:
         force = args.force or _our_report(args.report, Path(args.folder), out_dir)
         with atomic_output(Path(args.report).expanduser(), force=force) as tmp:
             tmp.write_text(json.dumps(data, indent=2, default=list) + "\n", encoding="utf-8")
+
+    try:
+        results = early + run_batch(jobs, options, workers=args.workers, on_result=show)
+    except KeyboardInterrupt:
+        # Ctrl+C or SIGTERM: what ended is said and reported, and how to go on (an interrupted
+        # batch said "interrupted" alone and wrote no report: a user trial).
+        ended = list(seen)
+        c = summarize(ended)
+        print(f"outcast batch: stopped after {len(ended)} of {total} photos ({c['done']} done, "
+              f"{c['skipped']} skipped, {c['failed']} failed); nothing half-written is left: "
+              "the same command again goes on where this one stopped (finished outputs are "
+              "skipped)", file=sys.stderr)
+        if args.report:
+            try:
+                write_report(ended, time.perf_counter() - t0, interrupted=True)
+            except (OSError, FileExistsError) as exc:
+                print(f"outcast batch: warning: cannot write '{args.report}': "
+                      f"{getattr(exc, 'strerror', None) or exc}", file=sys.stderr)
+        raise
+    counts = summarize(results)
+    seconds = time.perf_counter() - t0
+    warned = [r for r in results if r.warnings and r.status in ("done", "skipped")]
+    if args.report:
+        write_report(results, seconds, interrupted=False)
     if not args.quiet or counts["failed"] or counts["stale"] or warned:
         stale = f"{counts['stale']} kept (made otherwise), " if counts["stale"] else ""
         new = sum(r.status == "done" for r in warned)

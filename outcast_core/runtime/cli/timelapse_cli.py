@@ -37,6 +37,7 @@ from outcast_core.runtime.pipeline.timelapse import (
     SHORT_SIDES,
     SunBelowHorizonError,
     SunSample,
+    default_utc_offset,
     format_from_path,
     frame_shape,
     frames_folder_problem,
@@ -115,9 +116,15 @@ frame_count = int_in(2, MAX_FRAMES, "frame count")
 
 
 def _date(text: str) -> dt.date:
+    """``YYYY-MM-DD``; a day the month does not have is named as such (2018-02-30 was told
+    "expected YYYY-MM-DD", which it is: a user trial)."""
     try:
         return dt.date.fromisoformat(text)
-    except ValueError:
+    except ValueError as exc:
+        import re
+
+        if re.fullmatch(r"\d{4}-\d{2}-\d{2}", text.strip()):
+            raise argparse.ArgumentTypeError(f"no such day: {text!r} ({exc})") from None
         raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, got {text!r}") from None
 
 
@@ -177,7 +184,9 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
         "--utc-offset",
         type=_number(-14.0, 14.0, "a UTC offset (hours)"),
         default=None,
-        help="local time's offset from UTC in hours (default: from longitude)",
+        help="local time's offset from UTC in hours, for --start, --end and a capture time "
+             "without a zone (default: the photo's own, from its EXIF; else from the "
+             "longitude)",
     )
     p.add_argument(
         "-o", "--output", required=True, metavar="OUT", help="OUT.mp4, .gif, .webp or a folder"
@@ -231,6 +240,34 @@ def _place(args: argparse.Namespace, exif: Any) -> tuple[float, float] | None:
     return None if lat is None or lon is None else (lat, lon)
 
 
+def local_zone(args: argparse.Namespace, exif: Any, longitude: float) -> tuple[float, str]:
+    """The UTC offset (hours) at which ``--start``, ``--end`` and a capture time without a
+    zone are read, and where it comes from: ``--utc-offset``; else the photo's own (EXIF
+    ``OffsetTime`` or its GPS stamp) when the place is the photo's (no ``--lon``); else the
+    zone of the longitude. The app's dialog takes the photo's the same way; the command took
+    the longitude's, an hour off in summer time (a user trial's evening 20:00-20:50 at the
+    field-path sample, UTC+2, was refused as after sunset)."""
+    if args.utc_offset is not None:
+        return float(args.utc_offset), "--utc-offset"
+    tz = getattr(exif, "tz_offset", None)
+    if tz is not None and args.lon is None:
+        return tz.total_seconds() / 3600.0, "the photo's EXIF"
+    return default_utc_offset(longitude), "its longitude: the photo gives none" if (
+        args.lon is None) else "the longitude of --lon"
+
+
+def zone_words(hours: float) -> str:
+    """``UTC+02:00``, ``UTC-03:30``."""
+    minutes = round(hours * 60)
+    sign = "-" if minutes < 0 else "+"
+    return f"UTC{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+
+
+#: A compass heading in the photo's EXIF further than this (degrees) from the one solved from
+#: the aligned sun is said, with how to take it instead.
+HEADING_DISAGREES = 30.0
+
+
 def _samples_from_args(
     args: argparse.Namespace, exif: Any, tilt: Callable[[], tuple[float, float, str]] | None = None
 ) -> list[SunSample]:
@@ -247,31 +284,46 @@ def _samples_from_args(
     quiet = getattr(args, "quiet", False)
     if words and not quiet:
         print(f"{words}: the real sun is turned into its frame", file=sys.stderr)
+    offset, zone_from = local_zone(args, exif, lon)
+    zone = f"{zone_words(offset)}, from {zone_from}"
     heading = args.heading
     if heading is None:
+        when = exif.capture_time
+        place = ("the photo's time and GPS" if args.lat is None and args.lon is None
+                 else "the photo's time at the given --lat/--lon")
+        read_at = "" if when.tzinfo is not None else f"; its time read at {zone}"
         try:
-            heading = solve_heading(exif.capture_time, lat, lon, args.from_sun[0],
-                                    args.utc_offset, original_elevation=args.from_sun[1],
-                                    tilt=(pitch, roll))
-            said = f"camera heading solved from the photo's time and GPS: {heading:.1f} deg"
+            heading = solve_heading(when, lat, lon, args.from_sun[0], offset,
+                                    original_elevation=args.from_sun[1], tilt=(pitch, roll))
+            said = f"camera heading solved from the aligned sun and {place}: {heading:.1f} deg"
+            said += read_at
+            compass = getattr(exif, "heading_deg", None)
+            if compass is not None:
+                off = abs((compass - heading + 180.0) % 360.0 - 180.0)
+                if off > HEADING_DISAGREES:  # (silently dropped: a user trial)
+                    said += (f"\nnote: the photo's EXIF compass heading is {compass:.1f} deg, "
+                             f"{off:.0f} deg from it (check the --from sun; --heading "
+                             f"{compass:.1f} takes the compass's)")
         except SunBelowHorizonError as exc:  # a night-time EXIF clock: the compass, else ask
             heading = getattr(exif, "heading_deg", None)
             if heading is None:
-                raise ValueError(f"{exc}: give --heading DEG") from None
-            said = f"{exc}; the EXIF compass heading is taken: {heading:.1f} deg"
+                raise ValueError(f"{exc}{read_at}: give --heading DEG") from None
+            said = f"{exc}{read_at}; the EXIF compass heading is taken: {heading:.1f} deg"
         if not quiet:
             print(said, file=sys.stderr)
     frames = 48 if args.frames is None else args.frames
     samples = real_sun_path(args.date, lat, lon, heading, frames, args.start, args.end,
-                            args.utc_offset, (pitch, roll))
+                            offset, (pitch, roll))
     # (a few frames may all sit at sunrise and sunset: the window is probed finely)
     probe = samples if frames >= 49 else real_sun_path(
-        args.date, lat, lon, heading, 49, args.start, args.end, args.utc_offset, (pitch, roll))
+        args.date, lat, lon, heading, 49, args.start, args.end, offset, (pitch, roll))
+    first, last = samples[0].time, samples[-1].time
+    span = f" from {first:%H:%M} to {last:%H:%M}" if first and last else ""
     if all(s.elevation <= 0.0 for s in probe):  # every frame the same sun on the horizon
-        first, last = samples[0].time, samples[-1].time
-        when = f" from {first:%H:%M} to {last:%H:%M}" if first and last else ""
-        raise ValueError(f"the sun is below the horizon for the whole time-lapse{when} "
-                         f"on {args.date}: choose daytime --start and --end")
+        raise ValueError(f"the sun is below the horizon for the whole time-lapse{span} "
+                         f"on {args.date} ({zone}): choose daytime --start and --end")
+    if not quiet:  # (the zone was not said: a user trial could not see it was an hour off)
+        print(f"the sun of {args.date}{span} local time ({zone})", file=sys.stderr)
     return samples
 
 

@@ -1111,7 +1111,10 @@ def _render_timelapse(session: Any, loaded: Any, sun: Sun, job: BatchJob,
                                 options.easing)
     else:
         exif = loaded.exif
-        when, lat, lon = exif.capture_time, exif.latitude, exif.longitude
+        # A capture time without a zone is read at its longitude's, as the app's EXIF sun
+        # reads it (it was read as UTC here: the heading hours of sun off).
+        when, _ = tl.exif_capture_time(exif)
+        lat, lon = exif.latitude, exif.longitude
         if when is None or lat is None or lon is None:
             raise ValueError("the capture day's sun path needs the photo's EXIF GPS and time")
         try:

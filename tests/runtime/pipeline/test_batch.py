@@ -1003,3 +1003,61 @@ def test_a_day_of_a_night_time_clock_takes_the_compass_or_fails(
                  "--size", "working", "--from", "273,67", "--sources", "given", "--mode",
                  "classic", "--preset", "fast", "--exposure", "metered"]) == 2
     assert "come out dark" not in capsys.readouterr().err
+
+
+def test_a_days_heading_reads_a_bare_capture_time_at_its_longitudes_zone(monkeypatch) -> None:
+    """``outcast batch --day`` read a capture time without a zone as UTC when it solved the
+    heading (the app and ``outcast timelapse`` read it at its longitude's zone): at longitude
+    98.3 seven hours of sun off."""
+    import datetime as dt
+    from types import SimpleNamespace
+
+    from outcast_core.runtime.pipeline import batch as batch_mod
+    from outcast_core.runtime.pipeline import timelapse as tl
+
+    aware = dt.datetime(2019, 8, 21, 3, 57, 22, tzinfo=dt.UTC)
+    true_az, _ = tl.true_sun_position(aware, 7.83, 98.3)
+    sun = (tl.relative_azimuth(true_az, 163.7), 66.0)
+    got = []
+    monkeypatch.setattr(tl, "render_timelapse", lambda session, samples, *a, **k:
+                        got.append(samples))
+    for when in (aware, dt.datetime(2019, 8, 21, 10, 57, 22)):  # the same moment, at UTC+7
+        exif = SimpleNamespace(capture_time=when, latitude=7.83, longitude=98.3,
+                               heading_deg=None)
+        batch_mod._render_timelapse(None, SimpleNamespace(exif=exif), sun,
+                                    batch_mod.BatchJob("x.jpg", "x.mp4"),
+                                    batch_mod.BatchOptions(kind="timelapse", day=True,
+                                                           frames=3))
+    for a, b in zip(*got, strict=True):
+        assert a.azimuth == pytest.approx(b.azimuth, abs=1e-6)
+        assert a.azimuth == pytest.approx((a.true_azimuth - 163.7) % 360.0, abs=1e-6)
+
+
+def test_an_interrupted_batch_says_and_reports_what_ended(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Ctrl+C or SIGTERM midway said "interrupted" alone and wrote no ``--report`` (a user
+    trial): what ended is counted, the report is written with ``interrupted`` and the photos
+    not reached, and the command says that running it again goes on."""
+    from outcast_core.runtime.cli import batch_cli
+    from outcast_core.runtime.pipeline.batch import JobResult
+
+    d = tmp_path / "in"
+    d.mkdir()
+    for i in range(3):
+        _photo(d / f"p{i}.png", i)
+
+    def stopped(jobs, options, workers=1, on_result=None):
+        on_result(JobResult(jobs[0].image, jobs[0].output, "done"))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch_cli, "run_batch", stopped)
+    report = tmp_path / "r.json"
+    assert main(["batch", str(d), "-o", str(tmp_path / "out"), "--to", "90,30", "--from",
+                 "120,40", "--sources", "given", "--report", str(report)]) == 130
+    err = capsys.readouterr().err
+    assert "stopped after 1 of 3 photos (1 done, 0 skipped, 0 failed)" in err
+    assert "the same command again goes on" in err and "interrupted" in err
+    data = json.loads(report.read_text())
+    assert data["interrupted"] is True and data["not_reached"] == 2
+    assert data["counts"]["done"] == 1 and len(data["results"]) == 1

@@ -530,3 +530,111 @@ def test_a_night_time_exif_clock_solves_no_heading(capsys) -> None:
     with pytest.raises(ValueError, match="cannot be solved from the aligned sun: give "
                                          "--heading DEG"):
         _samples_from_args(args, Night())
+
+
+class _SummerExif:
+    """The field-path sample's place with a summer zone (UTC+2) its EXIF gives; the longitude's
+    guess is UTC+1."""
+
+    latitude = 49.1
+    longitude = 15.2
+    capture_time = dt.datetime(2018, 7, 25, 11, 0, tzinfo=dt.timezone(dt.timedelta(hours=2)))
+    tz_offset = dt.timedelta(hours=2)
+    heading_deg = None
+
+
+def _evening(extra: list[str]) -> argparse.Namespace:
+    return _parse(["timelapse", "x.jpg", "--from", "33,39", "--date", "2018-07-25", "--start",
+                   "20:00", "--end", "20:50", "--frames", "3", "-o", "o.gif", *extra])
+
+
+def test_start_and_end_are_read_at_the_photos_own_time_zone(capsys) -> None:
+    """``--start``/``--end`` were read at the longitude's zone, not the photo's EXIF one the app
+    takes: a summer evening 20:00-20:50 (UTC+2) at the field-path sample was refused as after
+    sunset (a user trial). The zone is the photo's, ``--utc-offset``'s, or with ``--lon`` the
+    longitude's, and the command says which."""
+    samples = _samples_from_args(_evening([]), _SummerExif())
+    assert samples[0].time.utcoffset() == dt.timedelta(hours=2)
+    assert samples[0].elevation > 3.0  # (the sun sets at about 20:45 there)
+    err = capsys.readouterr().err
+    assert "from 20:00 to 20:50 local time (UTC+02:00, from the photo's EXIF)" in err
+    # The longitude's zone reads the same clock an hour later: after sunset, refused.
+    with pytest.raises(ValueError, match=r"below the horizon .* \(UTC\+01:00, from the "
+                                         r"longitude of --lon\)"):
+        _samples_from_args(_evening(["--lon", "15.2"]), _SummerExif())
+    samples = _samples_from_args(_evening(["--utc-offset", "3"]), _SummerExif())
+    assert samples[0].time.utcoffset() == dt.timedelta(hours=3)
+    assert "UTC+03:00, from --utc-offset" in capsys.readouterr().err
+
+
+def test_a_capture_time_without_a_zone_is_read_at_the_longitudes_zone(capsys) -> None:
+    """A camera's bare clock was read as UTC when the command solved the heading (the app reads
+    it at its longitude's zone): a photo at longitude 98.3 solved a heading hours of sun
+    off."""
+
+    class Bare(_Exif):
+        capture_time = dt.datetime(2019, 8, 21, 10, 57, 22)  # _Exif's 03:57 UTC, at UTC+7
+
+    true_az, _ = tl.true_sun_position(_Exif.capture_time, _Exif.latitude, _Exif.longitude)
+    rel = tl.relative_azimuth(true_az, 163.7)
+    args = _parse(["timelapse", "x.jpg", "--from", f"{rel},66", "--date", "2019-08-21",
+                   "--frames", "3", "-o", "o.mp4"])
+    samples = _samples_from_args(args, Bare())
+    for s in samples:
+        assert s.azimuth == pytest.approx((s.true_azimuth - 163.7) % 360.0, abs=1e-6)
+    assert "its time read at UTC+07:00, from its longitude" in capsys.readouterr().err
+
+
+def test_a_compass_far_from_the_solved_heading_is_said(capsys) -> None:
+    """The pool sample solved 237.2 degrees from a ``--from`` sun while its EXIF compass says
+    163.7, in silence (a user trial): a compass more than 30 degrees off is said, with the
+    option that takes it; one that agrees is not."""
+
+    class Compass(_Exif):
+        heading_deg = 163.7
+
+    true_az, _ = tl.true_sun_position(_Exif.capture_time, _Exif.latitude, _Exif.longitude)
+    for heading, said in ((237.2, True), (170.0, False)):
+        rel = tl.relative_azimuth(true_az, heading)
+        args = _parse(["timelapse", "x.jpg", "--from", f"{rel},66", "--date", "2019-08-21",
+                       "--frames", "2", "-o", "o.mp4"])
+        _samples_from_args(args, Compass())
+        err = capsys.readouterr().err
+        assert ("EXIF compass heading is 163.7 deg, 74 deg from it" in err) is said
+        assert ("--heading 163.7 takes the compass's" in err) is said
+
+
+def test_a_date_the_month_does_not_have_is_named() -> None:
+    """2018-02-30 was told "expected YYYY-MM-DD", the form it has (a user trial)."""
+    from outcast_core.runtime.cli.timelapse_cli import _date
+
+    with pytest.raises(argparse.ArgumentTypeError, match="no such day: '2018-02-30'"):
+        _date("2018-02-30")
+    with pytest.raises(argparse.ArgumentTypeError, match="expected YYYY-MM-DD, got '18-2-3'"):
+        _date("18-2-3")
+    assert _date("2024-02-29") == dt.date(2024, 2, 29)
+
+
+def test_a_gifs_frames_keep_the_frame_rate(tmp_path) -> None:
+    """GIF delays are centiseconds: 12 fps was written 80 ms a frame, 12.5 fps (a user trial).
+    The delays alternate so that the frames keep time, and a GIF faster than browsers play
+    (under 2 cs a frame) gets 20 ms frames; WebP's are milliseconds."""
+    from PIL import Image
+
+    from outcast_core.runtime.pipeline.timelapse import GifWriter, WebpWriter, frame_durations
+
+    assert sum(frame_durations(120, 12.0, 10)) == 10000
+    assert set(frame_durations(120, 12.0, 10)) == {80, 90}
+    assert frame_durations(3, 60.0, 10, 20) == [20, 20, 20]
+    for cls, name, ticks in ((GifWriter, "a.gif", {80, 90}), (WebpWriter, "a.webp", {83, 84})):
+        w = cls(tmp_path / name, fps=12.0)
+        for i in range(12):
+            w.write(np.full((8, 8, 3), 20 * i, np.uint8))
+        w.commit()
+        with Image.open(tmp_path / name) as im:
+            got = []
+            for k in range(im.n_frames):
+                im.seek(k)
+                im.load()  # (WebP gives a frame's duration once it is read)
+                got.append(im.info["duration"])
+        assert set(got) == ticks and abs(sum(got) - 1000) <= 10, got
