@@ -342,8 +342,6 @@ def run_batch_command(args: argparse.Namespace) -> int:
     if jobs and not args.quiet:  # (first: a rerun's skipped lines came before it)
         print(f"processing {len(jobs)} photo{'s' if len(jobs) != 1 else ''} ({options.kind}) "
               f"with {min(args.workers, len(jobs))} worker(s)", file=sys.stderr, flush=True)
-    for r in early:
-        show(r)
     def write_report(results: list[JobResult], seconds: float, interrupted: bool) -> None:
         from outcast_core.runtime.io.imageio import atomic_output
 
@@ -353,7 +351,7 @@ def run_batch_command(args: argparse.Namespace) -> int:
                 "counts": summarize(results), "with_warnings": len(warned),
                 "seconds": round(seconds, 2),
                 # The photos not reached are in neither list: not_reached counts them.
-                **({"interrupted": True, "not_reached": total - len(results)}
+                **({"interrupted": True, "not_finished": total - len(results)}
                    if interrupted else {}),
                 # Paths as the folders are given: absolute (the image's was relative when the
                 # folder was, beside an absolute input_folder: a user trial).
@@ -367,22 +365,32 @@ def run_batch_command(args: argparse.Namespace) -> int:
             tmp.write_text(json.dumps(data, indent=2, default=list) + "\n", encoding="utf-8")
 
     try:
+        for r in early:
+            show(r)
         results = early + run_batch(jobs, options, workers=args.workers, on_result=show)
     except KeyboardInterrupt:
         # Ctrl+C or SIGTERM: what ended is said and reported, and how to go on (an interrupted
         # batch said "interrupted" alone and wrote no report: a user trial).
         ended = list(seen)
         c = summarize(ended)
+        kept = f"{c['stale']} kept (made otherwise), " if c["stale"] else ""
         print(f"outcast batch: stopped after {len(ended)} of {total} photos ({c['done']} done, "
-              f"{c['skipped']} skipped, {c['failed']} failed); nothing half-written is left: "
-              "the same command again goes on where this one stopped (finished outputs are "
-              "skipped)", file=sys.stderr)
+              f"{c['skipped']} skipped, {kept}{c['failed']} failed); nothing half-written is "
+              "left: the same command again goes on where this one stopped (finished outputs "
+              "are skipped)", file=sys.stderr)
         if args.report:
             try:
                 write_report(ended, time.perf_counter() - t0, interrupted=True)
-            except (OSError, FileExistsError) as exc:
-                print(f"outcast batch: warning: cannot write '{args.report}': "
-                      f"{getattr(exc, 'strerror', None) or exc}", file=sys.stderr)
+            except Exception as exc:  # noqa: BLE001 (the interruption is what is raised)
+                # (not atomic_output's "use --force": here --force redoes every photo too)
+                why = ("a file that is not this batch's report is there, and is kept"
+                       if isinstance(exc, FileExistsError)
+                       else getattr(exc, "strerror", None) or exc)
+                print(f"outcast batch: warning: the report '{args.report}' was not written: "
+                      f"{why}", file=sys.stderr)
+            except KeyboardInterrupt:  # a second Ctrl+C while it is written
+                print(f"outcast batch: warning: the report '{args.report}' was not written",
+                      file=sys.stderr)
         raise
     counts = summarize(results)
     seconds = time.perf_counter() - t0

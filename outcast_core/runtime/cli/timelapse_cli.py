@@ -31,6 +31,7 @@ from outcast_core.runtime.pipeline.timelapse import (
     EASINGS,
     FRAME_FILE,
     FRAME_SIZES,
+    GIF_LEAST_MS,
     MAX_FPS,
     MIN_FPS,
     MIN_RENDER_ELEVATION,
@@ -118,12 +119,13 @@ frame_count = int_in(2, MAX_FRAMES, "frame count")
 def _date(text: str) -> dt.date:
     """``YYYY-MM-DD``; a day the month does not have is named as such (2018-02-30 was told
     "expected YYYY-MM-DD", which it is: a user trial)."""
+    text = text.strip()
     try:
         return dt.date.fromisoformat(text)
     except ValueError as exc:
         import re
 
-        if re.fullmatch(r"\d{4}-\d{2}-\d{2}", text.strip()):
+        if re.fullmatch(r"\d{4}-\d{2}-\d{2}", text):
             raise argparse.ArgumentTypeError(f"no such day: {text!r} ({exc})") from None
         raise argparse.ArgumentTypeError(f"expected YYYY-MM-DD, got {text!r}") from None
 
@@ -242,18 +244,38 @@ def _place(args: argparse.Namespace, exif: Any) -> tuple[float, float] | None:
 
 def local_zone(args: argparse.Namespace, exif: Any, longitude: float) -> tuple[float, str]:
     """The UTC offset (hours) at which ``--start``, ``--end`` and a capture time without a
-    zone are read, and where it comes from: ``--utc-offset``; else the photo's own (EXIF
-    ``OffsetTime`` or its GPS stamp) when the place is the photo's (no ``--lon``); else the
+    zone are read, and where it comes from: ``--utc-offset``; else a zone typed with
+    ``--start``/``--end`` (``06:00+02:00``); else the photo's own (EXIF ``OffsetTime`` or its
+    GPS stamp) unless ``--lon`` names a place more than 7.5 degrees from the photo's; else the
     zone of the longitude. The app's dialog takes the photo's the same way; the command took
     the longitude's, an hour off in summer time (a user trial's evening 20:00-20:50 at the
-    field-path sample, UTC+2, was refused as after sunset)."""
+    field-path sample, UTC+2, was refused as after sunset).
+
+    Raises:
+        ValueError: ``--start`` and ``--end`` typed with different zones, or with one that
+            ``--utc-offset`` contradicts.
+    """
+    typed = {t.utcoffset() for t in (args.start, args.end)
+             if t is not None and t.utcoffset() is not None}
+    if len(typed) > 1:
+        raise ValueError("expected --start and --end in one time zone, got two: give them "
+                         "without zones and the zone with --utc-offset")
+    if typed:
+        hours = next(iter(typed)).total_seconds() / 3600.0
+        if args.utc_offset is not None and abs(args.utc_offset - hours) > 1e-9:
+            raise ValueError(f"expected --utc-offset to agree with the zone typed with the "
+                             f"times ({zone_words(hours)}), got {args.utc_offset:g}")
+        return hours, "the zone typed with the times"
     if args.utc_offset is not None:
         return float(args.utc_offset), "--utc-offset"
     tz = getattr(exif, "tz_offset", None)
-    if tz is not None and args.lon is None:
+    own_lon = getattr(exif, "longitude", None)
+    if tz is not None and (args.lon is None or own_lon is None
+                           or abs((args.lon - own_lon + 180.0) % 360.0 - 180.0) <= 7.5):
         return tz.total_seconds() / 3600.0, "the photo's EXIF"
-    return default_utc_offset(longitude), "its longitude: the photo gives none" if (
-        args.lon is None) else "the longitude of --lon"
+    if args.lon is None:
+        return default_utc_offset(longitude), "its longitude (the photo gives none)"
+    return default_utc_offset(longitude), "the longitude of --lon"
 
 
 def zone_words(hours: float) -> str:
@@ -292,6 +314,7 @@ def _samples_from_args(
         place = ("the photo's time and GPS" if args.lat is None and args.lon is None
                  else "the photo's time at the given --lat/--lon")
         read_at = "" if when.tzinfo is not None else f"; its time read at {zone}"
+        guessed = when.tzinfo is None and args.utc_offset is None
         try:
             heading = solve_heading(when, lat, lon, args.from_sun[0], offset,
                                     original_elevation=args.from_sun[1], tilt=(pitch, roll))
@@ -301,13 +324,19 @@ def _samples_from_args(
             if compass is not None:
                 off = abs((compass - heading + 180.0) % 360.0 - 180.0)
                 if off > HEADING_DISAGREES:  # (silently dropped: a user trial)
-                    said += (f"\nnote: the photo's EXIF compass heading is {compass:.1f} deg, "
-                             f"{off:.0f} deg from it (check the --from sun; --heading "
-                             f"{compass:.1f} takes the compass's)")
+                    if getattr(exif, "heading_ref", None) == "M":  # (not a true heading)
+                        said += (f"\nnote: the photo's EXIF compass heading is {compass:.1f} "
+                                 f"deg from magnetic north, {off:.0f} deg from it (check the "
+                                 "--from sun; --heading takes a true heading)")
+                    else:
+                        said += (f"\nnote: the photo's EXIF compass heading is {compass:.1f} "
+                                 f"deg, {off:.0f} deg from it (check the --from sun; "
+                                 f"--heading {compass:.1f} takes the compass's)")
         except SunBelowHorizonError as exc:  # a night-time EXIF clock: the compass, else ask
             heading = getattr(exif, "heading_deg", None)
             if heading is None:
-                raise ValueError(f"{exc}{read_at}: give --heading DEG") from None
+                hint = " (or --utc-offset H: the zone is a guess)" if guessed else ""
+                raise ValueError(f"{exc}{read_at}: give --heading DEG{hint}") from None
             said = f"{exc}{read_at}; the EXIF compass heading is taken: {heading:.1f} deg"
         if not quiet:
             print(said, file=sys.stderr)
@@ -422,6 +451,11 @@ def _run_timelapse(args: argparse.Namespace, loaded: Any, exif: Any, session: An
                  if size in SHORT_SIDES and tuple(shape) == tuple(full)
                  and SHORT_SIDES[size] > min(full) else size)
         print(f"rendering {len(samples)} frames of {shape[1]}x{shape[0]} ({label}){padded}",
+              file=sys.stderr)
+    if not quiet and format_from_path(args.output) == "gif" and args.fps > 1000.0 / GIF_LEAST_MS:
+        # (browsers play a GIF's shorter delays at 10 fps: a review)
+        print(f"note: a GIF plays at most {1000.0 / GIF_LEAST_MS:g} fps: its frames are "
+              f"written {GIF_LEAST_MS} ms apart (MP4 or WebP keep {args.fps:g} fps)",
               file=sys.stderr)
     if not quiet:
         dim = dark_frames_note(session, samples)

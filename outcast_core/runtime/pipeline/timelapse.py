@@ -276,7 +276,7 @@ def exif_heading_from_sun(
 
     ``tilt``: the camera's ``(pitch, roll)`` in degrees (:func:`solve_heading`).
     """
-    when = getattr(exif, "capture_time", None)
+    when, _ = exif_capture_time(exif)  # (a zone-less time was read as UTC here: a review)
     lat, lon = getattr(exif, "latitude", None), getattr(exif, "longitude", None)
     if when is None or lat is None or lon is None:
         return None

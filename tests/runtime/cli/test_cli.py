@@ -263,6 +263,14 @@ def test_timelapse_says_an_odd_frame_size_is_padded_for_h264(
                  "--frames", "2", "--preset", "fast", "--depth", str(depth), "--fov", "50",
                  "-o", str(out), "--force", "-q"]) == 0
     assert capsys.readouterr().err == ""
+    # A GIF faster than browsers play is said (its frames go 20 ms apart); 50 fps is not.
+    gif = tmp_path / "fast.gif"
+    for fps, said in (("60", True), ("50", False)):
+        assert main(["timelapse", str(photo), "--from", "120,40", "--sweep", "90,30:270,30",
+                     "--frames", "2", "--preset", "fast", "--depth", str(depth), "--fps", fps,
+                     "-o", str(gif), "--force"]) == 0
+        err = capsys.readouterr().err
+        assert ("a GIF plays at most 50 fps: its frames are written 20 ms apart" in err) is said
 
 
 def test_timelapse_of_a_day_says_nothing_with_q(tmp_path: Path,

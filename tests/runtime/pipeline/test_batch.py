@@ -1059,5 +1059,33 @@ def test_an_interrupted_batch_says_and_reports_what_ended(
     assert "stopped after 1 of 3 photos (1 done, 0 skipped, 0 failed)" in err
     assert "the same command again goes on" in err and "interrupted" in err
     data = json.loads(report.read_text())
-    assert data["interrupted"] is True and data["not_reached"] == 2
+    assert data["interrupted"] is True and data["not_finished"] == 2
     assert data["counts"]["done"] == 1 and len(data["results"]) == 1
+
+
+def test_an_interrupted_batch_whose_report_is_refused_still_says_so(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A file of another program at the report's path by the time the batch is interrupted is
+    kept: the report is said not written (no "use --force", which redoes every photo here),
+    and the interruption's exit status stays (a review)."""
+    from outcast_core.runtime.cli import batch_cli
+    from outcast_core.runtime.pipeline.batch import JobResult
+
+    d = tmp_path / "in"
+    d.mkdir()
+    _photo(d / "p0.png", 0)
+    report = tmp_path / "r.json"
+
+    def stopped(jobs, options, workers=1, on_result=None):
+        on_result(JobResult(jobs[0].image, jobs[0].output, "failed"))
+        report.write_text("mine\n")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(batch_cli, "run_batch", stopped)
+    assert main(["batch", str(d), "-o", str(tmp_path / "out"), "--to", "90,30", "--from",
+                 "120,40", "--sources", "given", "--report", str(report)]) == 130
+    err = capsys.readouterr().err
+    assert "stopped after 1 of 1 photos (0 done, 0 skipped, 1 failed)" in err
+    assert f"the report '{report}' was not written" in err and "--force" not in err
+    assert report.read_text() == "mine\n"

@@ -559,12 +559,45 @@ def test_start_and_end_are_read_at_the_photos_own_time_zone(capsys) -> None:
     err = capsys.readouterr().err
     assert "from 20:00 to 20:50 local time (UTC+02:00, from the photo's EXIF)" in err
     # The longitude's zone reads the same clock an hour later: after sunset, refused.
-    with pytest.raises(ValueError, match=r"below the horizon .* \(UTC\+01:00, from the "
-                                         r"longitude of --lon\)"):
-        _samples_from_args(_evening(["--lon", "15.2"]), _SummerExif())
+    with pytest.raises(ValueError, match=r"below the horizon .* \(UTC\+01:00, from "
+                                         r"--utc-offset\)"):
+        _samples_from_args(_evening(["--utc-offset", "1"]), _SummerExif())
     samples = _samples_from_args(_evening(["--utc-offset", "3"]), _SummerExif())
     assert samples[0].time.utcoffset() == dt.timedelta(hours=3)
     assert "UTC+03:00, from --utc-offset" in capsys.readouterr().err
+
+
+def test_the_zone_of_start_and_end_is_chosen_as_said() -> None:
+    """Which zone ``--start``/``--end`` are read at (:func:`local_zone`): a zone typed with
+    the times; the photo's own when the place is the photo's, or the photo has no GPS and
+    ``--lat/--lon`` are typed (a camera that writes its zone but no position: a review), or
+    ``--lon`` is within 7.5 degrees of the photo's; else the longitude's."""
+    from outcast_core.runtime.cli.timelapse_cli import local_zone
+
+    class NoGps:
+        latitude = longitude = None
+        tz_offset = dt.timedelta(hours=2)
+
+    def zone(extra: list[str], exif: object, lon: float) -> tuple[float, str]:
+        return local_zone(_evening(extra), exif, lon)
+
+    assert zone([], _SummerExif(), 15.2) == (2.0, "the photo's EXIF")
+    assert zone(["--lat", "49", "--lon", "15.2"], NoGps(), 15.2) == (2.0, "the photo's EXIF")
+    assert zone(["--lat", "49", "--lon", "20"], _SummerExif(), 20.0)[0] == 2.0
+    assert zone(["--lat", "40", "--lon", "-74"], _SummerExif(), -74.0) == (
+        -5.0, "the longitude of --lon")
+    assert zone([], object(), 98.3) == (7.0, "its longitude (the photo gives none)")
+    args = _parse(["timelapse", "x.jpg", "--from", "33,39", "--date", "2018-07-25", "--start",
+                   "20:00+05:30", "--end", "20:50", "-o", "o.gif"])
+    assert local_zone(args, _SummerExif(), 15.2) == (5.5, "the zone typed with the times")
+    samples = _samples_from_args(args, _SummerExif())
+    assert samples[0].time.utcoffset() == dt.timedelta(hours=5, minutes=30)
+    args.end = dt.time(20, 50, tzinfo=dt.UTC)
+    with pytest.raises(ValueError, match="--start and --end in one time zone"):
+        local_zone(args, _SummerExif(), 15.2)
+    args.end, args.utc_offset = dt.time(20, 50), 2.0
+    with pytest.raises(ValueError, match=r"--utc-offset to agree .* \(UTC\+05:30\), got 2"):
+        local_zone(args, _SummerExif(), 15.2)
 
 
 def test_a_capture_time_without_a_zone_is_read_at_the_longitudes_zone(capsys) -> None:
@@ -602,6 +635,29 @@ def test_a_compass_far_from_the_solved_heading_is_said(capsys) -> None:
         err = capsys.readouterr().err
         assert ("EXIF compass heading is 163.7 deg, 74 deg from it" in err) is said
         assert ("--heading 163.7 takes the compass's" in err) is said
+    # A magnetic compass is not offered as a true heading.
+    Compass.heading_ref = "M"
+    rel = tl.relative_azimuth(true_az, 237.2)
+    args = _parse(["timelapse", "x.jpg", "--from", f"{rel},66", "--date", "2019-08-21",
+                   "--frames", "2", "-o", "o.mp4"])
+    _samples_from_args(args, Compass())
+    err = capsys.readouterr().err
+    assert "163.7 deg from magnetic north, 74 deg from it" in err
+    assert "--heading 163.7" not in err
+
+
+def test_the_seen_suns_heading_reads_a_bare_capture_time_at_its_longitudes_zone() -> None:
+    """:func:`exif_heading_from_sun` read a capture time without a zone as UTC, where
+    :func:`exif_sun` reads it at its longitude's: the heading it gave did not give the seen
+    sun back (a review)."""
+
+    class Bare(_Exif):
+        capture_time = dt.datetime(2019, 8, 21, 10, 57, 22)  # 03:57 UTC at UTC+7
+        heading_deg = None
+
+    heading = tl.exif_heading_from_sun(Bare(), 20.0, 60.0)
+    assert heading == pytest.approx(tl.exif_heading_from_sun(_Exif(), 20.0, 60.0), abs=1e-6)
+    assert tl.exif_sun(Bare(), heading=heading)[0] == pytest.approx(20.0, abs=1e-6)
 
 
 def test_a_date_the_month_does_not_have_is_named() -> None:
@@ -612,6 +668,8 @@ def test_a_date_the_month_does_not_have_is_named() -> None:
         _date("2018-02-30")
     with pytest.raises(argparse.ArgumentTypeError, match="expected YYYY-MM-DD, got '18-2-3'"):
         _date("18-2-3")
+    with pytest.raises(argparse.ArgumentTypeError, match="no such day: '2018-02-30'"):
+        _date(" 2018-02-30 ")
     assert _date("2024-02-29") == dt.date(2024, 2, 29)
 
 
