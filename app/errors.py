@@ -138,6 +138,10 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
             "The photo, its depth and your suns are unchanged.",
         )
     if action == "export":
+        # A refusal that protects a file is no failure (a user trial read "Export failed" for
+        # an existing name that was kept as it should be).
+        title = ("Not exported" if isinstance(exc, (IsADirectoryError, FileExistsError,
+                                                    OwnFileError)) else "Export failed")
         if isinstance(exc, IsADirectoryError):  # a frames folder that holds other files
             todo = ("Nothing in that folder was changed. Choose a new or empty folder for the "
                     "frames.")
@@ -155,7 +159,7 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
                 "Nothing was written. Check that the folder exists, that you can write to it and "
                 "that the disk has free space, then try again."
             )
-        return UserMessage("Export failed", detail, todo)
+        return UserMessage(title, detail, todo)
     if action == "project":  # opening one
         return UserMessage(
             "Could not open the project",

@@ -675,7 +675,7 @@ class MainWindow(QMainWindow):
                                         shortcut=QKeySequence(Qt.Key.Key_BracketRight))
         for act, steps in ((self.act_brush_smaller, -1), (self.act_brush_larger, 1)):
             act.setEnabled(False)
-            act.triggered.connect(lambda _c=False, n=steps: self.relight_panel.step_brush(n))
+            act.triggered.connect(lambda _c=False, n=steps: self._step_brush(n))
             self.addAction(act)
 
         file_menu = self.menuBar().addMenu("&File")
@@ -2102,6 +2102,15 @@ class MainWindow(QMainWindow):
             self.canvas.setFocus()  # Esc reaches the window's action from here
         elif not self._status_pending():
             self.stage_label.setText("Ready")
+
+    def _step_brush(self, steps: int) -> None:
+        """``[`` / ``]``: the brush a step smaller or larger, said in the status bar (only the
+        spin box beside the tools changed, out of sight while one looks at the photo: a user
+        trial)."""
+        self.relight_panel.step_brush(steps)
+        self.stage_label.setText(
+            f"Brush {self.relight_panel.brush_box.value():.1f} % of the photo's longer side"
+            " · [ smaller, ] larger")
 
     def _status_jobs(self) -> set[int]:
         """The jobs waiting or running that say their end in the status bar."""

@@ -983,7 +983,7 @@ class TimelapseDialog(QDialog):
         words: a folder that cannot be written is named, never the hidden temporary file
         (``.clip.p20hmmbi.part.mp4``, "[Errno 1] ...": a user trial)."""
         msg = message_for(exc, "export")
-        self.status.setText(f"Export failed: {msg.what}. {msg.todo}")
+        self.status.setText(f"{msg.title}: {msg.what}. {msg.todo}")
 
     def cancel_export(self) -> None:
         if self._exporting:

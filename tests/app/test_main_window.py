@@ -205,7 +205,7 @@ def test_export_still(window, photo, settle, errors, tmp_path, name, mode, dtype
     stamp = os.stat(path).st_mtime_ns
     window.export_still(path)  # never overwrite silently
     settle()
-    assert errors and errors[-1][0] == "Export failed"
+    assert errors and errors[-1][0] == "Not exported"
     assert os.stat(path).st_mtime_ns == stamp
 
 

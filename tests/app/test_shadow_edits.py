@@ -753,6 +753,8 @@ def test_the_brackets_size_the_brush_and_it_is_remembered(qtbot, window, photo, 
     qtbot.keyClick(window.canvas, Qt.Key.Key_BracketRight)
     grown = rp.brush_box.value()
     assert grown > BRUSH_DEFAULT and window.canvas.brush() == pytest.approx(grown / 100)
+    # The status bar says the size (the box beside the tools is out of sight: a user trial).
+    assert window.stage_label.text().startswith(f"Brush {grown:.1f} % of the photo's")
     for _ in range(3):
         qtbot.keyClick(window.canvas, Qt.Key.Key_BracketLeft)
     assert rp.brush_box.value() < BRUSH_DEFAULT

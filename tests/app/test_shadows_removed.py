@@ -216,14 +216,14 @@ def test_export_refuses_to_overwrite(window, photo, settle, errors, tmp_path):
     path.write_bytes(b"mine")
     assert window.export_shadows_removed(str(path)) is None
     settle()
-    assert errors and errors[-1][0] == "Export failed"
+    assert errors and errors[-1][0] == "Not exported"
     assert "Nothing was overwritten" in errors[-1][1]
     assert path.read_bytes() == b"mine"
     errors.clear()
     window.export_shadows_removed(str(tmp_path / "other.png"))
     (tmp_path / "other.png").write_bytes(b"raced")  # appears while the job waits in the worker
     settle()
-    assert errors and errors[-1][0] == "Export failed"
+    assert errors and errors[-1][0] == "Not exported"
     assert (tmp_path / "other.png").read_bytes() == b"raced"
 
 

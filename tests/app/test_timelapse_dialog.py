@@ -35,7 +35,7 @@ def test_a_refused_export_is_said_in_the_status_line(window, photo, settle, erro
     settle()
     assert dialog.status.text().startswith("Saved 3 frames")
     assert dialog.export(str(out)) is None  # not confirmed: refused
-    assert errors[-1][0] == "Export failed" and "already exists" in errors[-1][1]
+    assert errors[-1][0] == "Not exported" and "already exists" in errors[-1][1]
     assert "Saved" not in dialog.status.text()
     assert "already exists" in dialog.status.text() and "Nothing was overwritten" in (
         dialog.status.text())

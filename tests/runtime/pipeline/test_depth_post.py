@@ -608,3 +608,21 @@ def test_run_depth_model_side_override_and_bad_input() -> None:
     assert model.shapes == [(1, 3, 64, 64)]
     with pytest.raises(ValueError, match="H x W x 3"):
         run_depth_model(model, np.zeros((200, 200), np.float32))
+
+
+def test_refine_sky_edge_takes_hazy_sky_beside_a_glare() -> None:
+    """The ski-slope sample's hazy grey sky between two tree tops, beside the white of a sun's
+    glare, was 0.10 from the band-wide mean of the sky round it (the glare's white) and stayed
+    a surface: a new sun's glare, drawn on the sky only, left it out as a grey staircase (a
+    user trial). The sky just beside a pixel counts too; the dark trees still do not."""
+    h, w = 288, 384
+    img = np.full((h, w, 3), 0.08, np.float32)  # dark tree tops
+    img[:150] = [0.70, 0.71, 0.73]  # hazy grey sky
+    yy, xx = np.mgrid[:h, :w]
+    img[((yy - 140) ** 2 + (xx - 178) ** 2 < 20 ** 2) & (yy < 150)] = 1.0  # the glare
+    img[150:160, 195:210] = [0.67, 0.68, 0.70]  # the sky between two tree tops
+    sky = np.zeros((h, w), bool)
+    sky[:150] = True
+    out = refine_sky_edge(sky, img)
+    assert out[150:160, 195:210].mean() > 0.6  # (0.07 with the band-wide mean alone)
+    assert not out[150:][img[150:, :, 0] < 0.2].any()

@@ -619,8 +619,10 @@ def test_new_shade_takes_the_skys_colour_and_nothing_else_moves() -> None:
                                                    shade_shift=shift, **kwargs))
         return np.log(out[20, 15:, 2] / out[20, 15:, 0])
 
-    turned, plain = steps(SKY_SHADE_SHIFT), steps(None)
-    assert np.abs(np.diff(turned)).max() <= np.abs(np.diff(plain)).max() + 1e-6
+    turned = steps(SKY_SHADE_SHIFT)
+    # (no pixel takes more than a third of the turn from the photo's colour to its shade's:
+    # the colour guard's weight and the shade's meet over the same ramp, S_n 0.3 to 0.15)
+    assert np.abs(np.diff(turned)).max() <= abs(turned[-1] - turned[0]) / 3.0
     assert turned[-1] == pytest.approx(photo + shift, abs=0.01)  # full shade: the shift
 
 
@@ -771,3 +773,36 @@ def test_metered_up_highlights_roll_off_instead_of_clipping() -> None:
     assert np.all(out[5:] < METER_KNEE)  # below the knee: the plain gain
     # At a gain of 1 nothing changes (the shoulder fades in with the gain).
     assert np.allclose(meter_exposure(photo, photo), photo, atol=1e-5)
+
+
+def test_a_lit_surface_at_the_floor_keeps_its_colour_whole() -> None:
+    """``S_o`` of a surface the photo shows lit is at least ``LIT_FLOOR`` (0.3, the pool
+    sample's water, whose normals face away from the sun); the colour guards took 0.3 for half
+    lit, so half its colour was ``L``'s, and at a grazing sun the lit water met its new shade
+    in a blue-magenta arc (a user trial). Lit at the floor, the photo's colour is kept whole;
+    at the overlay's threshold (0.15, the photo's found shadows) not at all."""
+    from outcast_core.runtime.geometry.colour import linear_to_lab
+    from outcast_core.runtime.pipeline.photo_shadows import LIT_FLOOR
+    from outcast_core.runtime.pipeline.relight import (
+        SHADE_LEVEL,
+        guard_learned_relight,
+        shade_weight,
+    )
+
+    h, w = 24, 32
+    image = np.full((h, w, 3), [0.2, 0.75, 0.7], np.float32)  # cyan water
+    sky = np.zeros((h, w), bool)
+    s_old = np.full((h, w), LIT_FLOOR, np.float32)
+    s_old[:, 16:] = SHADE_LEVEL
+    s_new = np.full((h, w), 0.9, np.float32)
+    light = estimate_light(srgb_to_linear(image), np.full((h, w), 0.9, np.float32), sky)
+    relit = np.full((h, w, 3), [0.45, 0.7, 0.9], np.float32)  # L's own, bluer
+    out = guard_learned_relight(image, relit, s_old, s_new, sky, light, keep_sky=True,
+                                floor=False, anchor=False, detail=False)
+    ab = lambda x: linear_to_lab(srgb_to_linear(x))[..., 1:]  # noqa: E731
+    np.testing.assert_allclose(ab(out)[:, :16], ab(image)[:, :16], atol=0.5)
+    np.testing.assert_allclose(ab(out)[:, 16:], ab(relit)[:, 16:], atol=0.5)
+    # The new shade's weight and the colour guard's meet with no gap between them.
+    s_n = np.linspace(0.4, 0.0, 41, dtype=np.float32)[None]
+    kept = np.clip((s_n - SHADE_LEVEL) / (LIT_FLOOR - SHADE_LEVEL), 0.0, 1.0)
+    np.testing.assert_allclose(kept + shade_weight(np.ones_like(s_n), s_n), 1.0, atol=1e-6)
