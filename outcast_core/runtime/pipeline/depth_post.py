@@ -276,6 +276,8 @@ SKY_EDGE_TOL = 0.08
 #: white, and the hazy grey sky between the ski-slope sample's tree tops, 0.10 from it, stayed
 #: a surface that a new sun's glare left out as a grey staircase (a user trial).
 SKY_EDGE_NEAR = 1.0 / 6.0
+#: ... where that Gaussian's share of sky is at least this.
+SKY_NEAR_PRESENT = 1e-6
 #: :func:`refine_sky_edge`: how many times the sky grows by the band, each time from the sky
 #: grown so far (its colour always that of the sky it was given); after the first pass only
 #: into sky-coloured regions cut off from the bottom edge, not into a pale ground. One pass left
@@ -342,7 +344,9 @@ def refine_sky_edge(sky: np.ndarray, image_srgb: np.ndarray,
         return sky
     colour = sky_colour(img, greyscale)
     weight, local = _local_sky(sky, img, band)
-    near_local = _local_sky(sky, img, max(1, round(band * SKY_EDGE_NEAR)))[1]
+    near_weight, near_local = _local_sky(sky, img, max(1, round(band * SKY_EDGE_NEAR)))
+    # Only where the sky's weight is a weight: below, the mean's floor (1e-6) pulls it to 0.
+    near_local = np.where((near_weight > SKY_NEAR_PRESENT)[..., None], near_local, np.inf)
     grown = sky
     for k in range(SKY_EDGE_PASSES):
         more = _grow_sky(grown, img, colour, weight, local, band, framed=k > 0,
