@@ -2108,6 +2108,8 @@ class MainWindow(QMainWindow):
         spin box beside the tools changed, out of sight while one looks at the photo: a user
         trial)."""
         self.relight_panel.step_brush(steps)
+        if self._status_pending():  # a job's status stays (as the tool hint leaves it)
+            return
         self.stage_label.setText(
             f"Brush {self.relight_panel.brush_box.value():.1f} % of the photo's longer side"
             " · [ smaller, ] larger")

@@ -269,8 +269,8 @@ def transfer_to_full_resolution(
     return out
 
 
-#: :func:`keep_photo_colour`: shadow level above which a pixel counts as lit (soft over
-#: +-LIT_SOFT), so only brightness may change there.
+#: :func:`_lit`: shadow level above which a pixel counts as lit (soft over +-LIT_SOFT) for the
+#: shade floor, the lift and the detail (the colour guards take :func:`_colour_lit`).
 LIT_LEVEL = 0.3
 LIT_SOFT = 0.1
 
@@ -1244,7 +1244,9 @@ def lifted_colour(relit_srgb: np.ndarray, weight: np.ndarray, lit_ab: np.ndarray
 
 
 #: :func:`shaded_colour`: at or below this new shadow image a surface is in full new shade
-#: (the overlay's threshold); from here to :data:`LIT_LEVEL` its colour turns in gradually.
+#: (the overlay's threshold); from here to
+#: :data:`~outcast_core.runtime.pipeline.photo_shadows.LIT_FLOOR` its colour turns in
+#: gradually (:func:`_colour_lit`).
 SHADE_LEVEL = 0.15
 
 

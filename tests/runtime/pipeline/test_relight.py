@@ -803,6 +803,8 @@ def test_a_lit_surface_at_the_floor_keeps_its_colour_whole() -> None:
     np.testing.assert_allclose(ab(out)[:, :16], ab(image)[:, :16], atol=0.5)
     np.testing.assert_allclose(ab(out)[:, 16:], ab(relit)[:, 16:], atol=0.5)
     # The new shade's weight and the colour guard's meet with no gap between them.
+    from outcast_core.runtime.pipeline.relight import _both_lit
+
     s_n = np.linspace(0.4, 0.0, 41, dtype=np.float32)[None]
-    kept = np.clip((s_n - SHADE_LEVEL) / (LIT_FLOOR - SHADE_LEVEL), 0.0, 1.0)
-    np.testing.assert_allclose(kept + shade_weight(np.ones_like(s_n), s_n), 1.0, atol=1e-6)
+    s_o = np.ones_like(s_n)  # (the old ramps left up to half of it to L's colour)
+    np.testing.assert_allclose(_both_lit(s_o, s_n) + shade_weight(s_o, s_n), 1.0, atol=1e-6)
