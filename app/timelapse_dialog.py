@@ -482,8 +482,8 @@ class TimelapseDialog(QDialog):
                 day = when.date() if when is not None else dt.date.today()
             self.date_edit.setDate(QDate(day.year, day.month, day.day))
             offset = s.utc_offset
-            if offset is None and getattr(exif, "tz_offset", None) is not None:
-                offset = exif.tz_offset.total_seconds() / 3600.0
+            if offset is None and tl.photo_utc_offset(exif) is not None:
+                offset = tl.photo_utc_offset(exif)
                 self._zone_from = "exif"
             elif offset is None:  # guessed, and guessed again when the longitude changes
                 offset = tl.default_utc_offset(lon or 0.0)

@@ -42,6 +42,7 @@ from outcast_core.runtime.pipeline.timelapse import (
     format_from_path,
     frame_shape,
     frames_folder_problem,
+    photo_utc_offset,
     real_sun_path,
     render_timelapse,
     solve_heading,
@@ -268,11 +269,10 @@ def local_zone(args: argparse.Namespace, exif: Any, longitude: float) -> tuple[f
         return hours, "the zone typed with the times"
     if args.utc_offset is not None:
         return float(args.utc_offset), "--utc-offset"
-    tz = getattr(exif, "tz_offset", None)
-    own_lon = getattr(exif, "longitude", None)
-    if tz is not None and (args.lon is None or own_lon is None
-                           or abs((args.lon - own_lon + 180.0) % 360.0 - 180.0) <= 7.5):
-        return tz.total_seconds() / 3600.0, "the photo's EXIF"
+    own, own_lon = photo_utc_offset(exif), getattr(exif, "longitude", None)
+    if own is not None and (args.lon is None or own_lon is None
+                            or abs((args.lon - own_lon + 180.0) % 360.0 - 180.0) <= 7.5):
+        return own, "the photo's EXIF"
     if args.lon is None:
         return default_utc_offset(longitude), "its longitude (the photo gives none)"
     return default_utc_offset(longitude), "the longitude of --lon"

@@ -386,6 +386,15 @@ def default_utc_offset(longitude: float) -> float:
     return float(round(_check_angle("longitude", longitude, -180.0, 180.0) / 15.0))
 
 
+def photo_utc_offset(exif: Any) -> float | None:
+    """The photo's own UTC offset in hours (EXIF ``OffsetTime``, or derived from its GPS time
+    stamp: ``tz_offset``), or None: the zone the app's time-lapse dialog and ``outcast
+    timelapse`` read a day's local times at before the longitude's guess
+    (:func:`default_utc_offset`)."""
+    tz = getattr(exif, "tz_offset", None)
+    return None if tz is None else tz.total_seconds() / 3600.0
+
+
 def exif_capture_time(exif: Any) -> tuple[dt.datetime | None, bool]:
     """The photo's capture time as an aware datetime, and whether its time zone is a guess.
 
