@@ -34,6 +34,8 @@ class UserMessage:
     title: str
     what: str
     todo: str
+    #: Nothing failed: the app refused, to protect a file (shown as a warning, not an error).
+    refusal: bool = False
 
     def text(self) -> str:
         return f"{self.what}\n\n{self.todo}"
@@ -140,8 +142,8 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
     if action == "export":
         # A refusal that protects a file is no failure (a user trial read "Export failed" for
         # an existing name that was kept as it should be).
-        title = ("Not exported" if isinstance(exc, (IsADirectoryError, FileExistsError,
-                                                    OwnFileError)) else "Export failed")
+        refused = isinstance(exc, (IsADirectoryError, FileExistsError, OwnFileError))
+        title = "Not exported" if refused else "Export failed"
         if isinstance(exc, IsADirectoryError):  # a frames folder that holds other files
             todo = ("Nothing in that folder was changed. Choose a new or empty folder for the "
                     "frames.")
@@ -159,7 +161,7 @@ def message_for(exc: BaseException, action: str) -> UserMessage:
                 "Nothing was written. Check that the folder exists, that you can write to it and "
                 "that the disk has free space, then try again."
             )
-        return UserMessage(title, detail, todo)
+        return UserMessage(title, detail, todo, refusal=refused)
     if action == "project":  # opening one
         return UserMessage(
             "Could not open the project",

@@ -1080,7 +1080,9 @@ class MainWindow(QMainWindow):
         msg = message_for(exc, action)
         self.last_error = f"{msg.title}: {msg.what}"
         self.stage_label.setText(msg.title)
-        QMessageBox.critical(self, msg.title, f"{msg.title}.\n\n{msg.text()}")
+        # A refusal that kept a file is a warning; a failure is an error.
+        box = QMessageBox.warning if msg.refusal else QMessageBox.critical
+        box(self, msg.title, f"{msg.title}.\n\n{msg.text()}")
 
     # ================================================================== opening
     def open_dialog(self) -> None:

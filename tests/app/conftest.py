@@ -115,16 +115,26 @@ def settings(tmp_path):
 
 @pytest.fixture
 def errors(monkeypatch):
-    """Record error dialogs instead of showing them (a modal box would block the test)."""
+    """Record error and warning dialogs instead of showing them (a modal box would block the
+    test): ``(title, text)`` of each, and in ``.kinds`` which box it was (``"critical"`` or
+    ``"warning"``)."""
     from PySide6.QtWidgets import QMessageBox
 
-    seen: list[tuple[str, str]] = []
+    class Seen(list):
+        kinds: list[str]
 
-    def fake_critical(parent, title, text, *args, **kwargs):
-        seen.append((title, text))
-        return QMessageBox.StandardButton.Ok
+    seen = Seen()
+    seen.kinds = []
 
-    monkeypatch.setattr(QMessageBox, "critical", staticmethod(fake_critical))
+    def box(kind):
+        def fake(parent, title, text, *args, **kwargs):
+            seen.append((title, text))
+            seen.kinds.append(kind)
+            return QMessageBox.StandardButton.Ok
+        return staticmethod(fake)
+
+    monkeypatch.setattr(QMessageBox, "critical", box("critical"))
+    monkeypatch.setattr(QMessageBox, "warning", box("warning"))
     return seen
 
 

@@ -206,6 +206,7 @@ def test_export_still(window, photo, settle, errors, tmp_path, name, mode, dtype
     window.export_still(path)  # never overwrite silently
     settle()
     assert errors and errors[-1][0] == "Not exported"
+    assert errors.kinds[-1] == "warning"  # a file kept: nothing failed
     assert os.stat(path).st_mtime_ns == stamp
 
 

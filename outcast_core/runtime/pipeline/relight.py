@@ -1173,17 +1173,25 @@ def guard_learned_relight(
         out = linear_to_srgb((1.0 - k) * srgb_to_linear(out) + k * srgb_to_linear(physics))
     kept = None  # how much of each pixel's colour is the photo's, not L's or physics'
     if colour:
-        out = keep_photo_colour(image_srgb, out, shadow_old, shadow_new, sky, keep_sky=keep_sky)
         kept = _both_lit(shadow_old, shadow_new)
-        if floor and lift and lift_guard is not None and lift_colour is not None:
-            up = lift_weight(shadow_old, s_new, lift_guard)
-            out = lifted_colour(out, up, lift_colour)
-            kept = np.clip(kept + up, 0.0, 1.0)
+        down = None
         if shade_shift is not None:  # (the new shadow as cast, not smoothed: its colour
             # stays off surfaces both suns light)
             shaded = np.where(np.asarray(sky, bool), np.float32(1.0), shadow_new)  # (no sky)
             down = shade_weight(shadow_old, shaded)
-            out = shaded_colour(image_srgb, out, down, shade_shift)
+            # Turned first, on the relighting's own colour, by its share of what the photo's
+            # colour does not keep: then the photo's, the turned and the relighting's colours
+            # add up to their weights (blended after the guard, a pixel half kept and half
+            # turned took a quarter of L's colour: a seam at a soft new shadow's edge).
+            rest = 1.0 - kept
+            share = np.where(rest > 1e-6, down / np.maximum(rest, 1e-6), 0.0)
+            out = shaded_colour(image_srgb, out, np.clip(share, 0.0, 1.0), shade_shift)
+        out = keep_photo_colour(image_srgb, out, shadow_old, shadow_new, sky, keep_sky=keep_sky)
+        if floor and lift and lift_guard is not None and lift_colour is not None:
+            up = lift_weight(shadow_old, s_new, lift_guard)
+            out = lifted_colour(out, up, lift_colour)
+            kept = np.clip(kept + up, 0.0, 1.0)
+        if down is not None:
             kept = np.clip(kept + down, 0.0, 1.0)
     elif keep_sky:  # the photo's sky with or without the colour guard
         out = np.where(np.asarray(sky, bool)[..., None], np.asarray(image_srgb, np.float32), out)
@@ -1296,13 +1304,16 @@ def shaded_colour(image_srgb: np.ndarray, relit_srgb: np.ndarray, weight: np.nda
 
 
 def shade_weight(shadow_old: np.ndarray, shadow_new: np.ndarray) -> np.ndarray:
-    """How much the new sun newly shadows each pixel (``H x W`` in [0, 1]): in the new sun's
-    shade (1 at or below :data:`SHADE_LEVEL`, 0 from
-    :data:`~outcast_core.runtime.pipeline.photo_shadows.LIT_FLOOR`: one minus the colour
-    guard's :func:`_colour_lit`), times the least of how lit it was under the photo's sun (soft,
-    as the colour guard's) and how far its ``S`` fell (0 where it did not: the same shade under
-    both suns). :func:`shaded_colour` blends its colour in by it, and the new daylight's colour
-    follows there as where the colour guard keeps the photo's.
+    """How much the new sun newly shadows each pixel (``H x W`` in [0, 1]): how much less lit
+    it is under the new sun than under the photo's, on the colour guard's soft scale
+    (:func:`_colour_lit`: 0 at or below :data:`SHADE_LEVEL`, 1 from
+    :data:`~outcast_core.runtime.pipeline.photo_shadows.LIT_FLOOR`); 0 where it is as lit or
+    more (the same shade under both suns, or a lift). With the colour guard's weight
+    (:func:`_both_lit`) it adds up to 1 on a surface the photo shows lit, whatever the new
+    ``S``: nothing is left to the relighting's own colour there. (Until 2026-12-04 it was the
+    new shade times the least of the old lit and the fall, which left up to a quarter at a
+    photo's surface lit at the floor.) :func:`shaded_colour` blends its colour in by it, and
+    the new daylight's colour follows there as where the colour guard keeps the photo's.
 
     Example:
         >>> so = np.array([[0.9, 0.9, 0.9, 0.25, 0.0]], np.float32)
@@ -1312,10 +1323,7 @@ def shade_weight(shadow_old: np.ndarray, shadow_new: np.ndarray) -> np.ndarray:
     """
     s_o = np.asarray(shadow_old, np.float32)
     s_n = np.asarray(shadow_new, np.float32)
-    span = LIT_FLOOR - SHADE_LEVEL
-    shade = 1.0 - _colour_lit(s_n)  # (with _both_lit's: the two weights leave no gap)
-    fell = np.clip((s_o - s_n) / span, 0.0, 1.0)
-    return (shade * np.minimum(_colour_lit(s_o), fell)).astype(np.float32)
+    return np.maximum(_colour_lit(s_o) - _colour_lit(s_n), 0.0).astype(np.float32)
 
 
 def _both_lit(shadow_old: np.ndarray, shadow_new: np.ndarray) -> np.ndarray:

@@ -620,9 +620,14 @@ def test_new_shade_takes_the_skys_colour_and_nothing_else_moves() -> None:
         return np.log(out[20, 15:, 2] / out[20, 15:, 0])
 
     turned = steps(SKY_SHADE_SHIFT)
-    # (no pixel takes more than a third of the turn from the photo's colour to its shade's:
-    # the colour guard's weight and the shade's meet over the same ramp, S_n 0.3 to 0.15)
-    assert np.abs(np.diff(turned)).max() <= abs(turned[-1] - turned[0]) / 3.0
+    # The colour goes from the photo's to its shade's in small steps over the ramp (S_n 0.3
+    # to 0.15) and never past them: until 2026-12-04 the two blends, one after the other,
+    # gave a pixel half kept and half turned a quarter of L's violet (a step of 0.29 of the
+    # turn, past the shade's own colour).
+    turn = abs(turned[-1] - turned[0])
+    assert np.abs(np.diff(turned)).max() <= 0.15 * turn
+    assert turned.min() >= min(turned[0], turned[-1]) - 0.01 * turn
+    assert turned.max() <= max(turned[0], turned[-1]) + 0.01 * turn
     assert turned[-1] == pytest.approx(photo + shift, abs=0.01)  # full shade: the shift
 
 
@@ -805,6 +810,10 @@ def test_a_lit_surface_at_the_floor_keeps_its_colour_whole() -> None:
     # The new shade's weight and the colour guard's meet with no gap between them.
     from outcast_core.runtime.pipeline.relight import _both_lit
 
+    # (The old ramps left up to half of it to L's colour; until 2026-12-04 the weight's
+    # "fell" term still left a quarter where the photo's surface sat at the floor.)
     s_n = np.linspace(0.4, 0.0, 41, dtype=np.float32)[None]
-    s_o = np.ones_like(s_n)  # (the old ramps left up to half of it to L's colour)
-    np.testing.assert_allclose(_both_lit(s_o, s_n) + shade_weight(s_o, s_n), 1.0, atol=1e-6)
+    for lit_old in (1.0, 0.5, LIT_FLOOR):
+        s_o = np.full_like(s_n, lit_old)
+        np.testing.assert_allclose(_both_lit(s_o, s_n) + shade_weight(s_o, s_n), 1.0,
+                                   atol=1e-6)
