@@ -278,6 +278,14 @@ SKY_EDGE_TOL = 0.08
 SKY_EDGE_NEAR = 1.0 / 6.0
 #: ... where that Gaussian's share of sky is at least this.
 SKY_NEAR_PRESENT = 1e-6
+#: ... and only for a pixel within this many :data:`SKY_EDGE_TOL` of the band-wide mean (a
+#: glare moves the sky's colour a little from the wide mean: the ski slope's haze was 0.07-0.11
+#: from it). Without this (until 2026-12-04) the near sky took surfaces 0.16-0.34 from the
+#: sky's colour that match the sky at its edge: a sea's surf below a pale horizon, the pale
+#: tops of a white building (dev photos), a few pixels of the pool sample's far side; the
+#: held-out renders' sky IoU fell 0.9305 -> 0.9275 (0.9297 with this), and Find sun's dev
+#: figure moved by the sky it took.
+SKY_NEAR_WIDE = 1.5
 #: :func:`refine_sky_edge`: how many times the sky grows by the band, each time from the sky
 #: grown so far (its colour always that of the sky it was given); after the first pass only
 #: into sky-coloured regions cut off from the bottom edge, not into a pale ground. One pass left
@@ -379,7 +387,8 @@ def _grow_sky(sky: np.ndarray, img: np.ndarray, colour: np.ndarray, weight: np.n
     same array when nothing grows."""
     diff = np.abs(img - local).max(axis=2)
     if near_local is not None:  # or the sky just beside it (the wide mean holds a glare)
-        diff = np.minimum(diff, np.abs(img - near_local).max(axis=2))
+        near = np.abs(img - near_local).max(axis=2)
+        diff = np.where(diff < SKY_NEAR_WIDE * SKY_EDGE_TOL, np.minimum(diff, near), diff)
     close = (diff < SKY_EDGE_TOL) & (weight > 1e-3)
     candidate = close & colour & ~sky
     if framed and candidate.any():  # whole regions of sky colour, boxed in, sky as a whole

@@ -610,19 +610,45 @@ def test_run_depth_model_side_override_and_bad_input() -> None:
         run_depth_model(model, np.zeros((200, 200), np.float32))
 
 
-def test_refine_sky_edge_takes_hazy_sky_beside_a_glare() -> None:
+def test_refine_sky_edge_takes_hazy_sky_beside_a_glare(monkeypatch) -> None:
     """The ski-slope sample's hazy grey sky between two tree tops, beside the white of a sun's
-    glare, was 0.10 from the band-wide mean of the sky round it (the glare's white) and stayed
-    a surface: a new sun's glare, drawn on the sky only, left it out as a grey staircase (a
-    user trial). The sky just beside a pixel counts too; the dark trees still do not."""
+    glare, was 0.07-0.11 from the band-wide mean of the sky round it (the glare's white; 10th
+    to 90th percentile) and stayed a surface: a new sun's glare, drawn on the sky only, left it
+    out as a grey staircase (a user trial). The sky just beside a pixel counts too; the dark
+    trees still do not."""
+    from outcast_core.runtime.pipeline import depth_post
+
     h, w = 288, 384
     img = np.full((h, w, 3), 0.08, np.float32)  # dark tree tops
     img[:150] = [0.70, 0.71, 0.73]  # hazy grey sky
     yy, xx = np.mgrid[:h, :w]
-    img[((yy - 140) ** 2 + (xx - 178) ** 2 < 20 ** 2) & (yy < 150)] = 1.0  # the glare
-    img[150:160, 195:210] = [0.67, 0.68, 0.70]  # the sky between two tree tops
+    img[((yy - 140) ** 2 + (xx - 174) ** 2 < 18 ** 2) & (yy < 150)] = 1.0  # the glare
+    img[150:160, 195:210] = [0.67, 0.68, 0.70]  # the sky between two tree tops (0.05-0.13)
     sky = np.zeros((h, w), bool)
     sky[:150] = True
     out = refine_sky_edge(sky, img)
-    assert out[150:160, 195:210].mean() > 0.6  # (0.07 with the band-wide mean alone)
+    assert out[150:160, 195:210].mean() > 0.7
     assert not out[150:][img[150:, :, 0] < 0.2].any()
+    monkeypatch.setattr(depth_post, "SKY_NEAR_PRESENT", 2.0)  # the band-wide mean alone
+    assert refine_sky_edge(sky, img)[150:160, 195:210].mean() < 0.5
+
+
+def test_refine_sky_edge_leaves_a_pale_surface_that_matches_only_the_skys_edge(
+        monkeypatch) -> None:
+    """The sky just beside a pixel is asked only of a pixel near the sky's own colour: a sea's
+    pale surf below a hazy horizon (a dev photo), sky-coloured and like the horizon's pale
+    strip but far from the blue of the sky round it, stayed a surface until it was asked of
+    every pixel (then it was taken as sky, and the sun found for the photo moved)."""
+    from outcast_core.runtime.pipeline import depth_post
+
+    h, w = 288, 384
+    img = np.full((h, w, 3), [0.25, 0.45, 0.80], np.float32)  # blue sky
+    img[117:120] = [0.62, 0.70, 0.84]  # the hazy horizon's pale strip
+    img[120:] = [0.20, 0.30, 0.40]  # the sea
+    img[121:128] = [0.60, 0.68, 0.82]  # its pale surf, just below the horizon
+    sky = np.zeros((h, w), bool)
+    sky[:120] = True
+    surf = np.s_[121:128]
+    assert not refine_sky_edge(sky, img)[surf].any()
+    monkeypatch.setattr(depth_post, "SKY_NEAR_WIDE", np.inf)  # (the near sky asked everywhere)
+    assert refine_sky_edge(sky, img)[surf].mean() > 0.5
