@@ -2738,8 +2738,8 @@ class MainWindow(QMainWindow):
         return self.runner.submit(channel, job, f"Exporting {os.path.basename(path)}")
 
     def refuse_own_file(self, path: str) -> bool:
-        """Whether ``path`` is one of :meth:`own_file`'s files, said in an error dialog: an
-        export may never replace it (as on the command line)."""
+        """Whether ``path`` is one of :meth:`own_file`'s files, said in a warning ("Not
+        exported"): an export may never replace it (as on the command line)."""
         exc = self.own_file_error(path)
         if exc is not None:
             self.show_error(exc, "export")

@@ -973,7 +973,8 @@ class TimelapseDialog(QDialog):
         return self.main.runner.submit("tl_export", job, f"Exporting {os.path.basename(path)}")
 
     def _refuse(self, exc: BaseException) -> None:
-        """An export refused before it starts: the error dialog, and the status line says so
+        """An export refused before it starts: the dialog (a warning when it kept a file, an
+        error otherwise), and the status line says so
         (it still said the last export's "Saved 24 frames to …": a user trial)."""
         self.main.show_error(exc, "export")
         self._say_failed(exc)

@@ -281,6 +281,7 @@ def test_corrupt_file_shows_error_and_app_survives(qtbot, window, photo, settle,
     window.open_path(str(bad))
     settle()
     assert len(errors) == 1 and errors[0][0] == "Could not open the photo"
+    assert errors.kinds == ["critical"]  # a failure is an error (a refusal, a warning)
     assert "broken.jpg" in errors[0][1]
     assert window.isVisible() and window.image_path == os.path.abspath(photo)
     assert window.step is Step.ALIGN and window.session is not None

@@ -26,7 +26,7 @@ def _timelapse(window, frames: int, fmt: str = "mp4"):
 
 def test_a_refused_export_is_said_in_the_status_line(window, photo, settle, errors, tmp_path):
     """A user trial exported 24 frames, then again to the same name without confirming: the
-    export was refused (an error dialog) but the status line still said "Saved 24 frames"."""
+    export was refused (a warning) but the status line still said "Saved 24 frames"."""
     _relight(window, photo, settle)
     dialog = _timelapse(window, 3)
     settle()
@@ -36,6 +36,7 @@ def test_a_refused_export_is_said_in_the_status_line(window, photo, settle, erro
     assert dialog.status.text().startswith("Saved 3 frames")
     assert dialog.export(str(out)) is None  # not confirmed: refused
     assert errors[-1][0] == "Not exported" and "already exists" in errors[-1][1]
+    assert errors.kinds[-1] == "warning"  # a file kept, nothing failed
     assert "Saved" not in dialog.status.text()
     assert "already exists" in dialog.status.text() and "Nothing was overwritten" in (
         dialog.status.text())

@@ -1105,7 +1105,10 @@ def guard_learned_relight(
     gave the lift's), and the whole gain to a sky kept as the photo's. ``shade_shift`` (with
     ``colour``; None: off): where the new sun newly shadows a surface, its colour is the
     photo's turned by the light's change of colour (:func:`shaded_colour`), and the new
-    daylight's colour is given there as where the photo's colour is kept. ``lift_fill``:
+    daylight's colour is given there as where the photo's colour is kept; the turn runs
+    first, on the relighting's own colour, by its share of what the colour guard does not
+    keep, so that the photo's, the turned and the relighting's colours add up to their
+    weights (the lift's colour comes after both). ``lift_fill``:
     :func:`shadow_contrast_floor`'s (the session's: what ``lift_base`` filled, and the marked
     shadows). ``local_shade``: the floor's new shade is also as dark as the photo's own shade
     round it (:func:`shadow_contrast_floor`'s ``shade_ratio``, read where ``shadow_old`` is
@@ -1261,7 +1264,9 @@ SHADE_LEVEL = 0.15
 def shaded_colour(image_srgb: np.ndarray, relit_srgb: np.ndarray, weight: np.ndarray,
                   shift: tuple[float, float]) -> np.ndarray:
     """The relit photo where the new sun newly shadows a surface (``weight``, ``H x W`` in
-    [0, 1]: :func:`shade_weight`) in the photo's colour turned by the shade's chromaticity
+    [0, 1]; :func:`guard_learned_relight` passes :func:`shade_weight` over what the colour
+    guard will not keep, ``down / (1 - kept)``, as it turns the colour first) in the photo's
+    colour turned by the shade's chromaticity
     shift ``shift`` (``(log R/G, log B/G)`` of shade over lit), with the relit luminance,
     blended in by the weight.
 
@@ -1316,10 +1321,10 @@ def shade_weight(shadow_old: np.ndarray, shadow_new: np.ndarray) -> np.ndarray:
     the new daylight's colour follows there as where the colour guard keeps the photo's.
 
     Example:
-        >>> so = np.array([[0.9, 0.9, 0.9, 0.25, 0.0]], np.float32)
-        >>> sn = np.array([[0.0, 0.2, 0.35, 0.25, 0.0]], np.float32)
+        >>> so = np.array([[0.9, 0.9, 0.9, 0.25, 0.0, 0.3]], np.float32)
+        >>> sn = np.array([[0.0, 0.2, 0.35, 0.25, 0.0, 0.225]], np.float32)
         >>> [round(float(x), 2) for x in shade_weight(so, sn)[0]]
-        [1.0, 0.67, 0.0, 0.0, 0.0]
+        [1.0, 0.67, 0.0, 0.0, 0.0, 0.5]
     """
     s_o = np.asarray(shadow_old, np.float32)
     s_n = np.asarray(shadow_new, np.float32)

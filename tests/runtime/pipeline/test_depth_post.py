@@ -612,10 +612,12 @@ def test_run_depth_model_side_override_and_bad_input() -> None:
 
 def test_refine_sky_edge_takes_hazy_sky_beside_a_glare(monkeypatch) -> None:
     """The ski-slope sample's hazy grey sky between two tree tops, beside the white of a sun's
-    glare, was 0.07-0.11 from the band-wide mean of the sky round it (the glare's white; 10th
-    to 90th percentile) and stayed a surface: a new sun's glare, drawn on the sky only, left it
-    out as a grey staircase (a user trial). The sky just beside a pixel counts too; the dark
-    trees still do not."""
+    glare, was 0.08-0.12 from the band-wide mean of the sky round it (the glare's white; 10th
+    to 90th percentile at 384 px) and stayed a surface: a new sun's glare, drawn on the sky
+    only, left it out as a grey staircase (a user trial). The sky just beside a pixel counts
+    too; the dark trees still do not. (The glare stands a little further off than this test
+    first drew it, 0.08-0.19 from the mean, beyond what the photo shows: the near sky is asked
+    only of a pixel within 1.5 tolerances of the mean since 2026-12-04.)"""
     from outcast_core.runtime.pipeline import depth_post
 
     h, w = 288, 384

@@ -817,3 +817,31 @@ def test_a_lit_surface_at_the_floor_keeps_its_colour_whole() -> None:
         s_o = np.full_like(s_n, lit_old)
         np.testing.assert_allclose(_both_lit(s_o, s_n) + shade_weight(s_o, s_n), 1.0,
                                    atol=1e-6)
+
+
+def test_a_penumbra_newly_shadowed_takes_its_share_of_the_shade_colour() -> None:
+    """A pixel in the photo's own penumbra (``S_o`` 0.25: two thirds lit on the colour guard's
+    scale) that the new sun puts in full shade takes two thirds of the shade's colour and keeps
+    a third of the relighting's own (in linear light, at the relit luminance): the turn's share
+    is the weight over what the colour guard does not keep, not all or nothing."""
+    from outcast_core.runtime.geometry.colour import luminance
+    from outcast_core.runtime.pipeline.photo_shadows import SKY_SHADE_SHIFT
+    from outcast_core.runtime.pipeline.relight import guard_learned_relight, shade_weight
+
+    h, w = 8, 8
+    image = np.full((h, w, 3), [0.8, 0.7, 0.55], np.float32)
+    sky = np.zeros((h, w), bool)
+    s_old = np.full((h, w), 0.25, np.float32)
+    s_new = np.zeros((h, w), np.float32)
+    assert shade_weight(s_old, s_new)[0, 0] == pytest.approx(2.0 / 3.0, abs=1e-6)
+    light = estimate_light(srgb_to_linear(image), np.full((h, w), 0.9, np.float32), sky)
+    relit = np.full((h, w, 3), [0.3, 0.3, 0.45], np.float32)  # the relighting's own violet
+    out = guard_learned_relight(image, relit, s_old, s_new, sky, light, keep_sky=True,
+                                floor=False, anchor=False, detail=False,
+                                shade_shift=SKY_SHADE_SHIFT)
+    lin_r = srgb_to_linear(relit)[0, 0]
+    turned = srgb_to_linear(image)[0, 0] * np.exp(
+        np.array([SKY_SHADE_SHIFT[0], 0.0, SKY_SHADE_SHIFT[1]], np.float32))
+    turned *= luminance(lin_r) / luminance(turned)
+    expected = 2.0 / 3.0 * turned + 1.0 / 3.0 * lin_r
+    np.testing.assert_allclose(srgb_to_linear(out)[0, 0], expected, rtol=1e-3, atol=1e-4)
