@@ -706,7 +706,13 @@ def test_the_ring_notice_stays_while_the_sun_is_turned_round_the_ring(window, se
     settle()
     assert "around the ring" in notice.text()
     az, el = panel.sun()
-    panel.set_sun((az + 40.0) % 360.0, el + 0.5)  # turned round it by hand
+    # Turned round it by hand: 40 degrees round the ring (on the dial, the ring's elevation
+    # changes with the azimuth by the camera's tilt: 3 degrees here, read from the ground
+    # plane), half a degree off it.
+    ring = window._above_horizon(az, el)
+    az2, el2 = auto_sun.at_true_elevation((az + 40.0) % 360.0, el, ring, window.camera_tilt[:2])
+    assert abs(window._above_horizon(az2, el2) - ring) < 0.01
+    panel.set_sun(az2, el2 + 0.5)
     window.request_shadow(preview=False)
     settle()
     assert "around the ring" in notice.text()
