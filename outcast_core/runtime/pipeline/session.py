@@ -87,6 +87,7 @@ from outcast_core.runtime.pipeline.relight import (
     LIFT_SHADE_SHIFT,
     SUN_CORE_DEG,
     LightEstimate,
+    NormalTrust,
     add_sun,
     estimate_light,
     facing_up,
@@ -355,6 +356,10 @@ class RelightSession:
         #: puts a shadow (:meth:`_lift_guard`), and no brighter than the de-shadowed photo
         #: relit by physics (:meth:`_lift_inputs`; measured in that docstring).
         self.lift_new_light = True
+        #: A new sun lights a surface whose normals the photo contradicts (lit in the photo,
+        #: turned away from its sun by the geometry) no more than the trusted lit surface round
+        #: it, in both modes (:class:`~outcast_core.runtime.pipeline.relight.NormalTrust`).
+        self.trust_normals = True
         #: With the colour guard, learned relighting gives newly shadowed surfaces the photo's
         #: colour turned by the shift of its own shade's colour
         #: (:func:`~outcast_core.runtime.pipeline.relight.shaded_colour`,
@@ -594,6 +599,8 @@ class RelightSession:
         self._edge_fill: DepthEdgeFill | None = None
         self._preview: dict[str, Any] | None = None
         self._relight_preview: dict[str, Any] | None = None
+        #: :meth:`_normal_trust`'s: ``(S_o, normals, NormalTrust)`` at the working size.
+        self._trust: tuple[np.ndarray, np.ndarray, NormalTrust] | None = None
         #: How many times the light-independent inputs of the step-2 drag preview were built
         #: (once per photo, original sun and preset; tests count it).
         self.relight_preview_builds = 0
@@ -1281,6 +1288,8 @@ class RelightSession:
             "original_shadow": self.original_shadow,
             "camera": cam, "image": image, "sky": sky, "depth": depth, "normals": normals,
             "shadow_old": s_o, "geometry_old": geometry_o,
+            "trust": (NormalTrust(s_o, normals, self.original_sun, sky) if self.trust_normals
+                      else None),
             "sampler": RaySampler(depth, cam) if self.shadow_mode != "learned"
             else None,
             "edge_fill": DepthEdgeFill(depth, image) if self.shadow_mode == "learned" else None,
@@ -1339,6 +1348,8 @@ class RelightSession:
                 steps=int(math.ceil(1.0 / step)), step=step, thickness=self.thickness,
                 sampler=st["sampler"],
             )
+        if st["trust"] is not None:
+            s_new = st["trust"].cap(s_new.astype(np.float32))
         s_new = shadow_toward_original(s_new.astype(np.float32), st["shadow_old"],
                                        st["geometry_old"], share)
         t1 = time.perf_counter()
@@ -1393,11 +1404,23 @@ class RelightSession:
             "sun_seen": self.sun_seen, "greyscale": self.greyscale, "exposure": self._exposure,
             "up": self.horizon_up(), "daylight": self._daylight,
             "relight_mode": self._relight_mode,
+            "trust": self._normal_trust(),
             # (the learned shadow's fill at depth edges, built once: the stream's shadows
             # need it as :meth:`shadow`'s have it)
             "edge_fill": (self._working_edge_fill() if self.shadow_mode == "learned"
                           else None),
         }
+
+    def _normal_trust(self) -> NormalTrust | None:
+        """Where the photo contradicts the normals, at the working size (made once per found
+        shadow; None before the original sun, or with :attr:`trust_normals` off)."""
+        s_o, normals = self.original_shadow, self.normals
+        if not self.trust_normals or s_o is None or normals is None or self.sky is None:
+            return None
+        if self._trust is None or self._trust[0] is not s_o or self._trust[1] is not normals:
+            assert self.original_sun is not None
+            self._trust = (s_o, normals, NormalTrust(s_o, normals, self.original_sun, self.sky))
+        return self._trust[2]
 
     def _relight_from(
         self, inp: dict[str, Any], wv: np.ndarray, s_new: np.ndarray, threads: int | None = None
@@ -1409,6 +1432,8 @@ class RelightSession:
         share = original_share(w_o, wv)
         if share >= 1.0:  # the photo's own sun: the photo, no network runs
             return np.array(image, np.float32)
+        if inp.get("trust") is not None:  # (the photo's own sun is not capped: share 1 above)
+            s_new = inp["trust"].cap(s_new)
         s_new = shadow_toward_original(s_new, s_o, inp["original_geometry"], share)
         change = self._daylight_change(inp["daylight"], w_o, wv, inp["up"])
         gain = self._daylight_gain(change, s_new, inp["sky"], inp["light"], inp["up"],

@@ -845,3 +845,45 @@ def test_a_penumbra_newly_shadowed_takes_its_share_of_the_shade_colour() -> None
     turned *= luminance(lin_r) / luminance(turned)
     expected = 2.0 / 3.0 * turned + 1.0 / 3.0 * lin_r
     np.testing.assert_allclose(srgb_to_linear(out)[0, 0], expected, rtol=1e-3, atol=1e-4)
+
+
+def test_a_new_sun_lights_normals_the_photo_contradicts_no_more_than_their_surroundings(
+        ) -> None:
+    """The pool sample's glowing oval at a low sun: ``Z`` made the water by the swimmer a hump
+    turned away from the photo's sun, which the photo shows lit like the water round it. Such
+    pixels take at most the new shadow image of the trusted lit surface round them; a new
+    shadow on them stays, the trusted surface and the photo's own shade are untouched, and
+    with nothing trusted round them nothing is capped."""
+    from outcast_core.runtime.pipeline.relight import NormalTrust
+
+    h, w = 64, 64
+    normals = np.zeros((h, w, 3), np.float32)
+    normals[..., 1] = -1.0  # level ground (camera y points down)
+    hump = np.zeros((h, w), bool)
+    hump[24:40, 24:40] = True
+    normals[hump] = (0.0, 0.0, -1.0)  # turned to the camera, away from an overhead sun
+    sun = np.array([0.0, -1.0, 0.0], np.float32)
+    sky = np.zeros((h, w), bool)
+    s_o = np.full((h, w), 0.95, np.float32)  # the photo shows it all lit...
+    s_o[:, :6] = 0.02  # ...but a strip of its own shade
+    shade_hump = np.zeros((h, w), bool)
+    shade_hump[2:5, 2:5] = True
+    normals[shade_hump] = (0.0, 0.0, -1.0)
+    trust = NormalTrust(s_o, normals, sun, sky)
+    assert trust.contradicted[hump].all() and not trust.contradicted[shade_hump].any()
+    assert trust.contradicted.sum() == hump.sum()
+    s_n = np.full((h, w), 0.2, np.float32)  # a low new sun: level ground at 0.2
+    s_n[hump] = 0.9  # the hump faces it
+    s_n[30:34, 30:34] = 0.02  # a new shadow falling on the hump
+    s_n[shade_hump] = 0.9
+    capped = trust.cap(s_n)
+    assert np.allclose(capped[26:29, 26:29], 0.2, atol=0.01)
+    assert np.allclose(capped[30:34, 30:34], 0.02)
+    assert np.array_equal(capped[~hump], s_n[~hump])
+    # No trusted lit surface round it: left as it is.
+    alone = NormalTrust(s_o, np.broadcast_to(np.array([0.0, 0.0, -1.0], np.float32),
+                                             (h, w, 3)), sun, sky)
+    assert alone.contradicted[:, 6:].all()
+    assert np.array_equal(alone.cap(s_n), s_n)
+    with pytest.raises(ValueError, match="shape"):
+        trust.cap(s_n[:10])

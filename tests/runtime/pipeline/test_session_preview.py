@@ -242,3 +242,38 @@ def test_metered_exposure_in_every_relighting_cached_per_exposure(scene, mode) -
     assert full.shape == metered.shape and np.allclose(full, metered, atol=2e-3)
     s.exposure = "photo"
     assert np.allclose(s.relight(w), fixed)
+
+
+def test_the_normals_trust_caps_the_full_pass_and_the_preview_alike(scene, monkeypatch) -> None:
+    """Both the working-size relighting and the drag preview cap the new shadow image where
+    the photo contradicts the normals (:class:`~outcast_core.runtime.pipeline.relight.
+    NormalTrust`), the working size's made once per found shadow; off, neither does."""
+    from outcast_core.runtime.pipeline.relight import NormalTrust
+
+    image, depth = scene
+    shapes: list[tuple[int, int]] = []
+    real_cap = NormalTrust.cap
+
+    def cap(self, s_new):
+        shapes.append(np.shape(s_new))
+        return real_cap(self, s_new)
+
+    monkeypatch.setattr(NormalTrust, "cap", cap)
+    s = RelightSession(preset="balanced", mode="classic")
+    s.set_image(image, depth=depth)
+    s.set_original_sun(W_O)
+    s.relight(SUNS[0])
+    trust = s._normal_trust()
+    s.relight(SUNS[1])
+    assert s._normal_trust() is trust  # (made once for this found shadow)
+    s.relight(SUNS[2], preview=True)
+    work, preview = s.image_srgb.shape[:2], s._relight_preview_state()["shadow_old"].shape
+    assert shapes == [work, work, preview] and preview != work
+    off = RelightSession(preset="balanced", mode="classic")
+    off.trust_normals = False
+    off.set_image(image, depth=depth)
+    off.set_original_sun(W_O)
+    shapes.clear()
+    off.relight(SUNS[0])
+    off.relight(SUNS[1], preview=True)
+    assert shapes == [] and off._normal_trust() is None
