@@ -359,6 +359,8 @@ class RelightSession:
         #: A new sun lights a surface whose normals the photo contradicts (lit in the photo,
         #: turned away from its sun by the geometry) no more than the trusted lit surface round
         #: it, in both modes (:class:`~outcast_core.runtime.pipeline.relight.NormalTrust`).
+        #: Like the other switches here, set it before the relighting: relit images already
+        #: cached, and the drag preview's inputs once built, keep what they were made with.
         self.trust_normals = True
         #: With the colour guard, learned relighting gives newly shadowed surfaces the photo's
         #: colour turned by the shift of its own shade's colour
@@ -1288,8 +1290,8 @@ class RelightSession:
             "original_shadow": self.original_shadow,
             "camera": cam, "image": image, "sky": sky, "depth": depth, "normals": normals,
             "shadow_old": s_o, "geometry_old": geometry_o,
-            "trust": (NormalTrust(s_o, normals, self.original_sun, sky) if self.trust_normals
-                      else None),
+            "trust": (NormalTrust(s_o, normals, self.original_sun, sky, geometry_o,
+                                  self.horizon_up()) if self.trust_normals else None),
             "sampler": RaySampler(depth, cam) if self.shadow_mode != "learned"
             else None,
             "edge_fill": DepthEdgeFill(depth, image) if self.shadow_mode == "learned" else None,
@@ -1348,10 +1350,12 @@ class RelightSession:
                 steps=int(math.ceil(1.0 / step)), step=step, thickness=self.thickness,
                 sampler=st["sampler"],
             )
+        geometry_o = st["geometry_old"]
         if st["trust"] is not None:
-            s_new = st["trust"].cap(s_new.astype(np.float32))
-        s_new = shadow_toward_original(s_new.astype(np.float32), st["shadow_old"],
-                                       st["geometry_old"], share)
+            s_new = st["trust"].cap(s_new.astype(np.float32), wv)
+            geometry_o = st["trust"].geometry_old
+        s_new = shadow_toward_original(s_new.astype(np.float32), st["shadow_old"], geometry_o,
+                                       share)
         t1 = time.perf_counter()
         self.timings["shadow_preview"] = t1 - t0
         image = st["image"]
@@ -1419,7 +1423,8 @@ class RelightSession:
             return None
         if self._trust is None or self._trust[0] is not s_o or self._trust[1] is not normals:
             assert self.original_sun is not None
-            self._trust = (s_o, normals, NormalTrust(s_o, normals, self.original_sun, self.sky))
+            self._trust = (s_o, normals, NormalTrust(s_o, normals, self.original_sun, self.sky,
+                                                     self._original_geometry, self.horizon_up()))
         return self._trust[2]
 
     def _relight_from(
@@ -1432,9 +1437,12 @@ class RelightSession:
         share = original_share(w_o, wv)
         if share >= 1.0:  # the photo's own sun: the photo, no network runs
             return np.array(image, np.float32)
+        geometry_o = inp["original_geometry"]
         if inp.get("trust") is not None:  # (the photo's own sun is not capped: share 1 above)
-            s_new = inp["trust"].cap(s_new)
-        s_new = shadow_toward_original(s_new, s_o, inp["original_geometry"], share)
+            s_new = inp["trust"].cap(s_new, wv)
+            # (near the photo's sun the capped geometry is taken off: no jump at share 1)
+            geometry_o = inp["trust"].geometry_old
+        s_new = shadow_toward_original(s_new, s_o, geometry_o, share)
         change = self._daylight_change(inp["daylight"], w_o, wv, inp["up"])
         gain = self._daylight_gain(change, s_new, inp["sky"], inp["light"], inp["up"],
                                    inp["view_dirs"], inp["relight_mode"])

@@ -861,29 +861,44 @@ def test_a_new_sun_lights_normals_the_photo_contradicts_no_more_than_their_surro
     normals[..., 1] = -1.0  # level ground (camera y points down)
     hump = np.zeros((h, w), bool)
     hump[24:40, 24:40] = True
-    normals[hump] = (0.0, 0.0, -1.0)  # turned to the camera, away from an overhead sun
+    normals[hump] = (0.0, 0.3, -0.95)  # turned to the camera, away from an overhead sun
     sun = np.array([0.0, -1.0, 0.0], np.float32)
     sky = np.zeros((h, w), bool)
+    sky[:, -4:] = True  # (sky beside it: neither lit, contradicted nor trusted)
+    normals[sky] = 0.0
     s_o = np.full((h, w), 0.95, np.float32)  # the photo shows it all lit...
     s_o[:, :6] = 0.02  # ...but a strip of its own shade
     shade_hump = np.zeros((h, w), bool)
     shade_hump[2:5, 2:5] = True
-    normals[shade_hump] = (0.0, 0.0, -1.0)
+    normals[shade_hump] = (0.0, 0.3, -0.95)
+    grazed = np.zeros((h, w), bool)
+    grazed[50:54, 50:54] = True
+    normals[grazed] = (0.0, -0.3, -0.95)  # grazed by the photo's sun, not turned away
+    s_o[grazed] = 0.3
     trust = NormalTrust(s_o, normals, sun, sky)
     assert trust.contradicted[hump].all() and not trust.contradicted[shade_hump].any()
-    assert trust.contradicted.sum() == hump.sum()
-    s_n = np.full((h, w), 0.2, np.float32)  # a low new sun: level ground at 0.2
+    assert trust.contradicted.sum() == hump.sum() and not trust.contradicted[grazed].any()
+    s_n = np.full((h, w), 0.2, np.float32)  # a low new sun: level ground at 0.2...
+    s_n[:32] = 0.3  # ...0.3 on the far half
     s_n[hump] = 0.9  # the hump faces it
     s_n[30:34, 30:34] = 0.02  # a new shadow falling on the hump
     s_n[shade_hump] = 0.9
-    capped = trust.cap(s_n)
-    assert np.allclose(capped[26:29, 26:29], 0.2, atol=0.01)
+    s_n[sky] = 0.0
+    low = np.array([0.0, -0.2, 0.98], np.float32)  # the new sun, low ahead
+    capped = trust.cap(s_n, low)
+    assert np.allclose(capped[25, 31], 0.3, atol=0.02) and np.allclose(capped[38, 31], 0.2,
+                                                                        atol=0.02)
     assert np.allclose(capped[30:34, 30:34], 0.02)
     assert np.array_equal(capped[~hump], s_n[~hump])
+    # A photo's sun low over level ground (2 degrees: a cosine of 0.035) does not make the
+    # lit level ground contradicted.
+    dusk = np.array([0.0, -0.035, 0.999], np.float32)
+    level = NormalTrust(np.full((h, w), 0.3, np.float32), normals, dusk, sky)
+    assert not level.contradicted[~hump & ~shade_hump & ~grazed].any()
     # No trusted lit surface round it: left as it is.
-    alone = NormalTrust(s_o, np.broadcast_to(np.array([0.0, 0.0, -1.0], np.float32),
+    alone = NormalTrust(s_o, np.broadcast_to(np.array([0.0, 0.3, -0.95], np.float32),
                                              (h, w, 3)), sun, sky)
-    assert alone.contradicted[:, 6:].all()
-    assert np.array_equal(alone.cap(s_n), s_n)
+    assert alone.contradicted[:, 6:-4].all()
+    assert np.array_equal(alone.cap(s_n, low), s_n)
     with pytest.raises(ValueError, match="shape"):
-        trust.cap(s_n[:10])
+        trust.cap(s_n[:10], low)

@@ -245,35 +245,34 @@ def test_metered_exposure_in_every_relighting_cached_per_exposure(scene, mode) -
 
 
 def test_the_normals_trust_caps_the_full_pass_and_the_preview_alike(scene, monkeypatch) -> None:
-    """Both the working-size relighting and the drag preview cap the new shadow image where
-    the photo contradicts the normals (:class:`~outcast_core.runtime.pipeline.relight.
-    NormalTrust`), the working size's made once per found shadow; off, neither does."""
+    """Both the working-size relighting and the drag preview take the new shadow image as the
+    photo's contradiction of the normals caps it (:class:`~outcast_core.runtime.pipeline.
+    relight.NormalTrust`; here a cap that blacks it all out, to see that its result is used),
+    the working size's made once per found shadow and made again for a new one; off, neither
+    takes it."""
     from outcast_core.runtime.pipeline.relight import NormalTrust
 
     image, depth = scene
-    shapes: list[tuple[int, int]] = []
-    real_cap = NormalTrust.cap
 
-    def cap(self, s_new):
-        shapes.append(np.shape(s_new))
-        return real_cap(self, s_new)
+    def relit(trust: bool, blackout: bool) -> tuple[np.ndarray, np.ndarray, RelightSession]:
+        with monkeypatch.context() as m:
+            if blackout:
+                m.setattr(NormalTrust, "cap", lambda self, s_new, sun: np.zeros_like(s_new))
+            s = RelightSession(preset="balanced", mode="classic")
+            s.trust_normals = trust
+            s.set_image(image, depth=depth)
+            s.set_original_sun(W_O)
+            return s.relight(SUNS[0]), s.relight(SUNS[1], preview=True), s
 
-    monkeypatch.setattr(NormalTrust, "cap", cap)
-    s = RelightSession(preset="balanced", mode="classic")
-    s.set_image(image, depth=depth)
-    s.set_original_sun(W_O)
-    s.relight(SUNS[0])
+    work, prev, s = relit(True, False)
+    black_work, black_prev, _ = relit(True, True)
+    assert np.abs(black_work - work).max() > 0.05 and np.abs(black_prev - prev).max() > 0.05
+    off_work, off_prev, off = relit(False, False)
+    off_black_work, off_black_prev, _ = relit(False, True)
+    assert np.array_equal(off_black_work, off_work) and np.array_equal(off_black_prev, off_prev)
+    assert off._normal_trust() is None
     trust = s._normal_trust()
-    s.relight(SUNS[1])
+    s.relight(SUNS[2])
     assert s._normal_trust() is trust  # (made once for this found shadow)
-    s.relight(SUNS[2], preview=True)
-    work, preview = s.image_srgb.shape[:2], s._relight_preview_state()["shadow_old"].shape
-    assert shapes == [work, work, preview] and preview != work
-    off = RelightSession(preset="balanced", mode="classic")
-    off.trust_normals = False
-    off.set_image(image, depth=depth)
-    off.set_original_sun(W_O)
-    shapes.clear()
-    off.relight(SUNS[0])
-    off.relight(SUNS[1], preview=True)
-    assert shapes == [] and off._normal_trust() is None
+    s.set_original_sun(SUNS[3])
+    assert s._normal_trust() is not trust
