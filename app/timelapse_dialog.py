@@ -481,9 +481,9 @@ class TimelapseDialog(QDialog):
             else:
                 day = when.date() if when is not None else dt.date.today()
             self.date_edit.setDate(QDate(day.year, day.month, day.day))
-            offset = s.utc_offset
-            if offset is None and tl.photo_utc_offset(exif) is not None:
-                offset = tl.photo_utc_offset(exif)
+            offset, own = s.utc_offset, tl.photo_utc_offset(exif)
+            if offset is None and own is not None:
+                offset = own
                 self._zone_from = "exif"
             elif offset is None:  # guessed, and guessed again when the longitude changes
                 offset = tl.default_utc_offset(lon or 0.0)

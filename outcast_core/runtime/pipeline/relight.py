@@ -420,7 +420,7 @@ class NormalTrust:
     def __init__(self, shadow_old: np.ndarray, normals: np.ndarray, sun_old: np.ndarray,
                  sky: np.ndarray, geometry_old: np.ndarray | None = None,
                  up: np.ndarray | None = None) -> None:
-        from outcast_core.runtime.geometry.camera import normalize_sun
+        from outcast_core.runtime.geometry.camera import cosine_term, normalize_sun
 
         s_o = np.nan_to_num(np.asarray(shadow_old, np.float32))
         sky = np.asarray(sky, bool)
@@ -429,8 +429,8 @@ class NormalTrust:
             raise ValueError(f"expected normals and sky of the shadow's size {s_o.shape}, got "
                              f"{n.shape[:2]} and {sky.shape}")
         w_o = normalize_sun(sun_old)
-        facing = np.where(sky, 0.0, np.nan_to_num(n.astype(np.float64) @ w_o))
-        lit = ~sky & (s_o > CONTRADICTED_VIS * np.maximum(np.clip(facing, 0.0, 1.0), LIT_FLOOR))
+        facing = cosine_term(n, w_o)
+        lit = ~sky & (s_o > CONTRADICTED_VIS * np.maximum(facing, LIT_FLOOR))
         # A low photo sun grazes level ground at a cosine of a few hundredths, lit all the
         # same: the threshold is at most half the level ground's cosine.
         level = float(np.dot(normalize_sun(np.array([0.0, -1.0, 0.0]) if up is None else up),
@@ -447,11 +447,10 @@ class NormalTrust:
                    else np.clip(self._support / CONTRADICTED_SUPPORT, 0.0, 1.0))
         #: The geometry's shadow at the photo's sun, capped as the new sun's are (what
         #: :func:`shadow_toward_original` takes off near the photo's sun), or None.
-        self.geometry_old = (None if geometry_old is None
-                             else self.cap(geometry_old, np.asarray(sun_old, np.float32)))
+        self.geometry_old = None if geometry_old is None else self.cap(geometry_old)
 
-    def cap(self, shadow_new: np.ndarray, sun_new: np.ndarray) -> np.ndarray:
-        """``shadow_new`` (for the sun ``sun_new``) with each contradicted pixel at most the
+    def cap(self, shadow_new: np.ndarray) -> np.ndarray:
+        """``shadow_new`` with each contradicted pixel at most the
         Gaussian-weighted mean ``S_n`` of the trusted lit surface round it (its own new shadow
         stays); the cap fades out, with no edge, where little of that surface is round it
         (:data:`CONTRADICTED_SUPPORT`). (Measured and not kept, 2026-12-04: the cap as ``S_o``
@@ -468,8 +467,7 @@ class NormalTrust:
             >>> trust = NormalTrust(np.full((64, 64), 0.95, np.float32), n, sun,
             ...                     np.zeros((64, 64), bool))
             >>> s_n = np.full((64, 64), 0.2, np.float32); s_n[28:36, 28:36] = 0.9  # a new sun
-            >>> low = np.array([0.0, -0.2, 0.98], np.float32)  # the new sun, low ahead
-            >>> out = trust.cap(s_n, low)
+            >>> out = trust.cap(s_n)
             >>> round(float(out[32, 32]), 2), round(float(out[0, 0]), 2)
             (0.2, 0.2)
         """
@@ -515,15 +513,22 @@ def original_share(sun_old: np.ndarray, sun_new: np.ndarray) -> float:
 
 
 def shadow_toward_original(
-    shadow_new: np.ndarray, shadow_old: np.ndarray, geometry_old: np.ndarray, share: float
+    shadow_new: np.ndarray, shadow_old: np.ndarray, geometry_old: np.ndarray, share: float,
+    trust: NormalTrust | None = None,
 ) -> np.ndarray:
     """The new shadow drawn toward the photo's own near its sun (``H x W`` in [0, 1]):
     ``S(w_n) + share * (S_o - S(w_o))``, where ``S(w_o)`` (``geometry_old``) is the geometry's
     shadow at the original sun and ``S_o`` the shadows found in the photo. At the original sun
     (``share`` 1) it is ``S_o`` exactly; a little away from it, the photo's shadows move as the
     geometry's do; past :data:`ORIGINAL_FADE_DEG` (``share`` 0) it is the geometry's ``S(w_n)``.
+    With ``trust`` (:class:`NormalTrust`, made with ``geometry_old``) both geometry's shadows
+    are capped where the photo contradicts the normals, so nothing jumps near the photo's sun.
     """
     s_new = np.asarray(shadow_new, np.float32)
+    if trust is not None:
+        s_new = trust.cap(s_new)
+        if trust.geometry_old is not None:
+            geometry_old = trust.geometry_old
     if share <= 0.0:
         return s_new
     for name, a in (("shadow_old", shadow_old), ("geometry_old", geometry_old)):

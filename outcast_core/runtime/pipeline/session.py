@@ -1350,12 +1350,8 @@ class RelightSession:
                 steps=int(math.ceil(1.0 / step)), step=step, thickness=self.thickness,
                 sampler=st["sampler"],
             )
-        geometry_o = st["geometry_old"]
-        if st["trust"] is not None:
-            s_new = st["trust"].cap(s_new.astype(np.float32), wv)
-            geometry_o = st["trust"].geometry_old
-        s_new = shadow_toward_original(s_new.astype(np.float32), st["shadow_old"], geometry_o,
-                                       share)
+        s_new = shadow_toward_original(s_new.astype(np.float32), st["shadow_old"],
+                                       st["geometry_old"], share, st["trust"])
         t1 = time.perf_counter()
         self.timings["shadow_preview"] = t1 - t0
         image = st["image"]
@@ -1437,12 +1433,8 @@ class RelightSession:
         share = original_share(w_o, wv)
         if share >= 1.0:  # the photo's own sun: the photo, no network runs
             return np.array(image, np.float32)
-        geometry_o = inp["original_geometry"]
-        if inp.get("trust") is not None:  # (the photo's own sun is not capped: share 1 above)
-            s_new = inp["trust"].cap(s_new, wv)
-            # (near the photo's sun the capped geometry is taken off: no jump at share 1)
-            geometry_o = inp["trust"].geometry_old
-        s_new = shadow_toward_original(s_new, s_o, geometry_o, share)
+        s_new = shadow_toward_original(s_new, s_o, inp["original_geometry"], share,
+                                       inp.get("trust"))
         change = self._daylight_change(inp["daylight"], w_o, wv, inp["up"])
         gain = self._daylight_gain(change, s_new, inp["sky"], inp["light"], inp["up"],
                                    inp["view_dirs"], inp["relight_mode"])

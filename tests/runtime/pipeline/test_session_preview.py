@@ -257,7 +257,7 @@ def test_the_normals_trust_caps_the_full_pass_and_the_preview_alike(scene, monke
     def relit(trust: bool, blackout: bool) -> tuple[np.ndarray, np.ndarray, RelightSession]:
         with monkeypatch.context() as m:
             if blackout:
-                m.setattr(NormalTrust, "cap", lambda self, s_new, sun: np.zeros_like(s_new))
+                m.setattr(NormalTrust, "cap", lambda self, s_new: np.zeros_like(s_new))
             s = RelightSession(preset="balanced", mode="classic")
             s.trust_normals = trust
             s.set_image(image, depth=depth)
