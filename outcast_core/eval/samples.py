@@ -107,7 +107,7 @@ def relight_samples(
         contrast = []
         for az, el in entry["to"]:
             w = sun_vector(az, el)
-            s_n, relit = session.shadow(w), session.relight(w)
+            s_n, relit = session.relit_shadow(w), session.relight(w)
             row[f"S_n {az:g},{el:g}"] = s_n
             row[f"Relit {az:g},{el:g}"] = relit
             contrast.append(shadow_contrast(session.image_srgb, relit, s_o, s_n, session.sky))

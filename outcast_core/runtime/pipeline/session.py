@@ -807,6 +807,22 @@ class RelightSession:
             self._require_image()
             return self._shadow_cache.get_or(key, lambda: self._compute_shadow(w, preview))
 
+    def relit_shadow(self, w: Any) -> np.ndarray:
+        """The new shadow a relighting for sun ``w`` uses (``H x W`` in [0, 1], working size):
+        the geometry's :meth:`shadow`, drawn toward the photo's found shadows near its sun
+        (:func:`~outcast_core.runtime.pipeline.relight.shadow_toward_original`) and capped where
+        the photo contradicts the normals (:class:`~outcast_core.runtime.pipeline.relight.
+        NormalTrust`). This is what the "New shadow" view shows: the plain :meth:`shadow` is
+        the geometry's alone (step 1's overlay, the search's)."""
+        wv = normalize_sun(w)
+        with self._lock:
+            s_new = self.shadow(wv)
+            if self.original_shadow is None or self.original_sun is None:
+                raise RuntimeError("set_original_sun() must be called before relit_shadow()")
+            share = original_share(self.original_sun, wv)
+            return shadow_toward_original(s_new, self.original_shadow, self._original_geometry,
+                                          share, self._normal_trust())
+
     def _compute_shadow(self, w: Any, preview: bool) -> np.ndarray:
         t0 = time.perf_counter()
         wv = normalize_sun(w)
@@ -1817,7 +1833,7 @@ class RelightSession:
                 "depth": depth_for_display(self.depth, self.sky),
                 "normals": normals_for_display(self.normals),
                 "original_shadow": self.original_shadow,
-                "new_shadow": self.shadow(w_new),
+                "new_shadow": self.relit_shadow(w_new),
                 "output": out,
             }
 

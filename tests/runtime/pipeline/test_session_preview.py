@@ -276,3 +276,26 @@ def test_the_normals_trust_caps_the_full_pass_and_the_preview_alike(scene, monke
     assert s._normal_trust() is trust  # (made once for this found shadow)
     s.set_original_sun(SUNS[3])
     assert s._normal_trust() is not trust
+
+
+def test_the_new_shadow_view_shows_the_shadow_the_relighting_uses(scene, monkeypatch) -> None:
+    """The "New shadow" view (:meth:`RelightSession.buffers`) and :meth:`RelightSession.
+    relit_shadow` give the new shadow the relighting takes: the photo's found shadows at its
+    own sun, the geometry's far from it, and the normals' cap applied (a cap that blacks it all
+    out here, to see it used); the plain :meth:`RelightSession.shadow` stays the geometry's."""
+    from outcast_core.runtime.pipeline.relight import NormalTrust
+
+    image, depth = scene
+    s = RelightSession(preset="fast", mode="classic")
+    s.set_image(image, depth=depth)
+    with pytest.raises(RuntimeError, match="set_original_sun"):
+        s.relit_shadow(SUNS[0])
+    s.set_original_sun(W_O)
+    assert np.allclose(s.relit_shadow(W_O), s.original_shadow, atol=1e-6)
+    far = SUNS[4]
+    assert np.array_equal(s.relit_shadow(far), s._normal_trust().cap(s.shadow(far)))
+    with monkeypatch.context() as m:
+        m.setattr(NormalTrust, "cap", lambda self, s_new: np.zeros_like(s_new))
+        s.set_original_sun(W_O)  # (found again: a trust made with the patched cap)
+        assert s.relit_shadow(far).max() == 0.0 and s.shadow(far).max() > 0.5
+        assert s.buffers(far)["new_shadow"].max() == 0.0
