@@ -617,7 +617,11 @@ class MainWindow(QMainWindow):
         self.act_phone_depth.toggled.connect(self.set_use_phone_depth)
         self.act_timelapse = QAction("&Time-lapse…", self, shortcut=QKeySequence("Ctrl+T"))
         self.act_timelapse.triggered.connect(self.open_timelapse)
-        self.act_quit = QAction("&Quit", self, shortcut=QKeySequence.StandardKey.Quit)
+        self.act_quit = QAction("&Quit", self)
+        # The platform's key where it has one (Cmd+Q, Ctrl+Q), else Ctrl+Q: Qt's generic
+        # theme and Windows have none (a user trial: Ctrl+Q did nothing under plain X11).
+        self.act_quit.setShortcuts(QKeySequence.keyBindings(QKeySequence.StandardKey.Quit)
+                                   or [QKeySequence("Ctrl+Q")])
         self.act_quit.triggered.connect(self.close)
         self.act_fit = QAction("&Fit to window", self, shortcut=QKeySequence("Ctrl+0"))
         self.act_fit.triggered.connect(self.canvas.fit)
@@ -858,7 +862,8 @@ class MainWindow(QMainWindow):
         )
         self.align_panel.setEnabled(has_photo)
         self.align_panel.footer.setEnabled(has_photo)  # below the panel, not inside it
-        for act in (self.act_save, self.act_save_as, self.act_depth):
+        for act in (self.act_save, self.act_save_as, self.act_depth, self.act_fit,
+                    self.act_actual, self.act_zoom_in, self.act_zoom_out):
             act.setEnabled(has_photo)
         tips = {self.act_export: "Save the relit photo at full resolution (Ctrl+E)",
                 self.act_export_deshadow: "Save the photo with its own shadows removed, at "
@@ -1058,7 +1063,6 @@ class MainWindow(QMainWindow):
         )
 
     def _shortcuts(self) -> None:
-        # Quit's key is the platform's (none on some): said only where it has one.
         quit_key = self.act_quit.shortcut().toString(QKeySequence.SequenceFormat.NativeText)
         QMessageBox.information(
             self,
@@ -1067,7 +1071,7 @@ class MainWindow(QMainWindow):
             "Ctrl+O open · Ctrl+S save project · Ctrl+F find the sun (again to cancel) · "
             "Ctrl+Return confirm the sun · Ctrl+E export still · Ctrl+Shift+E export shadows "
             "removed · Ctrl+T time-lapse · Ctrl+Z undo · Ctrl+Shift+Z or Ctrl+Y redo"
-            f"{f' · {quit_key} quit' if quit_key else ''}\n"
+            f" · {quit_key} quit\n"
             "Canvas: mouse wheel or Ctrl++ / Ctrl+- zooms, drag pans, double-click or Ctrl+0 "
             "fits, Ctrl+1 actual pixels.\n"
             "Step 2, Shadows found / removed: \"Not a shadow\" or \"Mark shadow\", then click a "
@@ -1968,14 +1972,24 @@ class MainWindow(QMainWindow):
 
     # ================================================================== step 1
     def _on_original_sun_committed(self, az: float, el: float) -> None:
+        self._user_moved_sun()
         self.request_shadow(az, el, False)
         self._record()
+
+    def _user_moved_sun(self) -> None:
+        """The user moved step 1's sun (the dial, its keys or the number fields; the search's
+        and undo's moves emit nothing): a running Find sun is cancelled, as Confirm cancels
+        it, and the user's sun stands (a user trial dragged during the search and the dial
+        jumped to the found sun when it ended)."""
+        if self.finding_sun():
+            self._cancel_find_sun()
 
     def _on_target_sun_committed(self, az: float, el: float) -> None:
         self.request_relight(az, el, False)
         self._record()
 
     def _on_original_sun_changed(self, az: float, el: float, preview: bool) -> None:
+        self._user_moved_sun()
         if preview:
             self.request_shadow(az, el, True)
 

@@ -1132,3 +1132,20 @@ def test_the_still_export_remembers_the_last_folder_and_type(
     window.act_export.trigger()  # the folder is gone: the photo's, still as a JPEG
     settle()
     assert Path(asked[-1][0]).parent == Path(photo).parent and asked[-1][0].endswith(".jpg")
+
+
+# ------------------------------------------------------- Quit's key and the view actions (trial)
+def test_quit_has_a_key_and_the_view_actions_wait_for_a_photo(window, photo, settle):
+    """File > Quit has a key on every platform (Qt's generic theme, plain X11 and Windows give
+    its standard key none: Ctrl+Q did nothing in a user trial), and it is in the shortcuts box;
+    the zoom actions are greyed out until a photo is open."""
+    from PySide6.QtGui import QKeySequence
+
+    keys = [k.toString() for k in window.act_quit.shortcuts()]
+    assert keys and all(keys), keys
+    assert QKeySequence("Ctrl+Q").toString() in keys or QKeySequence.keyBindings(
+        QKeySequence.StandardKey.Quit)
+    zoom = (window.act_fit, window.act_actual, window.act_zoom_in, window.act_zoom_out)
+    assert not any(a.isEnabled() for a in zoom)
+    _load(window, photo, settle)
+    assert all(a.isEnabled() for a in zoom)

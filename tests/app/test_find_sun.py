@@ -733,3 +733,32 @@ def test_find_sun_waits_out_a_confirm_on_its_way(window, photo, settle, monkeypa
     assert window.find_sun() is None
     settle()
     assert window.step is Step.RELIGHT and calls == []
+
+
+def test_moving_the_sun_while_the_search_runs_cancels_it(qtbot, window, photo, settle,
+                                                         monkeypatch):
+    """A user trial dragged step 1's sun while Find sun ran: when the search ended, the dial
+    jumped to the found sun. Moving the sun by hand (a drag, its keys, the number fields)
+    cancels the search, as Confirm does; the sun set by hand stands and nothing is recorded
+    after it."""
+    _load(window, photo, settle)
+    started = []
+
+    def slow(session, **kw):
+        started.append(True)
+        time.sleep(0.4)  # finishes even when cancelled: its progress is never asked
+        return _fit(200.0, 30.0)
+
+    monkeypatch.setattr(auto_sun, "find_sun", slow)
+    panel = window.align_panel.sun_panel
+    window.toggle_find_sun()
+    qtbot.waitUntil(lambda: bool(started), timeout=5000)
+    assert window.finding_sun()
+    panel.azimuth_box.setValue(60.0)  # typed: emits as a drag's end does
+    assert window.align_panel.find_button.text() == "Find sun from shadows"  # at once
+    qtbot.waitUntil(lambda: not window.finding_sun(), timeout=5000)
+    settle()
+    assert panel.sun()[0] == pytest.approx(60.0)
+    assert "Sun found" not in window.stage_label.text()
+    assert not panel.dial.has_heat_map()
+    assert window.undo_stack.undoText() != "Find sun"
