@@ -26,7 +26,11 @@ NO_SUN_STATUS = 3
 def cmd_sun(args: argparse.Namespace) -> int:
     """Run :func:`~outcast_core.runtime.pipeline.auto_sun.find_sun` on one photo and print the
     result."""
-    from outcast_core.runtime.cli.main import _load, _make_session, _say, _set_image
+    from outcast_core.runtime.cli.main import CliError, _load, _make_session, _say, _set_image
+
+    if args.heading is not None and args.no_exif:  # (a user trial's was ignored unsaid)
+        raise CliError("--heading places the sun with the photo's EXIF GPS and time, which "
+                       "--no-exif ignores: give one or the other")
     from outcast_core.runtime.pipeline.auto_sun import (
         SOURCE_EXIF,
         SOURCE_SUN_IN_FRAME,
@@ -43,6 +47,9 @@ def cmd_sun(args: argparse.Namespace) -> int:
     _set_image(session, loaded, args)
     heading = None if args.heading is None else args.heading % 360.0
     prior = None if args.no_exif else exif_sun_prior(loaded.exif, heading=heading)
+    if heading is not None and (prior is None or prior.azimuth is None) and not args.quiet:
+        print("outcast sun: note: --heading is not used: the photo has no EXIF GPS position "
+              "and capture time to place the sun with it", file=sys.stderr)
     night = None if args.no_exif else sun_below_horizon_at_capture(loaded.exif)
     if night is not None and not args.quiet:  # its EXIF gives no sun: say why, once
         print(f"outcast sun: note: {night}, so the EXIF gives no sun and the shadows alone are "

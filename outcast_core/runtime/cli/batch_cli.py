@@ -340,8 +340,12 @@ def run_batch_command(args: argparse.Namespace) -> int:
             print(_line(r, count, total), file=sys.stderr, flush=True)
 
     if jobs and not args.quiet:  # (first: a rerun's skipped lines came before it)
-        print(f"processing {len(jobs)} photo{'s' if len(jobs) != 1 else ''} ({options.kind}) "
-              f"with {min(args.workers, len(jobs))} worker(s)", file=sys.stderr, flush=True)
+        # (the lines count all the photos: a rerun's "processing 4 photos" above [1/8] to
+        # [8/8] read as a contradiction in a user trial)
+        of = f" of {total}" if early else ""
+        print(f"processing {len(jobs)}{of} photo{'s' if total != 1 else ''} ({options.kind}) "
+              f"with {min(args.workers, len(jobs))} worker(s)"
+              f"{f'; {len(early)} need no work' if early else ''}", file=sys.stderr, flush=True)
     def write_report(results: list[JobResult], seconds: float, interrupted: bool) -> None:
         from outcast_core.runtime.io.imageio import atomic_output
 

@@ -169,7 +169,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    help=f"sweep the sun A -> B; {SWEEP_HELP}")
     p.add_argument("--frames", type=frame_count, default=None,
                    help=f"frame count, 2..{MAX_FRAMES} (--sweep: required; --date: default 48)")
-    p.add_argument("--easing", choices=EASINGS, default="ease-in-out")
+    p.add_argument("--easing", choices=EASINGS, default=None,
+                   help="the sweep's pace (--sweep only; default ease-in-out)")
     p.add_argument("--date", type=_date, metavar="YYYY-MM-DD", help="real sun path of this day")
     p.add_argument("--lat", type=_number(-90.0, 90.0, "a latitude"),
                    help="latitude (default: EXIF GPS)")
@@ -216,10 +217,23 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     return p
 
 
+#: The options of a real day's sun path (``--date``), refused with ``--sweep``.
+_DAY_ONLY = ("lat", "lon", "heading", "start", "end", "utc_offset")
+
+
 def _check_sample_args(args: argparse.Namespace, exif: Any) -> None:
     """The sun path's arguments, checked before any work (ValueError naming what is missing)."""
     if (args.sweep is None) == (args.date is None):
         raise ValueError("expected exactly one of --sweep or --date")
+    # An option of the other path is refused, not ignored (a user trial's sweep took --heading,
+    # --lat and --start without a word; a day took --easing).
+    other = ([f"--{name.replace('_', '-')}" for name in _DAY_ONLY
+              if getattr(args, name, None) is not None] if args.sweep is not None
+             else ["--easing"] if getattr(args, "easing", None) is not None else [])
+    if other:
+        path = "--date (a real day's sun path)" if args.sweep is not None else "--sweep"
+        raise ValueError(f"{', '.join(other)} {'applies' if len(other) == 1 else 'apply'} to "
+                         f"{path} only; remove {'it' if len(other) == 1 else 'them'}")
     if args.sweep is not None:
         if args.frames is None:
             raise ValueError("expected --frames N with --sweep")
@@ -297,7 +311,8 @@ def _samples_from_args(
     (:func:`~outcast_core.runtime.pipeline.auto_sun.camera_tilt`; level when None)."""
     _check_sample_args(args, exif)
     if args.sweep is not None:
-        return sweep_path(args.sweep[0], args.sweep[1], args.frames, args.easing)
+        return sweep_path(args.sweep[0], args.sweep[1], args.frames,
+                          args.easing or "ease-in-out")
     lat, lon = _place(args, exif)  # type: ignore[misc]
     from outcast_core.runtime.pipeline.auto_sun import describe_tilt
 

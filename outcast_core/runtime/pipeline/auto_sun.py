@@ -378,8 +378,11 @@ class SunFit:
             as the search ranks them: agreement, the shading term and the EXIF prior's pull
             together, so a candidate with a little more agreement may follow one the prior
             prefers.
-        true_elevation: the sun's elevation above the ground's horizon (differs from
-            ``elevation`` when the camera is pitched or rolled).
+        true_elevation: the found sun's elevation above the ground's horizon (differs from
+            ``elevation`` when the camera is pitched or rolled). With an EXIF prior the search
+            may leave the prior's elevation by its ``elevation_tolerance`` (2 degrees by
+            default: the EXIF clock and the refraction are not exact), so it can differ from
+            ``outcast sun --json``'s ``exif_elevation`` by that much.
         pitch: camera pitch used (degrees; 0 without a prior).
         roll: camera roll used (degrees).
         pose_source: where ``pitch`` and ``roll`` came from: ``""`` (no prior: not used), the

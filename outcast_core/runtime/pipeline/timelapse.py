@@ -439,9 +439,17 @@ def daylight_range(
         rise = astral.sun.sunrise(obs, day, tzinfo=tz)
         sset = astral.sun.sunset(obs, day, tzinfo=tz)
     except ValueError as exc:
+        # Polar day or night: which one decides the advice (a user trial followed "give a
+        # start and end time" in a polar night and was told the sun was down all the time).
+        noon = dt.datetime.combine(day, dt.time(12), tzinfo=dt.UTC) - dt.timedelta(
+            hours=longitude / 15.0)  # (local solar noon, about)
+        up = astral.sun.elevation(obs, noon) > 0.0
+        where = f"at {latitude:.3f}, {longitude:.3f} on {day.isoformat()}"
         raise ValueError(
-            f"expected a day with a sunrise and a sunset at {latitude:.3f}, {longitude:.3f} on "
-            f"{day.isoformat()}, got none ({exc}); give a start and end time instead"
+            f"expected a day with a sunrise and a sunset {where}, got none: the sun does not "
+            + ("set that day (polar day); give a start and end time instead" if up else
+               "rise that day (polar night), so there is no daylight to film; choose another "
+               "date")
         ) from exc
     if sset <= rise:
         sset += dt.timedelta(days=1)

@@ -361,3 +361,23 @@ def test_timelapse_progress_in_a_log_is_lines(photo: Path, tmp_path: Path, capsy
     frames = [line for line in err.splitlines() if line.startswith("timelapse:")]
     assert 2 <= len(frames) <= 11 and frames[-1] == "timelapse: 100 %"
     assert err.splitlines()[-1].startswith("wrote 20 frames to ")
+
+
+def test_timelapse_refuses_the_other_path_s_options(tmp_path: Path,
+                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """A sweep took --heading, --lat and --start, and a day --easing, without a word (a user
+    trial): each is refused by name before any work, and nothing is written."""
+    photo = Path(__file__).resolve().parents[3] / "samples" / "exif_001_cz_fieldpath.jpg"
+    out = tmp_path / "t.gif"
+    sweep = ["timelapse", str(photo), "--from", "120,39", "--sweep", "90,30:270,30", "--frames",
+             "2", "--preset", "fast", "-o", str(out)]
+    assert main([*sweep, "--heading", "30", "--lat", "10", "--start", "07:00"]) == 2
+    err = capsys.readouterr().err
+    assert "--lat, --heading, --start apply to --date (a real day's sun path) only" in err
+    assert main([*sweep, "--utc-offset", "2"]) == 2
+    assert "--utc-offset applies to --date" in capsys.readouterr().err
+    day = ["timelapse", str(photo), "--from", "120,39", "--date", "2023-06-01", "--frames", "2",
+           "--preset", "fast", "-o", str(out), "--easing", "linear"]
+    assert main(day) == 2
+    assert "--easing applies to --sweep only" in capsys.readouterr().err
+    assert not out.exists()

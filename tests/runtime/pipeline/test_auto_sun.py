@@ -485,6 +485,20 @@ def test_cli_sun_takes_a_heading(capsys: pytest.CaptureFixture[str]) -> None:
     out = json.loads(capsys.readouterr().out)
     assert out["exif_azimuth"] == pytest.approx(relative_azimuth(true_az, 200.0), abs=0.01)
     assert "the camera heading given" in out["note"] or out["source"] != "EXIF"
+    # With --no-exif there is no GPS and time to place it with: refused, not ignored (a user
+    # trial), before any work.
+    assert main(["sun", str(sample), "--no-exif", "--heading", "200"]) == 2
+    assert "--no-exif ignores: give one or the other" in capsys.readouterr().err
+
+
+def test_cli_sun_says_a_heading_it_cannot_use(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """A photo without GPS and time cannot place the sun with a heading: said, not ignored."""
+    photo = tmp_path / "p.png"
+    rng = np.random.default_rng(0)
+    cv2.imwrite(str(photo), (rng.uniform(60, 200, (48, 64, 3))).astype(np.uint8))
+    assert main(["sun", str(photo), "--preset", "fast", "--heading", "200"]) in (0, 3)
+    assert "--heading is not used: the photo has no EXIF GPS" in capsys.readouterr().err
 
 
 def test_the_pool_samples_right_compass_holds_against_a_slight_shadow_preference() -> None:

@@ -98,7 +98,12 @@ def test_folder_with_a_corrupt_photo_is_done_and_resumable(
 
     _photo(folder / "p9.jpg", 9)  # the photo is fixed: only it is done
     assert main(args) == 0
-    assert "1 done, 9 skipped (already done), 0 failed" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "1 done, 9 skipped (already done), 0 failed" in err
+    # The header counts as the lines do ([1/10] to [10/10]; a user trial read "processing 1
+    # photo" above them as a contradiction).
+    assert "processing 1 of 10 photos (relight) with 1 worker(s); 9 need no work" in err
+    assert "[10/10]" in err
     after = {k: v for k, v in _mtimes(out).items() if k not in ("p9.jpg", RECORD_NAME)}
     assert after == before
     hidden = [p.name for p in out.iterdir() if p.name.startswith(".")]
@@ -628,6 +633,8 @@ def test_automatic_sun_source(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
     r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "a.png")), opts)
     assert (r.status, r.sun_source, r.from_sun) == ("done", "auto", (123.0, 34.0))
     assert calls == [None] and r.details["auto_sun"]["found"] is True
+    # Said with the result: a sun from the shadows alone can be far off (a user trial).
+    assert any("was found from the photo's shadows (confidence 0.90)" in w for w in r.warnings)
     r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "b.png")), opts)  # not confident
     assert r.status == "failed" and "the automatic sun is not sure" in r.message
     given_first = replace_sources(opts, ("given", "auto"), from_sun=(10.0, 20.0))

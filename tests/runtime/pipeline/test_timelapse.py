@@ -170,8 +170,16 @@ def test_real_sun_path_times_and_errors():
     assert [s.time.hour for s in path] == [9, 12, 15]
     with pytest.raises(ValueError, match="end time after"):
         tl.real_sun_path(day, 7.83, 98.3, 0.0, 3, start=dt.time(15, 0), end=dt.time(9, 0))
-    with pytest.raises(ValueError, match="sunrise"):  # polar night
+    # Polar night: no times to give (a user trial was told to give a start and end time, then
+    # that the sun was down all the time); polar day: a start and end time are the way.
+    with pytest.raises(ValueError, match=r"polar night.*choose another date"):
         tl.real_sun_path(dt.date(2020, 12, 21), 80.0, 15.0, 0.0, 3)
+    with pytest.raises(ValueError, match=r"polar day.*give a start and end time"):
+        tl.real_sun_path(dt.date(2020, 6, 21), 80.0, 15.0, 0.0, 3)
+    with pytest.raises(ValueError, match=r"polar night"):  # the south's winter
+        tl.real_sun_path(dt.date(2020, 6, 21), -80.0, -60.0, 0.0, 3)
+    assert len(tl.real_sun_path(dt.date(2020, 6, 21), 80.0, 15.0, 0.0, 3, start=dt.time(1),
+                                end=dt.time(23))) == 3
     with pytest.raises(ValueError, match="latitude"):
         tl.real_sun_path(day, 95.0, 0.0, 0.0, 3)
 
