@@ -230,8 +230,10 @@ def transfer_to_full_resolution(
 ) -> np.ndarray:
     """Apply a working-resolution relighting to the full-resolution photo.
 
-    The per-pixel linear gain ``after / before`` is computed at working resolution, upsampled
-    (bilinear, pixel centres aligned; at the photo's edges, where the gain changes with the
+    The per-pixel linear gain ``after / before`` is computed at working resolution, smoothed
+    where the photo is smooth (:func:`~outcast_core.runtime.geometry.fullres.smooth_gain`: a new
+    shadow's edge is not a staircase of working pixels), upsampled (bilinear, pixel centres
+    aligned; at the photo's edges, where the gain changes with the
     colour, by the colour: :class:`~outcast_core.runtime.geometry.fullres.EdgeGuide`, unless
     :data:`EDGE_GUIDED` is off) and multiplied into the full-resolution photo, so the photo's
     own detail survives. The full image is processed in bands of rows, in a few threads
@@ -257,9 +259,17 @@ def transfer_to_full_resolution(
     Returns:
         ``H x W x 3`` sRGB of ``out_dtype``.
     """
-    from outcast_core.runtime.geometry.fullres import EdgeGuide, SkyGuide, apply_gain, gain_map
+    from outcast_core.runtime.geometry.fullres import (
+        EdgeGuide,
+        SkyGuide,
+        apply_gain,
+        gain_map,
+        smooth_gain,
+    )
 
     gain = gain_map(np.asarray(work_before_srgb), np.asarray(work_after_srgb))  # h x w x 3
+    scale = max(full_srgb.shape[0] / gain.shape[0], full_srgb.shape[1] / gain.shape[1])
+    gain = smooth_gain(np.asarray(work_before_srgb), gain, scale, sky)  # no working-pixel blocks
     guide = None if sky is None else SkyGuide(sky, np.asarray(work_before_srgb))
     edges = EdgeGuide(np.asarray(work_before_srgb), gain) if EDGE_GUIDED else None
     out = apply_gain(full_srgb, gain, out_dtype=out_dtype, band_rows=band_rows, threads=threads,

@@ -237,9 +237,15 @@ def test_an_objects_edge_keeps_each_sides_gain_at_full_resolution() -> None:
     for rows, threads in ((1, 1), (13, 3)):
         np.testing.assert_allclose(apply_gain(photo, gain, band_rows=rows, threads=threads,
                                               edges=guide), whole, atol=1e-6)
-    # The session's transfer uses it.
+    # The session's transfer uses it, on the gain smooth_gain leaves (which keeps this edge:
+    # the photo has it), with the same result.
+    from outcast_core.runtime.geometry.fullres import smooth_gain
+
     through = srgb_to_linear(transfer_to_full_resolution(photo, work, relit)) / lin
-    np.testing.assert_allclose(through, guided, atol=1e-5)
+    smoothed = smooth_gain(work, gain, 6.0)
+    np.testing.assert_allclose(through, srgb_to_linear(apply_gain(
+        photo, smoothed, edges=EdgeGuide(work, smoothed))) / lin, atol=1e-5)
+    assert np.percentile(through[~pole], 95) < 0.32 and through[pole].min() > 0.75
 
 
 def test_the_edge_guide_leaves_a_shadow_edge_on_one_surface_and_one_to_one_alone() -> None:
@@ -274,3 +280,39 @@ def test_the_edge_guide_leaves_a_shadow_edge_on_one_surface_and_one_to_one_alone
         EdgeGuide(work, gain[:, :-1])
     with pytest.raises(ValueError, match="edge guide"):
         apply_gain(photo, gain[:-1, :-1], edges=guide)
+
+
+def test_a_new_shadow_s_edge_is_not_a_staircase_of_working_pixels() -> None:
+    """A user trial saw a new shadow's edge across a white umbrella stepped in blocks of one
+    working pixel (the shadow is cast at working size). Across an even surface the session's
+    transfer now gives a soft edge that runs straight: where each full-size row crosses half
+    the shadow moves steadily, not in jumps of a working pixel; the shadow's depth is kept
+    away from the edge, and at 1:1 the gain is left alone."""
+    from outcast_core.runtime.geometry.fullres import smooth_gain
+
+    k, h, w = 6, 40, 40
+    work = np.full((h, w, 3), 0.6, np.float32)
+    yy, xx = np.mgrid[0:h, 0:w]
+    shade = (xx + 0.5 > 0.37 * (yy + 0.5) + 12.0)[..., None]  # a diagonal edge, cast: binary
+    relit = linear_to_srgb(srgb_to_linear(work) * np.where(shade, 0.3, 1.0)).astype(np.float32)
+    photo = cv2.resize(work, (w * k, h * k), interpolation=cv2.INTER_LINEAR)
+
+    def crossings(out: np.ndarray) -> np.ndarray:
+        g = srgb_to_linear(out)[..., 1] / srgb_to_linear(photo)[..., 1]
+        rows = g[k * 5:k * 35]  # (away from the top and bottom)
+        return (rows > 0.3 ** 0.5).sum(axis=1).astype(np.float64)  # left of the (log) middle
+
+    plain = crossings(apply_gain(photo, gain_map(work, relit)))
+    soft = crossings(transfer_to_full_resolution(photo, work, relit))
+    def wobble(x: np.ndarray) -> float:  # off the straight line the edge runs along
+        t = np.arange(len(x), dtype=np.float64)
+        return float(np.abs(x - np.polyval(np.polyfit(t, x, 1), t)).max())
+
+    # Plain, the edge stands still for rows, then jumps a working pixel: a staircase.
+    assert wobble(plain) > 2.0 and wobble(soft) < 0.5 * wobble(plain)
+    assert np.abs(soft - plain).mean() < 2.0  # where it runs is kept
+    out = srgb_to_linear(transfer_to_full_resolution(photo, work, relit))[..., 1]
+    far = out[k * 20, -k * 3:] / srgb_to_linear(photo)[k * 20, -k * 3:, 1]
+    assert np.allclose(far, 0.3, atol=0.01)  # as dark inside
+    g = gain_map(work, relit)
+    assert np.array_equal(smooth_gain(work, g, 1.0), g)
