@@ -337,6 +337,9 @@ class TimelapseDialog(QDialog):
         )
         self.estimate_label = QLabel("", self)
         self.estimate_label.setWordWrap(True)
+        # Room for its two lines: at the dialog's smallest size the second ("... s to
+        # export") was cut in half (a user trial).
+        self.estimate_label.setMinimumHeight(2 * self.estimate_label.fontMetrics().lineSpacing())
         #: Timed exports: (photo load, preset, size, format, step 2's look) -> ExportTiming.
         self._timings: dict[tuple[Any, ...], ExportTiming] = {}
         self._untimed: set[tuple[Any, ...]] = set()  # settings whose timing failed
@@ -347,7 +350,7 @@ class TimelapseDialog(QDialog):
         out_form.addRow("Frames per second", self.fps_box)
         out_form.addRow("Format", self.format_combo)
         out_form.addRow("Size", self.size_combo)
-        out_form.addRow("", self.estimate_label)
+        out_form.addRow(self.estimate_label)  # (the form's width: two lines, not three)
 
         # ---- preview + scrubber
         self.preview = QLabel("Preview", self)

@@ -476,3 +476,17 @@ def test_a_sweep_filled_in_again_is_not_unsaved_work(window, photo, settle, tmp_
         settle()
     assert "the time-lapse settings" not in window.unsaved_parts()
     assert not window.has_unsaved_changes()
+
+
+def test_the_estimate_is_whole_at_the_dialog_s_smallest_size(window, photo, settle, qtbot):
+    """At the dialog's smallest size the estimate's second line ("... s to export") was cut
+    in half (a user trial): the label has room for both lines of a long estimate."""
+    _relight(window, photo, settle)
+    dialog = _timelapse(window, 48)
+    settle()
+    dialog.estimate_label.setText("48 frames of 1012 × 759, 4 s at 12 fps: about 15 s to "
+                                  "export")  # (the trial's)
+    dialog.resize(dialog.minimumSizeHint())
+    qtbot.wait(50)
+    label = dialog.estimate_label
+    assert label.height() >= label.heightForWidth(label.width()) > 0

@@ -134,6 +134,9 @@ def run_command(args: argparse.Namespace) -> int:
         )
         report["preset"] = preset
         report["wall_s"] = time.perf_counter() - t0
+        for k in report.get("skipped", ()):  # (even with -q: the means leave it out)
+            print(f"outcast eval real: warning: {k['name']} skipped: {k['error']}",
+                  file=sys.stderr)
         reports[preset] = report
         print(f"\n## Preset {preset} ({report['wall_s']:.0f} s)\n")
         print(render_table(report) if not args.quiet else _summary_line(preset, report))

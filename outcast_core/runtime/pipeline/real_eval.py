@@ -637,7 +637,13 @@ def evaluate_real(
         sheet: where to write a contact sheet (PNG/JPEG), or None.
 
     Returns:
-        ``{"photos": [per-photo dicts], "mean": {...}}``.
+        ``{"photos": [per-photo dicts], "mean": {...}, "skipped": [{"name", "error"}]}``: a
+        photo that cannot be evaluated (its mask of another size, an unreadable file) is
+        skipped with its reason and the others are done (one bad mask stopped a whole run in a
+        user trial).
+
+    Raises:
+        ValueError: no photo could be evaluated.
     """
     items = find_items(folder)
     if limit > 0:
@@ -648,17 +654,25 @@ def evaluate_real(
     truths: dict[str, np.ndarray] = {}
     sweeps: dict[str, dict[str, np.ndarray]] = {}
     rows: list[list[np.ndarray]] = []
+    skipped: list[dict[str, str]] = []
     for i, item in enumerate(items):
         if progress:
             progress(item.name, i / len(items))
         keep: dict[str, Any] = {}
-        res = evaluate_photo(session, item, keep=keep)
+        try:
+            res = evaluate_photo(session, item, keep=keep)
+        except (ValueError, OSError) as exc:  # (a mask of another size, a file not an image)
+            skipped.append({"name": item.name, "error": str(exc)})
+            continue
         results.append(res)
         masks[item.name] = keep["overlay"]
         truths[item.name] = keep["truth"]
         sweeps[item.name] = keep["sweep"]
         if sheet is not None:
             rows.append(_sheet_row(keep))
+    if not results:
+        raise ValueError("no photo could be evaluated: " + "; ".join(
+            f"{k['name']}: {k['error']}" for k in skipped))
     shuffled = shuffled_control(masks, truths)
     swept = swept_shuffled_control(sweeps)
     for r in results:
@@ -668,7 +682,8 @@ def evaluate_real(
         _write_sheet(Path(sheet), rows)
     if progress:
         progress("done", 1.0)
-    return {"photos": [asdict(r) for r in results], "mean": summarize(results)}
+    return {"photos": [asdict(r) for r in results], "mean": summarize(results),
+            "skipped": skipped}
 
 
 _THUMB = 160
@@ -751,6 +766,8 @@ def render_table(report: dict[str, Any]) -> str:
         f"{f(m.get('old_shade'), 2)} / "
         f"{f(m.get('relit_detail'), 2)} / {f(m.get('false_lift'), 2)} | "
         f"{f(m.get('seconds'), 1)} |")
+    for k in report.get("skipped", ()):  # (not in the means)
+        lines.append(f"\nSkipped {k['name']}: {k['error']}")
     return "\n".join(lines)
 
 

@@ -376,3 +376,27 @@ def test_the_relit_check_turns_the_sun_about_the_horizon() -> None:
     assert abs(elevation_above(w_cam, up) - elevation_above(w_o, up)) > 10.0
     # Without a horizon (an object with no horizon_tilt): the camera's vertical.
     np.testing.assert_allclose(relit_check_sun(object(), 30.0, 20.0), w_cam, atol=1e-9)
+
+
+def test_cli_eval_real_skips_a_photo_it_cannot_evaluate(tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture) -> None:
+    """One mask of the wrong size stopped a whole run (a user trial): that photo is skipped
+    with its reason (on stderr, in the table and the JSON) and the others are evaluated; with
+    none left it is an error."""
+    data = tmp_path / "data"
+    data.mkdir()
+    img, mask = _photo_with_shadow(box=(30, 44, 8, 30))
+    _write_item(data, "a", img, mask)
+    _write_item(data, "b", img, mask)
+    write_image(data / "b_mask.png", np.zeros((10, 10), np.float32), force=True)
+    out_json = tmp_path / "r.json"
+    assert main(["eval", "real", str(data), "--mode", "classic", "--preset", "fast",
+                 "--json", str(out_json)]) == 0
+    out, err = capsys.readouterr()
+    assert "outcast eval real: warning: b skipped: b: expected a mask of the image's size" in err
+    assert "Skipped b: b: expected a mask" in out and "**mean (1)**" in out
+    rep = json.loads(out_json.read_text())  # (one preset: not keyed by it)
+    assert [p["name"] for p in rep["photos"]] == ["a"] and rep["skipped"][0]["name"] == "b"
+    write_image(data / "a_mask.png", np.zeros((10, 10), np.float32), force=True)
+    assert main(["eval", "real", str(data), "--mode", "classic", "--preset", "fast"]) == 2
+    assert "no photo could be evaluated" in capsys.readouterr().err
