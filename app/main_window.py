@@ -2435,7 +2435,7 @@ class MainWindow(QMainWindow):
             image = None
             if with_image:
                 ctx.progress("removing shadows", 0.1)
-                image = display.to_uint8_rgb(session.deshadow_full())
+                image = display.to_uint8_rgb(session.deshadow_full(dtype=np.uint8))
             # Shown as found when the sun was confirmed, nothing redone: no timing to report.
             computed = with_image or after is not found
             return {"view": view, "key": key, "image": image, "overlay": overlay,

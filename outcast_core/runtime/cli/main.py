@@ -537,8 +537,8 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     session.set_shadow_edits(args.shadow_edits)
     session.set_original_sun(w_from)
     corrections = say_unused_shadow_edits(session, args)
-    out = session.deshadow_full()
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
+    out = session.deshadow_full(dtype=np.uint8 if bit_depth == 8 else np.float32)
     write_image(args.output, out, bit_depth=bit_depth, force=args.force,
                 exif=loaded.exif_bytes)
     if args.mask:  # what the de-shadow lifted, at the photo's size

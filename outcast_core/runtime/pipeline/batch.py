@@ -970,6 +970,8 @@ def run_job(job: BatchJob, options: BatchOptions) -> JobResult:
 
 
 def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
+    import numpy as np
+
     from outcast_core.runtime.geometry.camera import sun_angles, sun_vector
     from outcast_core.runtime.io.depth_models import pick_depth_source
     from outcast_core.runtime.io.imageio import (
@@ -1026,8 +1028,10 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
     if options.kind == "timelapse":
         _render_timelapse(session, loaded, sun, job, options, tilt[:2])
     else:
-        out = session.relight_full(sun_vector(*to_sun)) if to_sun else session.deshadow_full()
         bits = output_bit_depth(job.output, loaded.bit_depth)
+        dtype = np.uint8 if bits == 8 else np.float32  # (no full-size float buffer for 8 bits)
+        out = (session.relight_full(sun_vector(*to_sun), dtype=dtype) if to_sun
+               else session.deshadow_full(dtype=dtype))
         write_image(job.output, out, bit_depth=bits, force=options.force,
                     exif=loaded.exif_bytes)
     result.details.update(shadows=session.shadow_mode, relighting=session.relight_mode,

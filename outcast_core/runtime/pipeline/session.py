@@ -1222,10 +1222,13 @@ class RelightSession:
             self._time("found_shadows_detail", t0)
             return self._detail
 
-    def deshadow_full(self) -> np.ndarray:
+    def deshadow_full(self, *, dtype: type | np.dtype = np.float32) -> np.ndarray:
         """:meth:`deshadow` at the photo's full resolution: the shadows found and lifted at
         :meth:`found_shadows_detail`'s size, the lift then upsampled and applied to the
-        full-resolution photo, so its own detail survives."""
+        full-resolution photo, so its own detail survives. ``dtype``: as
+        :meth:`relight_full`'s (``np.uint8``: no full-size float buffer for an 8-bit photo;
+        a user trial measured 2.1 GB for a 48-megapixel de-shadow against 0.79 GB for its
+        relighting)."""
         d = self.found_shadows_detail()
         t0 = time.perf_counter()
         with self._lock:
@@ -1236,7 +1239,8 @@ class RelightSession:
                     deshadow(d["image"], d["probability"], d["excluded"], marked=d["marked"],
                              lifted=self._detail_lifted(d)))
             full = transfer_to_full_resolution(self.full_image_srgb, d["image"], out,
-                                               sky=d["sky"], fills=d["marked"])
+                                               sky=d["sky"], fills=d["marked"],
+                                               out_dtype=dtype)
         self._time("deshadow_full", t0)
         return full
 

@@ -1292,6 +1292,9 @@ def test_a_marked_crushed_shadow_is_taken_whole_and_filled_at_every_size() -> No
     assert d_l < 6.0 and d_ab < 2.0  # the pavement's level and colour
     full = s.deshadow_full()
     assert full.shape == img.shape
+    # 8 bits for an 8-bit file (no full-size float buffer): the same picture, rounded.
+    full8 = s.deshadow_full(dtype=np.uint8)
+    assert full8.dtype == np.uint8 and np.abs(full8 / 255.0 - full).max() <= 1.0 / 255 + 1e-4
     inner_full = cv2.erode(core.astype(np.uint8), np.ones((31, 31), np.uint8)) > 0
     light_full = ~(cv2.dilate(edge.astype(np.uint8), np.ones((41, 41), np.uint8)) > 0)
     d_l, d_ab, spread = gap(full, inner_full, light_full)
