@@ -1696,12 +1696,14 @@ class MainWindow(QMainWindow):
         self._update_exif_controls()
 
     # ---- automatic sun
-    @_typed_numbers_first
     def toggle_find_sun(self) -> None:
-        """Start finding the sun, or cancel the search that runs."""
+        """Start finding the sun (a number still being typed taken in first), or cancel the
+        search that runs. (Taken in before the check, a typed number cancelled the search as
+        a move of the sun, and the button then started a new one: a review.)"""
         if self.finding_sun():
             self._cancel_find_sun()
             return
+        self._commit_typed_fields()
         self.find_sun()
 
     def _cancel_find_sun(self) -> None:
@@ -1728,12 +1730,14 @@ class MainWindow(QMainWindow):
         tilt = self.camera_tilt
         self._searches += 1
         search = self._searches
+        dial_sun = self.align_panel.sun_panel.sun()  # (moved since: the result is dropped)
 
         def job(ctx: JobContext) -> dict[str, Any]:
             from outcast_core.runtime.pipeline.auto_sun import find_sun
 
             fit = find_sun(session, prior=prior, pitch_roll=tilt, progress=ctx.progress)
             return {"fit": fit, "prior": prior, "load": load, "search": search,
+                    "dial_sun": dial_sun,
                     "timings": {**_timings(session), "find_sun": fit.seconds}}
 
         self.align_panel.set_finding(True)
@@ -1746,6 +1750,12 @@ class MainWindow(QMainWindow):
             return  # found for a photo that has been replaced since
         if result.get("search", self._searches) != self._searches or self.step is not Step.ALIGN:
             return  # the sun was confirmed while it searched: the confirmed one stands
+        if "dial_sun" in result and not np.allclose(self.align_panel.sun_panel.sun(),
+                                                    result["dial_sun"], atol=1e-9):
+            # Moved while it searched, by a way that does not cancel it ("Sun from EXIF",
+            # undo): that sun stands (a review; a move by hand cancels the search).
+            self.stage_label.setText("Find sun: not applied, the sun was moved while it ran")
+            return
         self.sun_fit = fit
         m = fit.map
         dial = self.align_panel.sun_panel.dial
@@ -1869,6 +1879,7 @@ class MainWindow(QMainWindow):
         sun = self.exif_sun()
         if sun is None or self.step is not Step.ALIGN:
             return
+        self._user_moved_sun()  # (a search running: the EXIF's sun is the one asked for)
         self.align_panel.sun_panel.set_sun(*sun)
         self.request_shadow(*sun, preview=False)
         self._record(text="Sun from EXIF")
@@ -2700,12 +2711,17 @@ class MainWindow(QMainWindow):
             self.export_shadows_removed(path, force=True)
 
     def export_shadows_removed(self, path: str, force: bool = False) -> int | None:
-        """Write the photo with its own shadows removed at full resolution (as the still)."""
+        """Write the photo with its own shadows removed at full resolution (as the still: 8
+        bits made as 8 bits, no full-size float buffer)."""
+        from outcast_core.runtime.io.imageio import output_bit_depth
+
         session = self.session
         if session is None or self.step is not Step.RELIGHT:
             return None
+        bits = output_bit_depth(path, getattr(self.loaded, "bit_depth", 8))
+        dtype = np.float32 if bits == 16 else np.uint8
         return self._export_image(
-            "export_shadows_removed", path, force, session.deshadow_full,
+            "export_shadows_removed", path, force, lambda: session.deshadow_full(dtype=dtype),
             "removing shadows at full resolution",
         )  # fmt: skip
 

@@ -1142,9 +1142,8 @@ def test_quit_has_a_key_and_the_view_actions_wait_for_a_photo(window, photo, set
     from PySide6.QtGui import QKeySequence
 
     keys = [k.toString() for k in window.act_quit.shortcuts()]
-    assert keys and all(keys), keys
-    assert QKeySequence("Ctrl+Q").toString() in keys or QKeySequence.keyBindings(
-        QKeySequence.StandardKey.Quit)
+    platform = [k.toString() for k in QKeySequence.keyBindings(QKeySequence.StandardKey.Quit)]
+    assert keys == (platform or ["Ctrl+Q"]) and all(keys), keys
     zoom = (window.act_fit, window.act_actual, window.act_zoom_in, window.act_zoom_out)
     assert not any(a.isEnabled() for a in zoom)
     _load(window, photo, settle)

@@ -762,3 +762,40 @@ def test_moving_the_sun_while_the_search_runs_cancels_it(qtbot, window, photo, s
     assert "Sun found" not in window.stage_label.text()
     assert not panel.dial.has_heat_map()
     assert window.undo_stack.undoText() != "Find sun"
+
+
+def test_a_sun_moved_otherwise_while_the_search_runs_stands(qtbot, window, photo, settle,
+                                                           monkeypatch):
+    """Moved while Find sun ran by a way that emits nothing (undo, "Sun from EXIF"), the dial
+    jumped to the found sun when the search ended (a review): the moved sun stands and the
+    status says why nothing was applied. Cancel (Find sun again) with a number still being
+    typed cancels, and does not start a new search."""
+    _load(window, photo, settle)
+    started = []
+
+    def slow(session, **kw):
+        started.append(True)
+        time.sleep(0.4)
+        return _fit(200.0, 30.0)
+
+    monkeypatch.setattr(auto_sun, "find_sun", slow)
+    panel = window.align_panel.sun_panel
+    window.toggle_find_sun()
+    qtbot.waitUntil(lambda: bool(started), timeout=5000)
+    panel.set_sun(70.0, 20.0)  # as undo moves it
+    qtbot.waitUntil(lambda: not window.finding_sun(), timeout=5000)
+    settle()
+    assert panel.sun() == pytest.approx((70.0, 20.0))
+    assert "not applied, the sun was moved" in window.stage_label.text()
+    assert not panel.dial.has_heat_map()
+    # Cancel with a number half typed in the azimuth field, the search still waiting for the
+    # worker (taken in first, the number cancelled it, and the button started a new one).
+    window.runner.submit("busy", lambda ctx: time.sleep(0.5), "busy")
+    window.toggle_find_sun()
+    assert window.finding_sun()
+    panel.azimuth_box.lineEdit().setText("75.0°")
+    window.toggle_find_sun()  # cancel
+    qtbot.wait(700)
+    settle()
+    assert len(started) == 1 and not window.finding_sun()
+    assert window.align_panel.find_button.text() == "Find sun from shadows"

@@ -45,10 +45,10 @@ def _photo_with_exif(path, width: int, height: int) -> str:
 def _slow_deshadow(monkeypatch, session, seconds: float, threads: list[str]) -> None:
     real = session.deshadow_full
 
-    def slow() -> np.ndarray:
+    def slow(**kwargs) -> np.ndarray:  # (dtype: the view and the export ask for 8 bits)
         threads.append(threading.current_thread().name)
         time.sleep(seconds)
-        return real()
+        return real(**kwargs)
 
     monkeypatch.setattr(session, "deshadow_full", slow)
 

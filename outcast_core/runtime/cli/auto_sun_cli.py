@@ -47,14 +47,14 @@ def cmd_sun(args: argparse.Namespace) -> int:
     _set_image(session, loaded, args)
     heading = None if args.heading is None else args.heading % 360.0
     prior = None if args.no_exif else exif_sun_prior(loaded.exif, heading=heading)
-    if heading is not None and (prior is None or prior.azimuth is None) and not args.quiet:
-        print("outcast sun: note: --heading is not used: the photo has no EXIF GPS position "
-              "and capture time to place the sun with it", file=sys.stderr)
     night = None if args.no_exif else sun_below_horizon_at_capture(loaded.exif)
     if night is not None and not args.quiet:  # its EXIF gives no sun: say why, once
         print(f"outcast sun: note: {night}, so the EXIF gives no sun and the shadows alone are "
-              "searched (if it was daylight, the camera's clock or time zone is wrong)",
-              file=sys.stderr)
+              "searched (if it was daylight, the camera's clock or time zone is wrong)"
+              f"{'; --heading is not used' if heading is not None else ''}", file=sys.stderr)
+    elif heading is not None and prior is None and not args.quiet:
+        print("outcast sun: note: --heading is not used: the photo has no EXIF GPS position "
+              "and capture time to place the sun with it", file=sys.stderr)
     # The camera's tilt as the app and batch take it: metadata, the sun in the frame, the
     # ground plane.
     tilt = None if args.no_exif else session.photo_tilt()

@@ -343,9 +343,13 @@ def run_batch_command(args: argparse.Namespace) -> int:
         # (the lines count all the photos: a rerun's "processing 4 photos" above [1/8] to
         # [8/8] read as a contradiction in a user trial)
         of = f" of {total}" if early else ""
+        words = {"skipped": "already done", "stale": "kept (made otherwise)",
+                 "failed": "refused"}
+        rest = ", ".join(f"{n} {words.get(status, status)}" for status, n in sorted(
+            summarize(early).items()) if n and status in words)
         print(f"processing {len(jobs)}{of} photo{'s' if total != 1 else ''} ({options.kind}) "
-              f"with {min(args.workers, len(jobs))} worker(s)"
-              f"{f'; {len(early)} need no work' if early else ''}", file=sys.stderr, flush=True)
+              f"with {min(args.workers, len(jobs))} worker(s){f'; {rest}' if rest else ''}",
+              file=sys.stderr, flush=True)
     def write_report(results: list[JobResult], seconds: float, interrupted: bool) -> None:
         from outcast_core.runtime.io.imageio import atomic_output
 

@@ -121,6 +121,7 @@ def run_command(args: argparse.Namespace) -> int:
     find_items(args.folder)  # a clear error before any model loads
     _check_outputs(args)
     reports: dict[str, Any] = {}
+    said: set[str] = set()  # the photos skipped, said
     for preset in args.preset:
         def progress(name: str, frac: float, preset: str = preset) -> None:
             if not args.quiet:
@@ -135,8 +136,10 @@ def run_command(args: argparse.Namespace) -> int:
         report["preset"] = preset
         report["wall_s"] = time.perf_counter() - t0
         for k in report.get("skipped", ()):  # (even with -q: the means leave it out)
-            print(f"outcast eval real: warning: {k['name']} skipped: {k['error']}",
-                  file=sys.stderr)
+            if k["name"] not in said:  # (once, not once a preset)
+                said.add(k["name"])
+                print(f"outcast eval real: warning: {k['name']} skipped: {k['error']}",
+                      file=sys.stderr)
         reports[preset] = report
         print(f"\n## Preset {preset} ({report['wall_s']:.0f} s)\n")
         print(render_table(report) if not args.quiet else _summary_line(preset, report))

@@ -1087,22 +1087,21 @@ def photo_warnings(loaded: Any, session: Any, *, transparency: bool = True) -> l
     return notes
 
 
+#: :func:`~outcast_core.runtime.pipeline.auto_sun.find_sun`'s sources whose direction the
+#: shadows alone gave (no compass heading guided it, the sun is not in the frame): a batch warns.
+SHADOWS_ONLY = ("shadows", "shadows + EXIF elevation")
+
+
 def _auto_sun(session: Any, exif: Any, result: JobResult,
               tilt: tuple[float, float, str]) -> Callable[[], Sun | None] | None:
     """The ``auto`` source for one photo, or None when this version has no automatic sun."""
     try:
-        from outcast_core.runtime.pipeline.auto_sun import (
-            SOURCE_EXIF,
-            SOURCE_SUN_IN_FRAME,
-            exif_sun_prior,
-            find_sun,
-        )
+        from outcast_core.runtime.pipeline.auto_sun import exif_sun_prior, find_sun
     except ImportError:
         return None
 
-    prior = exif_sun_prior(exif)
-
     def run() -> Sun | None:
+        prior = exif_sun_prior(exif)
         fit = find_sun(session, prior=prior, pitch_roll=tilt)
         result.details["auto_sun"] = {"azimuth": round(float(fit.azimuth), 2),
                                       "elevation": round(float(fit.elevation), 2),
@@ -1110,15 +1109,15 @@ def _auto_sun(session: Any, exif: Any, result: JobResult,
                                       "found": bool(fit.found)}
         if not fit.found:
             return None
-        if getattr(fit, "source", "") not in (SOURCE_EXIF, SOURCE_SUN_IN_FRAME):
-            # Found from the shadows alone: said with its result (a user trial's photo
-            # without EXIF was relit from a sun 38 degrees off, without a word).
+        if fit.source in SHADOWS_ONLY:
+            # Its direction from the shadows alone (no compass): said with its result (a user
+            # trial's photo without EXIF was relit from a sun 38 degrees off, without a word).
             result.warnings.append(
                 f"the original sun ({fit.azimuth:.0f}, {fit.elevation:.0f}) was found from the "
                 f"photo's shadows (confidence {fit.confidence:.2f}"
-                f"{'' if prior is None else ', the elevation from its EXIF time and place'}); "
-                "it can be tens of degrees off: check the output, or align the sun in the app "
-                "and save a project")
+                f"{'; its elevation from the EXIF time and place' if prior else ''}); its "
+                "direction can be tens of degrees off: check the output, or align the sun in "
+                "the app and save a project")
         return float(fit.azimuth), float(fit.elevation)
 
     return run

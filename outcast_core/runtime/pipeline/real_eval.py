@@ -662,7 +662,9 @@ def evaluate_real(
         try:
             res = evaluate_photo(session, item, keep=keep)
         except (ValueError, OSError) as exc:  # (a mask of another size, a file not an image)
-            skipped.append({"name": item.name, "error": str(exc)})
+            why = str(exc)
+            why = why[len(item.name) + 2:] if why.startswith(f"{item.name}: ") else why
+            skipped.append({"name": item.name, "error": why})
             continue
         results.append(res)
         masks[item.name] = keep["overlay"]

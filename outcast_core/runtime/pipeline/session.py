@@ -816,9 +816,10 @@ class RelightSession:
         the geometry's alone (step 1's overlay, the search's)."""
         wv = normalize_sun(w)
         with self._lock:
-            s_new = self.shadow(wv)
+            self._require_image()
             if self.original_shadow is None or self.original_sun is None:
                 raise RuntimeError("set_original_sun() must be called before relit_shadow()")
+            s_new = self.shadow(wv)
             share = original_share(self.original_sun, wv)
             return shadow_toward_original(s_new, self.original_shadow, self._original_geometry,
                                           share, self._normal_trust())
@@ -1397,8 +1398,10 @@ class RelightSession:
         relit = self._finish(image, relit, share, st["sky"], self.sun_seen, st["camera"], wv,
                              st["camera"].width / self.camera.width, exposure, self.greyscale,
                              self.original_sun, None if change is None else change.sun)
+        # (with the sky: the skyline keeps each side's gain, as the full pass's does)
         out = transfer_to_full_resolution(st["working_u8"], image, relit, out_dtype=np.uint8,
-                                          threads=1, fills=self.relight_fills(st["sky"]))
+                                          threads=1, fills=self.relight_fills(st["sky"]),
+                                          sky=st["sky"])
         self._time("relight_preview", t1)
         return out.astype(np.float32) * np.float32(1.0 / 255.0)  # 8 bits: it is for the screen
 

@@ -422,38 +422,97 @@ def exif_capture_time(exif: Any) -> tuple[dt.datetime | None, bool]:
     return when.replace(tzinfo=zone), True
 
 
+#: :func:`daylight_range`: the sun's geometric elevation (degrees) at sunrise and sunset, its
+#: disc's upper edge on the horizon seen through the air's refraction (astral's convention).
+SUNRISE_ELEVATION = -0.833
+#: :func:`daylight_range`: the step (minutes) of its scan of the day, refined by bisection.
+DAYLIGHT_SCAN_MINUTES = 10
+
+
 def daylight_range(
     day: dt.date, latitude: float, longitude: float, utc_offset_hours: float | None = None
 ) -> tuple[dt.datetime, dt.datetime]:
-    """Sunrise and sunset (aware datetimes at ``utc_offset_hours``) of a date and place.
+    """Sunrise and sunset (aware datetimes at ``utc_offset_hours``) of a date and place: the
+    first sunrise of the local day and the sunset after it (the next day's, past midnight).
+
+    Found by scanning the sun's elevation over the local day (:data:`DAYLIGHT_SCAN_MINUTES`)
+    and bisecting each crossing of :data:`SUNRISE_ELEVATION`. astral's own sunrise and sunset
+    failed on ordinary days where the local day straddles the UTC date (40 N, 80 E on
+    2021-04-17, a review), and its failure was then taken for a polar day.
 
     Raises:
-        ValueError: when the sun does not rise or set that day (polar day or night).
+        ValueError: when the sun does not rise or set that day (polar day: give a start and
+            an end time; polar night: no daylight at all).
+
+    Example:
+        >>> rise, sset = daylight_range(dt.date(2021, 4, 17), 40.0, 80.0, 5.0)
+        >>> f"{rise:%H:%M}", f"{sset:%H:%M}"
+        ('04:59', '18:20')
     """
     import astral.sun
 
     offset = default_utc_offset(longitude) if utc_offset_hours is None else float(utc_offset_hours)
     tz = dt.timezone(dt.timedelta(hours=offset))
     obs = _observer(latitude, longitude)
-    try:
-        rise = astral.sun.sunrise(obs, day, tzinfo=tz)
-        sset = astral.sun.sunset(obs, day, tzinfo=tz)
-    except ValueError as exc:
-        # Polar day or night: which one decides the advice (a user trial followed "give a
-        # start and end time" in a polar night and was told the sun was down all the time).
-        noon = dt.datetime.combine(day, dt.time(12), tzinfo=dt.UTC) - dt.timedelta(
-            hours=longitude / 15.0)  # (local solar noon, about)
-        up = astral.sun.elevation(obs, noon) > 0.0
-        where = f"at {latitude:.3f}, {longitude:.3f} on {day.isoformat()}"
-        raise ValueError(
+    start = dt.datetime.combine(day, dt.time(0), tzinfo=tz)
+
+    def height(t: dt.datetime) -> float:  # above the sunrise elevation
+        return float(astral.sun.elevation(obs, t, with_refraction=False)) - SUNRISE_ELEVATION
+
+    step = dt.timedelta(minutes=DAYLIGHT_SCAN_MINUTES)
+    per_day = 24 * 60 // DAYLIGHT_SCAN_MINUTES
+    where = f"at {latitude:.3f}, {longitude:.3f} on {day.isoformat()}"
+
+    def none(up: bool) -> ValueError:  # (a user trial followed "give a start and end time"
+        # in a polar night and was told the sun was down all the time)
+        return ValueError(
             f"expected a day with a sunrise and a sunset {where}, got none: the sun does not "
             + ("set that day (polar day); give a start and end time instead" if up else
                "rise that day (polar night), so there is no daylight to film; choose another "
-               "date")
-        ) from exc
-    if sset <= rise:
-        sset += dt.timedelta(days=1)
-    return rise, sset
+               "date"))
+
+    # Half a day either side of the local day (clipped at the calendar's ends): its daylight
+    # is the stretch of sun above the horizon that covers most of it, with the sunrise before
+    # and the sunset after it, even where one of them falls on the day before or after (a
+    # zone far from the longitude's).
+    lo = -(per_day // 2) if day > FIRST_DAY else 0
+    hi = per_day + per_day // 2 if day < LAST_DAY else per_day
+    times = [start + i * step for i in range(lo, hi + 1)]
+    up = np.array([height(t) > 0.0 for t in times])
+    day_part = up[-lo:-lo + per_day + 1]
+    if day_part.all() or not day_part.any():
+        raise none(bool(day_part[0]))
+    runs = []  # (first, last) indices of each stretch of up samples
+    i = 0
+    while i < len(up):
+        if up[i]:
+            j = i
+            while j + 1 < len(up) and up[j + 1]:
+                j += 1
+            runs.append((i, j))
+            i = j + 1
+        else:
+            i += 1
+
+    def overlap(run: tuple[int, int]) -> int:
+        return max(0, min(run[1], -lo + per_day) - max(run[0], -lo) + 1)
+
+    first, last = max(runs, key=overlap)
+    if first == 0 or last == len(up) - 1:  # it rose or sets beyond what was scanned
+        raise none(True)
+
+    def crossing(k: int) -> dt.datetime:  # between times[k] and times[k + 1]
+        a, b = times[k], times[k + 1]
+        rising = height(a) <= 0.0
+        for _ in range(12):  # (10 min / 4096: well under a second)
+            mid = a + (b - a) / 2
+            if (height(mid) > 0.0) == rising:
+                b = mid
+            else:
+                a = mid
+        return a + (b - a) / 2
+
+    return crossing(first - 1), crossing(last)
 
 
 #: :func:`real_sun_path`'s first and last days (a day either side is looked at).

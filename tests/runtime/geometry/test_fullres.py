@@ -237,15 +237,11 @@ def test_an_objects_edge_keeps_each_sides_gain_at_full_resolution() -> None:
     for rows, threads in ((1, 1), (13, 3)):
         np.testing.assert_allclose(apply_gain(photo, gain, band_rows=rows, threads=threads,
                                               edges=guide), whole, atol=1e-6)
-    # The session's transfer uses it, on the gain smooth_gain leaves (which keeps this edge:
-    # the photo has it), with the same result.
-    from outcast_core.runtime.geometry.fullres import smooth_gain
-
+    # The session's transfer (the edge guide on the gain smooth_gain leaves, which does not
+    # cross this edge: the photo has it) keeps each side's gain as well.
     through = srgb_to_linear(transfer_to_full_resolution(photo, work, relit)) / lin
-    smoothed = smooth_gain(work, gain, 6.0)
-    np.testing.assert_allclose(through, srgb_to_linear(apply_gain(
-        photo, smoothed, edges=EdgeGuide(work, smoothed))) / lin, atol=1e-5)
-    assert np.percentile(through[~pole], 95) < 0.32 and through[pole].min() > 0.75
+    assert np.percentile(through[~pole], 95) < 0.32 and through[~pole].mean() < 0.31
+    assert through[pole].min() > 0.75
 
 
 def test_the_edge_guide_leaves_a_shadow_edge_on_one_surface_and_one_to_one_alone() -> None:
@@ -316,3 +312,26 @@ def test_a_new_shadow_s_edge_is_not_a_staircase_of_working_pixels() -> None:
     assert np.allclose(far, 0.3, atol=0.01)  # as dark inside
     g = gain_map(work, relit)
     assert np.array_equal(smooth_gain(work, g, 1.0), g)
+
+
+def test_a_thin_new_shadow_keeps_its_darkness_and_bad_input_is_refused() -> None:
+    """A new shadow one or two working pixels wide (a pole's) is not smoothed away (blurred
+    with the rest, one pixel wide, its gain of 0.3 came out 0.67: a review), a NaN gain does
+    not spread, and a sky mask or a gain of another size is refused by name."""
+    from outcast_core.runtime.geometry.fullres import smooth_gain
+
+    work = np.full((40, 40, 3), 0.6, np.float32)
+    for width in (1, 2):
+        g = np.ones((40, 40, 3), np.float32)
+        g[:, 20:20 + width] = 0.3
+        out = smooth_gain(work, g, 4.0)
+        assert out[20, 20:20 + width].max() < 0.32
+        assert np.allclose(out[20, :15], 1.0, atol=1e-3)  # away from it: as it was
+    g = np.ones((40, 40, 3), np.float32)
+    g[10, 10] = np.nan
+    out = smooth_gain(work, g, 4.0)
+    assert np.isfinite(out).all() and np.allclose(out, 1.0, atol=1e-3)
+    with pytest.raises(ValueError, match="sky mask"):
+        smooth_gain(work, g, 4.0, np.zeros((1, 40), bool))
+    with pytest.raises(ValueError, match="gain of the photo's size"):
+        smooth_gain(work, g[:20], 4.0)

@@ -102,7 +102,7 @@ def test_folder_with_a_corrupt_photo_is_done_and_resumable(
     assert "1 done, 9 skipped (already done), 0 failed" in err
     # The header counts as the lines do ([1/10] to [10/10]; a user trial read "processing 1
     # photo" above them as a contradiction).
-    assert "processing 1 of 10 photos (relight) with 1 worker(s); 9 need no work" in err
+    assert "processing 1 of 10 photos (relight) with 1 worker(s); 9 already done" in err
     assert "[10/10]" in err
     after = {k: v for k, v in _mtimes(out).items() if k not in ("p9.jpg", RECORD_NAME)}
     assert after == before
@@ -624,7 +624,7 @@ def test_automatic_sun_source(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
         calls.append(prior)
         sure = len(calls) == 1
         return SimpleNamespace(azimuth=123.0, elevation=34.0, confidence=0.9 if sure else 0.1,
-                               found=sure)
+                               found=sure, source="shadows")
 
     monkeypatch.setattr(auto_sun, "find_sun", fake_find_sun)
     photo = _photo(tmp_path / "a.png", 0)
@@ -640,6 +640,15 @@ def test_automatic_sun_source(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -
     given_first = replace_sources(opts, ("given", "auto"), from_sun=(10.0, 20.0))
     r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "c.png")), given_first)
     assert r.sun_source == "given" and len(calls) == 2  # never ran: --from came first
+    calls.clear()  # (the next is the first: confident)
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "d.png")), opts)
+    assert r.sun_source == "auto" and any("found from the photo's shadows" in w
+                                          for w in r.warnings)
+    # Guided by the compass heading: not warned of.
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: SimpleNamespace(
+        azimuth=1.0, elevation=2.0, confidence=0.9, found=True, source="shadows + EXIF"))
+    r = run_job(BatchJob(str(photo), str(tmp_path / "o" / "e.png")), opts)
+    assert r.sun_source == "auto" and not any("shadows" in w for w in r.warnings)
 
 
 def replace_sources(opts: BatchOptions, sources: tuple[str, ...], **kw: object) -> BatchOptions:

@@ -180,6 +180,20 @@ def test_real_sun_path_times_and_errors():
         tl.real_sun_path(dt.date(2020, 6, 21), -80.0, -60.0, 0.0, 3)
     assert len(tl.real_sun_path(dt.date(2020, 6, 21), 80.0, 15.0, 0.0, 3, start=dt.time(1),
                                 end=dt.time(23))) == 3
+    # An ordinary day whose local morning is the UTC day before: astral's sunrise failed
+    # there and it was taken for a polar day (a review); as astral's elsewhere, to a minute.
+    import astral.sun
+
+    rise, sset = tl.daylight_range(dt.date(2021, 4, 17), 40.0, 80.0)
+    assert (rise.hour, sset.hour) == (4, 18)
+    for lat, lon, when in ((7.83, 98.3, dt.date(2019, 3, 1)), (50.0, 14.0, dt.date(2023, 6, 1)),
+                           (-33.0, 151.0, dt.date(2023, 1, 5)), (69.0, 18.0, dt.date(2023, 5, 9))):
+        tz = dt.timezone(dt.timedelta(hours=round(lon / 15)))
+        ours = tl.daylight_range(when, lat, lon, round(lon / 15))
+        obs = tl._observer(lat, lon)
+        theirs = (astral.sun.sunrise(obs, when, tzinfo=tz), astral.sun.sunset(obs, when, tzinfo=tz))
+        for a, b in zip(ours, theirs, strict=True):
+            assert abs((a - b).total_seconds()) < 90, (lat, a, b)
     with pytest.raises(ValueError, match="latitude"):
         tl.real_sun_path(day, 95.0, 0.0, 0.0, 3)
 
