@@ -574,13 +574,9 @@ def test_the_exif_button_s_tooltip_follows_its_note(window, settle):
     assert button.isEnabled() and button.toolTip() == EXIF_BUTTON_TIP
 
 
-def test_confirming_while_the_search_runs_keeps_the_confirmed_sun(qtbot, window, photo, settle,
-                                                                 monkeypatch):
-    """A user trial confirmed while Find sun ran: step 2 opened with the dial's sun, then the
-    search's sun moved step 1's dial and a "Find sun" step was recorded after the confirm.
-    Confirming cancels the search; a result that arrives anyway is not applied."""
-    _load(window, photo, settle)
-    started = []
+def _slow_search(monkeypatch) -> list[bool]:
+    """A search that takes 0.4 s and finds (200, 30); the list it appends to as each starts."""
+    started: list[bool] = []
 
     def slow(session, **kw):
         started.append(True)
@@ -588,6 +584,16 @@ def test_confirming_while_the_search_runs_keeps_the_confirmed_sun(qtbot, window,
         return _fit(200.0, 30.0)
 
     monkeypatch.setattr(auto_sun, "find_sun", slow)
+    return started
+
+
+def test_confirming_while_the_search_runs_keeps_the_confirmed_sun(qtbot, window, photo, settle,
+                                                                 monkeypatch):
+    """A user trial confirmed while Find sun ran: step 2 opened with the dial's sun, then the
+    search's sun moved step 1's dial and a "Find sun" step was recorded after the confirm.
+    Confirming cancels the search; a result that arrives anyway is not applied."""
+    _load(window, photo, settle)
+    started = _slow_search(monkeypatch)
     panel = window.align_panel.sun_panel
     confirmed = panel.sun()
     window.toggle_find_sun()
@@ -742,14 +748,7 @@ def test_moving_the_sun_while_the_search_runs_cancels_it(qtbot, window, photo, s
     cancels the search, as Confirm does; the sun set by hand stands and nothing is recorded
     after it."""
     _load(window, photo, settle)
-    started = []
-
-    def slow(session, **kw):
-        started.append(True)
-        time.sleep(0.4)  # finishes even when cancelled: its progress is never asked
-        return _fit(200.0, 30.0)
-
-    monkeypatch.setattr(auto_sun, "find_sun", slow)
+    started = _slow_search(monkeypatch)
     panel = window.align_panel.sun_panel
     window.toggle_find_sun()
     qtbot.waitUntil(lambda: bool(started), timeout=5000)
@@ -771,14 +770,7 @@ def test_a_sun_moved_otherwise_while_the_search_runs_stands(qtbot, window, photo
     status says why nothing was applied. Cancel (Find sun again) with a number still being
     typed cancels, and does not start a new search."""
     _load(window, photo, settle)
-    started = []
-
-    def slow(session, **kw):
-        started.append(True)
-        time.sleep(0.4)
-        return _fit(200.0, 30.0)
-
-    monkeypatch.setattr(auto_sun, "find_sun", slow)
+    started = _slow_search(monkeypatch)
     panel = window.align_panel.sun_panel
     window.toggle_find_sun()
     qtbot.waitUntil(lambda: bool(started), timeout=5000)
