@@ -98,8 +98,8 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
                    help="output format: jpg, png, tif (16-bit) or webp for stills (default "
                         "jpg); mp4, gif or webp for time-lapses (default mp4)")
     p.add_argument("--frames", type=frame_count, default=48, help="time-lapse frames (default 48)")
-    p.add_argument("--easing", choices=EASINGS, default="ease-in-out",
-                   help="time-lapse sweep easing")
+    p.add_argument("--easing", choices=EASINGS, default=None,
+                   help="the time-lapse sweep's pace (--sweep only; default ease-in-out)")
     p.add_argument("--fps", type=fps_value, default=12.0,
                    help=f"time-lapse frames per second, {MIN_FPS:g}..{MAX_FPS:g} (default 12)")
     p.add_argument("--size", choices=FRAME_SIZES, default="1080p",
@@ -148,11 +148,15 @@ def _options(args: argparse.Namespace) -> BatchOptions:
         what = {"deshadow": "--deshadow", "timelapse": "--sweep" if args.sweep else "--day"}
         raise ValueError(f"--to is the new sun of a relighting; {what[kind]} takes none "
                          f"(leave out --to, or leave out {what[kind]} to relight)")
+    if args.easing is not None and not args.sweep:  # (as outcast timelapse refuses it)
+        raise ValueError("--easing is the pace of a --sweep; "
+                         + ("--day follows the real sun's clock" if args.day
+                            else "leave it out, or add --sweep"))
     return BatchOptions(
         kind=kind, sources=args.sources, from_sun=args.from_sun, to_sun=args.to_sun,
         fmt=args.fmt, preset=args.preset, mode=args.mode, depth_model=args.depth_model,
         use_phone_depth=not args.no_phone_depth, sweep=args.sweep, day=args.day,
-        frames=args.frames, easing=args.easing, fps=args.fps, size=args.size,
+        frames=args.frames, easing=args.easing or "ease-in-out", fps=args.fps, size=args.size,
         exposure=args.exposure, keep_light=args.keep_light, force=args.force)
 
 

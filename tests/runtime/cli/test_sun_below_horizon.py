@@ -132,6 +132,16 @@ def test_batch_refuses_a_new_sun_where_it_makes_no_relighting(tmp_path, capsys):
         err = capsys.readouterr().err
         assert f"--to is the new sun of a relighting; {what[0]} takes none" in err
         assert not (tmp_path / "out").exists()
+    # --easing is a sweep's: beside --day or a relighting it was ignored (a user trial).
+    for what, said in ((["--day"], "--day follows the real sun's clock"),
+                       (["--to", "90,30"], "leave it out, or add --sweep")):
+        assert _exit_code(["batch", str(photos), "-o", str(tmp_path / "out"), *what,
+                           "--easing", "linear"]) == 2
+        assert f"--easing is the pace of a --sweep; {said}" in capsys.readouterr().err
+        assert not (tmp_path / "out").exists()
+    _exit_code(["batch", str(photos), "-o", str(tmp_path / "out"), "--sweep", "0,10:90,40",
+                "--frames", "2", "--easing", "linear"])  # (no photos: refused for that)
+    assert "--easing" not in capsys.readouterr().err
 
 
 # ------------------------------------------------------------------ a photo taken at night
