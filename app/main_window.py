@@ -536,6 +536,9 @@ class MainWindow(QMainWindow):
         scroll.setWidget(self.steps)
         scroll.setWidgetResizable(True)
         scroll.setFrameShape(QScrollArea.Shape.NoFrame)
+        # Not a Tab stop of its own: it showed no focus (a keyboard trial); its controls are,
+        # and focusing one scrolls it into view.
+        scroll.setFocusPolicy(Qt.FocusPolicy.NoFocus)
         # Each step's main buttons (Confirm sun; Export, Time-lapse) stay below the scrolling
         # panel, in view on a 768-pixel-high screen too.
         self.footers = QStackedWidget(self)
@@ -1819,7 +1822,11 @@ class MainWindow(QMainWindow):
                          "the shadows fit.")
         self.stage_label.setText(text)
         self._held_message = text if self._status_pending() else ""
-        notice = text if not placed or fit.compass_decided else ""
+        # Above the photo too where the user has something to check: no sun found, the
+        # compass chose among near ties, or the EXIF's sun placed where the shadows tell
+        # nothing (a user trial saw that last one only in the status bar, cut short).
+        notice = (text if not placed or fit.compass_decided or fit.source == SOURCE_EXIF
+                  else "")
         prior = result.get("prior")
         if not notice and prior is not None and prior.azimuth is not None:
             off = dm.azimuth_gap(fit.azimuth, prior.azimuth)
@@ -2090,11 +2097,20 @@ class MainWindow(QMainWindow):
     def _on_view_changed(self, _index: int) -> None:
         self.relight_panel.split_slider.setEnabled(self.relight_panel.view() in SPLIT_VIEWS)
         self._update_shadow_tools()
-        if self.shadow_tools_available():  # they appear below the dial: scrolled into view
-            # once laid out (on a small screen they were below the fold: a user trial)
+        self._shadow_tools_into_view()
+        self.request_relight(preview=False)
+
+    def _shadow_tools_into_view(self) -> None:
+        """The shadow tools, where they are available, scrolled into the side panel's view once
+        laid out: they appear below the dial (on a small screen they were below the fold when
+        the view was chosen, and again after the window was made smaller: user trials)."""
+        if getattr(self, "relight_panel", None) is not None and self.shadow_tools_available():
             QTimer.singleShot(0, lambda: self.side_scroll.ensureWidgetVisible(
                 self.relight_panel.shadow_tools, 0, 6))
-        self.request_relight(preview=False)
+
+    def resizeEvent(self, event: Any) -> None:  # noqa: N802 (Qt's name)
+        super().resizeEvent(event)
+        self._shadow_tools_into_view()
 
     # ---- correcting the found shadows
     def shadow_tools_available(self) -> bool:
@@ -2808,6 +2824,7 @@ class MainWindow(QMainWindow):
         self._timelapse_dialog.load_settings(self._timelapse_to_save())  # (filled in again)
         self._timelapse_dialog.show()
         self._timelapse_dialog.raise_()
+        self._timelapse_dialog.activateWindow()  # the keys go to it (reopened behind too)
         return self._timelapse_dialog
 
     def load_depth_dialog(self) -> None:

@@ -791,3 +791,23 @@ def test_a_sun_moved_otherwise_while_the_search_runs_stands(qtbot, window, photo
     settle()
     assert len(started) == 1 and not window.finding_sun()
     assert window.align_panel.find_button.text() == "Find sun from shadows"
+
+
+def test_an_exif_sun_the_shadows_do_not_tell_is_said_above_the_photo(window, photo, settle,
+                                                                     monkeypatch):
+    """Where the shadows tell nothing and the EXIF's sun is placed, the advice to check it
+    was only in the status bar, cut short (a user trial on the field path): it stands in the
+    notice above the photo too, and goes when the sun is moved off it."""
+    _load(window, photo, settle)
+    notice = window.align_panel.notice
+    loaded = notice.text()
+    fit = dataclasses.replace(_fit(100.0, 40.0, found=False), source=auto_sun.SOURCE_EXIF)
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)
+    window.find_sun()
+    settle()
+    assert "the photo's shadows do not tell it" in notice.text()
+    assert notice.isVisibleTo(window)
+    window.align_panel.sun_panel.set_sun(30.0, 40.0)
+    window.request_shadow(preview=False)
+    settle()
+    assert notice.text() == loaded

@@ -73,3 +73,12 @@ def test_tab_reaches_the_tools_from_the_light_boxes(qtbot, window, photo, settle
     qtbot.waitUntil(rp.realign_button.hasFocus)
     qtbot.keyClick(rp.realign_button, Qt.Key.Key_Tab)
     assert rp.export_button.hasFocus()
+
+
+def test_the_side_panel_s_scroll_area_is_no_tab_stop(window):
+    """Tab stopped on the side panel's scroll area, which shows no focus (a keyboard trial):
+    it is no stop of its own; its controls are."""
+    scroll = window.side_scroll
+    assert not scroll.focusPolicy() & Qt.FocusPolicy.TabFocus
+    sun = window.relight_panel.sun_panel
+    assert sun.dial.focusPolicy() & Qt.FocusPolicy.TabFocus
