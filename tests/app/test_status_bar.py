@@ -156,3 +156,33 @@ def test_a_change_with_the_time_lapse_dialog_open_ends_ready(window, photo, sett
         rp.relighting_combo.setCurrentIndex(rp.relighting_combo.findData("physics"))
     settle()
     assert window.stage_label.text().startswith("Ready · relighting took")
+
+
+def test_the_zoom_reads_as_a_share_of_the_photo_in_every_view(qtbot, window, settle,
+                                                               tmp_path):
+    """The buffer views show a working-size image: fitted to the same room, its zoom read
+    several times the photo's (367 % against 47 %: a user trial). The zoom is read against
+    the photo's own pixels in every view."""
+    import numpy as np
+    from PIL import Image
+
+    rng = np.random.default_rng(0)
+    img = rng.integers(120, 200, (480, 640, 3), dtype=np.uint8)
+    img[300:360, 100:500] //= 3  # a shadow-like band
+    photo = tmp_path / "big.png"
+    Image.fromarray(img).save(photo)
+    window.open_path(str(photo))
+    settle()
+    window.confirm_original_sun()
+    settle()
+    rp = window.relight_panel
+
+    def zoom_in(view: str) -> int:
+        rp.set_view(view)
+        settle()
+        qtbot.wait(50)
+        return int(window.zoom_label.text().split()[1])
+
+    output, depth = zoom_in("output"), zoom_in("depth")
+    assert window.canvas.image_size().width() < window.loaded.original_size[0]  # (working)
+    assert abs(depth - output) <= 2, (output, depth)
