@@ -298,11 +298,19 @@ class QtSunDial(QWidget):
 
     def _obstacles(self) -> list[QPainterPath]:
         """What the ring labels must not sit on: the sun with its rays, the faint reference
-        sun, the shadow ruler with its ticks."""
+        sun, the shadow ruler with its ticks and arrowhead, the camera at the centre, and a
+        tilted camera's band of suns under the horizon (on a small dial the labels sat on the
+        arrow and the band: a user trial)."""
         cx, cy, r = self.dial_geometry()
         sun = QPainterPath()
         sun.addEllipse(self.handle_position(), RAY_RADIUS + 1.0, RAY_RADIUS + 1.0)
-        paths = [sun]
+        camera = QPainterPath()
+        camera.addRect(QRectF(cx - 8.0, cy - 8.0, 16.0, 16.0))  # (paint_camera's body)
+        paths = [sun, camera]
+        if self._tilted():
+            disc = QPainterPath()
+            disc.addEllipse(QPointF(cx, cy), r, r)
+            paths.append(disc.subtracted(self._ring_path(0.0, cx, cy, r, closed=True)))
         if self._reference is not None:
             ref = QPainterPath()
             x, y = dm.sun_to_point(self._reference[0], self._reference[1], cx, cy, r)
@@ -313,7 +321,7 @@ class QtSunDial(QWidget):
             ruler = QPainterPath(line.p1())
             ruler.lineTo(line.p2())
             stroker = QPainterPathStroker()
-            stroker.setWidth(2.0 * RULER_REACH)
+            stroker.setWidth(2.0 * max(RULER_REACH, RULER_ARROW / 2.0 + 1.0))  # (arrowhead)
             paths.append(stroker.createStroke(ruler))
         return paths
 

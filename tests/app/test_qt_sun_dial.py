@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from PySide6.QtCore import QPoint, QRectF, Qt
+from PySide6.QtCore import QPoint, QPointF, QRectF, Qt
 
 from app import sun_dial_math as dm
 from app.qt_sun_dial import FOCUS_RING_WIDTH, LABEL_GAP, QtSunDial, SunDialPanel
@@ -259,3 +259,28 @@ def test_a_focus_ring_shows_while_the_dial_has_the_focus(qtbot):
     panel.azimuth_box.setFocus(Qt.FocusReason.TabFocusReason)
     qtbot.waitUntil(lambda: not dial.hasFocus())
     assert not dial.focus_ring_visible() and not ringed()
+
+
+@pytest.mark.parametrize("pitch", [0.0, 12.0, 25.0])
+@pytest.mark.parametrize("sun", [(354.0, 15.0), (0.0, 40.0), (180.0, 20.0)])
+def test_ring_labels_keep_off_the_camera_the_arrowhead_and_the_ground(qtbot, dial, pitch, sun):
+    """On a small dial of a pitched camera (the ski slope at 1024 x 700) "60°" sat on the
+    shadow ruler's arrowhead and "30°" on the band of suns under the horizon (a user trial):
+    a label stands clear of the camera, the arrowhead and that band, or is not drawn."""
+    from PySide6.QtGui import QPainterPath
+
+    dial.resize(200, 200)
+    dial.set_tilt(pitch, 0.0)
+    dial.set_sun(*sun)
+    cx, cy, r = dial.dial_geometry()
+    line, capped = dial.shadow_ruler_line()
+    for text, rect in dial.ring_label_rects():
+        assert not rect.intersects(QRectF(cx - 7.0, cy - 7.0, 14.0, 14.0)), text
+        if capped:  # the arrowhead's half-width, 4 px, each side of its tip
+            tip = QRectF(line.p2().x() - 4.0, line.p2().y() - 4.0, 8.0, 8.0)
+            assert not rect.intersects(tip), text
+        if pitch:
+            disc = QPainterPath()
+            disc.addEllipse(QPointF(cx, cy), r, r)
+            ground = disc.subtracted(dial._ring_path(0.0, cx, cy, r, closed=True))
+            assert not ground.intersects(rect), text
