@@ -2778,15 +2778,19 @@ class MainWindow(QMainWindow):
             return None
 
         def job(ctx: JobContext) -> dict[str, Any]:
-            from outcast_core.runtime.io.imageio import output_bit_depth, write_image
+            from outcast_core.runtime.io.imageio import (
+                in_file_channels,
+                output_bit_depth,
+                write_image,
+            )
 
             session.set_shadow_edits(edits)  # the photo's shadows as corrected when asked
             ctx.progress(stage, 0.1)
             img = render()
             ctx.progress("writing", 0.8)
             bits = output_bit_depth(path, getattr(loaded, "bit_depth", 8))
-            write_image(path, img, bit_depth=bits, force=force, quality=95,
-                        exif=getattr(loaded, "exif_bytes", None))
+            write_image(path, in_file_channels(img, loaded), bit_depth=bits, force=force,
+                        quality=95, exif=getattr(loaded, "exif_bytes", None))
             return {"path": path, "timings": _timings(session)}
 
         return self.runner.submit(channel, job, f"Exporting {os.path.basename(path)}")

@@ -499,7 +499,7 @@ def _original_sun(args: argparse.Namespace, session, loaded,
 
 
 def cmd_relight(args: argparse.Namespace) -> int:
-    from outcast_core.runtime.io.imageio import output_bit_depth, write_image
+    from outcast_core.runtime.io.imageio import in_file_channels, output_bit_depth, write_image
 
     w_from = None if args.from_sun is None else sun_vector(*args.from_sun)
     w_to = sun_vector(*args.to_sun)
@@ -513,7 +513,8 @@ def cmd_relight(args: argparse.Namespace) -> int:
     corrections = say_unused_shadow_edits(session, args)
     out = session.relight_full(w_to, dtype=np.uint8 if bit_depth == 8 else np.float32)
     # GPS and time, as the app's export.
-    write_image(args.output, out, bit_depth=bit_depth, force=args.force, exif=loaded.exif_bytes)
+    write_image(args.output, in_file_channels(out, loaded), bit_depth=bit_depth,
+                force=args.force, exif=loaded.exif_bytes)
     t = session.timings
     _say(args, f"wrote {args.output} ({out.shape[1]}x{out.shape[0]}; {corrections}shadows: "
                f"{session.shadow_mode}, refinement: {session.refinement}, "
@@ -524,7 +525,12 @@ def cmd_relight(args: argparse.Namespace) -> int:
 
 
 def cmd_deshadow(args: argparse.Namespace) -> int:
-    from outcast_core.runtime.io.imageio import output_bit_depth, write_image, write_shadow_png
+    from outcast_core.runtime.io.imageio import (
+        in_file_channels,
+        output_bit_depth,
+        write_image,
+        write_shadow_png,
+    )
 
     w_from = None if args.from_sun is None else sun_vector(*args.from_sun)
     if args.mask:  # the main output is checked before the work by _check_output
@@ -539,7 +545,7 @@ def cmd_deshadow(args: argparse.Namespace) -> int:
     corrections = say_unused_shadow_edits(session, args)
     bit_depth = output_bit_depth(args.output, loaded.bit_depth)
     out = session.deshadow_full(dtype=np.uint8 if bit_depth == 8 else np.float32)
-    write_image(args.output, out, bit_depth=bit_depth, force=args.force,
+    write_image(args.output, in_file_channels(out, loaded), bit_depth=bit_depth, force=args.force,
                 exif=loaded.exif_bytes)
     if args.mask:  # what the de-shadow lifted, at the photo's size
         write_shadow_png(args.mask, session.lifted_shadows_full(), force=args.force)

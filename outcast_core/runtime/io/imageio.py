@@ -162,6 +162,28 @@ class ImageReadError(ValueError):
         return self.message
 
 
+#: Pillow modes of a one-channel (black-and-white) file, with or without transparency.
+GREY_MODES = ("1", "L", "LA", "La", "I;16", "I;16B", "I;16L", "I;16N", "I", "F")
+
+
+def in_file_channels(image: np.ndarray, loaded: LoadedImage | None) -> np.ndarray:
+    """``image`` (``H x W x 3``) as the photo's file holds it: one channel (the channels' mean)
+    for a black-and-white file (:attr:`LoadedImage.grey`), else as it is. A greyscale JPEG
+    came back as three equal channels (a user trial).
+
+    Example:
+        >>> img = np.full((2, 2, 3), 0.5, np.float32)
+        >>> in_file_channels(img, None).shape
+        (2, 2, 3)
+    """
+    a = np.asarray(image)
+    if loaded is None or not getattr(loaded, "grey", False) or a.ndim != 3:
+        return a
+    if a.dtype == np.uint8:
+        return ((a.astype(np.uint16).sum(axis=2) + 1) // 3).astype(np.uint8)
+    return a.mean(axis=2, dtype=np.float32)
+
+
 @dataclass
 class LoadedImage:
     """A photo as read from disk.
@@ -179,6 +201,8 @@ class LoadedImage:
         bit_depth: bits per sample in the file (8 or 16; 32 for float TIFF).
         has_alpha: some pixel of the file is not fully opaque (composited on white: a relit
             photo has no transparency).
+        grey: the file holds one channel (black and white; :data:`GREY_MODES`): what is made
+            of it is written with one too (:func:`in_file_channels`).
     """
 
     image_srgb: np.ndarray
@@ -189,6 +213,7 @@ class LoadedImage:
     format: str = ""
     bit_depth: int = 8
     has_alpha: bool = False
+    grey: bool = False
 
     @property
     def size(self) -> tuple[int, int]:
@@ -247,6 +272,7 @@ def read_image(
             target = _fit_size(stored_w, stored_h, max_pixels)
             bits = _bits_per_sample(im, path)
             alpha = _has_transparency(im)
+            grey = im.mode in GREY_MODES
             # Some decoders turn a TIFF upright themselves: then it is decoded at the upright
             # target size and not turned again.
             turned = None if target is None else _upright_size(target, meta.orientation)
@@ -297,6 +323,7 @@ def read_image(
         format=fmt,
         bit_depth=bits,
         has_alpha=alpha,
+        grey=grey,
     )
 
 

@@ -975,6 +975,7 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
     from outcast_core.runtime.geometry.camera import sun_angles, sun_vector
     from outcast_core.runtime.io.depth_models import pick_depth_source
     from outcast_core.runtime.io.imageio import (
+        in_file_channels,
         output_bit_depth,
         read_depth,
         read_image,
@@ -1032,8 +1033,8 @@ def _run_job(job: BatchJob, options: BatchOptions, result: JobResult) -> None:
         dtype = np.uint8 if bits == 8 else np.float32  # (no full-size float buffer for 8 bits)
         out = (session.relight_full(sun_vector(*to_sun), dtype=dtype) if to_sun
                else session.deshadow_full(dtype=dtype))
-        write_image(job.output, out, bit_depth=bits, force=options.force,
-                    exif=loaded.exif_bytes)
+        write_image(job.output, in_file_channels(out, loaded), bit_depth=bits,
+                    force=options.force, exif=loaded.exif_bytes)
     result.details.update(shadows=session.shadow_mode, relighting=session.relight_mode,
                           depth=session.depth_source,
                           camera={"pitch": round(tilt[0], 2), "roll": round(tilt[1], 2),

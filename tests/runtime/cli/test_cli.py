@@ -381,3 +381,26 @@ def test_timelapse_refuses_the_other_path_s_options(tmp_path: Path,
     assert main(day) == 2
     assert "--easing applies to --sweep only" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_a_black_and_white_file_is_written_back_in_one_channel(tmp_path: Path) -> None:
+    """A greyscale JPEG was relit and de-shadowed into three equal channels (a user trial):
+    what is made of a one-channel file has one channel, at the same size."""
+    from PIL import Image
+
+    rng = np.random.default_rng(0)
+    grey = rng.integers(90, 200, (96, 128), dtype=np.uint8)
+    grey[60:80, 20:100] //= 3  # a shadow-like band
+    photo = tmp_path / "bw.jpg"
+    Image.fromarray(grey, "L").save(photo, quality=95)
+    colour = tmp_path / "colour.jpg"
+    Image.fromarray(np.repeat(grey[..., None], 3, 2)).save(colour, quality=95)
+    for cmd, src, name in (("relight", photo, "r.jpg"), ("deshadow", photo, "d.png"),
+                           ("relight", colour, "c.jpg")):
+        out = tmp_path / name
+        extra = ["--to", "90,30"] if cmd == "relight" else []
+        assert main([cmd, str(src), "--from", "200,40", *extra, "--preset", "fast",
+                     "-o", str(out)]) == 0
+        with Image.open(out) as im:
+            assert im.size == (128, 96)
+            assert im.mode == ("RGB" if src == colour else "L"), (name, im.mode)
