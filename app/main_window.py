@@ -1761,10 +1761,9 @@ class MainWindow(QMainWindow):
             return  # found for a photo that has been replaced since
         if result.get("search", self._searches) != self._searches or self.step is not Step.ALIGN:
             return  # the sun was confirmed while it searched: the confirmed one stands
-        if "dial_sun" in result and not np.allclose(self.align_panel.sun_panel.sun(),
-                                                    result["dial_sun"], atol=1e-9):
-            # Moved while it searched, by a way that does not cancel it ("Sun from EXIF",
-            # undo): that sun stands (a review; a move by hand cancels the search).
+        if not np.allclose(self.align_panel.sun_panel.sun(), result["dial_sun"], atol=1e-9):
+            # Moved while it searched, by a way that does not cancel it (undo, redo): that
+            # sun stands (a review; a move by hand or "Sun from EXIF" cancels the search).
             self.stage_label.setText("Find sun: not applied, the sun was moved while it ran")
             return
         self.sun_fit = fit
@@ -2118,7 +2117,8 @@ class MainWindow(QMainWindow):
 
     def resizeEvent(self, event: Any) -> None:  # noqa: N802 (Qt's name)
         super().resizeEvent(event)
-        self._shadow_tools_into_view()
+        if event.size().height() < event.oldSize().height():  # (made smaller only: a user
+            self._shadow_tools_into_view()  # who scrolled to the dial is not pulled back)
 
     # ---- correcting the found shadows
     def shadow_tools_available(self) -> bool:

@@ -300,7 +300,7 @@ class QtSunDial(QWidget):
         """What the ring labels must not sit on: the sun with its rays, the faint reference
         sun, the shadow ruler with its ticks and arrowhead, the camera at the centre, and a
         tilted camera's band of suns under the horizon (on a small dial the labels sat on the
-        arrow and the band: a user trial)."""
+        camera and the band: a user trial)."""
         cx, cy, r = self.dial_geometry()
         sun = QPainterPath()
         sun.addEllipse(self.handle_position(), RAY_RADIUS + 1.0, RAY_RADIUS + 1.0)
@@ -321,7 +321,7 @@ class QtSunDial(QWidget):
             ruler = QPainterPath(line.p1())
             ruler.lineTo(line.p2())
             stroker = QPainterPathStroker()
-            stroker.setWidth(2.0 * max(RULER_REACH, RULER_ARROW / 2.0 + 1.0))  # (arrowhead)
+            stroker.setWidth(2.0 * RULER_REACH)  # (its ticks and its arrowhead inside)
             paths.append(stroker.createStroke(ruler))
         return paths
 

@@ -264,9 +264,9 @@ def test_a_focus_ring_shows_while_the_dial_has_the_focus(qtbot):
 @pytest.mark.parametrize("pitch", [0.0, 12.0, 25.0])
 @pytest.mark.parametrize("sun", [(354.0, 15.0), (0.0, 40.0), (180.0, 20.0)])
 def test_ring_labels_keep_off_the_camera_the_arrowhead_and_the_ground(qtbot, dial, pitch, sun):
-    """On a small dial of a pitched camera (the ski slope at 1024 x 700) "60°" sat on the
-    shadow ruler's arrowhead and "30°" on the band of suns under the horizon (a user trial):
-    a label stands clear of the camera, the arrowhead and that band, or is not drawn."""
+    """On a small dial of a pitched camera (the ski slope at 1024 x 700) the labels sat on
+    the camera and on the band of suns under the horizon (a user trial): a label stands clear
+    of the camera, the shadow ruler's arrowhead and that band, or is not drawn."""
     from PySide6.QtGui import QPainterPath
 
     dial.resize(200, 200)

@@ -111,7 +111,7 @@ def smooth_gain(work_photo_srgb: np.ndarray, gain: np.ndarray, scale: float,
     two working pixels wide (a pole's, a wire's) is kept as it is (:data:`GAIN_THIN`): blurred,
     it lost half its darkness. The sky does not mix with the surface (``sky``, the
     working-size sky mask). At 1:1 (``scale`` 1) nothing changes; the filter fades in to 2x.
-    A NaN gain counts as 1.
+    A NaN or infinite gain counts as 1.
 
     Example:
         >>> photo = np.full((16, 16, 3), 0.5, np.float32); photo[:, 8:] = 0.1  # an edge
@@ -132,23 +132,29 @@ def smooth_gain(work_photo_srgb: np.ndarray, gain: np.ndarray, scale: float,
     if sky is not None and np.shape(sky) != g.shape[:2]:
         raise ValueError(f"expected a sky mask of the gain's size {g.shape[:2]}, got "
                          f"{np.shape(sky)}")
+    g = np.nan_to_num(g, nan=1.0, posinf=1.0, neginf=1.0)
     sigma = GAIN_SMOOTH_SIGMA * min(1.0, float(scale) - 1.0)
     if sigma <= 0.05 or min(g.shape[:2]) < 2:
         return g
     guide = _log_luminance(photo)
     if sky is not None:  # the sky far from the surface in the guide: never mixed
         guide = np.where(np.asarray(sky, bool), guide + np.float32(100.0), guide)
-    log_gain = np.log(np.maximum(np.nan_to_num(g, nan=1.0), 1e-6)).astype(np.float32)
+    log_gain = np.log(np.maximum(g, 1e-6)).astype(np.float32)
     size = 2 * int(np.ceil(2.0 * sigma)) + 1
     out = cv2.ximgproc.jointBilateralFilter(guide, log_gain, size, GAIN_SMOOTH_RANGE, sigma,
                                             borderType=cv2.BORDER_REPLICATE)
     # A new shadow one or two working pixels wide (a pole's, a wire's) is kept: a grey-level
     # closing (opening) by 3 x 3 fills such a dark (bright) line and leaves an edge, a
     # staircase included, as it is.
+    # Read on the gain's luminance, one weight for the three channels (per channel, a
+    # coloured line changed hue: a review). Its neighbours keep their blur, a soft edge of
+    # about a working pixel either side; spread to them, the weight brought back the
+    # staircase along the umbrella's new shadow (looked at).
     k = np.ones((3, 3), np.uint8)
-    thin = np.maximum(cv2.morphologyEx(log_gain, cv2.MORPH_CLOSE, k) - log_gain,
-                      log_gain - cv2.morphologyEx(log_gain, cv2.MORPH_OPEN, k))
-    keep = np.clip((thin - GAIN_THIN[0]) / (GAIN_THIN[1] - GAIN_THIN[0]), 0.0, 1.0)
+    lum = np.log(np.maximum(luminance(g), 1e-6)).astype(np.float32)
+    thin = np.maximum(cv2.morphologyEx(lum, cv2.MORPH_CLOSE, k) - lum,
+                      lum - cv2.morphologyEx(lum, cv2.MORPH_OPEN, k))
+    keep = np.clip((thin - GAIN_THIN[0]) / (GAIN_THIN[1] - GAIN_THIN[0]), 0.0, 1.0)[..., None]
     out = out + keep * (log_gain - out)
     return np.exp(out).astype(np.float32)
 

@@ -174,6 +174,11 @@ MEASURES = ("mask", "shading", "mask+shading")
 #: photo shows the sun itself.
 SOURCE_EXIF = "EXIF"
 SOURCE_SUN_IN_FRAME = "sun in the frame"
+#: :attr:`SunFit.source` of a sun the shadows found: alone, within the EXIF's elevation, or
+#: with the EXIF's compass heading too.
+SOURCE_SHADOWS = "shadows"
+SOURCE_SHADOWS_EXIF_ELEVATION = "shadows + EXIF elevation"
+SOURCE_SHADOWS_EXIF = "shadows + EXIF"
 #: :attr:`SunFit.unfound`: the photo is too small or narrow for its shadows, it has no clear
 #: shadows, or no sun's predicted shadows fit them.
 UNFOUND_REASONS = ("too-small", "no-clear-shadows", "no-fit", "open-sky")
@@ -1159,9 +1164,10 @@ def find_sun(
     in_open_sky = vetoed[(best_a, best_e)] > 0
     confidence = 0.0 if in_open_sky else float(clarity * peak * strength * legible)
     found = confidence >= CONFIDENT
-    source = "shadows"
+    source = SOURCE_SHADOWS
     if prior is not None:
-        source = "shadows + EXIF elevation" if prior.azimuth is None else "shadows + EXIF"
+        source = (SOURCE_SHADOWS_EXIF_ELEVATION if prior.azimuth is None
+                  else SOURCE_SHADOWS_EXIF)
     if prior is not None and prior.azimuth is not None and not found:
         w_best = frame.vector(prior.azimuth, prior.elevation)
         best_a, best_e = prior.azimuth % 360.0, prior.elevation

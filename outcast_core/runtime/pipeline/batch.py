@@ -1088,16 +1088,16 @@ def photo_warnings(loaded: Any, session: Any, *, transparency: bool = True) -> l
     return notes
 
 
-#: :func:`~outcast_core.runtime.pipeline.auto_sun.find_sun`'s sources whose direction the
-#: shadows alone gave (no compass heading guided it, the sun is not in the frame): a batch warns.
-SHADOWS_ONLY = ("shadows", "shadows + EXIF elevation")
-
-
 def _auto_sun(session: Any, exif: Any, result: JobResult,
               tilt: tuple[float, float, str]) -> Callable[[], Sun | None] | None:
     """The ``auto`` source for one photo, or None when this version has no automatic sun."""
     try:
-        from outcast_core.runtime.pipeline.auto_sun import exif_sun_prior, find_sun
+        from outcast_core.runtime.pipeline.auto_sun import (
+            SOURCE_SHADOWS,
+            SOURCE_SHADOWS_EXIF_ELEVATION,
+            exif_sun_prior,
+            find_sun,
+        )
     except ImportError:
         return None
 
@@ -1110,7 +1110,7 @@ def _auto_sun(session: Any, exif: Any, result: JobResult,
                                       "found": bool(fit.found)}
         if not fit.found:
             return None
-        if fit.source in SHADOWS_ONLY:
+        if fit.source in (SOURCE_SHADOWS, SOURCE_SHADOWS_EXIF_ELEVATION):
             # Its direction from the shadows alone (no compass): said with its result (a user
             # trial's photo without EXIF was relit from a sun 38 degrees off, without a word).
             result.warnings.append(

@@ -433,10 +433,14 @@ def daylight_range(
     day: dt.date, latitude: float, longitude: float, utc_offset_hours: float | None = None
 ) -> tuple[dt.datetime, dt.datetime]:
     """Sunrise and sunset (aware datetimes at ``utc_offset_hours``) of a date and place: the
-    first sunrise of the local day and the sunset after it (the next day's, past midnight).
+    stretch of sun above the horizon that covers most of the local day, from its sunrise (the
+    day before's, in a zone far from the longitude's) to its sunset (the next day's, past
+    midnight).
 
-    Found by scanning the sun's elevation over the local day (:data:`DAYLIGHT_SCAN_MINUTES`)
-    and bisecting each crossing of :data:`SUNRISE_ELEVATION`. astral's own sunrise and sunset
+    Found by scanning the sun's elevation over the local day and half a day either side
+    (:data:`DAYLIGHT_SCAN_MINUTES`; a night or a day shorter than that, on the eve of a polar
+    day or night, can be missed) and bisecting each crossing of :data:`SUNRISE_ELEVATION`.
+    astral's own sunrise and sunset
     failed on ordinary days where the local day straddles the UTC date (40 N, 80 E on
     2021-04-17, a review), and its failure was then taken for a polar day.
 
@@ -451,6 +455,8 @@ def daylight_range(
     """
     import astral.sun
 
+    if not FIRST_DAY <= day <= LAST_DAY:  # (the scan looks at the days either side)
+        raise ValueError(f"expected a date from {FIRST_DAY} to {LAST_DAY}, got {day}")
     offset = default_utc_offset(longitude) if utc_offset_hours is None else float(utc_offset_hours)
     tz = dt.timezone(dt.timedelta(hours=offset))
     obs = _observer(latitude, longitude)
@@ -475,8 +481,19 @@ def daylight_range(
     # is the stretch of sun above the horizon that covers most of it, with the sunrise before
     # and the sunset after it, even where one of them falls on the day before or after (a
     # zone far from the longitude's).
-    lo = -(per_day // 2) if day > FIRST_DAY else 0
-    hi = per_day + per_day // 2 if day < LAST_DAY else per_day
+    lo, hi = -(per_day // 2), per_day + per_day // 2
+    # (clipped where the time in UTC would leave the calendar: its first and last days)
+    margin = dt.timedelta(hours=1)
+    first_utc = dt.datetime.min.replace(tzinfo=dt.UTC) + margin
+    last_utc = dt.datetime.max.replace(tzinfo=dt.UTC) - margin
+    lo = max(lo, math.ceil((first_utc - start) / step))
+    hi = min(hi, math.floor((last_utc - start) / step))
+    cut = lo > -(per_day // 2) or hi < per_day + per_day // 2
+    calendar_end = ValueError(f"expected a day with a sunrise and a sunset {where}, got a day "
+                              "too near the calendar's end to look for them; give a start and "
+                              "end time instead")
+    if lo > 0 or hi < per_day:  # (not even the day itself)
+        raise calendar_end
     times = [start + i * step for i in range(lo, hi + 1)]
     up = np.array([height(t) > 0.0 for t in times])
     day_part = up[-lo:-lo + per_day + 1]
@@ -499,7 +516,7 @@ def daylight_range(
 
     first, last = max(runs, key=overlap)
     if first == 0 or last == len(up) - 1:  # it rose or sets beyond what was scanned
-        raise none(True)
+        raise calendar_end if cut else none(True)
 
     def crossing(k: int) -> dt.datetime:  # between times[k] and times[k + 1]
         a, b = times[k], times[k + 1]

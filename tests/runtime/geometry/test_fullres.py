@@ -326,11 +326,17 @@ def test_a_thin_new_shadow_keeps_its_darkness_and_bad_input_is_refused() -> None
         g[:, 20:20 + width] = 0.3
         out = smooth_gain(work, g, 4.0)
         assert out[20, 20:20 + width].max() < 0.32
+        assert out[20, 19].min() > 0.6  # a soft edge beside it, not a second line
         assert np.allclose(out[20, :15], 1.0, atol=1e-3)  # away from it: as it was
     g = np.ones((40, 40, 3), np.float32)
+    g[:, 20] = (0.25, 0.30, 0.50)  # a coloured line keeps its hue (per channel, it did not)
+    assert np.allclose(smooth_gain(work, g, 4.0)[20, 20], (0.25, 0.30, 0.50), atol=0.01)
+    g = np.ones((40, 40, 3), np.float32)
     g[10, 10] = np.nan
-    out = smooth_gain(work, g, 4.0)
-    assert np.isfinite(out).all() and np.allclose(out, 1.0, atol=1e-3)
+    g[30, 30] = np.inf
+    for scale in (4.0, 1.0):  # (at 1:1, where nothing is smoothed, too)
+        out = smooth_gain(work, g, scale)
+        assert np.isfinite(out).all() and np.allclose(out, 1.0, atol=1e-3)
     with pytest.raises(ValueError, match="sky mask"):
         smooth_gain(work, g, 4.0, np.zeros((1, 40), bool))
     with pytest.raises(ValueError, match="gain of the photo's size"):

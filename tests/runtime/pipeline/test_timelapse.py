@@ -523,6 +523,13 @@ def test_the_calendars_ends_are_refused_in_one_line() -> None:
             real_sun_path(day, 7.8, 98.3, 164.0, 3, utc_offset_hours=7.0)
     for day in (FIRST_DAY, LAST_DAY):
         assert len(real_sun_path(day, 7.8, 98.3, 164.0, 3, utc_offset_hours=7.0)) == 3
+        # The zones furthest from UTC: the scan stops at the calendar's ends (it overflowed,
+        # then called an ordinary day at 40 N a polar day: a review).
+        for lon, offset in ((0.0, 14.0), (0.0, -12.0), (170.0, 0.0), (-170.0, 0.0)):
+            rise, sset = tl.daylight_range(day, 40.0, lon, offset)
+            assert dt.timedelta(hours=8) < sset - rise < dt.timedelta(hours=11)
+    with pytest.raises(ValueError, match="expected a date from 0001-01-02 to 9999-12-30"):
+        tl.daylight_range(dt.date.min, 40.0, 0.0)
 
 
 def test_a_night_time_exif_clock_solves_no_heading(capsys) -> None:
