@@ -440,9 +440,9 @@ def daylight_range(
     Found by scanning the sun's elevation over the local day and half a day either side
     (:data:`DAYLIGHT_SCAN_MINUTES`; a night or a day shorter than that, on the eve of a polar
     day or night, can be missed) and bisecting each crossing of :data:`SUNRISE_ELEVATION`.
-    astral's own sunrise and sunset
-    failed on ordinary days where the local day straddles the UTC date (40 N, 80 E on
-    2021-04-17, a review), and its failure was then taken for a polar day.
+    astral's own sunrise and sunset failed on ordinary days where the local day straddles the
+    UTC date (40 N, 80 E on 2021-04-17, a review), and its failure was then taken for a polar
+    day.
 
     Raises:
         ValueError: when the sun does not rise or set that day (polar day: give a start and
