@@ -86,7 +86,7 @@ def _as_float(photo_srgb: np.ndarray) -> np.ndarray:
             else photo.astype(np.float32))
 
 
-def _log_luminance(photo_srgb: np.ndarray) -> np.ndarray:
+def log_luminance(photo_srgb: np.ndarray) -> np.ndarray:
     """The log linear luminance (floored by :data:`_LOG_FLOOR`) of a working-size photo: the
     guide of :func:`smooth_gain` and :class:`EdgeGuide`."""
     lum = luminance(srgb_to_linear(_as_float(photo_srgb)))
@@ -94,7 +94,7 @@ def _log_luminance(photo_srgb: np.ndarray) -> np.ndarray:
 
 
 def smooth_gain(work_photo_srgb: np.ndarray, gain: np.ndarray, scale: float,
-                sky: np.ndarray | None = None) -> np.ndarray:
+                sky: np.ndarray | None = None, log_lum: np.ndarray | None = None) -> np.ndarray:
     """The working-size gain smoothed where the photo is smooth, before it is upsampled by
     ``scale`` (the full size over the working size).
 
@@ -111,7 +111,8 @@ def smooth_gain(work_photo_srgb: np.ndarray, gain: np.ndarray, scale: float,
     two working pixels wide (a pole's, a wire's) is kept as it is (:data:`GAIN_THIN`): blurred,
     it lost half its darkness. The sky does not mix with the surface (``sky``, the
     working-size sky mask). At 1:1 (``scale`` 1) nothing changes; the filter fades in to 2x.
-    A NaN or infinite gain counts as 1.
+    A NaN or infinite gain counts as 1. ``log_lum``: the photo's :func:`log_luminance`, when
+    the caller has it (:class:`EdgeGuide` takes the same).
 
     Example:
         >>> photo = np.full((16, 16, 3), 0.5, np.float32); photo[:, 8:] = 0.1  # an edge
@@ -136,7 +137,7 @@ def smooth_gain(work_photo_srgb: np.ndarray, gain: np.ndarray, scale: float,
     sigma = GAIN_SMOOTH_SIGMA * min(1.0, float(scale) - 1.0)
     if sigma <= 0.05 or min(g.shape[:2]) < 2:
         return g
-    guide = _log_luminance(photo)
+    guide = log_luminance(photo) if log_lum is None else log_lum
     if sky is not None:  # the sky far from the surface in the guide: never mixed
         guide = np.where(np.asarray(sky, bool), guide + np.float32(100.0), guide)
     log_gain = np.log(np.maximum(g, 1e-6)).astype(np.float32)
@@ -375,6 +376,7 @@ class EdgeGuide:
     Args:
         photo_srgb: ``h x w x 3`` the working-size photo (sRGB; uint8 0-255 or float 0-1).
         gain: ``h x w x 3`` its gain (:func:`gain_map`).
+        log_lum: the photo's :func:`log_luminance`, when the caller has made it already.
 
     Attributes:
         flag: ``h x w`` bool, the working pixels on such an edge.
@@ -383,13 +385,14 @@ class EdgeGuide:
             (rows, then columns; clamped at the border).
     """
 
-    def __init__(self, photo_srgb: np.ndarray, gain: np.ndarray) -> None:
+    def __init__(self, photo_srgb: np.ndarray, gain: np.ndarray,
+                 log_lum: np.ndarray | None = None) -> None:
         photo = np.asarray(photo_srgb)
         gain = np.asarray(gain, np.float32)
         if gain.shape != photo.shape or gain.ndim != 3 or gain.shape[2] != 3:
             raise ValueError(f"expected an h x w x 3 gain of the photo's shape {photo.shape}, "
                              f"got {gain.shape}")
-        log_lum = _log_luminance(photo)
+        log_lum = log_luminance(photo) if log_lum is None else log_lum
         log_gain = np.log(np.maximum(luminance(gain), 1e-6)).astype(np.float32)
         size = (2 * EDGE_STATS_REACH + 1,) * 2
         kernel = np.ones(size, np.uint8)

@@ -264,14 +264,17 @@ def transfer_to_full_resolution(
         SkyGuide,
         apply_gain,
         gain_map,
+        log_luminance,
         smooth_gain,
     )
 
-    gain = gain_map(np.asarray(work_before_srgb), np.asarray(work_after_srgb))  # h x w x 3
+    before = np.asarray(work_before_srgb)
+    gain = gain_map(before, np.asarray(work_after_srgb))  # h x w x 3
     scale = max(full_srgb.shape[0] / gain.shape[0], full_srgb.shape[1] / gain.shape[1])
-    gain = smooth_gain(np.asarray(work_before_srgb), gain, scale, sky)  # no working-pixel blocks
-    guide = None if sky is None else SkyGuide(sky, np.asarray(work_before_srgb))
-    edges = EdgeGuide(np.asarray(work_before_srgb), gain) if EDGE_GUIDED else None
+    log_lum = log_luminance(before)  # (the guide of both below, made once)
+    gain = smooth_gain(before, gain, scale, sky, log_lum)  # no working-pixel blocks
+    guide = None if sky is None else SkyGuide(sky, before)
+    edges = EdgeGuide(before, gain, log_lum) if EDGE_GUIDED else None
     out = apply_gain(full_srgb, gain, out_dtype=out_dtype, band_rows=band_rows, threads=threads,
                      sky=guide, edges=edges)
     if fills is not None:
