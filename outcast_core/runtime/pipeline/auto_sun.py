@@ -72,7 +72,9 @@ cores at load 3-10; seconds are under that load; ``models/EVAL.md`` has the tabl
   best peaks rechecked at 64, 2 refined at 96 (the default): 70.2 % (33), mean gap +0.012,
   mean BER 0.319 vs the sweep's 0.307**; the same rechecked at 48: 68.1 %. Differences of
   2-4 points are one or two photos. Its 12 MP time (``bench_runtime --only find_sun``) is
-  about 5-6 working-size shadow images, against 8-8.5 for the earlier search.
+  about 5-6 working-size shadow images, against 8-8.5 for the earlier search. Ranked against
+  the found shadows' probability instead of the mask (2026-12-05, the default): **80.9 %
+  (38), mean gap +0.003** (the mask: 70.2 %, +0.0154, re-measured that day).
 * held-out synthetic views (``outcast data make --seed 1000000``, 128 px; ``--synthetic
   ~/.cache/outcast/data/test --limit 60 [--given-depth] [--measure shading]``, the first 15
   views x 4 suns): median angle to the true sun with the default search: 65° with the
