@@ -56,6 +56,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
+from typing import BinaryIO
 
 import cv2
 import numpy as np
@@ -269,6 +270,8 @@ def read_image(
             meta = metadata_from_exif(exif)
             stored_w, stored_h = _stored_size(im, meta.orientation)
             _check_jpeg_size(path, fmt, stored_w, stored_h)
+            if fmt == "PNG":
+                _check_png_chunks(path)
             target = _fit_size(stored_w, stored_h, max_pixels)
             bits = _bits_per_sample(im, path)
             alpha = _has_transparency(im)
@@ -381,7 +384,8 @@ def check_photo_file(path: str | os.PathLike[str]) -> None:
     refused when that stops short, unless only the marker is missing
     (:func:`_jpeg_lacking_only_its_end`): a truncated JPEG passed the header check, so the
     app asked to save the open photo's changes before it said the new one was damaged (a user
-    trial). Other formats are checked when their pixels are read.
+    trial). A PNG's chunks are walked (:func:`_check_png_chunks`). Other formats are checked
+    when their pixels are read.
 
     Raises:
         ImageReadError: as :func:`read_image`, for what the header shows.
@@ -394,6 +398,8 @@ def check_photo_file(path: str | os.PathLike[str]) -> None:
             if fmt in ("JPEG", "MPO"):
                 _check_jpeg_size(path, fmt, *im.size)
                 _check_jpeg_complete(im, path, fmt)
+            elif fmt == "PNG":
+                _check_png_chunks(path)
     except ImageReadError:
         raise
     except Exception as exc:  # noqa: BLE001 - Pillow raises many types for broken headers
@@ -675,27 +681,59 @@ def _exif_of(im: Image.Image, path: Path) -> tuple[Image.Exif | None, bytes | No
     return exif, data
 
 
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+#: How many of a PNG's chunks :func:`_check_png_chunks` walks (a 12 MP PNG has a few hundred).
+PNG_CHECKED_CHUNKS = 100_000
+
+
+def _png_chunks(f: BinaryIO, max_chunks: int) -> Iterator[tuple[bytes, int, int]]:
+    """``(kind, length, end)`` of each chunk of an open PNG file after its signature, up to
+    ``IEND``, the end of the file or ``max_chunks``; ``end`` is where its data ends. The file
+    is at the chunk's data when it is yielded (the walk seeks on, whatever the caller reads)."""
+    pos = f.tell()
+    for _ in range(max_chunks):
+        f.seek(pos)
+        head = f.read(8)
+        if len(head) < 8:
+            return
+        length, kind = int.from_bytes(head[:4], "big"), head[4:]
+        yield kind, length, pos + 8 + length
+        if kind == b"IEND":
+            return
+        pos += 12 + length  # head, data and CRC
+
+
 def _png_exif_chunk(path: Path, max_chunks: int = 10_000) -> bytes | None:
     """The data of a PNG's ``eXIf`` chunk, found by seeking from chunk to chunk (no decoding).
 
     Returns None when there is none, the file is truncated, or after ``max_chunks`` chunks.
     """
     with open(path, "rb") as f:
-        if f.read(8) != b"\x89PNG\r\n\x1a\n":
+        if f.read(8) != PNG_SIGNATURE:
             return None
-        for _ in range(max_chunks):
-            head = f.read(8)
-            if len(head) < 8:
-                return None
-            length = int.from_bytes(head[:4], "big")
-            kind = head[4:]
+        for kind, length, _ in _png_chunks(f, max_chunks):
             if kind == b"eXIf":
                 data = f.read(length)
                 return data if len(data) == length else None
-            if kind == b"IEND":
-                return None
-            f.seek(length + 4, os.SEEK_CUR)  # chunk data and CRC
     return None
+
+
+def _check_png_chunks(path: Path) -> None:
+    """Refuse a PNG one of whose chunks says it is longer than the rest of the file (no
+    decoding). Pillow reads what such a length says before it finds the file short: a 60-byte
+    PNG whose image-data chunk claimed 84 MB made it allocate 84 MB (a fuzz test), and a length
+    may say 2 GB. Not a PNG, or cut short between chunks (its end missing), passes."""
+    size = path.stat().st_size
+    with open(path, "rb") as f:
+        if f.read(8) != PNG_SIGNATURE:
+            return
+        for kind, _, end in _png_chunks(f, PNG_CHECKED_CHUNKS):
+            if end > size:
+                name = kind.decode("latin-1") if kind.isalpha() else repr(kind)
+                raise ImageReadError(
+                    f"cannot read image '{path}': the file is truncated or corrupt: its "
+                    f"{size:,} bytes stop before the end of the PNG", ImageReadReason.DAMAGED,
+                    f"its {name} chunk runs {end - size:,} bytes past the end of the file")
 
 
 def _fit_size(width: int, height: int, max_pixels: int | None) -> tuple[int, int] | None:

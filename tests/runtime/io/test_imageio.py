@@ -429,6 +429,40 @@ def test_truncated_files(tmp_path: Path, name: str, bit_depth: int) -> None:
     _check_error(path, "truncated or corrupt", ImageReadReason.DAMAGED)
 
 
+def test_a_png_chunk_longer_than_the_file_is_refused_before_decoding(tmp_path: Path) -> None:
+    """A chunk whose length runs past the end of the file (a corrupt or cut PNG) is refused,
+    by reading and by the app's quick check, without reading what the length says (Pillow
+    read 84 MB for a 60-byte file: a fuzz test); a PNG lacking only its end chunk is read."""
+    import tracemalloc
+
+    from outcast_core.runtime.io.imageio import check_photo_file
+
+    whole = tmp_path / "whole.png"
+    Image.fromarray((_noise_image(30, 40) * 255).round().astype(np.uint8)).save(whole)
+    data = whole.read_bytes()
+    assert data.endswith(b"IEND\xaeB`\x82")
+    no_end = tmp_path / "no_end.png"
+    no_end.write_bytes(data[:-12])
+    np.testing.assert_array_equal(read_image(no_end).image_srgb, read_image(whole).image_srgb)
+    check_photo_file(no_end)
+    idat = data.index(b"IDAT") - 4
+    claims = tmp_path / "claims.png"  # the image-data chunk says 2 GB
+    claims.write_bytes(data[:idat] + (2**31 - 1).to_bytes(4, "big") + data[idat + 4:])
+    for path in (claims, tmp_path / "cut.png"):
+        if path.name == "cut.png":
+            path.write_bytes(data[: idat + 20])
+        tracemalloc.start()
+        try:
+            _check_error(path, "truncated or corrupt", ImageReadReason.DAMAGED)
+        finally:
+            peak = tracemalloc.get_traced_memory()[1]
+            tracemalloc.stop()
+        assert peak < 8 * 2**20
+        with pytest.raises(ImageReadError, match="truncated or corrupt") as info:
+            check_photo_file(path)
+        assert "IDAT chunk runs" in info.value.detail
+
+
 @pytest.mark.parametrize("subsampling", [0, 2])  # 4:4:4 (8 x 8 blocks), 4:2:0 (16 x 16)
 def test_a_jpeg_lacking_only_its_end_marker_is_read(tmp_path: Path, subsampling: int) -> None:
     """Every block is there, only the end-of-image marker is missing (some writers leave it
@@ -1080,6 +1114,12 @@ def test_a_cut_short_16_bit_png_is_refused_without_libpng_noise(tmp_path: Path,
     (tmp_path / "cut.png").write_bytes(whole[: len(whole) // 2])
     err = _check_error(tmp_path / "cut.png", "truncated or corrupt", ImageReadReason.DAMAGED)
     assert err.message.endswith(f"its {len(whole) // 2:,} bytes stop before the end of the PNG")
+    assert "IDAT" not in err.message and "IDAT chunk runs" in err.detail  # (walked)
+    # Cut between two chunks: every chunk whole, the end chunk missing (told at decoding).
+    iend = whole.index(b"IEND") - 4
+    (tmp_path / "cut.png").write_bytes(whole[:iend])
+    err = _check_error(tmp_path / "cut.png", "truncated or corrupt", ImageReadReason.DAMAGED)
+    assert err.message.endswith(f"its {iend:,} bytes stop before the end of the PNG")
     assert "IEND" not in err.message and "IEND" in err.detail
     assert "libpng" not in capfd.readouterr().err
     (tmp_path / "tail.png").write_bytes(whole + b"\0" * 5000)
