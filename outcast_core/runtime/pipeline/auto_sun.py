@@ -886,12 +886,15 @@ def _dedupe(points: list[tuple[float, float]]) -> list[tuple[float, float]]:
 #: wall is flat). Chosen on the samples and the 47 dev photos (/tmp scripts; nothing fitted):
 #: the ski slope's sun is found, no other photo gives one (without the last three tests a white
 #: cloud on the pool and field-path samples, a pipe's white label and a garage door did).
+#: ``SUN_MAX_AREA`` was 0.06 until a user trial cropped the ski slope tight round its sun
+#: (the spot 0.062-0.092 of the frame: missed, and the shadows put the sun behind the camera);
+#: no dev photo or sample gives a sun at any limit up to 0.4 (2026-12-05, /tmp script).
 SUN_SATURATED = 0.97
 SUN_SKY_REACH = 0.03
 SUN_MIN_SKY = 0.05
 SUN_RING_SKY = 0.4
 SUN_MIN_AREA = 2e-4
-SUN_MAX_AREA = 0.06
+SUN_MAX_AREA = 0.15
 SUN_MIN_ROUND = 0.4
 SUN_RING_SATURATION = 0.15
 SUN_FALLOFF = 1.2
@@ -1260,6 +1263,10 @@ def find_sun(
             off = abs((seen_az - prior.azimuth + 180.0) % 360.0 - 180.0)
             if off > 10.0:
                 note += f"; the EXIF compass heading puts it {off:.0f}° away"
+        if cam_el < -0.5:  # (a user trial's sideways photo: elevation 0 said nothing more)
+            note += (f"; it stands {-cam_el:.0f}° below the picture's level middle, so the "
+                     "camera was tilted up, or the photo is cropped off-centre or on its side "
+                     "(its elevation is taken as 0 in the camera's frame)")
         cam_el = min(90.0, max(0.0, cam_el))
     stages["finals"] = time.perf_counter() - lap[0]
     report("done", 1.0)
