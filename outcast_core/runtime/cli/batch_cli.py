@@ -32,6 +32,7 @@ from outcast_core.runtime.cli.timelapse_cli import (
     fps_value,
     frame_count,
     sweep_ends,
+    sweep_turn_note,
 )
 from outcast_core.runtime.pipeline.batch import (
     FORMATS,
@@ -300,6 +301,9 @@ def run_batch_command(args: argparse.Namespace) -> int:
         print("outcast batch: note: a day's first and last frames, the sun at the horizon, come "
               "out dark where the photo's exposure is kept (a project's \"Meter the new "
               "light\" meters them); --exposure metered meters every frame", file=sys.stderr)
+    turn = sweep_turn_note(options.sweep) if options.sweep else ""
+    if turn and jobs and not args.quiet:  # (as `outcast timelapse` says it)
+        print(f"outcast batch: note: {turn}", file=sys.stderr)
     unused = sum(row["to_sun"] is not None for row in targets or ()) if (
         options.kind != "relight") else 0
     if unused and not args.quiet:  # (a user trial: they were ignored without a word)

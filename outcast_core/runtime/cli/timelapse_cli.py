@@ -90,9 +90,36 @@ def sweep_ends(text: str) -> tuple[tuple[float, float], tuple[float, float]]:
     return _angles(parts[0]), _angles(parts[1])
 
 
-#: ``--sweep``'s help: the rule for an end below the horizon.
-SWEEP_HELP = ("an end may be below the horizon (those frames render with the sun just above "
-              f"it, at {MIN_RENDER_ELEVATION:g} deg)")
+#: ``--sweep``'s help: the azimuths' rule and an end below the horizon.
+SWEEP_HELP = ("the azimuth runs between the numbers as typed: 90,30:270,30 passes behind the "
+              "camera (180), 90,30:-90,30 in front (0); an end may be below the horizon "
+              f"(those frames render with the sun just above it, at {MIN_RENDER_ELEVATION:g} "
+              "deg)")
+
+
+def sweep_turn_note(ends: tuple[tuple[float, float], tuple[float, float]]) -> str:
+    """What to say of a ``--sweep`` that turns the long way round (more than 180 degrees of
+    azimuth, as typed), or "": a user trial's 320,15:30,15 went round behind the camera where
+    the short way, in front, was meant.
+
+    Example:
+        >>> note = sweep_turn_note(((320.0, 15.0), (30.0, 15.0)))
+        >>> note.startswith("the sweep turns 290° of azimuth as typed, through 175° (behind")
+        True
+        >>> note.endswith("--sweep -40,15:30,15 turns the other way, 70°")
+        True
+        >>> sweep_turn_note(((-40.0, 15.0), (30.0, 15.0)))
+        ''
+    """
+    (az0, el0), (az1, el1) = ends
+    turn = abs(az1 - az0)
+    if turn <= 180.0:
+        return ""
+    middle = ((az0 + az1) / 2.0) % 360.0
+    where = "behind the camera" if 90.0 < middle < 270.0 else "in front of the camera"
+    short = az0 - 360.0 if az0 > az1 else az0 + 360.0
+    return (f"the sweep turns {turn:.0f}° of azimuth as typed, through {middle:.0f}° ({where}); "
+            f"--sweep {short:g},{el0:g}:{az1:g},{el1:g} turns the other way, {360.0 - turn:.0f}°")
 
 
 def _number(lo: float, hi: float, what: str) -> Callable[[str], float]:
@@ -476,6 +503,9 @@ def _run_timelapse(args: argparse.Namespace, loaded: Any, exif: Any, session: An
         dim = dark_frames_note(session, samples)
         if dim:
             print(f"note: {dim}", file=sys.stderr)
+        turn = sweep_turn_note(args.sweep) if args.sweep is not None else ""
+        if turn:
+            print(f"note: {turn}", file=sys.stderr)
     render_timelapse(
         session,
         samples,

@@ -271,6 +271,14 @@ def test_timelapse_says_an_odd_frame_size_is_padded_for_h264(
                      "-o", str(gif), "--force"]) == 0
         err = capsys.readouterr().err
         assert ("a GIF plays at most 50 fps: its frames are written 20 ms apart" in err) is said
+        assert "the sweep turns" not in err  # 180 degrees as typed: no other way is shorter
+    # A sweep the long way round (as typed) is said, with the other way (a user trial's
+    # 320,15:30,15 went round behind the camera).
+    assert main(["timelapse", str(photo), "--from", "120,40", "--sweep", "320,15:30,15",
+                 "--frames", "2", "--preset", "fast", "--depth", str(depth),
+                 "-o", str(gif), "--force"]) == 0
+    assert ("note: the sweep turns 290° of azimuth as typed, through 175° (behind the camera); "
+            "--sweep -40,15:30,15 turns the other way, 70°") in capsys.readouterr().err
 
 
 def test_timelapse_of_a_day_says_nothing_with_q(tmp_path: Path,
