@@ -44,7 +44,7 @@ def cmd_sun(args: argparse.Namespace) -> int:
 
     loaded = _load(args.image, keep_uint8=True)  # as the app reads it: the same sun
     session = _make_session(args, shadow_mode=args.mode)
-    _set_image(session, loaded, args)
+    _set_image(session, loaded, args, small_note=False)  # (find_sun's note says it)
     heading = None if args.heading is None else args.heading % 360.0
     prior = None if args.no_exif else exif_sun_prior(loaded.exif, heading=heading)
     night = None if args.no_exif else sun_below_horizon_at_capture(loaded.exif)

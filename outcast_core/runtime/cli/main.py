@@ -327,7 +327,11 @@ def _set_depth_source(session, loaded, args: argparse.Namespace) -> None:
     session.depth_provider = provider
 
 
-def _set_image(session, loaded, args: argparse.Namespace, progress=None) -> None:
+def _set_image(session, loaded, args: argparse.Namespace, progress=None, *,
+               small_note: bool = True) -> None:
+    """Give ``session`` the photo and the depth the options ask for, then warn of what may
+    make the output meaningless; ``small_note``: whether a photo too small to relight is
+    said (``outcast sun`` says in its own words that its shadows are too small to read)."""
     depth = None
     if getattr(args, "depth", None):
         from outcast_core.runtime.io.imageio import read_depth
@@ -342,7 +346,7 @@ def _set_image(session, loaded, args: argparse.Namespace, progress=None) -> None
 
     # Said even with -q: the output is made, and may be meaningless (the transparency was
     # said as the photo was read).
-    for note in photo_warnings(loaded, session, transparency=False):
+    for note in photo_warnings(loaded, session, transparency=False, small=small_note):
         print(f"outcast: warning: {note}", file=sys.stderr)
 
 

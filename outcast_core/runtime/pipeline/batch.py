@@ -1059,7 +1059,8 @@ def small_photo_note(width: int, height: int) -> str:
             "on the shorter side there are too few for them)")
 
 
-def photo_warnings(loaded: Any, session: Any, *, transparency: bool = True) -> list[str]:
+def photo_warnings(loaded: Any, session: Any, *, transparency: bool = True,
+                   small: bool = True) -> list[str]:
     """What ``outcast relight`` warns of for a photo (and a batch reports with its result):
     transparency filled with white, a strip's shape
     (:func:`~outcast_core.runtime.pipeline.session.elongation_note`), a photo too small
@@ -1072,6 +1073,8 @@ def photo_warnings(loaded: Any, session: Any, *, transparency: bool = True) -> l
         session: its session, after ``set_image``.
         transparency: include the transparency's note (the command line says it as it reads
             the photo).
+        small: include the note of a photo too small to relight (``outcast sun`` says it in
+            the sun's terms: a user trial read of relighting from the sun command).
     """
     from outcast_core.runtime.pipeline.session import elongation_note
 
@@ -1079,8 +1082,8 @@ def photo_warnings(loaded: Any, session: Any, *, transparency: bool = True) -> l
     notes = []
     if transparency and loaded.has_alpha:
         notes.append("its transparency is filled with white (the output has none)")
-    notes += [note for note in (elongation_note(width, height), small_photo_note(width, height))
-              if note]
+    notes += [note for note in (elongation_note(width, height),
+                                small_photo_note(width, height) if small else "") if note]
     if str(session.depth_source).startswith("ground-plane prior"):
         folder = session.registry.directory_for("depth")
         notes.append(f"no depth model in '{folder}': the depth is a flat ground plane, so the "

@@ -448,6 +448,12 @@ def test_a_photo_too_small_to_relight_is_warned_of(tmp_path, capsys, size, warne
     w, h = size
     assert (f"outcast: warning: the photo is only {w} x {h} pixels: too small to relight "
             "meaningfully" in err) is warned, err
+    # `outcast sun` says it in the sun's terms, not the relighting's (a user trial).
+    assert main(["sun", str(small), "--preset", "fast"]) in (0, 3)
+    err = capsys.readouterr().err
+    assert "relight" not in err
+    # (find_sun reads shadows from 64 pixels on the shorter side up: 24 x 24 is small for it)
+    assert "too small or too narrow for its shadows to tell the sun" in err or not warned, err
 
 
 def test_a_truncated_photo_is_said_in_plain_words(tmp_path, capsys) -> None:
