@@ -1264,9 +1264,9 @@ def find_sun(
             if off > 10.0:
                 note += f"; the EXIF compass heading puts it {off:.0f}° away"
         if cam_el < -0.5:  # (a user trial's sideways photo: elevation 0 said nothing more)
-            note += (f"; it stands {-cam_el:.0f}° below the picture's level middle, so the "
-                     "camera was tilted up, or the photo is cropped off-centre or on its side "
-                     "(its elevation is taken as 0 in the camera's frame)")
+            note += (f"; it stands {-cam_el:.0f}° below the height of the picture's centre, "
+                     "so the camera was tilted up, or the photo is cropped off-centre or on "
+                     "its side (its elevation is taken as 0 in the camera's frame)")
         cam_el = min(90.0, max(0.0, cam_el))
     stages["finals"] = time.perf_counter() - lap[0]
     report("done", 1.0)

@@ -352,7 +352,7 @@ def test_the_sun_in_a_tight_crop_is_found() -> None:
     assert fit.source == "sun in the frame" and fit.found and fit.confidence == 1.0
     assert abs((fit.azimuth + 180.0) % 360.0 - 180.0) < 35.0  # ahead, as in the whole photo
     # It stands below the crop's middle row: said, not only an elevation of 0.
-    assert fit.elevation == 0.0 and "below the picture's level middle" in fit.note
+    assert fit.elevation == 0.0 and "below the height of the picture's centre" in fit.note
 
 
 def test_the_sun_in_the_frame_and_the_exif_elevation_give_the_camera_pitch() -> None:
