@@ -1791,6 +1791,11 @@ class MainWindow(QMainWindow):
             elif fit.source == SOURCE_SUN_IN_FRAME:  # exact: no prior had a say
                 text = (f"Sun found in the frame: azimuth {fit.azimuth:.1f}°, elevation "
                         f"{fit.elevation:.1f}°")
+                if fit.below_level > 0.0:  # (a user trial's sideways photo: 0° said no more)
+                    from outcast_core.runtime.pipeline.auto_sun import below_level_words
+
+                    words = below_level_words(fit.below_level)
+                    text += f" · {words[0].upper()}{words[1:]}"
             elif result.get("prior") is not None:
                 text += f" · using {self._prior_words(result['prior'])}"
             if fit.compass_decided:  # found in a cold cell of the dial: say why, and the warm
@@ -1833,7 +1838,7 @@ class MainWindow(QMainWindow):
         # compass chose among near ties, or the EXIF's sun placed where the shadows tell
         # nothing (a user trial saw that last one only in the status bar, cut short).
         notice = (text if not placed or fit.compass_decided or fit.source == SOURCE_EXIF
-                  else "")
+                  or fit.below_level > 0.0 else "")
         prior = result.get("prior")
         if not notice and prior is not None and prior.azimuth is not None:
             off = dm.azimuth_gap(fit.azimuth, prior.azimuth)

@@ -71,6 +71,31 @@ def test_a_sun_the_compass_chose_says_where_the_shadows_alone_point(window, phot
     assert "near 200°, 36° (the warm area of the dial)" in text
 
 
+def test_a_seen_sun_below_the_level_plane_is_said_above_the_photo(window, photo, settle,
+                                                                  monkeypatch):
+    """A sun in the frame below the camera's level plane (a sideways photo or an off-centre
+    crop: a user trial) is placed on the horizon and said, in the status and above the
+    photo, not only shown at elevation 0."""
+    from dataclasses import replace
+
+    _load(window, photo, settle)
+    fit = replace(_fit(354.0, 0.0), source=auto_sun.SOURCE_SUN_IN_FRAME, confidence=1.0,
+                  below_level=7.3)
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)
+    window.find_sun()
+    settle()
+    text = window.stage_label.text()
+    assert text.startswith("Sun found in the frame: azimuth 354.0°, elevation 0.0° · It stands "
+                           "7° below the height of the picture's centre")
+    assert "It stands 7°" in window.align_panel.notice.text()
+    assert window.align_panel.sun_panel.sun() == pytest.approx((354.0, 0.0))
+    level = replace(fit, below_level=0.0)  # in the frame and above it: nothing more to say
+    monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: level)
+    window.find_sun()
+    settle()
+    assert "below the height" not in window.stage_label.text()
+
+
 def test_no_clear_shadows_is_said_and_the_sun_stays(window, photo, settle, monkeypatch):
     _load(window, photo, settle)
     panel = window.align_panel.sun_panel

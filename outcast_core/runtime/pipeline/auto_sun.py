@@ -401,6 +401,9 @@ class SunFit:
         compass_decided: found where a compass heading put it, among suns the shadows fit
             about alike: the map (coarser, without the prior) is cold there
             (:data:`COLD_ON_MAP`), and its warm area is what the shadows alone say.
+        below_level: how far (degrees) the sun seen in the frame stands below the camera's
+            level plane, which ``elevation`` (0) does not show: the camera was tilted up, or
+            the photo is cropped off-centre or on its side; 0 otherwise.
         seconds: wall time.
         stage_seconds: wall time per stage (``photo shadows``, ``dome``, ``ring``, ``refine``,
             ``finals``).
@@ -427,6 +430,7 @@ class SunFit:
     stage_seconds: dict[str, float] = field(default_factory=dict)
     compass_decided: bool = False
     unfound: str = ""
+    below_level: float = 0.0
 
     def as_dict(self) -> dict[str, Any]:
         """Plain values for JSON (the map is left out)."""
@@ -438,7 +442,7 @@ class SunFit:
             "true_elevation": round(self.true_elevation, 2), "pitch": round(self.pitch, 2),
             "roll": round(self.roll, 2), "pose_source": self.pose_source,
             "compass_decided": self.compass_decided, "unfound": self.unfound,
-            "evaluations": self.evaluations,
+            "below_level": round(self.below_level, 2), "evaluations": self.evaluations,
             "seconds": round(self.seconds, 3), "stage_seconds": self.stage_seconds,
             "candidates": [[round(a, 2), round(e, 2), round(s, 4)] for a, e, s in self.candidates],
             "candidates_ranked_by": "agreement, shading and the EXIF prior's pull",
@@ -990,6 +994,18 @@ def sun_in_photo(image_srgb: np.ndarray, sky: np.ndarray, camera: Any) -> SunInP
     return SunInPhoto(w=ray / np.linalg.norm(ray), u=u, v=v, area=area / (h * w))
 
 
+def below_level_words(degrees: float) -> str:
+    """What :attr:`SunFit.below_level` means, for a note (the command line's and the app's).
+
+    Example:
+        >>> below_level_words(7.3).startswith("it stands 7° below the height of the picture")
+        True
+    """
+    return (f"it stands {degrees:.0f}° below the height of the picture's centre, so the camera "
+            "was tilted up, or the photo is cropped off-centre or on its side (its elevation "
+            "is taken as 0 in the camera's frame)")
+
+
 def find_sun(
     session: Any,
     *,
@@ -1191,6 +1207,7 @@ def find_sun(
     cam_el = min(90.0, max(0.0, cam_el))
     compass_decided = False
     unfound = ""
+    below_level = 0.0
     if found:
         note = f"sun found from the photo's shadows (confidence {confidence:.2f})"
         if look is not None and amap.at(cam_az, cam_el) < COLD_ON_MAP and (
@@ -1264,9 +1281,8 @@ def find_sun(
             if off > 10.0:
                 note += f"; the EXIF compass heading puts it {off:.0f}° away"
         if cam_el < -0.5:  # (a user trial's sideways photo: elevation 0 said nothing more)
-            note += (f"; it stands {-cam_el:.0f}° below the height of the picture's centre, "
-                     "so the camera was tilted up, or the photo is cropped off-centre or on "
-                     "its side (its elevation is taken as 0 in the camera's frame)")
+            below_level = -float(cam_el)
+            note += f"; {below_level_words(below_level)}"
         cam_el = min(90.0, max(0.0, cam_el))
     stages["finals"] = time.perf_counter() - lap[0]
     report("done", 1.0)
@@ -1279,7 +1295,7 @@ def find_sun(
         shading=best_shading, measure=measure, true_elevation=true_el,
         pitch=frame.pitch, roll=frame.roll, pose_source=pose_source, evaluations=evaluations,
         stage_seconds={k: round(v, 4) for k, v in stages.items()},
-        compass_decided=compass_decided, unfound=unfound,
+        compass_decided=compass_decided, unfound=unfound, below_level=below_level,
         seconds=time.perf_counter() - t0,
     )
 
@@ -1295,6 +1311,7 @@ __all__ = [
     "SunPrior",
     "agreement",
     "at_true_elevation",
+    "below_level_words",
     "camera_tilt",
     "describe_tilt",
     "exif_sun_prior",
