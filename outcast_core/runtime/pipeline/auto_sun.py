@@ -474,7 +474,7 @@ def agreement(predicted: np.ndarray, found: np.ndarray, valid: np.ndarray) -> np
     if pred.shape[-2:] != found.shape or found.shape != valid.shape:
         raise ValueError(f"expected masks of one size, got {pred.shape}, {found.shape} and "
                          f"{valid.shape}")
-    shade = np.clip(found.astype(np.float64), 0.0, 1.0)
+    shade = np.clip(np.nan_to_num(found.astype(np.float64)), 0.0, 1.0)  # (NaN: lit)
     pos = np.where(valid, shade, 0.0).ravel()  # each pixel's weight on the shadow side
     neg = np.where(valid, 1.0 - shade, 0.0).ravel()  # and on the lit side
     p, n = float(pos.sum()), float(neg.sum())

@@ -127,6 +127,17 @@ def test_agreement_is_one_minus_ber() -> None:
     valid = np.ones((4, 4), bool)
     pred = np.stack([found, ~found, np.ones((4, 4), bool)])
     np.testing.assert_allclose(agreement(pred, found, valid), [1.0, 0.0, 0.5])
+    # A probability: the mask's 0 and 1 give the same; each pixel weighs on the shadow side
+    # with its probability and on the lit side with the rest (NaN counts as lit).
+    np.testing.assert_allclose(agreement(pred, found.astype(np.float32), valid),
+                               [1.0, 0.0, 0.5])
+    unsure = np.where(found, 0.9, 0.3).astype(np.float32)
+    unsure[3, 3] = np.nan
+    # pred 0: TPR = 8 * 0.9 / (8 * 0.9 + 7 * 0.3); TNR = (7 * 0.7 + 1) / (8 * 0.1 + 7 * 0.7 + 1)
+    tpr, tnr = 7.2 / 9.3, 5.9 / 6.7
+    np.testing.assert_allclose(agreement(pred, unsure, valid),
+                               [0.5 * (tpr + tnr), 0.5 * (2.0 - tpr - tnr), 0.5], rtol=1e-6)
+    assert agreement(found, np.full((4, 4), 0.5), valid) == pytest.approx(0.5)  # no evidence
 
 
 def test_exif_sun_prior() -> None:
