@@ -1228,9 +1228,14 @@ def find_sun(
                 # and without the prior, is cold there (the pool sample: found 1 deg from its
                 # listed sun, in the map's coldest cell).
                 map_az, map_el = amap.best()
-                note += (f"; the shadows fit many suns almost as well and the compass heading "
-                         f"chose this one (the shadows alone fit best near azimuth "
-                         f"{map_az:.0f}°, elevation {map_el:.0f}°: the warm area of the map)")
+                # Said first: "found from the photo's shadows" then "the compass chose it"
+                # read as a contradiction (a user trial typed a wrong heading).
+                note = note.replace(
+                    "sun found from the photo's shadows",
+                    "sun placed by the compass heading among suns the photo's shadows fit "
+                    "about as well", 1)
+                note += (f" (the shadows alone fit best near azimuth {map_az:.0f}°, elevation "
+                         f"{map_el:.0f}°: the warm area of the map)")
     else:
         if legible < 1.0 and (legible < 0.5 or clarity * peak * strength >= CONFIDENT):
             h, w = session.image_srgb.shape[:2]
