@@ -195,6 +195,72 @@ def test_the_skyline_guide_keeps_the_surfaces_own_gain_and_changes_nothing_at_on
     assert err.max() < 0.1  # near the plain transfer's gains: no pixel flips to the other's
 
 
+def _roof_scene(k: int = 8) -> tuple[np.ndarray, ...]:
+    """A blue sky over a diagonal roof edge (off the working grid) at ``k`` x: a grey-blue
+    fascia 2.2 working pixels wide, then a dark soffit; the relighting keeps the sky's level
+    (gain 1.2, the new daylight) and darkens the roof to 0.4."""
+    big_h, big_w = 160, 240
+    yy, xx = np.mgrid[0:big_h, 0:big_w].astype(np.float32)
+    below = yy - (30 + 0.45 * xx)  # distance below the roof line (full-resolution rows)
+    sky = below < 0
+    fascia = ~sky & (below < 2.2 * k)
+    lin = np.where(sky[..., None], [0.30, 0.45, 0.85],
+                   np.where(fascia[..., None], [0.16, 0.21, 0.30], [0.05, 0.04, 0.035]))
+    lin = lin.astype(np.float32)
+    photo = linear_to_srgb(lin)
+    size = (big_w // k, big_h // k)
+    work = cv2.resize(photo, size, interpolation=cv2.INTER_AREA)
+    sky_work = cv2.resize(sky.astype(np.float32), size, interpolation=cv2.INTER_AREA) > 0.5
+    relit = linear_to_srgb(srgb_to_linear(work) * np.where(sky_work, 1.2, 0.4)[..., None])
+    return photo, lin, work, sky_work, gain_map(work, relit), fascia & (below > 1.5), below
+
+
+def test_the_skyline_guide_keeps_a_sky_coloured_fascia_on_the_roof(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The pool sample's roof fascia, grey-blue, is nearer the sky's mean colour than the
+    roof's (a mix with the dark soffit), so it took the sky's gain in triangles one working
+    pixel long, a staircase along the roof (a user trial). Measured against the pure surface
+    pixels near it, it keeps the roof's gain; the sky keeps its own. The old measure (the
+    means alone, luminance weighted as the chromaticity) still shows the staircase."""
+    from outcast_core.runtime.geometry import fullres
+    from outcast_core.runtime.geometry.fullres import SkyGuide
+
+    photo, lin, work, sky_work, gain, fascia, below = _roof_scene()
+    near_sky = (below < -1.5) & (below > -24)
+
+    def ratio() -> np.ndarray:
+        out = apply_gain(photo, gain, sky=SkyGuide(sky_work, work))
+        return (srgb_to_linear(out) / lin).mean(axis=-1)
+
+    r = ratio()
+    np.testing.assert_allclose(r[fascia], 0.4, atol=0.01)
+    np.testing.assert_allclose(r[near_sky], 1.2, atol=0.01)
+    monkeypatch.setattr(fullres, "SKYLINE_SKY_MATCH", 1e9)
+    monkeypatch.setattr(fullres, "SKYLINE_LUMINANCE_WEIGHT", 1.0)
+    assert (ratio()[fascia] > 0.6).sum() > 0.1 * fascia.sum()
+
+
+def test_the_skyline_guide_keeps_the_sky_seen_between_posts() -> None:
+    """Sky through slits 7 pixels wide between posts below the skyline (the pool's lattice):
+    the slits keep the sky's gain and the posts the surface's."""
+    from outcast_core.runtime.geometry.fullres import SkyGuide
+
+    k, big_h, big_w = 8, 160, 240
+    yy, xx = np.mgrid[0:big_h, 0:big_w]
+    sky = (yy < 50) | ((xx % 24 < 7) & (yy < 130))
+    lin = np.where(sky[..., None], [0.30, 0.45, 0.85], [0.20, 0.12, 0.05]).astype(np.float32)
+    photo = linear_to_srgb(lin)
+    size = (big_w // k, big_h // k)
+    work = cv2.resize(photo, size, interpolation=cv2.INTER_AREA)
+    sky_work = cv2.resize(sky.astype(np.float32), size, interpolation=cv2.INTER_AREA) > 0.5
+    relit = linear_to_srgb(srgb_to_linear(work) * np.where(sky_work, 1.2, 0.4)[..., None])
+    out = apply_gain(photo, gain_map(work, relit), sky=SkyGuide(sky_work, work))
+    r = (srgb_to_linear(out) / lin).mean(axis=-1)
+    rows = (yy > 60) & (yy < 120)
+    np.testing.assert_allclose(r[sky & rows], 1.2, atol=0.01)
+    np.testing.assert_allclose(r[~sky & rows], 0.4, atol=0.01)
+
+
 def _pole_scene(k: int = 6) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """A dark pole (not on the working grid) before a bright pool, at ``k`` x: the full photo,
     the working photo, its relighting (the pool shaded to 0.3, the pole kept, the working pixels
