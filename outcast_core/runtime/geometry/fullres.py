@@ -232,12 +232,9 @@ SKYLINE_REACH = 1
 #: :class:`SkyGuide`: below this squared distance (log colour) between the two sides' colours
 #: the choice by colour fades into the plain bilinear weights (noise would speckle it).
 SKYLINE_SEPARATION = 0.5
-#: :class:`SkyGuide`: how far (working pixels, each way) a skyline pixel looks for the surface's
-#: working pixels whose colour it may share (see :class:`SkyGuide`).
+#: :class:`SkyGuide`: how far (working pixels, each way) a skyline pixel looks for the working
+#: pixels of pure sky and of pure surface whose colour it may share (see :class:`SkyGuide`).
 SKYLINE_EXEMPLAR_REACH = 3
-#: :class:`SkyGuide`: the weight of the log luminance difference in the colour distances,
-#: against 1 for the chromaticity's (a surface lit or shaded differently keeps its hue).
-SKYLINE_LUMINANCE_WEIGHT = 0.3
 #: :class:`SkyGuide`: within this squared distance (log colour) of a nearby working pixel of
 #: sky away from the skyline, a pixel's colour is the sky's, and the surface's pixels are not
 #: consulted (the gaps between a pine's branches); from twice it on, they are.
@@ -266,22 +263,24 @@ class SkyGuide:
     The surface's mean is a poor likeness of a thin surface of the sky's lightness: the pool
     sample's grey-blue roof fascia was always nearer the sky's mean than the roof's (a mix
     with the dark soffit), and took the sky's gain in triangles one working pixel long, a
-    staircase along the roof when the roof was darkened (a user trial). So a pixel unlike
-    every working pixel of pure sky (no surface next to it) within
-    :data:`SKYLINE_EXEMPLAR_REACH` (:data:`SKYLINE_SKY_MATCH`) is also measured against the
-    nearest in colour of the pure surface pixels there, and the distances weigh luminance
-    less than chromaticity (:data:`SKYLINE_LUMINANCE_WEIGHT`: the lit leaves atop the pool's
-    trees had read as sky). Where no pure sky is within reach (the gaps between a pine's
-    branches, whose surface pixels mix in the sky) the means alone decide, as before; the
-    ski slope's pines, measured against pure surface pixels there too, took white specks of
-    the pines' lift. Looked at on the three samples (2026-12-05, relit 290,67.8 -> 55,40;
-    354,15 -> 200,30; 120,39 -> 270,30; /tmp): the fascia's staircase and the light
-    blotches on the roof's corner are gone, fewer pale specks atop the pool's trees, the ski
-    slope's pines and the field path as before (1,797 of the ski slope's 4 million pixels
-    brighter by more than 20 levels of 255, median 146 -> 198, pixels of 129 in the photo,
-    between the pines' and the sky's). The transfer of the ski slope enlarged to 16 MP takes
-    1.14 s instead of 0.88 (2 cores, best of 3; only the pixels the means call partly sky
-    are searched).
+    staircase along the roof when the roof was darkened (a user trial). So a pixel whose
+    3 x 3 mean colour (one pixel's noise would read as unlike) is unlike every working pixel
+    of pure sky (no surface next to it) within :data:`SKYLINE_EXEMPLAR_REACH`
+    (:data:`SKYLINE_SKY_MATCH`) is also measured against the nearest in colour of the pure
+    surface pixels there. Where no pure sky is within reach (the gaps between a pine's
+    branches, whose surface pixels mix in the sky) the means alone decide, as before; the ski
+    slope's pines, measured against pure surface pixels there too, took white specks of the
+    pines' lift. Looked at on the three samples (2026-12-05, relit 290,67.8 -> 55,40;
+    354,15 -> 200,30; 120,39 -> 270,30; /tmp): the fascia's staircase and the light blotches
+    on the roof's corner are gone, fewer pale specks atop the pool's trees, the ski slope's
+    pines and the field path much as before (2,107 of the ski slope's 4 million pixels
+    brighter by more than 20 of 255, mixed pixels between the pines' and the sky's). Noisy
+    skylines (a review's synthetic dusk sky over a roof, log noise 0.15 / 0.25 per pixel)
+    flip fewer pixels to the other side's gain than before: 64 / 556 of 8,958 against 71 /
+    632. Weighing luminance less than chromaticity in these distances (0.3) took more lit
+    leaves atop the pool's trees off the sky's gain but flipped noisy skylines (145 / 861).
+    The transfer of the ski slope enlarged to 16 MP takes 1.21 s instead of 0.88 (2 cores,
+    best of 3; only the pixels the means call partly sky are searched).
 
     Args:
         sky: ``h x w`` bool, the working-size sky mask.
@@ -305,7 +304,9 @@ class SkyGuide:
         """At working size: ``packed``, ``h x w x 14`` per pixel the sky side's presence within
         reach, its gain and its mean log colour there, then the same for the surface (one
         gather per neighbour at full resolution); ``band``, 1 where both sides are within
-        reach; ``rows``, per working row whether ``band`` has any pixel there."""
+        reach; ``rows``, per working row whether ``band`` has any pixel there; ``exemplars``,
+        the pure sky's and the pure surface's log colours (two ``3 x (h w)`` arrays: a pixel
+        of the other side, or next to it, holds a far colour) for :func:`_nearest_pure`."""
         size = (2 * SKYLINE_REACH + 1,) * 2
         parts = []
         for mask in (self.sky, ~self.sky):
@@ -323,9 +324,9 @@ class SkyGuide:
         packed = np.concatenate(parts, axis=-1).astype(np.float32)
         band = (packed[..., 0] > 0) & (packed[..., 7] > 0)
         # The working pixels away from the skyline (no pixel of the other side next to them),
-        # per side 3 x (h w): their colours in _colour_distance's frame (another side's far).
+        # per side 3 x (h w): their log colours (the other side's pixels far away).
         kernel = np.ones((3, 3), np.uint8)
-        frame = _distance_frame(self.log_photo.reshape(-1, 3))
+        frame = self.log_photo.reshape(-1, 3)
         exemplars = []
         for mask in (self.sky, ~self.sky):
             pure = cv2.erode(mask.astype(np.uint8), kernel, borderType=cv2.BORDER_REPLICATE)
@@ -340,25 +341,15 @@ class SkyGuide:
 _FAR = 1e4
 
 
-def _distance_frame(log_colour: np.ndarray) -> np.ndarray:
-    """``N x 3`` log colours in the frame where :func:`_colour_distance` is Euclidean: the
-    luminance (the mean of the three logs) scaled by the square root of
-    :data:`SKYLINE_LUMINANCE_WEIGHT`."""
-    v = np.asarray(log_colour, np.float32)
-    k = np.float32(1.0 - SKYLINE_LUMINANCE_WEIGHT ** 0.5)
-    return (v - k * v.mean(axis=1, keepdims=True)).astype(np.float32)
-
-
 def _colour_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Squared distance between ``N x 3`` log colours, the luminance (the mean of the three
-    logs) weighted by :data:`SKYLINE_LUMINANCE_WEIGHT` against the chromaticity."""
-    v = _distance_frame(a - b)
+    """Squared distance between ``N x 3`` log colours."""
+    v = a - b
     return (v * v).sum(axis=1)
 
 
 def _nearest_pure(frame: np.ndarray, exemplars: np.ndarray, yn: np.ndarray, xn: np.ndarray,
                   width: int, reach: int | None = None) -> np.ndarray:
-    """Per pixel (``frame``, ``3 x N``: its log colour in :func:`_distance_frame`'s frame;
+    """Per pixel (``frame``, ``3 x N``: its log colour;
     ``yn, xn`` the working pixel it lies in), the least :func:`_colour_distance` to the pure
     working pixels of one side (``exemplars``, one of :meth:`SkyGuide.sides`' two, ``3 x (h
     width)``) within ``reach`` (default :data:`SKYLINE_EXEMPLAR_REACH`) working pixels
@@ -382,12 +373,29 @@ def _nearest_pure(frame: np.ndarray, exemplars: np.ndarray, yn: np.ndarray, xn: 
     return best
 
 
+def _mean_log_colour(photo: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """The log colour (as :func:`_guard_skyline` takes it) of the 3 x 3 mean, in linear
+    light, round each of the photo's pixels ``(ys, xs)`` (``N x 3``; clamped at the photo's
+    edges, read from the whole photo so that no band's edge changes it)."""
+    height, width = photo.shape[:2]
+    acc = np.zeros((ys.size, 3), np.float32)
+    for dy in (-1, 0, 1):
+        yi = np.clip(ys + dy, 0, height - 1)
+        for dx in (-1, 0, 1):
+            px = photo[yi, np.clip(xs + dx, 0, width - 1)]
+            acc += (DECODE_U8[px] - np.float32(GAIN_EPS) if photo.dtype == np.uint8
+                    else srgb_to_linear(np.clip(px.astype(np.float32), 0.0, 1.0)))
+    return np.log(np.maximum(acc / np.float32(9.0), 0.0) + np.float32(_LOG_FLOOR))
+
+
 def _guard_skyline(g: np.ndarray, lin: np.ndarray, near: np.ndarray, r0: int,
                    sides: dict[str, np.ndarray], ycoef: tuple[np.ndarray, np.ndarray],
-                   xcoef: tuple[np.ndarray, np.ndarray]) -> None:
+                   xcoef: tuple[np.ndarray, np.ndarray], photo: np.ndarray) -> None:
     """:class:`SkyGuide`'s gain, in place, on the band's pixels near the skyline (``near``
     > 0: the upsampled ``band`` of :meth:`SkyGuide.sides`). ``lin`` is the band's linear
-    photo plus :data:`GAIN_EPS`; ``r0`` the band's first row."""
+    photo plus :data:`GAIN_EPS`; ``r0`` the band's first row; ``photo`` the whole photo (the
+    band's pixels are compared with the pure sky near them by their 3 x 3 mean: a single
+    pixel's noise read as unlike the sky)."""
     ys, xs = np.nonzero(near > 1e-6)
     if ys.size == 0:
         return
@@ -425,22 +433,23 @@ def _guard_skyline(g: np.ndarray, lin: np.ndarray, near: np.ndarray, r0: int,
     if pick.size:
         yn = np.where(fy >= 0.5, y1, y0)[pick]
         xn = np.where(fx >= 0.5, x1, x0)[pick]
-        frame = np.ascontiguousarray(_distance_frame(lf[pick]).T)
         sky_pure, surface_pure = sides["exemplars"]
         # Most of them match a pure sky pixel next to theirs: only the rest search further
         # (the same least distance wherever it matters: within the match it is all alike).
-        e_k = _nearest_pure(frame, sky_pure, yn, xn, w, reach=1)
+        smooth = np.ascontiguousarray(_mean_log_colour(photo, ys[pick] + r0, xs[pick]).T)
+        reach = min(1, SKYLINE_EXEMPLAR_REACH)
+        e_k = _nearest_pure(smooth, sky_pure, yn, xn, w, reach=reach)
         rest = np.flatnonzero(e_k > SKYLINE_SKY_MATCH)
-        if rest.size and SKYLINE_EXEMPLAR_REACH > 1:
-            e_k[rest] = _nearest_pure(np.ascontiguousarray(frame[:, rest]), sky_pure, yn[rest],
-                                      xn[rest], w)
+        if rest.size and reach < SKYLINE_EXEMPLAR_REACH:
+            e_k[rest] = _nearest_pure(np.ascontiguousarray(smooth[:, rest]), sky_pure,
+                                      yn[rest], xn[rest], w)
         unlike = np.clip((e_k - SKYLINE_SKY_MATCH) / SKYLINE_SKY_MATCH, 0.0, 1.0)
         unlike[~np.isfinite(e_k)] = 0.0  # (no pure sky near: the means decide, as before)
         far = np.flatnonzero(unlike > 0)
         if far.size:
             at = pick[far]
-            e_s = _nearest_pure(np.ascontiguousarray(frame[:, far]), surface_pure, yn[far],
-                                xn[far], w) ** 2
+            frame = np.ascontiguousarray(lf[at].T)
+            e_s = _nearest_pure(frame, surface_pure, yn[far], xn[far], w) ** 2
             ds = d_s[at]
             ds = ds * (np.minimum(ds, e_s) / np.maximum(ds, 1e-24)) ** unlike[far]
             by_colour[at] = ds / np.maximum(ds + d_k[at], 1e-24)
@@ -668,7 +677,8 @@ def apply_gain(
         if guard:
             y_first, y_last = int(ycoef[0][r0]), int(ycoef[0][r1 - 1]) + 1
             if sides["rows"][y_first:y_last + 1].any():  # (bands far from it: nothing to do)
-                _guard_skyline(g, lin, band_up.rows(r0, r1)[..., 0], r0, sides, ycoef, xcoef)
+                _guard_skyline(g, lin, band_up.rows(r0, r1)[..., 0], r0, sides, ycoef, xcoef,
+                               photo)
         cv2.multiply(lin, g, dst=lin)
         if out_u8:
             # (lin - e) * 65535, rounded and saturated to uint16 by OpenCV, then the table.
