@@ -98,28 +98,35 @@ SWEEP_HELP = ("the azimuth runs between the numbers as typed: 90,30:270,30 passe
 
 
 def sweep_turn_note(ends: tuple[tuple[float, float], tuple[float, float]]) -> str:
-    """What to say of a ``--sweep`` that turns the long way round (more than 180 degrees of
-    azimuth, as typed), or "": a user trial's 320,15:30,15 went round behind the camera where
-    the short way, in front, was meant.
+    """What to say of a ``--sweep`` that turns the long way round (more than 180 and less
+    than 360 degrees of azimuth, as typed), or "": a user trial's 320,15:30,15 went round
+    behind the camera where the short way, in front, was meant. A turn of 360 degrees or
+    more is taken as meant. The other way keeps the start as typed and is written
+    ``--sweep=...``, which the parser takes even when it starts with a minus (a review:
+    ``--sweep -40,15:30,15`` is read as an option).
 
     Example:
         >>> note = sweep_turn_note(((320.0, 15.0), (30.0, 15.0)))
         >>> note.startswith("the sweep turns 290° of azimuth as typed, through 175° (behind")
         True
-        >>> note.endswith("--sweep -40,15:30,15 turns the other way, 70°")
+        >>> note.endswith("--sweep=320,15:390,15 turns the other way, 70°")
         True
-        >>> sweep_turn_note(((-40.0, 15.0), (30.0, 15.0)))
-        ''
+        >>> sweep_turn_note(((30.0, 15.0), (320.0, 15.0))).endswith("--sweep=30,15:-40,15 "
+        ...                                                       "turns the other way, 70°")
+        True
+        >>> sweep_turn_note(((-40.0, 15.0), (30.0, 15.0))), sweep_turn_note(((0, 30), (360, 30)))
+        ('', '')
     """
     (az0, el0), (az1, el1) = ends
     turn = abs(az1 - az0)
-    if turn <= 180.0:
+    if not 180.0 < turn < 360.0:
         return ""
     middle = ((az0 + az1) / 2.0) % 360.0
     where = "behind the camera" if 90.0 < middle < 270.0 else "in front of the camera"
-    short = az0 - 360.0 if az0 > az1 else az0 + 360.0
+    other = az1 + 360.0 if az1 < az0 else az1 - 360.0
     return (f"the sweep turns {turn:.0f}° of azimuth as typed, through {middle:.0f}° ({where}); "
-            f"--sweep {short:g},{el0:g}:{az1:g},{el1:g} turns the other way, {360.0 - turn:.0f}°")
+            f"--sweep={az0:g},{el0:g}:{other:g},{el1:g} turns the other way, "
+            f"{360.0 - turn:.0f}°")
 
 
 def _number(lo: float, hi: float, what: str) -> Callable[[str], float]:
