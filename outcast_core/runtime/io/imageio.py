@@ -706,13 +706,18 @@ def _png_chunks(f: BinaryIO, max_chunks: int) -> Iterator[tuple[bytes, int, int]
 def _png_exif_chunk(path: Path, max_chunks: int = 10_000) -> bytes | None:
     """The data of a PNG's ``eXIf`` chunk, found by seeking from chunk to chunk (no decoding).
 
-    Returns None when there is none, the file is truncated, or after ``max_chunks`` chunks.
+    Returns None when there is none, the file is truncated (a chunk that says it runs past
+    the end is not read: a review's ``eXIf`` claiming 1.5 GB was allocated before the file
+    was found short), or after ``max_chunks`` chunks.
     """
-    with open(path, "rb") as f:
+    size = path.stat().st_size
+    with open(path, "rb", buffering=0) as f:
         if f.read(8) != PNG_SIGNATURE:
             return None
-        for kind, length, _ in _png_chunks(f, max_chunks):
+        for kind, length, end in _png_chunks(f, max_chunks):
             if kind == b"eXIf":
+                if end > size:
+                    return None
                 data = f.read(length)
                 return data if len(data) == length else None
     return None
@@ -724,8 +729,8 @@ def _check_png_chunks(path: Path) -> None:
     PNG whose image-data chunk claimed 84 MB made it allocate 84 MB (a fuzz test), and a length
     may say 2 GB. Not a PNG, or cut short between chunks (its end missing), passes."""
     size = path.stat().st_size
-    with open(path, "rb") as f:
-        if f.read(8) != PNG_SIGNATURE:
+    with open(path, "rb", buffering=0) as f:  # (a buffer refilled at each seek read half a
+        if f.read(8) != PNG_SIGNATURE:        # large PNG: a review)
             return
         for kind, _, end in _png_chunks(f, PNG_CHECKED_CHUNKS):
             if end > size:

@@ -448,7 +448,11 @@ def test_a_png_chunk_longer_than_the_file_is_refused_before_decoding(tmp_path: P
     idat = data.index(b"IDAT") - 4
     claims = tmp_path / "claims.png"  # the image-data chunk says 2 GB
     claims.write_bytes(data[:idat] + (2**31 - 1).to_bytes(4, "big") + data[idat + 4:])
-    for path in (claims, tmp_path / "cut.png"):
+    # An EXIF chunk after the image data that says 1.5 GB, the file ending in it (a review:
+    # the EXIF lookup, which runs first, read what it said before the file was found short).
+    exif = tmp_path / "exif_claims.png"
+    exif.write_bytes(data[:-12] + (1_500_000_000).to_bytes(4, "big") + b"eXIfII*\x00")
+    for path in (claims, tmp_path / "cut.png", exif):
         if path.name == "cut.png":
             path.write_bytes(data[: idat + 20])
         tracemalloc.start()
@@ -460,7 +464,7 @@ def test_a_png_chunk_longer_than_the_file_is_refused_before_decoding(tmp_path: P
         assert peak < 8 * 2**20
         with pytest.raises(ImageReadError, match="truncated or corrupt") as info:
             check_photo_file(path)
-        assert "IDAT chunk runs" in info.value.detail
+        assert ("eXIf" if path == exif else "IDAT") + " chunk runs" in info.value.detail
 
 
 @pytest.mark.parametrize("subsampling", [0, 2])  # 4:4:4 (8 x 8 blocks), 4:2:0 (16 x 16)
