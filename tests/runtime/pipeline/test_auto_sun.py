@@ -269,22 +269,33 @@ def test_cli_sun_says_no_shadows_and_errors_in_one_line(
     assert err.startswith("outcast sun: error:") and "\n" not in err
 
 
-def test_fine_dark_texture_is_not_taken_for_shadows(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_fine_dark_texture_is_left_out_of_the_shadows_the_search_matches() -> None:
     """Thin dark furrows on the lit ground are texture no sun casts: the found shadows the
-    search matches leave them out (``photo_shadows.without_texture``), so the true sun agrees
-    better (0.67 here, soft: the 3 px lit strips between the furrows keep a shadow probability
-    of 0.33) than matched with them (0.65)."""
+    search matches leave them out (``photo_shadows.without_texture``: at this small size the
+    furrows' mean shadow probability falls from 0.56 to 0.36, the true shadows keep 0.92),
+    and the search finds the true sun. (Whether the agreement is higher with them left out
+    says nothing: the two agreements are against different maps; a review.)"""
+    from outcast_core.runtime.pipeline.photo_shadows import (
+        photo_shadow_probability,
+        without_texture,
+    )
+
     w = sun_vector(150.0, 40.0)
     photo = _photo_lit_by(w)
+    lit = photo[..., 0] > 0.5
     furrows = np.zeros((H, W), bool)
     furrows[:, ::5] = furrows[:, 1::5] = True  # 2 px wide
     furrows[:, :24] = False  # on the right three quarters of the frame
-    photo[furrows & (photo[..., 0] > 0.5)] = 0.12
-    fit = find_sun(_session(photo))
+    furrows &= lit
+    photo[furrows] = 0.12
+    session = _session(photo)
+    raw = photo_shadow_probability(session.image_srgb, session.sky)
+    found = without_texture(raw)
+    assert found[furrows].mean() < raw[furrows].mean() - 0.15
+    shade = ~lit & ~session.sky
+    assert found[shade].mean() > 0.8
+    fit = find_sun(session)
     assert _angle(fit.w, w) <= 6.0, (fit.azimuth, fit.elevation)
-    monkeypatch.setattr(auto_sun, "without_texture", lambda p: p)
-    textured = find_sun(_session(photo))
-    assert fit.agreement > textured.agreement + 0.015
 
 
 def _sky_photo(h: int = 120, w: int = 160) -> tuple[np.ndarray, np.ndarray]:
