@@ -1796,14 +1796,20 @@ class MainWindow(QMainWindow):
 
                     words = below_level_words(fit.below_level)
                     text += f" · {words[0].upper()}{words[1:]}"
+            elif fit.compass_decided:  # found in a cold cell of the dial: said first, why,
+                # and the warm area ("Sun found" then "the compass chose it" read as a
+                # contradiction: a user trial; the command line's note says it so too)
+                map_az, map_el = m.best()
+                whose = self._heading_words()
+                whose = whose if whose.startswith("the ") else f"the {whose}"
+                text = (f"Sun placed by {whose}: azimuth {fit.azimuth:.1f}°, elevation "
+                        f"{fit.elevation:.1f}°, confidence {fit.confidence:.2f} (the photo's "
+                        f"shadows fit many suns about as well; alone they fit best near "
+                        f"{map_az:.0f}°, {map_el:.0f}°: the warm area of the dial)")
+                if result.get("prior") is not None:
+                    text += f" · using {self._prior_words(result['prior'])}"
             elif result.get("prior") is not None:
                 text += f" · using {self._prior_words(result['prior'])}"
-            if fit.compass_decided:  # found in a cold cell of the dial: say why, and the warm
-                map_az, map_el = m.best()
-                # (A user trial read "fit alike" against "fit best" as a contradiction.)
-                text += (f" · the shadows fit many suns almost as well and the compass heading "
-                         f"chose this one; the shadows alone fit best near {map_az:.0f}°, "
-                         f"{map_el:.0f}° (the warm area of the dial)")
         else:
             why = {
                 "too-small": "This photo is too small or too narrow for its shadows to tell "
@@ -1885,13 +1891,16 @@ class MainWindow(QMainWindow):
         horizon's; the dial shows the camera's)."""
         if prior.azimuth is None:
             return "the elevation from the photo's time and place"
+        return f"the photo's time, place and {self._heading_words()}"
+
+    def _heading_words(self) -> str:
+        """What gave the EXIF sun's azimuth, in words: the photo's compass heading, the
+        heading from the sun in the frame, or the one the user typed."""
         if self.user_heading is None:
-            whose = "compass heading"
-        elif self.seen_heading is not None and abs(self.user_heading - self.seen_heading) < 0.05:
-            whose = "the heading from the sun in the frame"
-        else:
-            whose = "the heading you typed"
-        return f"the photo's time, place and {whose}"
+            return "compass heading"
+        if self.seen_heading is not None and abs(self.user_heading - self.seen_heading) < 0.05:
+            return "the heading from the sun in the frame"
+        return "the heading you typed"
 
     @_typed_numbers_first
     def use_exif_sun(self) -> None:

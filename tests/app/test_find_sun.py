@@ -66,9 +66,16 @@ def test_a_sun_the_compass_chose_says_where_the_shadows_alone_point(window, phot
     window.find_sun()
     settle()
     text = window.stage_label.text()
-    assert text.startswith("Sun found") and "the compass heading chose this one" in text
-    assert "fit many suns almost as well" in text
-    assert "near 200°, 36° (the warm area of the dial)" in text
+    # The compass first: "Sun found" then "the compass chose it" read as a contradiction.
+    assert text.startswith("Sun placed by the compass heading: azimuth 0.0°"), text
+    assert "Sun found" not in text
+    assert "shadows fit many suns about as well" in text
+    assert "alone they fit best near 200°, 36°: the warm area of the dial" in text
+    # A heading the user typed is said as theirs.
+    window.user_heading = 120.0
+    window.find_sun()
+    settle()
+    assert window.stage_label.text().startswith("Sun placed by the heading you typed:")
 
 
 def test_a_seen_sun_below_the_level_plane_is_said_above_the_photo(window, photo, settle,
@@ -659,7 +666,7 @@ def test_the_search_notice_goes_when_the_sun_leaves_the_found_one(window, photo,
     monkeypatch.setattr(auto_sun, "find_sun", lambda session, **kw: fit)
     window.find_sun()
     settle()
-    assert "the compass heading chose this one" in notice.text()
+    assert "Sun placed by the compass heading" in notice.text()
     window.undo_stack.undo()
     settle()
     assert notice.text() == loaded
@@ -667,7 +674,7 @@ def test_the_search_notice_goes_when_the_sun_leaves_the_found_one(window, photo,
     settle()
     window.find_sun()
     settle()
-    assert "the compass heading chose this one" in notice.text()
+    assert "Sun placed by the compass heading" in notice.text()
     window.align_panel.sun_panel.set_sun(30.0, 40.0)  # moved on the dial,
     window.request_shadow(preview=False)  # its overlay asked for, as a drag's end does
     settle()

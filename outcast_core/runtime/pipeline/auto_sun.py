@@ -251,6 +251,9 @@ class SunPrior:
             sample (its compass right) the shadows no longer move the sun 61 degrees away
             (they did at 0.05, for 0.03 of agreement). No dev photo records a heading.
         description: words for the user ("elevation 38° from the photo's time and place").
+        heading_words: what gave ``azimuth``, for the notes: the EXIF's "compass heading" or
+            "heading given" (a heading the user typed; a review: the notes called it the
+            compass heading).
     """
 
     elevation: float
@@ -258,6 +261,7 @@ class SunPrior:
     elevation_tolerance: float = 2.0
     azimuth_weight: float = 0.15
     description: str = ""
+    heading_words: str = "compass heading"
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.elevation) and -90.0 <= self.elevation <= 90.0):
@@ -319,7 +323,8 @@ def exif_sun_prior(metadata: Any, heading: float | None = None) -> SunPrior | No
     whose = "the camera heading given" if heading is not None else "compass heading"
     return SunPrior(el, az, elevation_tolerance=tolerance,
                     description=f"azimuth {az:.0f}°, elevation {el:.0f}° from the photo's time, "
-                                f"place and {whose}{zone}")
+                                f"place and {whose}{zone}",
+                    heading_words="heading given" if heading is not None else "compass heading")
 
 
 @dataclass
@@ -1220,8 +1225,8 @@ def find_sun(
         if prior is not None and prior.azimuth is not None:
             off = abs((best_a - prior.azimuth + 180.0) % 360.0 - 180.0)
             if off > 45.0:
-                note += (f"; the shadows put the sun {off:.0f}° away from the EXIF compass "
-                         "heading's")
+                note += (f"; the shadows put the sun {off:.0f}° away from where the "
+                         f"{prior.heading_words} puts it")
             elif amap.at(cam_az, cam_el) < COLD_ON_MAP:
                 compass_decided = True
                 # The compass chose it among suns its shadows fit; the map, at a coarser size
@@ -1229,13 +1234,12 @@ def find_sun(
                 # listed sun, in the map's coldest cell).
                 map_az, map_el = amap.best()
                 # Said first: "found from the photo's shadows" then "the compass chose it"
-                # read as a contradiction (a user trial typed a wrong heading).
-                note = note.replace(
-                    "sun found from the photo's shadows",
-                    "sun placed by the compass heading among suns the photo's shadows fit "
-                    "about as well", 1)
-                note += (f" (the shadows alone fit best near azimuth {map_az:.0f}°, elevation "
-                         f"{map_el:.0f}°: the warm area of the map)")
+                # read as a contradiction (a user trial typed a wrong heading). The prior's
+                # words come last: their own bracket (a guessed time zone) ends the note.
+                note = (f"sun placed by the {prior.heading_words} among suns the photo's "
+                        f"shadows fit about as well (confidence {confidence:.2f}; alone they "
+                        f"fit best near azimuth {map_az:.0f}°, elevation {map_el:.0f}°: the "
+                        "warm area of the map); " + (prior.description or "from EXIF"))
     else:
         if legible < 1.0 and (legible < 0.5 or clarity * peak * strength >= CONFIDENT):
             h, w = session.image_srgb.shape[:2]
@@ -1284,7 +1288,7 @@ def find_sun(
             seen_az = sun_angles(seen.w, frame.pitch, frame.roll)[0]  # the horizon's frame
             off = abs((seen_az - prior.azimuth + 180.0) % 360.0 - 180.0)
             if off > 10.0:
-                note += f"; the EXIF compass heading puts it {off:.0f}° away"
+                note += f"; the {prior.heading_words} puts it {off:.0f}° away"
         if cam_el < -0.5:  # (a user trial's sideways photo: elevation 0 said nothing more)
             below_level = -float(cam_el)
             note += f"; {below_level_words(below_level)}"

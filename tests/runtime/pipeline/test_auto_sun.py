@@ -165,6 +165,8 @@ def test_exif_sun_prior() -> None:
     assert corrected is not None and corrected.azimuth == pytest.approx(typed.azimuth)
     assert "the camera heading given" in corrected.description
     assert "compass heading" in full.description
+    # The notes name what gave the azimuth (they called a typed heading the compass's).
+    assert (full.heading_words, typed.heading_words) == ("compass heading", "heading given")
 
 
 def test_a_capture_time_without_a_zone_is_read_at_its_longitudes_and_widens_the_prior() -> None:
@@ -577,7 +579,7 @@ def test_the_pool_samples_right_compass_holds_against_a_slight_shadow_preference
     assert fit.map.at(fit.azimuth, fit.elevation) < auto_sun.COLD_ON_MAP
     map_az, map_el = fit.map.best()
     assert fit.map.at(map_az, map_el) == 1.0
-    assert f"alone fit best near azimuth {map_az:.0f}°" in fit.note
+    assert f"alone they fit best near azimuth {map_az:.0f}°" in fit.note
     assert fit.as_dict()["compass_decided"] is True  # `outcast sun --json` says it too
 
 
@@ -609,7 +611,7 @@ def test_cli_sun_says_which_sun_is_in_which_frame(capsys: pytest.CaptureFixture[
     sample = Path(__file__).resolve().parents[3] / "samples" / "exif_003_th_pool.jpg"
     assert main(["sun", str(sample), "--preset", "fast"]) == 0
     said = capsys.readouterr()
-    assert "the shadows alone fit best near azimuth" in said.err  # the map's words, kept
+    assert "alone they fit best near azimuth" in said.err  # the map's words, kept
     assert "map" not in said.err and "against the horizon" not in said.err  # level camera
     from outcast_core.runtime.pipeline.session import RelightSession
 
