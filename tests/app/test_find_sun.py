@@ -80,7 +80,7 @@ def test_a_sun_the_compass_chose_says_where_the_shadows_alone_point(window, phot
 
 def test_a_seen_sun_below_the_level_plane_is_said_above_the_photo(window, photo, settle,
                                                                   monkeypatch):
-    """A sun in the frame below the camera's level plane (a sideways photo or an off-centre
+    """A sun in the frame below the picture's centre (a sideways photo or an off-centre
     crop: a user trial) is placed on the horizon and said, in the status and above the
     photo, not only shown at elevation 0."""
     from dataclasses import replace

@@ -406,9 +406,11 @@ class SunFit:
         compass_decided: found where a compass heading put it, among suns the shadows fit
             about alike: the map (coarser, without the prior) is cold there
             (:data:`COLD_ON_MAP`), and its warm area is what the shadows alone say.
-        below_level: how far (degrees) the sun seen in the frame stands below the camera's
-            level plane, which ``elevation`` (0) does not show: the camera was tilted up, or
-            the photo is cropped off-centre or on its side; 0 otherwise.
+        below_level: how far (degrees) the sun seen in the frame stands below the height of
+            the picture's centre (the plane through the camera's axis and its rows, measured
+            in the camera's own frame, whatever the photo's pitch), which ``elevation`` (0)
+            does not show: the camera was tilted up, or the photo is cropped off-centre or on
+            its side; 0 otherwise.
         seconds: wall time.
         stage_seconds: wall time per stage (``photo shadows``, ``dome``, ``ring``, ``refine``,
             ``finals``).

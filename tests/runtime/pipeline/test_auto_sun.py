@@ -363,8 +363,8 @@ def test_find_sun_takes_the_sun_in_the_frame(capsys: pytest.CaptureFixture[str])
 def test_the_sun_in_a_tight_crop_is_found() -> None:
     """The ski slope cropped to its top 30 %: the sun's clipped spot is 9 % of the frame (a
     user trial: missed above 6 %, and the shadows then put the sun behind the camera). Below
-    the crop's middle row, it is below the camera's level plane, which the note says (the
-    trial's sideways photo got elevation 0 at confidence 1 and no word)."""
+    the crop's middle row, it is below the height of the picture's centre, which the note
+    says (the trial's sideways photo got elevation 0 at confidence 1 and no word)."""
     from outcast_core.runtime.io.imageio import read_image
 
     sample = Path(__file__).resolve().parents[3] / "samples" / "exif_005_es_skislope.jpg"
