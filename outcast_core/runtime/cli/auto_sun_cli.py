@@ -81,6 +81,10 @@ def cmd_sun(args: argparse.Namespace) -> int:
         out["exif_camera_azimuth"], out["exif_camera_elevation"] = (
             (None, None) if seen_as is None else (round(seen_as[0], 2), round(seen_as[1], 2)))
         out["camera_heading"] = None if seen_heading is None else round(seen_heading, 2)
+        # The heading the EXIF records (camera_heading is the one a seen sun gives; a user
+        # trial looked for the recorded one there).
+        recorded = None if loaded.exif is None else getattr(loaded.exif, "heading_deg", None)
+        out["exif_heading"] = None if recorded is None else round(float(recorded), 2)
         out["note"] = note_for_the_cli(fit, prior)
         print(json.dumps(out, indent=2, ensure_ascii=False))
         if not sure:  # as without --json: a script's log says why there is no sun

@@ -1238,10 +1238,16 @@ def find_sun(
                 # Said first: "found from the photo's shadows" then "the compass chose it"
                 # read as a contradiction (a user trial typed a wrong heading). The prior's
                 # words come last: their own bracket (a guessed time zone) ends the note.
+                # How far from the EXIF sun, in degrees of arc: a high sun's azimuth moves
+                # fast (a user trial read 295° against the EXIF's 274° at 67° up, 8° of arc,
+                # as a contradiction).
+                arc = math.degrees(math.acos(float(np.clip(
+                    w_best @ frame.vector(prior.azimuth, prior.elevation), -1.0, 1.0))))
                 note = (f"sun placed by the {prior.heading_words} among suns the photo's "
-                        f"shadows fit about as well (confidence {confidence:.2f}; alone they "
-                        f"fit best near azimuth {map_az:.0f}°, elevation {map_el:.0f}°: the "
-                        "warm area of the map); " + (prior.description or "from EXIF"))
+                        f"shadows fit about as well, {arc:.0f}° of arc from the EXIF sun "
+                        f"(confidence {confidence:.2f}; alone they fit best near azimuth "
+                        f"{map_az:.0f}°, elevation {map_el:.0f}°: the warm area of the map); "
+                        + (prior.description or "from EXIF"))
     else:
         if legible < 1.0 and (legible < 0.5 or clarity * peak * strength >= CONFIDENT):
             h, w = session.image_srgb.shape[:2]

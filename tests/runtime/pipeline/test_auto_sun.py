@@ -354,6 +354,7 @@ def test_find_sun_takes_the_sun_in_the_frame(capsys: pytest.CaptureFixture[str])
 
     assert abs(out["camera_heading"] - 222.0) < 5.0
     exif = read_image(sample).exif
+    assert out["exif_heading"] == pytest.approx(exif.heading_deg, abs=0.01)  # the recorded one
     want = exif_sun(exif, heading=out["camera_heading"], tilt=(out["pitch"], out["roll"]))
     assert want == pytest.approx((out["azimuth"], out["elevation"]), abs=0.05)
     assert main(["sun", str(sample), "--preset", "fast", "-q"]) == 0
@@ -580,6 +581,9 @@ def test_the_pool_samples_right_compass_holds_against_a_slight_shadow_preference
     map_az, map_el = fit.map.best()
     assert fit.map.at(map_az, map_el) == 1.0
     assert f"alone they fit best near azimuth {map_az:.0f}°" in fit.note
+    # How far from the EXIF sun, in arc (a user trial read 295° against 274° at 67° up).
+    arc = _angle(fit.w, listed)
+    assert f", {arc:.0f}° of arc from the EXIF sun (" in fit.note
     assert fit.as_dict()["compass_decided"] is True  # `outcast sun --json` says it too
 
 
