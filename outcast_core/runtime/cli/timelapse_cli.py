@@ -195,9 +195,10 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
         "--from",
         dest="from_sun",
         type=sun_pair,
-        required=True,
+        default=None,
         metavar="AZ,EL",
-        help="the photo's original sun (aligned in the app)",
+        help="the photo's original sun (aligned in the app; default: the sun in the photo, "
+             "else its EXIF sun from GPS, time and compass heading, as relight takes it)",
     )
     p.add_argument("--sweep", type=sweep_ends, metavar="AZ1,EL1:AZ2,EL2",
                    help=f"sweep the sun A -> B; {SWEEP_HELP}")
@@ -471,10 +472,16 @@ def run_timelapse_command(args: argparse.Namespace) -> int:
 
 def _run_timelapse(args: argparse.Namespace, loaded: Any, exif: Any, session: Any,
                    report: ProgressLine) -> int:
-    from outcast_core.runtime.cli.main import _set_image
+    from outcast_core.runtime.cli.main import _original_sun, _set_image
 
     quiet = report.quiet
     _set_image(session, loaded, args, progress=report)
+    if args.from_sun is None:  # as relight and deshadow take it (a user trial asked why not)
+        from outcast_core.runtime.geometry.camera import sun_angles
+
+        report.end_line()
+        az, el = sun_angles(_original_sun(args, session, loaded, None))
+        args.from_sun = (az % 360.0, el)
 
     # The photo's tilt (set_image's photo_path) places the day's suns and is the daylight's
     # horizon, for a sweep too.

@@ -286,6 +286,25 @@ def test_timelapse_says_an_odd_frame_size_is_padded_for_h264(
     assert "the sweep turns" not in capsys.readouterr().err
 
 
+def test_timelapse_takes_the_photos_own_sun_without_from(tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]
+                                                         ) -> None:
+    """Without ``--from`` the time-lapse takes the photo's sun as relight does (a user trial:
+    it asked for ``--from`` where relight found the sun itself): the ski slope's sun in the
+    frame; the field path, with no compass and no sun in the frame, is refused saying why."""
+    samples = Path(__file__).resolve().parents[3] / "samples"
+    out = tmp_path / "ski.gif"
+    assert main(["timelapse", str(samples / "exif_005_es_skislope.jpg"), "--sweep",
+                 "90,30:270,30", "--frames", "2", "--size", "working", "--preset", "fast",
+                 "-o", str(out)]) == 0
+    assert "original sun: azimuth 354." in capsys.readouterr().err and out.is_file()
+    assert main(["timelapse", str(samples / "exif_001_cz_fieldpath.jpg"), "--sweep",
+                 "90,30:270,30", "--frames", "2", "--size", "working", "--preset", "fast",
+                 "-o", str(tmp_path / "field.gif")]) == 2
+    assert "no --from and no sun from the photo" in capsys.readouterr().err
+    assert not (tmp_path / "field.gif").exists()
+
+
 def test_timelapse_of_a_day_says_nothing_with_q(tmp_path: Path,
                                                 capsys: pytest.CaptureFixture[str]) -> None:
     """The field path has GPS and time but no compass: without -q the heading solved from the
