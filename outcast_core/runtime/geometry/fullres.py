@@ -349,11 +349,10 @@ def _colour_distance(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _nearest_pure(frame: np.ndarray, exemplars: np.ndarray, yn: np.ndarray, xn: np.ndarray,
                   width: int, reach: int | None = None) -> np.ndarray:
-    """Per pixel (``frame``, ``3 x N``: its log colour;
-    ``yn, xn`` the working pixel it lies in), the least :func:`_colour_distance` to the pure
-    working pixels of one side (``exemplars``, one of :meth:`SkyGuide.sides`' two, ``3 x (h
-    width)``) within ``reach`` (default :data:`SKYLINE_EXEMPLAR_REACH`) working pixels
-    (infinity where there is none)."""
+    """Per pixel (``frame``, ``3 x N``: its log colour; ``yn, xn``: the working pixel it lies
+    in), the least :func:`_colour_distance` to the pure working pixels of one side
+    (``exemplars``, one of :meth:`SkyGuide.sides`' two, ``3 x (h width)``) within ``reach``
+    (default :data:`SKYLINE_EXEMPLAR_REACH`) working pixels (infinity where there is none)."""
     height = exemplars.shape[1] // width
     best = np.full(frame.shape[1], np.inf, np.float32)
     acc = np.empty_like(best)
