@@ -786,6 +786,7 @@ def shadow_contrast_floor(
     lift_cap_srgb: np.ndarray | None = None,
     lift_fill: np.ndarray | None = None,
     shade_ratio: np.ndarray | None = None,
+    lift_ceiling: np.ndarray | None = None,
 ) -> np.ndarray:
     """Darken a learned relighting's new shadows at least as much as physics does.
 
@@ -872,6 +873,23 @@ def shadow_contrast_floor(
     (:data:`LIFT_SHADE_SHIFT`): 0.600 (median 0.432) by the same measure (0.628 / 0.496 just
     before it), synthetic x1.721 / x0.629 / 0.0272.
 
+    ``lift_ceiling`` (``H x W`` in [0, 1], or None; with ``lift_cap_srgb``): where the lift
+    may rise past the ceiling to physics' own level. The session's: the lift's guard where
+    the geometry casts a shadow at the photo's sun on a surface facing it (``S`` below
+    :data:`~outcast_core.runtime.pipeline.photo_shadows.PRIOR_THRESHOLD`, cosine above 0):
+    there the photo's shade is the sun's light taken away, which physics gives back, and the
+    de-shadowed ceiling under-lifts it. Measured on 2026-12-05 with the exposure anchor kept
+    from darkening the newly lit (:func:`anchor_exposure`), held-out synthetic views (``python3
+    scripts/eval_session_synthetic.py ~/.cache/outcast/data/test --max-views 40 --only 0,7``):
+    newly lit x1.727 -> x1.806 (physics x1.793), newly shadowed x0.629 -> x0.630 (x0.665),
+    MSE 0.0267 -> 0.0260 (0.0350); the 47 dev photos (``outcast eval real ../shared/realdev
+    --preset fast``): old shade 0.189 -> 0.133 (more of the photos' own shadows gone where
+    the new sun lights them), relit chroma 0.544 -> 0.550, relit detail 0.972 -> 0.967, and
+    what the found shadows wrongly include brightened more (false lift 1.328 -> 1.471: x3.8
+    -> x4.4). The anchor alone: x1.764, old shade 0.169, false lift 1.419; the ceiling
+    raised by the lift's guard alone (above 0.5, without the geometry) x1.814, old shade
+    0.139, false lift 1.529, and the pool's dark window panes turned light grey.
+
     ``shade_ratio`` (``H x W``, natural log, or None): how much darker than the lit surface
     round it the photo's own shade is there
     (:func:`~outcast_core.runtime.pipeline.photo_shadows.shade_log_ratio`); a newly shadowed
@@ -906,6 +924,12 @@ def shadow_contrast_floor(
             if fill.shape != y_up.shape:
                 raise ValueError(f"expected a lift fill of shape {y_up.shape}, got {fill.shape}")
             y_up = y_up + fill * (y_cap - y_up)
+        if lift_ceiling is not None:  # the geometry's cast shadows: up to physics
+            ceiling = np.asarray(lift_ceiling, np.float32)
+            if ceiling.shape != y_up.shape:
+                raise ValueError(f"expected a lift ceiling of shape {y_up.shape}, got "
+                                 f"{ceiling.shape}")
+            y_up = y_up + ceiling * np.maximum(y_p - y_up, 0.0)
     y_down = y_p
     if shade_ratio is not None:  # as dark as the photo's own shade there, at least
         ratio = np.asarray(shade_ratio, np.float32)
@@ -963,7 +987,11 @@ def anchor_exposure(
     exposure. On synthetic views with true depth ``L`` does not drift, and physics' own error
     moves it: MSE 0.0176 -> 0.0267 on the dev split (20 views; physics alone 0.0363). With
     gains within 25 % left alone: chroma 2.95, MSE 0.0236. The real photos are the judge, so
-    the anchor is on and corrects every gain.
+    the anchor is on and corrects every gain, but for one: a gain below 1 fades to 1 where
+    the new sun newly lights the surface (by how newly lit it is, :func:`_lit`), since ``L``
+    brightens those surfaces less than physics and the truth already (2026-12-05, with
+    :func:`shadow_contrast_floor`'s ``lift_ceiling``: ``models/EVAL.md``, twenty-ninth
+    session).
 
     Returns:
         ``H x W x 3`` sRGB float32.
@@ -977,6 +1005,10 @@ def anchor_exposure(
     y_r = luminance(lin_r) + 1e-4
     y_p = luminance(srgb_to_linear(np.asarray(physics_srgb, np.float32))) + 1e-4
     gain = np.float32(np.median((y_p / y_r)[both]))
+    if gain < 1.0:  # not darkening what the new sun newly lights, by how newly lit it is
+        up = np.clip(_lit(s_new) - _lit(s_old), 0.0, 1.0)
+        g = (gain + up * (1.0 - gain))[..., None]
+        return linear_to_srgb(np.where(sky_mask[..., None], lin_r, lin_r * g))
     return linear_to_srgb(np.where(sky_mask[..., None], lin_r, lin_r * gain))
 
 
@@ -1195,6 +1227,7 @@ def guard_learned_relight(
     shade_shift: tuple[float, float] | None = None,
     lift_fill: np.ndarray | None = None,
     local_shade: bool = True,
+    lift_ceiling: np.ndarray | None = None,
 ) -> np.ndarray:
     """A learned relighting with the real-photo guards the session turns on: first, with
     ``detail``, the photo's fine texture where no shadow changes (:func:`restore_detail`, from
@@ -1303,7 +1336,7 @@ def guard_learned_relight(
             out = shadow_contrast_floor(image_srgb, out, physics, shadow_old, s_new, lift=lift,
                                         lift_guard=lift_guard, lift_cap_srgb=cap,
                                         lift_fill=lift_fill if cap is not None else None,
-                                        shade_ratio=ratio)
+                                        shade_ratio=ratio, lift_ceiling=lift_ceiling)
         if anchor and not ANCHOR_FIRST:
             out = anchor_exposure(image_srgb, out, physics, shadow_old, s_new, sky)
     if held is not None and physics is not None:

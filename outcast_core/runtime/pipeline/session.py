@@ -62,6 +62,7 @@ from outcast_core.runtime.pipeline.depth_post import postprocess_z, run_depth_mo
 from outcast_core.runtime.pipeline.photo_shadows import (
     LIT_FLOOR,
     PRIOR_RADIUS,
+    PRIOR_THRESHOLD,
     SKY_SHADE_SHIFT,
     ShadowEdit,
     apply_edit_masks,
@@ -1685,8 +1686,28 @@ class RelightSession:
                     trust = np.clip(resize(trust, tuple(shape)), 0.0, 1.0)
             guards[key] = (base, lit_old, colour, fill, trust)
         base, lit_old, colour, fill, trust = guards[key]
-        return {"lift_guard": guard, "lift_base": (base, lit_old), "lift_colour": colour,
-                "lift_fill": trust, "physics_fill": fill}
+        out = {"lift_guard": guard, "lift_base": (base, lit_old), "lift_colour": colour,
+               "lift_fill": trust, "physics_fill": fill}
+        if guard is not None:  # the geometry's cast shadows, where the lift may reach physics
+            out["lift_ceiling"] = guard * self._cast_at_photo_sun(tuple(shape))
+        return out
+
+    def _cast_at_photo_sun(self, shape: tuple[int, int]) -> np.ndarray:
+        """Where the geometry casts a shadow at the photo's sun on a surface facing it (``S``
+        below :data:`~outcast_core.runtime.pipeline.photo_shadows.PRIOR_THRESHOLD`, cosine
+        above 0), 0-1 at ``shape``: :func:`~outcast_core.runtime.pipeline.relight.
+        shadow_contrast_floor`'s ``lift_ceiling`` with the lift's guard. Made once per ``S_o``
+        and size."""
+        guards = self._lift_guards
+        key = ("cast", shape)
+        if key not in guards:
+            assert self.normals is not None and self.original_sun is not None
+            cast = ((self._original_geometry < PRIOR_THRESHOLD)
+                    & (cosine_term(self.normals, self.original_sun) > 0.0)).astype(np.float32)
+            if cast.shape != shape:
+                cast = np.clip(resize(cast, shape), 0.0, 1.0)
+            guards[key] = cast
+        return guards[key]
 
     def _lift_guard(self, shape: tuple[int, int]) -> np.ndarray | None:
         """Where a newly lit surface may be lifted to physics' brightness: the photo's found

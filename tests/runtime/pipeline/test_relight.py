@@ -255,6 +255,58 @@ def test_anchor_exposure_takes_the_exposure_of_physics_on_surfaces_lit_under_bot
         anchor_exposure(image, drifted[:4], physics, s_old, s_new, sky)
 
 
+def test_anchor_exposure_does_not_darken_what_the_new_sun_newly_lights() -> None:
+    """A gain below 1 (``L`` brighter than physics where both suns light the surface) fades to
+    1 where the new sun newly lights it: ``L`` brightens those surfaces less than physics and
+    the truth already (held-out renders: newly lit x1.727 -> x1.764 with this alone). A gain
+    above 1 applies everywhere off the sky."""
+    from outcast_core.runtime.pipeline.relight import anchor_exposure
+
+    h, w = 12, 16
+    image = np.full((h, w, 3), 0.4, np.float32)
+    s_old = np.full((h, w), 0.9, np.float32)
+    s_old[:, :4] = 0.0  # newly lit: shadowed under the old sun, lit under the new
+    s_new = np.full((h, w), 0.9, np.float32)
+    sky = np.zeros((h, w), bool)
+    relit = np.full((h, w, 3), 0.6, np.float32)
+    physics = np.full((h, w, 3), 0.5, np.float32)  # L too bright on both-lit: gain < 1
+    out = anchor_exposure(image, relit, physics, s_old, s_new, sky)
+    np.testing.assert_allclose(out[:, :4], relit[:, :4], atol=1e-5)  # newly lit: kept
+    np.testing.assert_allclose(out[:, 4:], physics[:, 4:], atol=2e-3)  # both lit: anchored
+    dim = anchor_exposure(image, np.full_like(relit, 0.4), physics, s_old, s_new, sky)
+    assert dim[:, :4].mean() > 0.45 and dim[:, 4:].mean() == pytest.approx(0.5, abs=2e-3)
+
+
+def test_the_lift_ceiling_lets_a_cast_shadow_rise_to_physics() -> None:
+    """Where ``lift_ceiling`` says the geometry casts a shadow at the photo's sun, the lift
+    rises past the de-shadowed ceiling to physics' level; elsewhere the ceiling holds."""
+    from outcast_core.runtime.geometry.colour import luminance, srgb_to_linear
+    from outcast_core.runtime.pipeline.relight import shadow_contrast_floor
+
+    h, w = 6, 8
+    image = np.full((h, w, 3), 0.2, np.float32)
+    s_old = np.zeros((h, w), np.float32)  # all shadowed under the old sun
+    s_new = np.full((h, w), 0.9, np.float32)  # all lit under the new
+    relit = np.full((h, w, 3), 0.3, np.float32)  # L: timid
+    physics = np.full((h, w, 3), 0.8, np.float32)
+    cap = np.full((h, w, 3), 0.5, np.float32)  # the de-shadowed photo relit: lower
+    ceiling = np.zeros((h, w), np.float32)
+    ceiling[:, 4:] = 1.0  # the geometry's cast shadow on the right half
+    kw = {"lift": True, "lift_cap_srgb": cap}
+    out = shadow_contrast_floor(image, relit, physics, s_old, s_new, lift_ceiling=ceiling, **kw)
+    plain = shadow_contrast_floor(image, relit, physics, s_old, s_new, **kw)
+
+    def y(img: np.ndarray) -> np.ndarray:
+        return luminance(srgb_to_linear(img))
+
+    np.testing.assert_allclose(y(out[:, 4:]), y(physics[:, 4:]), rtol=3e-3)
+    np.testing.assert_allclose(out[:, :4], plain[:, :4], atol=1e-6)
+    np.testing.assert_allclose(y(plain), y(cap), rtol=3e-3)  # without it: the ceiling
+    with pytest.raises(ValueError, match="lift ceiling"):
+        shadow_contrast_floor(image, relit, physics, s_old, s_new, lift_ceiling=ceiling[:2],
+                              **kw)
+
+
 @pytest.mark.parametrize("drift", [0.4, 2.5])
 def test_new_shadows_stay_as_dark_as_physics_whatever_the_anchors_gain(drift: float) -> None:
     """The anchor corrects ``L``'s exposure before the floor compares it with physics, so its
