@@ -1800,12 +1800,10 @@ class MainWindow(QMainWindow):
                 # and the warm area ("Sun found" then "the compass chose it" read as a
                 # contradiction: a user trial; the command line's note says it so too)
                 map_az, map_el = m.best()
-                whose = self._heading_words()
-                whose = whose if whose.startswith("the ") else f"the {whose}"
-                text = (f"Sun placed by {whose}: azimuth {fit.azimuth:.1f}°, elevation "
-                        f"{fit.elevation:.1f}°, confidence {fit.confidence:.2f} (the photo's "
-                        f"shadows fit many suns about as well; alone they fit best near "
-                        f"{map_az:.0f}°, {map_el:.0f}°: the warm area of the dial)")
+                text = (f"Sun placed by {self._heading_words()}: azimuth {fit.azimuth:.1f}°, "
+                        f"elevation {fit.elevation:.1f}°, confidence {fit.confidence:.2f} "
+                        "(the photo's shadows fit many suns about as well; alone they fit "
+                        f"best near {map_az:.0f}°, {map_el:.0f}°: the warm area of the dial)")
                 if result.get("prior") is not None:
                     text += f" · using {self._prior_words(result['prior'])}"
             elif result.get("prior") is not None:
@@ -1897,7 +1895,7 @@ class MainWindow(QMainWindow):
         """What gave the EXIF sun's azimuth, in words: the photo's compass heading, the
         heading from the sun in the frame, or the one the user typed."""
         if self.user_heading is None:
-            return "compass heading"
+            return "the compass heading"
         if self.seen_heading is not None and abs(self.user_heading - self.seen_heading) < 0.05:
             return "the heading from the sun in the frame"
         return "the heading you typed"

@@ -252,7 +252,7 @@ class SunPrior:
             (they did at 0.05, for 0.03 of agreement). No dev photo records a heading.
         description: words for the user ("elevation 38° from the photo's time and place").
         heading_words: what gave ``azimuth``, for the notes: the EXIF's "compass heading" or
-            "heading given" (a heading the user typed; a review: the notes called it the
+            the "camera heading given" (typed by the user; a review: the notes called it the
             compass heading).
     """
 
@@ -320,11 +320,11 @@ def exif_sun_prior(metadata: Any, heading: float | None = None) -> SunPrior | No
         return SunPrior(el, elevation_tolerance=tolerance,
                         description=f"elevation {el:.0f}° from the photo's time and place{zone}")
     az = relative_azimuth(true_az, heading if heading is not None else recorded)
-    whose = "the camera heading given" if heading is not None else "compass heading"
+    words = "camera heading given" if heading is not None else "compass heading"
     return SunPrior(el, az, elevation_tolerance=tolerance,
                     description=f"azimuth {az:.0f}°, elevation {el:.0f}° from the photo's time, "
-                                f"place and {whose}{zone}",
-                    heading_words="heading given" if heading is not None else "compass heading")
+                                f"place and {'the ' if heading is not None else ''}{words}{zone}",
+                    heading_words=words)
 
 
 @dataclass
@@ -1241,8 +1241,7 @@ def find_sun(
                 # How far from the EXIF sun, in degrees of arc: a high sun's azimuth moves
                 # fast (a user trial read 295° against the EXIF's 274° at 67° up, 8° of arc,
                 # as a contradiction).
-                arc = math.degrees(math.acos(float(np.clip(
-                    w_best @ frame.vector(prior.azimuth, prior.elevation), -1.0, 1.0))))
+                arc = _angle_between(w_best, frame.vector(prior.azimuth, prior.elevation))
                 note = (f"sun placed by the {prior.heading_words} among suns the photo's "
                         f"shadows fit about as well, {arc:.0f}° of arc from the EXIF sun "
                         f"(confidence {confidence:.2f}; alone they fit best near azimuth "

@@ -1689,8 +1689,17 @@ class RelightSession:
         out = {"lift_guard": guard, "lift_base": (base, lit_old), "lift_colour": colour,
                "lift_fill": trust, "physics_fill": fill}
         if guard is not None:  # the geometry's cast shadows, where the lift may reach physics
-            out["lift_ceiling"] = guard * self._cast_at_photo_sun(tuple(shape))
+            out["lift_ceiling"] = self._lift_ceiling(guard, tuple(shape))
         return out
+
+    def _lift_ceiling(self, guard: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+        """The lift's guard times :meth:`_cast_at_photo_sun` at ``shape``, made once per
+        ``S_o`` and size (every relighting and drag frame asks for it)."""
+        key = ("ceiling", shape)
+        guards = self._lift_guards
+        if key not in guards:
+            guards[key] = (guard * self._cast_at_photo_sun(shape)).astype(np.float32)
+        return guards[key]
 
     def _cast_at_photo_sun(self, shape: tuple[int, int]) -> np.ndarray:
         """Where the geometry casts a shadow at the photo's sun on a surface facing it (``S``

@@ -166,7 +166,8 @@ def test_exif_sun_prior() -> None:
     assert "the camera heading given" in corrected.description
     assert "compass heading" in full.description
     # The notes name what gave the azimuth (they called a typed heading the compass's).
-    assert (full.heading_words, typed.heading_words) == ("compass heading", "heading given")
+    assert (full.heading_words, typed.heading_words) == ("compass heading",
+                                                         "camera heading given")
 
 
 def test_a_capture_time_without_a_zone_is_read_at_its_longitudes_and_widens_the_prior() -> None:
